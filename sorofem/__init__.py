@@ -1,0 +1,26 @@
+"""sorofem: geometry, meshing, materials and finite elements for soft robots.
+
+Importing ``sorofem`` is cheap: submodules are loaded on first attribute access, and only
+``sorofem.mesh``, ``sorofem.fem`` and ``sorofem.topopt`` import DOLFINx/PETSc/gmsh.
+
+Layer 1 (pure numpy/numba): :mod:`sorofem.units`, :mod:`sorofem.errors`, :mod:`sorofem.sdf`.
+Layer 2 (DOLFINx, UFL, PETSc, SLEPc, gmsh): :mod:`sorofem.mesh`, :mod:`sorofem.materials`,
+:mod:`sorofem.fem`, :mod:`sorofem.topopt`.
+"""
+import importlib
+
+from . import errors, units
+from .errors import *  # noqa: F401,F403  (the hierarchy is small and listed in errors.__all__)
+
+__version__ = "0.1.0"
+
+_SUBMODULES = ("sdf", "mesh", "materials", "fem", "topopt", "snapshots", "cli")
+
+__all__ = ["units", "errors", *_SUBMODULES, *errors.__all__]
+
+
+def __getattr__(name):
+    """Import the submodule ``name`` on first access (PEP 562), so heavy dependencies load only when used."""
+    if name in _SUBMODULES:
+        return importlib.import_module(f"{__name__}.{name}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,0 +1,229 @@
+"""The ``soro`` command.
+
+``soro doctor``
+    Print the versions of the numerical stack (DOLFINx, PETSc, SLEPc, MPI, numba, gmsh, OpenCV, ...), check
+    that a UFL form JIT-compiles and assembles, and that ``mpirun -n 2`` works. Exit status 0 when all is
+    well; otherwise 1, with one line per problem that says how to fix it.
+``soro demo [NAME] [--quick] [--out DIR]``
+    Run ``demos/NAME.py`` (default: ``chain``, the end-to-end job) and write its report (PNG figures and
+    ``report.json``) to ``DIR/NAME/`` (default ``out/NAME/``). ``soro demo --list`` lists the demos.
+
+This module imports only the standard library at load time; every check imports what it tests.
+"""
+import argparse
+import importlib
+import importlib.util
+import json
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+__all__ = ["main", "doctor", "run_demo", "list_demos", "DEMOS_DIR"]
+
+#: Where ``soro demo`` looks for demo scripts (the repository's ``demos/``; ``$SORO_DEMOS`` overrides).
+DEMOS_DIR = Path(os.environ.get("SORO_DEMOS", Path(__file__).resolve().parents[1] / "demos"))
+DEFAULT_DEMO = "chain"
+
+_BOOTSTRAP = "run `bash scripts/bootstrap.sh` from the repository (or `make test`), then use `.venv/bin/soro`"
+
+
+def _mpi_env():
+    """Environment for ``mpirun``: Debian's OpenMPI refuses to run as root without these two variables."""
+    env = dict(os.environ)
+    env.setdefault("OMPI_ALLOW_RUN_AS_ROOT", "1")
+    env.setdefault("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+    env.setdefault("OMPI_MCA_rmaps_base_oversubscribe", "1")
+    return env
+
+
+# (label, module, version getter, fix hint)
+_PACKAGES = [
+    ("numpy", "numpy", lambda m: m.__version__, "apt-get install python3-numpy; " + _BOOTSTRAP),
+    ("scipy", "scipy", lambda m: m.__version__, "apt-get install python3-scipy; " + _BOOTSTRAP),
+    ("numba", "numba", lambda m: m.__version__, "apt-get install python3-numba; " + _BOOTSTRAP),
+    ("gmsh", "gmsh", lambda m: m.__version__, "apt-get install python3-gmsh; " + _BOOTSTRAP),
+    ("meshio", "meshio", lambda m: m.__version__, "apt-get install python3-meshio; " + _BOOTSTRAP),
+    ("h5py", "h5py", lambda m: m.__version__, "apt-get install python3-h5py; " + _BOOTSTRAP),
+    ("matplotlib", "matplotlib", lambda m: m.__version__, "apt-get install python3-matplotlib; " + _BOOTSTRAP),
+    ("mpi4py", "mpi4py", lambda m: m.__version__, "apt-get install python3-mpi4py; " + _BOOTSTRAP),
+    ("MPI library", "mpi4py.MPI", lambda m: m.Get_library_version().splitlines()[0].strip(),
+     "apt-get install openmpi-bin python3-mpi4py; " + _BOOTSTRAP),
+    ("PETSc", "petsc4py.PETSc", lambda m: ".".join(map(str, m.Sys.getVersion())),
+     "apt-get install python3-petsc4py; " + _BOOTSTRAP),
+    ("SLEPc", "slepc4py.SLEPc", lambda m: ".".join(map(str, m.Sys.getVersion())),
+     "apt-get install python3-slepc4py; " + _BOOTSTRAP),
+    ("DOLFINx", "dolfinx", lambda m: m.__version__,
+     "apt-get install python3-dolfinx (Debian bookworm ships 0.5.2); " + _BOOTSTRAP),
+    ("OpenCV", "cv2", lambda m: m.__version__,
+     "pip install opencv-python-headless into the project's venv; " + _BOOTSTRAP),
+    ("tqdm", "tqdm", lambda m: m.__version__, "pip install tqdm into the project's venv; " + _BOOTSTRAP),
+]
+
+
+def _check_packages():
+    rows, problems = [], []
+    for label, module, version, fix in _PACKAGES:
+        try:
+            mod = importlib.import_module(module)
+            rows.append((label, str(version(mod)), getattr(mod, "__file__", "") or ""))
+        except Exception as e:  # noqa: BLE001 - any import failure is a problem to report, not to raise
+            rows.append((label, "MISSING", f"{type(e).__name__}: {e}"))
+            problems.append(f"{label} cannot be imported ({type(e).__name__}: {e}). Fix: {fix}")
+    return rows, problems
+
+
+def _check_debian_numpy():
+    """numpy must be Debian's build: DOLFINx, SciPy and numba were compiled against it."""
+    try:
+        import numpy
+    except ImportError:
+        return []  # already reported
+    if not numpy.__file__.startswith("/usr/lib/python3/"):
+        return [f"numpy {numpy.__version__} is loaded from {numpy.__file__}, not Debian's /usr/lib/python3: "
+                "a pip-installed numpy shadows the one DOLFINx was built against. Fix: "
+                "`.venv/bin/pip uninstall numpy`, then " + _BOOTSTRAP + " (it pins numpy with a constraints file)"]
+    return []
+
+
+def _check_jit():
+    """Compile and assemble a small UFL form: integral of 1 over the unit square must be 1."""
+    import logging
+    t0 = time.perf_counter()
+    logging.disable(logging.INFO)  # FFCx logs every compiler call at INFO on the root logger
+    try:
+        from mpi4py import MPI
+        import ufl
+        import dolfinx.fem
+        import dolfinx.mesh
+        msh = dolfinx.mesh.create_unit_square(MPI.COMM_SELF, 2, 2)
+        one = dolfinx.fem.Constant(msh, 1.0)
+        value = dolfinx.fem.assemble_scalar(dolfinx.fem.form(one * ufl.dx(domain=msh)))
+    except Exception as e:  # noqa: BLE001
+        return f"failed ({type(e).__name__}: {e})", [
+            f"a UFL form does not JIT-compile ({type(e).__name__}: {e}). Fix: check that gcc and "
+            "python3-dev are installed (apt-get install build-essential python3-dev) and that "
+            "~/.cache/fenics is writable; " + _BOOTSTRAP]
+    finally:
+        logging.disable(logging.NOTSET)
+    if abs(value - 1.0) > 1e-12:
+        return f"wrong result {value}", [f"a JIT-compiled form gave {value} instead of 1.0: the FEniCSx "
+                                         "installation is broken; reinstall python3-dolfinx"]
+    return f"ok ({time.perf_counter() - t0:.1f} s)", []
+
+
+def _check_mpi():
+    """Run two ranks that sum their ranks with an allreduce."""
+    mpirun = shutil.which("mpirun")
+    if mpirun is None:
+        return "mpirun not found", ["mpirun is not on PATH. Fix: apt-get install openmpi-bin"]
+    # only rank 0 prints: output of two ranks interleaves character by character
+    code = ("from mpi4py import MPI; c = MPI.COMM_WORLD; s = c.allreduce(c.rank)\n"
+            "if c.rank == 0: print(c.size, s)")
+    try:
+        res = subprocess.run([mpirun, "-n", "2", sys.executable, "-c", code], capture_output=True, text=True,
+                             timeout=120, env=_mpi_env(), stdin=subprocess.DEVNULL)
+    except subprocess.TimeoutExpired:
+        return "timed out", ["`mpirun -n 2` did not finish in 120 s. Fix: check that no firewall or hostname "
+                             "lookup blocks OpenMPI (try `mpirun -n 2 hostname`)"]
+    lines = res.stdout.split()
+    if res.returncode != 0 or lines != ["2", "1"]:
+        return f"failed (exit {res.returncode})", [
+            f"`mpirun -n 2 python` failed (exit {res.returncode}): {res.stderr.strip()[-300:]} Fix: "
+            "apt-get install openmpi-bin python3-mpi4py; as root set OMPI_ALLOW_RUN_AS_ROOT=1 and "
+            "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1"]
+    return "ok (2 ranks)", []
+
+
+def doctor(stream=None):
+    """Check the installation; print a report to ``stream`` (default stdout). Return the exit status."""
+    out = stream or sys.stdout
+    print(f"soro doctor — Python {platform.python_version()} at {sys.executable}", file=out)
+    rows, problems = _check_packages()
+    width = max(len(r[0]) for r in rows)
+    for label, version, where in rows:
+        print(f"  {label:<{width}}  {version}", file=out)
+    problems += _check_debian_numpy()
+    have_dolfinx = all(r[1] != "MISSING" for r in rows if r[0] in ("DOLFINx", "mpi4py"))
+    if have_dolfinx:
+        status, p = _check_jit()
+        problems += p
+    else:
+        status = "skipped (DOLFINx missing)"
+    print(f"  {'form JIT':<{width}}  {status}", file=out)
+    status, p = _check_mpi()
+    problems += p
+    print(f"  {'mpirun -n 2':<{width}}  {status}", file=out)
+    if problems:
+        print(f"\n{len(problems)} problem(s):", file=out)
+        for p in problems:
+            print(f"  - {p}", file=out)
+        return 1
+    print("\nall checks passed", file=out)
+    return 0
+
+
+def list_demos():
+    """Names of the demos in :data:`DEMOS_DIR` (files ``NAME.py`` not starting with ``_``)."""
+    return sorted(p.stem for p in DEMOS_DIR.glob("*.py") if not p.name.startswith("_"))
+
+
+def run_demo(name=DEFAULT_DEMO, out="out", quick=False):
+    """Run ``demos/<name>.py``'s ``main(out_dir, quick)`` and write ``<out>/<name>/report.json``.
+
+    Returns the summary dict the demo returned, completed with its wall time.
+    """
+    from .io import write_json
+
+    path = DEMOS_DIR / f"{name}.py"
+    if not path.is_file():
+        raise SystemExit(f"no demo named {name!r}; available: {', '.join(list_demos()) or 'none'} "
+                         f"(looked in {DEMOS_DIR})")
+    spec = importlib.util.spec_from_file_location(f"soro_demo_{name}", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    out_dir = Path(out) / name
+    out_dir.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    summary = module.main(out_dir, quick=quick)
+    summary = dict(summary or {})
+    summary.setdefault("demo", name)
+    summary["quick"] = bool(quick)
+    summary["wall_time_s"] = round(time.perf_counter() - t0, 3)
+    write_json(out_dir / "report.json", summary)
+    return summary
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="soro", description="Soft-robot design, simulation and control.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    sub.add_parser("doctor", help="check the installation and print versions")
+    p = sub.add_parser("demo", help="run a demo and write its report to out/NAME/")
+    p.add_argument("name", nargs="?", default=DEFAULT_DEMO, help=f"demo name (default: {DEFAULT_DEMO})")
+    p.add_argument("--quick", action="store_true", help="short run (what the tests use)")
+    p.add_argument("--out", default="out", help="output directory (default: out)")
+    p.add_argument("--list", action="store_true", help="list the demos and exit")
+    args = parser.parse_args(argv)
+
+    if args.command == "doctor":
+        return doctor()
+    if args.command == "demo":
+        if args.list:
+            print("\n".join(list_demos()))
+            return 0
+        try:
+            summary = run_demo(args.name, out=args.out, quick=args.quick)
+        except KeyboardInterrupt:
+            print("interrupted", file=sys.stderr)
+            return 130
+        print(json.dumps(summary, indent=2, default=str))
+        print(f"report: {Path(args.out) / args.name / 'report.json'}")
+        return 0
+    return 2  # pragma: no cover - argparse rejects unknown commands
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

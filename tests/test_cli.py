@@ -1,0 +1,57 @@
+"""The `soro` command: doctor (versions, JIT, MPI, fixes) and the demo runner."""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from sorofem import cli
+
+SORO = [sys.executable, "-m", "sorofem.cli"]
+
+
+@pytest.mark.slow
+def test_doctor_passes_and_prints_every_version(subprocess_env):
+    res = subprocess.run([*SORO, "doctor"], capture_output=True, text=True, env=subprocess_env, timeout=300)
+    assert res.returncode == 0, res.stdout + res.stderr
+    for label in ("DOLFINx", "PETSc", "SLEPc", "MPI library", "numba", "gmsh", "OpenCV", "form JIT", "mpirun -n 2"):
+        line = next((ln for ln in res.stdout.splitlines() if ln.strip().startswith(label)), None)
+        assert line is not None, f"{label} missing from doctor output"
+        assert "MISSING" not in line and "failed" not in line, line
+    assert "0.5.2" in res.stdout  # Debian's DOLFINx
+
+
+def test_doctor_without_dolfinx_fails_with_the_fix(tmp_path, subprocess_env):
+    """Shadow DOLFINx with a package that cannot be imported: doctor must exit 1 and say how to fix it."""
+    fake = tmp_path / "dolfinx"
+    fake.mkdir()
+    (fake / "__init__.py").write_text("raise ImportError('No module named dolfinx (test shadow)')\n")
+    env = {**subprocess_env, "PYTHONPATH": str(tmp_path)}
+    res = subprocess.run([*SORO, "doctor"], capture_output=True, text=True, env=env, timeout=300)
+    assert res.returncode == 1
+    assert "DOLFINx" in res.stdout and "MISSING" in res.stdout
+    assert "apt-get install python3-dolfinx" in res.stdout
+    assert "scripts/bootstrap.sh" in res.stdout
+
+
+def test_demo_list_and_unknown_demo(capsys):
+    assert cli.main(["demo", "--list"]) == 0
+    names = capsys.readouterr().out.split()
+    assert cli.DEFAULT_DEMO in names
+    with pytest.raises(SystemExit, match="no demo named 'nope'"):
+        cli.run_demo("nope")
+
+
+def test_run_demo_writes_report(tmp_path, monkeypatch):
+    demos = tmp_path / "demos"
+    demos.mkdir()
+    (demos / "tiny.py").write_text("def main(out, quick=False):\n"
+                                   "    (out / 'x.txt').write_text('hi')\n"
+                                   "    return {'value': 2.5}\n")
+    monkeypatch.setattr(cli, "DEMOS_DIR", demos)
+    summary = cli.run_demo("tiny", out=tmp_path / "out", quick=True)
+    report = json.loads((tmp_path / "out/tiny/report.json").read_text())
+    assert report["value"] == 2.5 and report["quick"] is True and report["demo"] == "tiny"
+    assert summary["wall_time_s"] >= 0
+    assert (tmp_path / "out/tiny/x.txt").read_text() == "hi"

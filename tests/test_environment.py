@@ -1,0 +1,79 @@
+"""The environment that scripts/bootstrap.sh makes: Debian's numerical stack, consistent requirements,
+an idempotent bootstrap, and a clear refusal on a non-Debian system."""
+import importlib.metadata as md
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from packaging.requirements import Requirement
+
+DEBIAN = "/usr/lib/python3/dist-packages/"
+DEBIAN_ROOT = "/usr/lib/"  # DOLFINx and petsc4py live under /usr/lib/petsc/lib/python3/dist-packages
+
+
+@pytest.mark.parametrize("module", ["numpy", "scipy", "numba", "dolfinx", "petsc4py", "gmsh"])
+def test_numerical_stack_is_debians(module):
+    mod = __import__(module)
+    assert mod.__file__.startswith(DEBIAN_ROOT), f"{module} loaded from {mod.__file__}, expected Debian's /usr/lib"
+
+
+def test_single_numpy_distribution():
+    """A pip-installed numpy next to Debian's would shadow it for some processes and not others."""
+    locations = {str(Path(d._path).parent) for d in md.distributions() if d.metadata["Name"].lower() == "numpy"}
+    assert locations == {DEBIAN.rstrip("/")}, f"numpy distributions found in {sorted(locations)}"
+
+
+def _closure(root, extras=()):
+    """Requirements reachable from ``root[extras]``, as (parent, Requirement) pairs (markers evaluated)."""
+    seen, todo, pairs = set(), [(root, tuple(extras))], []
+    while todo:
+        name, ex = todo.pop()
+        if (name.lower(), ex) in seen:
+            continue
+        seen.add((name.lower(), ex))
+        for text in md.requires(name) or []:
+            req = Requirement(text)
+            env_ok = any(req.marker is None or req.marker.evaluate({"extra": e}) for e in (ex or ("",)))
+            if env_ok:
+                pairs.append((name, req))
+                todo.append((req.name, tuple(req.extras)))
+    return pairs
+
+
+def test_requirement_closure_is_satisfied():
+    """`pip check` restricted to what the project uses (Debian's unrelated system packages are ignored)."""
+    problems = []
+    for parent, req in _closure("soro", extras=("extras",)):
+        try:
+            have = md.version(req.name)
+        except md.PackageNotFoundError:
+            problems.append(f"{parent} requires {req}, which is not installed")
+            continue
+        if req.specifier and not req.specifier.contains(have, prereleases=True):
+            problems.append(f"{parent} requires {req}, but {have} is installed")
+    assert not problems, "\n".join(problems)
+
+
+def test_bootstrap_second_run_changes_nothing(repo):
+    venv = Path(sys.prefix)
+    if not (venv / ".bootstrap-stamp").exists():
+        pytest.skip("not running from the bootstrapped venv")
+    site = next(venv.glob("lib/python3*/site-packages"))
+    before = sorted((p.name, p.stat().st_mtime_ns) for p in site.iterdir())
+    res = subprocess.run(["bash", str(repo / "scripts/bootstrap.sh")], capture_output=True, text=True,
+                         env={**os.environ, "SORO_VENV": str(venv)})
+    assert res.returncode == 0, res.stderr
+    assert "up to date" in res.stdout
+    after = sorted((p.name, p.stat().st_mtime_ns) for p in site.iterdir())
+    assert after == before
+
+
+def test_bootstrap_refuses_non_debian(repo, tmp_path):
+    (tmp_path / "etc").mkdir()
+    res = subprocess.run(["bash", str(repo / "scripts/bootstrap.sh")], capture_output=True, text=True,
+                         env={**os.environ, "SORO_BOOTSTRAP_ROOT": str(tmp_path), "SORO_VENV": str(tmp_path / "v")})
+    assert res.returncode == 1
+    assert "needs Debian" in res.stderr and "container" in res.stderr
+    assert not (tmp_path / "v").exists(), "nothing may be created on a refused system"
