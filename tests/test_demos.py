@@ -1,0 +1,34 @@
+"""Every demo runs in its short mode and reports its key figure (checked here against the reference)."""
+import json
+
+import pytest
+
+from sorofem import cli
+
+
+def _run(name, tmp_path):
+    summary = cli.run_demo(name, out=tmp_path, quick=True)
+    report = json.loads((tmp_path / name / "report.json").read_text())
+    assert report == json.loads(json.dumps(summary)), "report.json must hold what the demo returned"
+    return report, tmp_path / name
+
+
+def test_every_demo_has_a_check():
+    assert set(cli.list_demos()) == set(CHECKS), "add a check for each demo to CHECKS below"
+
+
+def check_chain(report, out):
+    assert report["area_error_rel"] < 1e-10  # a structured mesh of a rectangle covers it exactly
+    assert (out / "mesh.png").stat().st_size > 0
+
+
+CHECKS = {
+    "chain": check_chain,
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(CHECKS))
+def test_demo(name, tmp_path):
+    report, out = _run(name, tmp_path)
+    CHECKS[name](report, out)
