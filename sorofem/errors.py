@@ -4,6 +4,7 @@ Every error the platform raises on purpose is a :class:`SoroError`, so a script 
 and a subclass names the layer that failed. Messages say what went wrong *and what to do about it*.
 
 ``SoroError``
+    ├── ``ParameterError``     a non-physical or inconsistent parameter (negative modulus, nu >= 0.5, ...)
     ├── ``GeometryError``      bad shapes or geometric queries (empty shape, self-intersecting polygon, ...)
     ├── ``MeshError``          meshing failed or produced an unusable mesh
     ├── ``ConvergenceError``   a solver did not converge (says which step, which residual, what to try)
@@ -11,12 +12,13 @@ and a subclass names the layer that failed. Messages say what went wrong *and wh
     ├── ``SafetyError``        a command that would break a pressure or rate limit
     └── ``DependencyError``   a missing or broken dependency (``soro doctor`` tells how to fix it)
 
-``GeometryError`` and ``MeshError`` are also ``ValueError`` so that generic input validation code that
+``ParameterError``, ``GeometryError`` and ``MeshError`` are also ``ValueError`` so that generic input validation code that
 expects ``ValueError`` keeps working.
 """
 
 __all__ = [
     "SoroError",
+    "ParameterError",
     "GeometryError",
     "MeshError",
     "ConvergenceError",
@@ -28,6 +30,10 @@ __all__ = [
 
 class SoroError(Exception):
     """Base class of every error raised on purpose by the platform."""
+
+
+class ParameterError(SoroError, ValueError):
+    """A parameter is non-physical or inconsistent (negative modulus, Poisson ratio outside (-1, 0.5), ...)."""
 
 
 class GeometryError(SoroError, ValueError):
