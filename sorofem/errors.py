@@ -7,6 +7,7 @@ and a subclass names the layer that failed. Messages say what went wrong *and wh
     ├── ``ParameterError``     a non-physical or inconsistent parameter (negative modulus, nu >= 0.5, ...)
     ├── ``GeometryError``      bad shapes or geometric queries (empty shape, self-intersecting polygon, ...)
     ├── ``MeshError``          meshing failed or produced an unusable mesh
+    ├── ``DataError``          a result file or data set is missing, corrupt, of another version, or non-finite
     ├── ``ConvergenceError``   a solver did not converge (says which step, which residual, what to try)
     ├── ``ProtocolError``      a malformed or unexpected message on the board link
     ├── ``SafetyError``        a command that would break a pressure or rate limit
@@ -21,6 +22,7 @@ __all__ = [
     "ParameterError",
     "GeometryError",
     "MeshError",
+    "DataError",
     "ConvergenceError",
     "ProtocolError",
     "SafetyError",
@@ -42,6 +44,10 @@ class GeometryError(SoroError, ValueError):
 
 class MeshError(SoroError, ValueError):
     """Meshing failed or produced a mesh that cannot be used (quality, missing regions, unreadable file)."""
+
+
+class DataError(SoroError, ValueError):
+    """A result file or data set is missing, corrupt, of an unsupported version, or holds non-finite values."""
 
 
 class ConvergenceError(SoroError, RuntimeError):

@@ -17,7 +17,7 @@ def test_units_convert_to_si():
     assert 1 * units.psi == pytest.approx(6894.757, rel=1e-6)
 
 
-@pytest.mark.parametrize("cls", [errors.ParameterError, errors.GeometryError, errors.MeshError, errors.ConvergenceError,
+@pytest.mark.parametrize("cls", [errors.ParameterError, errors.GeometryError, errors.MeshError, errors.DataError, errors.ConvergenceError,
                                  errors.ProtocolError, errors.SafetyError, errors.DependencyError])
 def test_every_error_is_a_soro_error(cls):
     assert issubclass(cls, errors.SoroError)
