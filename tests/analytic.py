@@ -1,0 +1,82 @@
+"""Closed-form and semi-analytic references for the validation tests (derivations in the docstrings).
+
+Every function takes SI inputs and returns SI outputs. They depend on numpy/scipy only.
+"""
+import numpy as np
+from scipy.integrate import quad, solve_bvp
+
+__all__ = ["cylinder_inflation_pressure", "sphere_inflation_pressure", "elastica_tip", "cantilever_frequencies",
+           "EULER_BERNOULLI_BETA_L"]
+
+#: Roots of cos(bL) cosh(bL) = -1: clamped-free Euler-Bernoulli beam, first three bending modes.
+EULER_BERNOULLI_BETA_L = (1.8751040687, 4.6940911330, 7.8547574382)
+
+
+def cylinder_inflation_pressure(mu, A, B, a):
+    """Inner pressure [Pa] that inflates an incompressible Neo-Hookean thick cylinder (plane strain) from inner
+    radius ``A`` to ``a`` (outer radius ``B``).
+
+    Incompressibility in plane strain: :math:`r^2 - a^2 = R^2 - A^2`. Radial equilibrium
+    :math:`d\\sigma_{rr}/dr + (\\sigma_{rr} - \\sigma_{\\theta\\theta})/r = 0` with :math:`\\sigma_{rr}(b) = 0`,
+    :math:`\\sigma_{rr}(a) = -p` and :math:`\\sigma_{\\theta\\theta} - \\sigma_{rr} = \\mu(\\lambda^2 - \\lambda^{-2})`,
+    :math:`\\lambda = r/R`, give :math:`p = \\int_a^b \\mu(\\lambda^2 - \\lambda^{-2})\\, dr / r`.
+    """
+    c = a * a - A * A
+    b = np.sqrt(B * B + c)
+
+    def integrand(r):
+        lam2 = r * r / (r * r - c)
+        return mu * (lam2 - 1.0 / lam2) / r
+    return quad(integrand, a, b, epsabs=0, epsrel=1e-12)[0]
+
+
+def sphere_inflation_pressure(mu, A, B, a):
+    """Inner pressure [Pa] inflating an incompressible Neo-Hookean thick sphere from inner radius ``A`` to ``a``.
+
+    Incompressibility :math:`r^3 - a^3 = R^3 - A^3`; with :math:`\\lambda = r/R`,
+    :math:`\\sigma_{\\theta\\theta} - \\sigma_{rr} = \\mu(\\lambda^2 - \\lambda^{-4})` and equilibrium
+    :math:`d\\sigma_{rr}/dr + 2(\\sigma_{rr} - \\sigma_{\\theta\\theta})/r = 0`:
+    :math:`p = \\int_a^b 2\\mu(\\lambda^2 - \\lambda^{-4})\\, dr / r`.
+    """
+    c = a**3 - A**3
+    b = np.cbrt(B**3 + c)
+
+    def integrand(r):
+        lam = r / np.cbrt(r**3 - c)
+        return 2 * mu * (lam**2 - lam**-4) / r
+    return quad(integrand, a, b, epsabs=0, epsrel=1e-12)[0]
+
+
+def elastica_tip(L, EI, P, n=400):
+    """Tip displacement (dx, dy) [m] of an inextensible clamped elastica of length ``L`` [m] and bending stiffness
+    ``EI`` [N m^2] under a dead transverse tip force ``P`` [N] (along -y).
+
+    With the slope :math:`\\theta(s)`, the moment :math:`EI\\,\\theta'(s) = -P\\,(x(L) - x(s))` gives
+    :math:`EI\\,\\theta'' = P\\cos\\theta`,
+    :math:`\\theta(0) = 0` (clamped), :math:`\\theta'(L) = 0` (free end); then :math:`x' = \\cos\\theta`,
+    :math:`y' = \\sin\\theta`. Solved with scipy's collocation BVP solver (tolerance 1e-10) from the linear
+    solution as initial guess; ``dx = x(L) - L`` and ``dy = y(L)``.
+    """
+    s = np.linspace(0.0, L, n)
+    k = P / EI
+
+    def rhs(s, y):  # y = [theta, theta', x, y]
+        return np.vstack([y[1], k * np.cos(y[0]), np.cos(y[0]), np.sin(y[0])])
+
+    def bc(ya, yb):
+        return np.array([ya[0], yb[1], ya[2], ya[3]])
+
+    guess = np.zeros((4, n))
+    guess[0] = -k * (L * s - s * s / 2)
+    guess[1] = -k * (L - s)
+    guess[2] = s
+    sol = solve_bvp(rhs, bc, s, guess, tol=1e-10, max_nodes=100000)
+    if not sol.success:
+        raise RuntimeError(f"elastica BVP did not converge: {sol.message}")
+    return sol.y[2, -1] - L, sol.y[3, -1]
+
+
+def cantilever_frequencies(L, E, I, rho, A, n=3):
+    """First ``n`` (<= 3) bending frequencies [Hz] of a clamped-free Euler-Bernoulli beam:
+    :math:`f_k = (\\beta_k L)^2 / (2\\pi L^2) \\sqrt{EI/(\\rho A)}`."""
+    return [(bl**2) / (2 * np.pi * L**2) * np.sqrt(E * I / (rho * A)) for bl in EULER_BERNOULLI_BETA_L[:n]]
