@@ -33,13 +33,12 @@ Examples
 """
 import datetime
 import json
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from .errors import DataError
+from .io import atomic_path
 
 __all__ = ["SnapshotWriter", "Snapshots", "FORMAT", "VERSION", "CELL_TYPES", "cell_deformation_gradients"]
 
@@ -111,11 +110,9 @@ class SnapshotWriter:
         self.n_vertices = len(vertices)
         self.n_steps = 0
         self._series = {}
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".h5", dir=self.path.parent)
-        os.close(fd)
-        self._tmp = Path(tmp)
         h5 = _h5py()
+        self._atomic = atomic_path(self.path, suffix=".h5")
+        self._tmp = self._atomic.__enter__()
         self._f = h5.File(self._tmp, "w")
         f = self._f
         f.attrs.update(format=FORMAT, version=VERSION, units="SI",
@@ -180,14 +177,15 @@ class SnapshotWriter:
         if self._f is not None:
             self._f.close()
             self._f = None
-            os.replace(self._tmp, self.path)
+            self._atomic.__exit__(None, None, None)
 
     def abort(self):
         """Discard the file (nothing is left at ``path``; a previous file there is kept)."""
         if self._f is not None:
             self._f.close()
             self._f = None
-        self._tmp.unlink(missing_ok=True)
+            aborted = DataError(f"writing {self.path} was aborted")
+            self._atomic.__exit__(DataError, aborted, None)  # removes the temporary file
 
     def __enter__(self):
         return self

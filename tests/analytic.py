@@ -22,6 +22,8 @@ def cylinder_inflation_pressure(mu, A, B, a):
     :math:`\\lambda = r/R`, give :math:`p = \\int_a^b \\mu(\\lambda^2 - \\lambda^{-2})\\, dr / r`.
     """
     c = a * a - A * A
+    if c == 0:
+        return 0.0
     b = np.sqrt(B * B + c)
 
     def integrand(r):
@@ -39,6 +41,8 @@ def sphere_inflation_pressure(mu, A, B, a):
     :math:`p = \\int_a^b 2\\mu(\\lambda^2 - \\lambda^{-4})\\, dr / r`.
     """
     c = a**3 - A**3
+    if c == 0:
+        return 0.0
     b = np.cbrt(B**3 + c)
 
     def integrand(r):

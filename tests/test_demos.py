@@ -22,8 +22,16 @@ def check_chain(report, out):
     assert (out / "mesh.png").stat().st_size > 0
 
 
+def check_sdf_gallery(report, out):
+    assert report["sphere_volume_error_rel"] < 0.01  # marching cubes at the default resolution
+    assert report["seed2d_area_error_rel"] < 1e-3
+    assert report["stl_files"] == len(list(out.glob("*.stl"))) >= 4
+    assert report["png_files"] == len(list(out.glob("*.png"))) >= 4
+
+
 CHECKS = {
     "chain": check_chain,
+    "sdf_gallery": check_sdf_gallery,
 }
 
 

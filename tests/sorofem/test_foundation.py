@@ -41,6 +41,16 @@ def test_atomic_write_keeps_old_file_on_failure(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["result.json"], "temporary file left behind"
 
 
+def test_atomic_write_makes_ordinary_file_permissions(tmp_path):
+    import os
+    import stat
+    with io.atomic_path(tmp_path / "a.txt") as tmp:
+        tmp.write_text("x")
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE((tmp_path / "a.txt").stat().st_mode) == 0o666 & ~umask
+
+
 def test_write_json_refuses_nan_and_names_the_key(tmp_path):
     target = tmp_path / "r.json"
     with pytest.raises(ValueError, match=r"summary.metrics\[1\] is nan"):
