@@ -91,9 +91,10 @@ def _check_debian_numpy():
 
 def _check_jit():
     """Compile and assemble a small UFL form: integral of 1 over the unit square must be 1."""
-    import logging
+    from ._jit import silence_compiler_logs
+
+    silence_compiler_logs()
     t0 = time.perf_counter()
-    logging.disable(logging.INFO)  # FFCx logs every compiler call at INFO on the root logger
     try:
         from mpi4py import MPI
         import ufl
@@ -107,8 +108,6 @@ def _check_jit():
             f"a UFL form does not JIT-compile ({type(e).__name__}: {e}). Fix: check that gcc and "
             "python3-dev are installed (apt-get install build-essential python3-dev) and that "
             "~/.cache/fenics is writable; " + _BOOTSTRAP]
-    finally:
-        logging.disable(logging.NOTSET)
     if abs(value - 1.0) > 1e-12:
         return f"wrong result {value}", [f"a JIT-compiled form gave {value} instead of 1.0: the FEniCSx "
                                          "installation is broken; reinstall python3-dolfinx"]

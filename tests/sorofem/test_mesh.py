@@ -1,0 +1,310 @@
+"""Tests of sorofem.mesh: SDF/image/file → DOLFINx meshes with named regions, quality and I/O.
+
+Reference values are exact (areas, volumes, perimeters of the primitives). Tolerances:
+* exact (OpenCASCADE) boundaries with order-2 cells: the geometry error is O(h^3) on curved edges; 1e-3.
+* polygonal (order-1) boundaries: a circle of radius r discretised with chords of length h loses
+  about (h/r)^2/6 of its area (relative); tolerances are set from that bound.
+* images: the boundary is within half a pixel of the true one, so |dA| <= perimeter * pixel / 2.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from sorofem import sdf
+from sorofem.errors import GeometryError, MeshError
+from sorofem.units import mm
+
+mesh_mod = pytest.importorskip("sorofem.mesh")
+Mesh = mesh_mod.Mesh
+
+W, H, R, XC = 40 * mm, 10 * mm, 2 * mm, 8 * mm
+
+
+def two_holes():
+    return sdf.Rectangle(W, H) - sdf.Circle(R, center=(-XC, 0)) - sdf.Circle(R, center=(XC, 0))
+
+
+def pneunet():
+    """PneuNet-like section: rounded body with two internal chambers of different sizes."""
+    body = sdf.RoundedRectangle(W, H, radius=2 * mm)
+    c0 = sdf.Rectangle(8 * mm, 4 * mm, center=(-9 * mm, 0.5 * mm))
+    c1 = sdf.Rectangle(10 * mm, 5 * mm, center=(9 * mm, 0.5 * mm))
+    return body - c0 - c1
+
+
+EXACT_TWO_HOLES = W * H - 2 * math.pi * R**2
+
+
+@pytest.fixture(scope="module")
+def holes_p2():
+    return Mesh.from_sdf(two_holes(), size=1 * mm, order=2)
+
+
+# ----------------------------------------------------------------------------------------------- 2D areas
+@pytest.mark.parametrize("method,order,rtol", [
+    # inscribed polygons with chords h=1mm on r=2mm lose theta^2/6 (theta = h/r) of each hole's area:
+    # 2 pi r^2 (h/r)^2 / 6 / A = 2.8e-3 of the body's area at most (gmsh's chords are a bit shorter)
+    ("csg", 1, 3e-3),
+    ("csg", 2, 1e-4),
+    ("levelset", 1, 3e-3),  # same bound (vertices are projected onto the exact circles)
+    ("levelset", 2, 1e-4),  # order-2 boundary nodes are projected onto the exact circle
+])
+def test_area_of_rectangle_minus_circles(method, order, rtol):
+    msh = Mesh.from_sdf(two_holes(), size=1 * mm, method=method, order=order)
+    assert msh.area == pytest.approx(EXACT_TWO_HOLES, rel=rtol)
+    assert msh.quality["degree"] == order
+
+
+def test_cavities_found_ordered_and_measured(holes_p2):
+    msh = holes_p2
+    assert msh.cavities == ["cavity_0", "cavity_1"]
+    for name in ("cavity_0", "cavity_1"):
+        assert msh.measure(name) == pytest.approx(2 * math.pi * R, rel=1e-4)
+        assert msh.cavity_volume(name) == pytest.approx(math.pi * R**2, rel=5e-4)  # order-2 arcs at h/r = 0.5: enclosed area within ~1e-4
+    x0 = msh.dolfinx.geometry.x[:, 0]
+    # cavity_0 is the left hole (ordered by centroid x)
+    import dolfinx.mesh
+    mid0 = dolfinx.mesh.compute_midpoints(msh.dolfinx, 1, msh.facets("cavity_0"))[:, 0]
+    mid1 = dolfinx.mesh.compute_midpoints(msh.dolfinx, 1, msh.facets("cavity_1"))[:, 0]
+    assert mid0.mean() == pytest.approx(-XC, abs=0.01 * mm) and mid1.mean() == pytest.approx(XC, abs=0.01 * mm)
+    assert x0.min() == pytest.approx(-W / 2)
+
+
+def test_sides_have_the_right_lengths(holes_p2):
+    msh = holes_p2
+    assert {"left", "right", "top", "bottom"} <= set(msh.regions)
+    assert msh.measure("left") == pytest.approx(H, rel=1e-12)
+    assert msh.measure("right") == pytest.approx(H, rel=1e-12)
+    assert msh.measure("top") == pytest.approx(W, rel=1e-12)
+    assert msh.measure("bottom") == pytest.approx(W, rel=1e-12)
+    assert "front" not in msh.regions
+
+
+def test_pneunet_chambers_levelset_and_csg():
+    shape = pneunet()
+    exact = (W * H - (4 - math.pi) * (2 * mm) ** 2) - 8 * mm * 4 * mm - 10 * mm * 5 * mm
+    for method in ("csg", "levelset"):
+        msh = Mesh.from_sdf(shape, size=0.5 * mm, method=method)
+        assert msh.cavities == ["cavity_0", "cavity_1"], method
+        assert msh.measure("cavity_0") == pytest.approx(2 * (8 + 4) * mm, rel=1e-6), method
+        assert msh.measure("cavity_1") == pytest.approx(2 * (10 + 5) * mm, rel=1e-6), method
+        assert msh.cavity_volume("cavity_1") == pytest.approx(50 * mm**2, rel=1e-6), method
+        assert msh.area == pytest.approx(exact, rel=2e-3), method
+        # rounded corners: the flat part of the left side is H - 2 r (exact with CSG; the level-set boundary
+        # may stop one segment (0.5 mm) short of each tangent point)
+        if method == "csg":
+            assert msh.measure("left") == pytest.approx(H - 4 * mm, rel=1e-6)
+        else:
+            assert H - 4 * mm - 1.01 * mm <= msh.measure("left") <= H - 4 * mm + 1e-9
+
+
+def test_no_cavity_when_hole_is_open():
+    notch = sdf.Rectangle(W, H) - sdf.Rectangle(4 * mm, 6 * mm, center=(0, H / 2))
+    msh = Mesh.from_sdf(notch, size=1 * mm)
+    assert msh.cavities == []
+
+
+def test_quadrilaterals_and_hexahedra():
+    q = Mesh.rectangle(20 * mm, 10 * mm, size=1 * mm, cell="quadrilateral")
+    assert q.quality["cell"] == "quadrilateral" and q.num_cells == 20 * 10
+    assert q.area == pytest.approx(200 * mm**2, rel=1e-12)
+    assert q.quality["min_angle"] == pytest.approx(90.0)
+    q2 = Mesh.from_sdf(sdf.Rectangle(20 * mm, 10 * mm), size=2 * mm, cell="quadrilateral", order=2)
+    assert q2.quality["cell"] == "quadrilateral" and q2.quality["degree"] == 2 and q2.num_cells == 50
+    h = Mesh.box(20 * mm, 10 * mm, 10 * mm, size=2 * mm, cell="hexahedron")
+    assert h.quality["cell"] == "hexahedron" and h.num_cells == 10 * 5 * 5
+    assert h.volume == pytest.approx(2000 * mm**3, rel=1e-12)
+    assert h.measure("front") == pytest.approx(200 * mm**2, rel=1e-12)
+    assert set(h.regions) == {"left", "right", "front", "back", "bottom", "top"}
+    # recombined quads on a general shape
+    g = Mesh.from_sdf(two_holes(), size=1 * mm, cell="quadrilateral", order=2)
+    assert g.quality["cell"] == "quadrilateral" and g.area == pytest.approx(EXACT_TWO_HOLES, rel=1e-4)
+
+
+# ----------------------------------------------------------------------------------------------- 3D
+def test_sphere_volume_order2_and_levelset():
+    r = 5 * mm
+    exact = 4 / 3 * math.pi * r**3
+    msh = Mesh.from_sdf(sdf.Sphere(r), size=1.5 * mm, order=2)
+    assert msh.volume == pytest.approx(exact, rel=1e-3)
+    assert msh.quality["cell"] == "tetrahedron" and msh.quality["degree"] == 2
+    # marching-cubes surface → gmsh volume, boundary nodes snapped onto the sphere; the inscribed P1
+    # polyhedron loses ~ (h/r)^2 / 4 = 2.3e-2 of the volume at h = 1.5 mm on r = 5 mm
+    ls = Mesh.from_sdf(sdf.Sphere(r), size=1.5 * mm, method="levelset")
+    assert ls.volume == pytest.approx(exact, rel=3e-2)
+    assert ls.volume < exact  # inscribed polyhedron
+
+
+def test_box_minus_cylinder_and_inner_cavity():
+    bx = sdf.Box((20 * mm, 10 * mm, 10 * mm))
+    tunnel = Mesh.from_sdf(bx - sdf.Cylinder(2 * mm, 30 * mm, axis=(1, 0, 0)), size=1.5 * mm, order=2)
+    assert tunnel.volume == pytest.approx(2000 * mm**3 - math.pi * (2 * mm) ** 2 * 20 * mm, rel=1e-3)
+    assert tunnel.cavities == []  # the tunnel is open: its wall touches the outer boundary
+    rs = 2.5 * mm
+    cav = Mesh.from_sdf(bx - sdf.Sphere(rs, center=(4 * mm, 0, 0)) - sdf.Sphere(rs, center=(-4 * mm, 0, 0)),
+                        size=1.0 * mm)
+    assert cav.cavities == ["cavity_0", "cavity_1"]
+    # inscribed polyhedron with edges up to ~1.3 h, h/r = 0.4: up to (1.3 h/r)^2/4 = 7e-2 of the volume
+    # missing (the exact-geometry check is the order-2 sphere above)
+    v = 4 / 3 * math.pi * rs**3
+    assert 0.92 * v < cav.cavity_volume("cavity_0") < v
+    assert cav.cavity_volume("cavity_0") == pytest.approx(cav.cavity_volume("cavity_1"), rel=5e-2)
+    assert cav.measure("left") == pytest.approx(100 * mm**2, rel=1e-10)
+
+
+# ----------------------------------------------------------------------------------------------- regions
+def test_user_regions_cells_and_facets(holes_p2):
+    msh = Mesh.from_sdf(two_holes(), size=1 * mm)
+    layer = sdf.Rectangle(W, 2 * mm, center=(0, -H / 2 + 1 * mm))
+    out = msh.add_region("layer", layer, kind="cells")
+    assert out is msh
+    # cells are picked by their midpoint on a mesh that does not follow the layer's edge: the area is
+    # right to within one row of cells along that edge, W * h / 2
+    assert msh.measure("layer") == pytest.approx(W * 2 * mm, abs=W * 1 * mm / 2)
+    msh.add_region("grip", ((-W / 2 - 1e-9, -H), (-W / 2 + 5 * mm, H)))           # box on boundary facets
+    assert msh.measure("grip") == pytest.approx(H + 2 * 5 * mm, rel=1e-10)
+    msh.add_region("top_right", lambda x: (x[1] > H / 2 - 1e-9) & (x[0] > 0))     # predicate
+    assert msh.measure("top_right") == pytest.approx(W / 2, rel=1e-10)
+    assert msh.regions["layer"] != msh.regions["grip"]
+    ct = msh.cell_tags
+    assert set(np.unique(ct.values)) == {msh.regions["layer"]}
+    with pytest.raises(MeshError, match="no region 'nope'"):
+        msh.facets("nope")
+    with pytest.raises(MeshError, match="selects no"):
+        msh.add_region("far", ((1.0, 1.0), (2.0, 2.0)))
+
+
+def test_refinement_near_boundary_and_region():
+    shape = two_holes()
+    coarse = Mesh.from_sdf(shape, size=2 * mm)
+    fine = Mesh.from_sdf(shape, size=2 * mm, boundary_size=0.5 * mm)
+    region = Mesh.from_sdf(shape, size=2 * mm, refine=[(((-20 * mm, -5 * mm), (0, 5 * mm)), 0.5 * mm)])
+    assert fine.num_cells > 3 * coarse.num_cells
+    assert fine.quality["h_min"] < 0.75 * mm
+    import dolfinx.mesh
+    m = region.dolfinx
+    mid = dolfinx.mesh.compute_midpoints(m, 2, np.arange(m.topology.index_map(2).size_local, dtype=np.int32))
+    left = np.count_nonzero(mid[:, 0] < 0)
+    assert left > 5 * (len(mid) - left)
+
+
+# ----------------------------------------------------------------------------------------------- quality
+def test_quality_report_and_bad_meshes():
+    q = Mesh.from_sdf(two_holes(), size=1 * mm).quality
+    assert 20.0 < q["min_angle"] <= 60.0
+    assert 1.0 <= q["max_aspect_ratio"] < 3.0
+    assert q["degenerate"] == 0 and q["inverted"] == 0 and q["num_cells"] > 500
+    pts = np.array([[0, 0], [1, 0], [0, 1], [2, 0]], dtype=float) * mm
+    ok = Mesh.from_arrays(pts[:3], [[0, 1, 2]])
+    assert ok.quality["min_angle"] == pytest.approx(45.0)
+    assert ok.quality["max_aspect_ratio"] == pytest.approx((math.sqrt(2) / 2) / (2 * (1 - math.sqrt(2) / 2)))
+    with pytest.raises(MeshError, match="degenerate"):
+        Mesh.from_arrays(pts, [[0, 1, 2], [0, 1, 3]])  # second triangle is collinear
+    with pytest.raises(MeshError):
+        Mesh.from_arrays(pts, np.zeros((0, 3), dtype=int))
+    # a P2 triangle whose edge node is pulled across the opposite corner is inverted
+    p2 = np.array([[0, 0], [1, 0], [0, 1], [0.5, 0], [-0.2, -0.2], [0, 0.5]]) * mm
+    with pytest.raises(MeshError, match="inverted"):
+        Mesh.from_arrays(p2, [[0, 1, 2, 3, 4, 5]])
+
+
+# ----------------------------------------------------------------------------------------------- bad input
+@pytest.mark.parametrize("size", [0.0, -1 * mm, float("nan"), "big"])
+def test_bad_sizes(size):
+    with pytest.raises(MeshError, match="size"):
+        Mesh.from_sdf(sdf.Circle(5 * mm), size=size)
+
+
+def test_empty_shape_and_bad_args():
+    empty = sdf.Circle(1 * mm) - sdf.Circle(2 * mm)
+    for method in ("csg", "levelset"):
+        with pytest.raises(GeometryError, match="empty"):
+            Mesh.from_sdf(empty, size=0.2 * mm, method=method)
+    with pytest.raises(MeshError, match="order"):
+        Mesh.from_sdf(sdf.Circle(5 * mm), size=1 * mm, order=3)
+    with pytest.raises(MeshError, match="cell"):
+        Mesh.from_sdf(sdf.Circle(5 * mm), size=1 * mm, cell="hexahedron")
+    with pytest.raises(GeometryError):
+        Mesh.from_sdf(object(), size=1 * mm)
+
+
+# ----------------------------------------------------------------------------------------------- images
+def _disk_png(path, n=200, r_px=60):
+    from skimage import io as skio
+    yy, xx = np.mgrid[0:n, 0:n]
+    img = np.where((xx + 0.5 - n / 2) ** 2 + (yy + 0.5 - n / 2) ** 2 <= r_px**2, 0, 255).astype(np.uint8)
+    skio.imsave(str(path), img, check_contrast=False)
+
+
+def test_from_image_disk(tmp_path):
+    px = 0.1 * mm
+    path = tmp_path / "disk.png"
+    _disk_png(path)
+    msh = Mesh.from_image(path, pixel_size=px)
+    r = 60 * px
+    # boundary within half a pixel of the circle: |dA| <= 2 pi r * px / 2
+    assert abs(msh.area - math.pi * r**2) <= math.pi * r * px
+    assert msh.cavities == []
+    lo, hi = msh.bounds
+    assert (lo[0] + hi[0]) / 2 == pytest.approx(100 * px, abs=px)
+
+
+def test_from_image_errors(tmp_path):
+    with pytest.raises(MeshError, match="does not exist"):
+        Mesh.from_image(tmp_path / "missing.png", pixel_size=0.1 * mm)
+    bad = tmp_path / "bad.png"
+    bad.write_bytes(b"not an image")
+    with pytest.raises(MeshError, match="cannot read image"):
+        Mesh.from_image(bad, pixel_size=0.1 * mm)
+    from skimage import io as skio
+    white = tmp_path / "white.png"
+    skio.imsave(str(white), np.full((20, 20), 255, dtype=np.uint8), check_contrast=False)
+    with pytest.raises(MeshError, match="no foreground"):
+        Mesh.from_image(white, pixel_size=0.1 * mm)
+    with pytest.raises(MeshError, match="pixel_size"):
+        Mesh.from_image(white, pixel_size=0.0)
+
+
+# ----------------------------------------------------------------------------------------------- files
+def test_xdmf_round_trip(tmp_path, holes_p2):
+    msh = Mesh.from_sdf(two_holes(), size=1 * mm, order=2).add_region(
+        "layer", sdf.Rectangle(W, 2 * mm, center=(0, -4 * mm)), kind="cells")
+    path = msh.write_xdmf(tmp_path / "body.xdmf")
+    assert path.exists() and path.with_suffix(".h5").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["body.h5", "body.xdmf"]
+    back = Mesh.from_file(path)
+    assert set(back.regions) == set(msh.regions)
+    assert back.area == pytest.approx(msh.area, rel=1e-12)
+    assert back.measure("cavity_1") == pytest.approx(2 * math.pi * R, rel=1e-4)
+    assert back.measure("layer") == pytest.approx(msh.measure("layer"), rel=1e-12)
+
+
+def test_msh_round_trip(tmp_path):
+    msh = Mesh.from_sdf(two_holes(), size=1 * mm, order=2).add_region(
+        "layer", ((-W, -H), (W, -3 * mm)), kind="cells")
+    path = msh.write_msh(tmp_path / "body.msh")
+    back = Mesh.from_file(path)
+    assert back.quality["degree"] == 2 and back.num_cells == msh.num_cells
+    assert back.area == pytest.approx(msh.area, rel=1e-12)
+    for name in msh.regions:
+        assert back.measure(name) == pytest.approx(msh.measure(name), rel=1e-10), name
+
+
+def test_stl_to_tetrahedra(tmp_path):
+    r = 5 * mm
+    stl = tmp_path / "ball.stl"
+    sdf.Sphere(r).to_stl(stl)
+    msh = Mesh.from_file(stl, size=1.5 * mm)
+    assert msh.dim == 3 and msh.quality["cell"] == "tetrahedron"
+    # faceted STL + P1 chords: a few percent below the exact volume
+    assert msh.volume == pytest.approx(4 / 3 * math.pi * r**3, rel=4e-2)
+
+
+def test_file_errors(tmp_path):
+    with pytest.raises(MeshError, match="does not exist"):
+        Mesh.from_file(tmp_path / "nope.stl")
+    junk = tmp_path / "junk.stl"
+    junk.write_text("solid junk\nendsolid\n")
+    with pytest.raises(MeshError):
+        Mesh.from_file(junk)
