@@ -29,9 +29,18 @@ def check_sdf_gallery(report, out):
     assert report["png_files"] == len(list(out.glob("*.png"))) >= 4
 
 
+def check_mesh_gallery(report, out):
+    assert report["pneunet_cavities"] >= 2  # the chambers were found and named
+    assert report["pneunet_area_rel_error"] < 1e-3
+    assert report["image_area_rel_error"] < 1e-2  # half-pixel bound of the image contour
+    assert report["stl_volume_rel_error"] < 2e-2
+    assert (out / "pneunet.png").stat().st_size > 0
+
+
 CHECKS = {
     "chain": check_chain,
     "sdf_gallery": check_sdf_gallery,
+    "mesh_gallery": check_mesh_gallery,
 }
 
 
