@@ -15,6 +15,7 @@ This is the seam between the FEM layer (:mod:`sorofem.fem` writes) and the reduc
 ``/steps/displacement`` (n_steps, n_vertices, gdim) float64 [m], chunked one step per chunk
 ``/steps/inputs/<name>``, ``/steps/cavity_volume/<name>``, ``/steps/energy/<name>`` (n_steps,) float64;
 ``/steps/reaction/<name>`` (n_steps, gdim) float64 [N]
+``/steps/cell_field/<name>`` (n_steps, n_cells) float64, per-cell values (e.g. ``von_mises`` [Pa])
 
 Files are written atomically: :class:`SnapshotWriter` fills a temporary file next to the destination and
 renames it into place when closed without error, so a reader never sees half a case.
@@ -108,6 +109,7 @@ class SnapshotWriter:
                 raise DataError(f"cavity {name!r} is not among the regions {sorted(regions)}")
         self.gdim = vertices.shape[1]
         self.n_vertices = len(vertices)
+        self.n_cells = len(cells)
         self.n_steps = 0
         self._series = {}
         h5 = _h5py()
@@ -133,18 +135,21 @@ class SnapshotWriter:
                          maxshape=(None, self.n_vertices, self.gdim), chunks=(1, self.n_vertices, self.gdim),
                          dtype="f8")
 
-    def append(self, time, displacement, inputs=None, cavity_volumes=None, reactions=None, energies=None):
+    def append(self, time, displacement, inputs=None, cavity_volumes=None, reactions=None, energies=None,
+               cell_fields=None):
         """Add one step: time or load level, vertex displacements (n_vertices, gdim) [m], and named scalars.
 
         ``inputs``, ``cavity_volumes`` [m^3 or m^2 per unit depth in 2D] and ``energies`` [J] map names to
-        floats; ``reactions`` maps names to (gdim,) forces [N]. Every step must carry the same names.
+        floats; ``reactions`` maps names to (gdim,) forces [N]; ``cell_fields`` maps names to (n_cells,)
+        arrays. Every step must carry the same names.
         Non-finite values are refused with :class:`DataError` and nothing of the step is written.
         """
         u = _finite("displacement", displacement)
         if u.shape != (self.n_vertices, self.gdim):
             raise DataError(f"displacement must have shape {(self.n_vertices, self.gdim)}, got {u.shape}")
         t = float(_finite("time", time))
-        groups = {"inputs": inputs, "cavity_volume": cavity_volumes, "energy": energies, "reaction": reactions}
+        groups = {"inputs": inputs, "cavity_volume": cavity_volumes, "energy": energies, "reaction": reactions,
+                  "cell_field": cell_fields}
         values = {}
         for group, data in groups.items():
             data = {k: _finite(f"{group}[{k}]", v) for k, v in (data or {}).items()}
@@ -153,7 +158,7 @@ class SnapshotWriter:
                 raise DataError(f"step {self.n_steps}: {group} names {sorted(data)} differ from the first "
                                 f"step's {sorted(known)}")
             for k, v in data.items():
-                shape = (self.gdim,) if group == "reaction" else ()
+                shape = {"reaction": (self.gdim,), "cell_field": (self.n_cells,)}.get(group, ())
                 if v.shape != shape:
                     raise DataError(f"{group}[{k}] must have shape {shape}, got {v.shape}")
             values[group] = data
@@ -205,7 +210,7 @@ class Snapshots:
     Attributes
     ----------
     vertices, cells, cell_type, gdim, regions (name -> (kind, indices)), cavities, metadata, times,
-    time_kind, inputs / cavity_volumes / energies / reactions (name -> array over steps).
+    time_kind, inputs / cavity_volumes / energies / reactions / cell_fields (name -> array over steps).
     """
 
     def __init__(self, path):
@@ -245,6 +250,7 @@ class Snapshots:
             self.cavity_volumes = read("cavity_volume")
             self.energies = read("energy")
             self.reactions = read("reaction")
+            self.cell_fields = read("cell_field")
 
     @property
     def n_steps(self):

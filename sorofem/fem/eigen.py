@@ -1,0 +1,105 @@
+"""Eigen-analysis about an equilibrium with SLEPc: vibration modes and the buckling indicator.
+
+At the current state :math:`u` the tangent stiffness :math:`K = \\partial R/\\partial u` and the mass
+:math:`M = \\int \\rho\\, \\delta u \\cdot v\\, w\\, dX` define :math:`K \\phi = \\lambda M \\phi`, with
+:math:`\\lambda = \\omega^2` [1/s^2]. About an unloaded state these are the small-vibration modes (frequencies
+:math:`f = \\sqrt{\\lambda}/2\\pi`); along a load path the lowest :math:`\\lambda` crossing zero marks a loss
+of stability (buckling or a limit point). Follower pressures make :math:`K` non-symmetric: the problem is then
+solved as non-Hermitian and the real parts are reported. Dirichlet rows carry 1 in :math:`K` and 0 in
+:math:`M`, so constrained dofs map to infinite eigenvalues, far from the shift-and-invert target.
+"""
+import numpy as np
+
+from ..errors import ConvergenceError, ParameterError
+
+__all__ = ["Modes", "eigenmodes"]
+
+
+class Modes:
+    """Eigenpairs of :math:`K \\phi = \\lambda M \\phi`, sorted by real part.
+
+    Attributes
+    ----------
+    eigenvalues : (n,) array [1/s^2] (real parts)
+    frequencies : (n,) array [Hz], :math:`\\sqrt{\\lambda}/2\\pi`, NaN where :math:`\\lambda < 0` (unstable)
+    shapes : (n, n_vertices, gdim) array, mode shapes at the vertices, max-norm 1 (rank 0 only)
+    functions : list of dolfinx Functions (the modes on the FEM space)
+    """
+
+    def __init__(self, eigenvalues, shapes, functions):
+        self.eigenvalues = np.asarray(eigenvalues)
+        with np.errstate(invalid="ignore"):
+            self.frequencies = np.where(self.eigenvalues >= 0, np.sqrt(np.abs(self.eigenvalues)) / (2 * np.pi), np.nan)
+        self.shapes = shapes
+        self.functions = functions
+
+    def __len__(self):
+        return len(self.eigenvalues)
+
+
+def eigenmodes(fem, n=6, shift=0.0, tol=1e-10):
+    """The ``n`` eigenpairs of ``fem`` (a :class:`sorofem.fem.Fem`) nearest to ``shift`` [1/s^2] about its
+    current state (after :meth:`Fem.solve`, or the reference state)."""
+    import ufl
+    import dolfinx.fem
+    import dolfinx.fem.petsc
+    from slepc4py import SLEPc
+
+    if fem.mixed:
+        raise ParameterError("eigen-analysis is available for the displacement formulation; build the Fem "
+                             "with mixed=False (degree=2 and nu <= 0.49 avoid locking)")
+    if int(n) < 1:
+        raise ParameterError(f"n must be >= 1, got {n}")
+    b = fem._built or fem._build()
+    W, kin = b["W"], b["kin"]
+    u, v = ufl.TrialFunction(W), ufl.TestFunction(W)
+    md = {"quadrature_degree": fem.quadrature_degree}
+    dx = ufl.Measure("dx", domain=fem.mesh.dolfinx, subdomain_data=b["cell_tags"], metadata=md)
+    mass = sum(mat.density * ufl.dot(u, v) * kin.weight * dx(k) for k, (_, mat) in enumerate(fem._materials))
+    K = dolfinx.fem.petsc.assemble_matrix(b["J"], bcs=b["bcs"], diagonal=1.0)
+    K.assemble()
+    M = dolfinx.fem.petsc.assemble_matrix(dolfinx.fem.form(mass), bcs=b["bcs"], diagonal=0.0)
+    M.assemble()
+    symmetric = not fem._pressures
+    eps = SLEPc.EPS().create(fem.mesh.comm)
+    eps.setOperators(K, M)
+    eps.setProblemType(SLEPc.EPS.ProblemType.GHEP if symmetric else SLEPc.EPS.ProblemType.GNHEP)
+    eps.setDimensions(int(n))
+    eps.setTolerances(tol, 1000)
+    eps.setWhichEigenpairs(SLEPc.EPS.Which.TARGET_REAL)
+    eps.setTarget(float(shift))
+    st = eps.getST()
+    st.setType(SLEPc.ST.Type.SINVERT)
+    st.setShift(float(shift))
+    ksp = st.getKSP()
+    ksp.setType("preonly")
+    ksp.getPC().setType("lu")
+    ksp.getPC().setFactorSolverType("mumps")
+    try:
+        eps.solve()
+    except Exception as e:  # noqa: BLE001 - PETSc errors carry no useful type
+        raise ConvergenceError(f"the eigensolver failed ({e}); if the stiffness is singular at the target "
+                               f"{shift}, pass a small shift (e.g. shift=-1.0)") from e
+    nconv = eps.getConverged()
+    if nconv < n:
+        raise ConvergenceError(f"only {nconv} of {n} eigenpairs converged; ask for fewer or move the shift")
+    vr, vi = K.createVecs()
+    pairs = []
+    for i in range(nconv):
+        lam = eps.getEigenpair(i, vr, vi)
+        f = dolfinx.fem.Function(W, name=f"mode_{i}")
+        vr.copy(f.vector)
+        f.x.scatter_forward()
+        pairs.append((float(np.real(lam)), f))
+    pairs.sort(key=lambda p: p[0])
+    pairs = pairs[:n]
+    shapes = []
+    for _, f in pairs:
+        b["u1"].interpolate(f)
+        s = b["gatherer"].gather_function(b["u1"])
+        if s is not None:
+            s = s / max(np.abs(s).max(), 1e-300)
+        shapes.append(s)
+    for obj in (eps, K, M, vr, vi):
+        obj.destroy()
+    return Modes([p[0] for p in pairs], None if shapes[0] is None else np.array(shapes), [p[1] for p in pairs])

@@ -1,0 +1,266 @@
+"""Newton's method on PETSc objects, with the failure modes a load stepper needs to see.
+
+One Newton solve for :math:`R(u) = 0` with Dirichlet conditions: at each iteration assemble the residual
+:math:`b = R(u)` lifted so that the correction also enforces the prescribed values, assemble the tangent
+:math:`A = \\partial R/\\partial u`, solve :math:`A\\,\\delta = b` and update :math:`u \\leftarrow u - \\delta`.
+Converged when :math:`\\|\\delta\\| \\le \\text{rtol}_u \\max(\\|u\\|, \\text{scale})` or
+:math:`\\|b\\| \\le \\max(\\text{rtol}_r \\|b_0\\|, \\text{atol}_r)`. It stops early, without raising, on a non-finite
+residual, a failed factorization or a residual that grew by ``divergence_factor``; the caller (the load
+stepper) restores the last state and cuts the step.
+
+Scalar constraints (volume control of cavities) are solved by bordering: the residual is
+:math:`R(u) + \\sum_i p_i f_i(u)` with unknown pressures :math:`p_i` and constraints
+:math:`c_i(u) = V_i(u) - V_i^* = 0`. With :math:`K\\,r = R` and :math:`K a_i = f_i` (one factorization),
+:math:`\\delta p = (G^T A)^{-1}(c - G^T r)` and :math:`\\delta u = -r - A\\,\\delta p`, where the columns
+of :math:`G` are :math:`\\partial V_i/\\partial u`. This passes limit points of pressure, where :math:`K`
+alone stays regular but the pressure-controlled path turns back.
+"""
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+__all__ = ["NewtonOutcome", "NewtonSolver", "VolumeConstraint"]
+
+
+@dataclass
+class NewtonOutcome:
+    """What one Newton solve did: ``converged``, ``iterations``, final ``residual`` and ``correction``
+    norms, and ``reason`` (a short text when it failed)."""
+
+    converged: bool
+    iterations: int
+    residual: float
+    correction: float
+    reason: str = ""
+
+
+@dataclass
+class VolumeConstraint:
+    """One scalar constraint :math:`V(u) = V^*` whose multiplier is a pressure.
+
+    ``pressure`` is the DOLFINx Constant multiplying ``load`` (compiled vector form of the unit-pressure load
+    :math:`f`), ``gradient`` the compiled vector form :math:`\\partial V/\\partial u`, ``value`` the compiled
+    scalar form :math:`V(u)`, ``target`` the current :math:`V^*` and ``scale`` a volume for the tolerance.
+    """
+
+    pressure: object
+    load: object
+    gradient: object
+    value: object
+    target: float = 0.0
+    scale: float = 1.0
+
+
+class NewtonSolver:
+    """Newton iterations for a residual form and its Jacobian (DOLFINx forms) on a Function ``u``.
+
+    Parameters
+    ----------
+    residual, jacobian : dolfinx.fem.Form
+        Compiled forms :math:`R(u; v)` and :math:`\\partial R/\\partial u`.
+    u : dolfinx.fem.Function
+        The unknown, updated in place.
+    bcs : list of DirichletBC
+        Dirichlet conditions (their values are the targets for this solve).
+    petsc_options : dict
+        Options for the linear solver (prefix-free keys, e.g. ``{"ksp_type": "gmres", "pc_type": "gamg"}``);
+        default direct LU with MUMPS.
+    scale : float
+        Displacement scale [m] for the correction test (e.g. the mesh size of the domain).
+    """
+
+    def __init__(self, residual, jacobian, u, bcs, petsc_options=None, scale=1.0, max_iterations=25,
+                 rtol_u=1e-9, rtol_r=1e-9, atol_r=1e-12, divergence_factor=1e4, prefix="soro_newton_",
+                 constraints=(), point_forces=None, point_tangent=None, near_nullspace=None):
+        import dolfinx.fem.petsc
+        from petsc4py import PETSc
+
+        self.R, self.J, self.u, self.bcs = residual, jacobian, u, bcs
+        self.scale, self.max_iterations = float(scale), int(max_iterations)
+        self.rtol_u, self.rtol_r, self.atol_r = rtol_u, rtol_r, atol_r
+        self.divergence_factor = divergence_factor
+        self.constraints = list(constraints)
+        self.point_forces = point_forces  # callable(b_local_array, u_array): adds point loads to the residual
+        self.point_tangent = point_tangent  # callable(A, u_array): adds their derivative before A.assemble()
+        self.A = dolfinx.fem.petsc.create_matrix(jacobian)
+        if near_nullspace is not None:  # rigid-body modes help algebraic multigrid (GAMG) on elasticity
+            self.A.setNearNullSpace(near_nullspace)
+        self.b = dolfinx.fem.petsc.create_vector(residual)
+        self.dx = self.b.duplicate()
+        comm = u.function_space.mesh.comm
+        self.ksp = PETSc.KSP().create(comm)
+        self.ksp.setOperators(self.A)
+        self.ksp.setOptionsPrefix(prefix)
+        opts = PETSc.Options()
+        options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
+        options.update(petsc_options or {})
+        for k, v in options.items():
+            opts[f"{prefix}{k}"] = v
+        self.ksp.setFromOptions()
+        for k in options:
+            del opts[f"{prefix}{k}"]
+        self._mumps = options.get("pc_type") == "lu" and options.get("pc_factor_mat_solver_type") == "mumps"
+        if self._mumps:
+            # MUMPS null-pivot detection (ICNTL 24) so that a singular tangent is reported, not solved
+            self.ksp.getPC().setFactorSetUpSolverType()
+            F = self.ksp.getPC().getFactorMatrix()
+            F.setMumpsIcntl(24, 1)
+            F.setMumpsCntl(3, 1e-12)
+
+    def _null_pivots(self):
+        """Number of zero pivots MUMPS met in the last factorization (0 for other solvers)."""
+        if not self._mumps:
+            return 0
+        return int(self.ksp.getPC().getFactorMatrix().getMumpsInfog(28))
+
+    def assemble_residual(self, lift=True):
+        """Assemble :math:`R(u)` into ``self.b``; with ``lift`` it carries the Dirichlet corrections."""
+        import dolfinx.fem.petsc
+        from petsc4py import PETSc
+
+        b, x = self.b, self.u.vector
+        with b.localForm() as loc:
+            loc.set(0.0)
+        dolfinx.fem.petsc.assemble_vector(b, self.R)
+        if lift:
+            dolfinx.fem.petsc.apply_lifting(b, [self.J], bcs=[self.bcs], x0=[x], scale=-1.0)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        if self.point_forces is not None:
+            with b.localForm() as loc:
+                self.point_forces(loc.array, self.u.x.array)
+        if lift:
+            dolfinx.fem.petsc.set_bc(b, self.bcs, x, -1.0)
+        return b
+
+    def _assemble_border_vector(self, form):
+        """Assemble a vector form with zeros on the Dirichlet rows."""
+        import dolfinx.fem.petsc
+        from petsc4py import PETSc
+
+        vec = dolfinx.fem.petsc.assemble_vector(form)
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        dolfinx.fem.petsc.set_bc(vec, self.bcs, scale=0.0)
+        return vec
+
+    def _constraint_values(self):
+        import dolfinx.fem
+
+        comm = self.u.function_space.mesh.comm
+        return np.array([comm.allreduce(dolfinx.fem.assemble_scalar(c.value)) - c.target for c in self.constraints])
+
+    def _border(self):
+        """Apply the bordering correction to ``self.dx`` (holding :math:`r = K^{-1}R`); returns max |c_i|/scale."""
+        c = self._constraint_values()
+        f = [self._assemble_border_vector(k.load) for k in self.constraints]
+        g = [self._assemble_border_vector(k.gradient) for k in self.constraints]
+        a = []
+        for fi in f:
+            ai = fi.duplicate()
+            self.ksp.solve(fi, ai)
+            a.append(ai)
+        n = len(self.constraints)
+        M = np.array([[g[i].dot(a[j]) for j in range(n)] for i in range(n)])
+        rhs = c - np.array([g[i].dot(self.dx) for i in range(n)])
+        dp = np.linalg.solve(M, rhs)
+        for j, k in enumerate(self.constraints):
+            self.dx.axpy(dp[j], a[j])  # dx = r + A dp, applied as u -= dx
+            k.pressure.value = float(k.pressure.value) + dp[j]
+        for vec in f + g + a:
+            vec.destroy()
+        return max(abs(ci) / k.scale for ci, k in zip(c, self.constraints))
+
+    def assemble_jacobian(self):
+        import dolfinx.fem.petsc
+
+        from petsc4py import PETSc
+
+        self.A.zeroEntries()
+        dolfinx.fem.petsc.assemble_matrix(self.A, self.J, bcs=self.bcs)
+        if self.point_tangent is not None:
+            self.A.assemble(PETSc.Mat.AssemblyType.FLUSH)
+            self.A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+            self.point_tangent(self.A, self.u.x.array)
+        self.A.assemble()
+        return self.A
+
+    def solve(self):
+        """Iterate from the current ``u``. Returns a :class:`NewtonOutcome`; never raises on divergence."""
+        from petsc4py import PETSc
+
+        x = self.u.vector
+        r0 = None
+        rnorm = cnorm = math.nan
+        for it in range(1, self.max_iterations + 1):
+            rnorm = self.assemble_residual().norm()
+            if not math.isfinite(rnorm):
+                return NewtonOutcome(False, it, rnorm, cnorm, "non-finite residual (inverted elements?)")
+            # reference residual: the first one; under volume control the first residual vanishes (only the
+            # volume target moved), so the one after the first bordered update is the reference
+            if r0 is None or (it == 2 and self.constraints):
+                r0 = rnorm
+            cons = np.abs(self._constraint_values()).max() / min(k.scale for k in self.constraints) \
+                if self.constraints else 0.0
+            if it > 1 and rnorm <= max(self.rtol_r * r0, self.atol_r) and cons <= 1e-9:
+                return NewtonOutcome(True, it - 1, rnorm, cnorm)
+            if it > 2 and rnorm > self.divergence_factor * r0:
+                return NewtonOutcome(False, it, rnorm, cnorm, f"residual grew from {r0:.3e} to {rnorm:.3e}")
+            self.assemble_jacobian()
+            self.ksp.solve(self.b, self.dx)
+            reason = self.ksp.getConvergedReason()
+            if reason < 0:
+                return NewtonOutcome(False, it, rnorm, cnorm, f"linear solver failed (PETSc reason {reason})")
+            null_pivots = self._null_pivots()
+            if null_pivots:
+                return NewtonOutcome(False, it, rnorm, cnorm, f"singular tangent stiffness ({null_pivots} zero "
+                                     "pivots): a rigid-body motion or mechanism is not prevented by the supports, "
+                                     "or the structure lost stability")
+            if self.constraints:
+                try:
+                    self._border()
+                except np.linalg.LinAlgError:
+                    return NewtonOutcome(False, it, rnorm, cnorm, "singular volume-control border (the cavity "
+                                         "volume does not depend on the displacement?)")
+            cnorm = self.dx.norm()
+            if not math.isfinite(cnorm):
+                return NewtonOutcome(False, it, rnorm, cnorm, "non-finite Newton correction (singular tangent?)")
+            x.axpy(-1.0, self.dx)
+            x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+            log.debug("newton %d: |R| = %.3e, |du| = %.3e", it, rnorm, cnorm)
+            if cnorm <= self.rtol_u * max(x.norm(), self.scale) and (
+                    not self.constraints or np.abs(self._constraint_values()).max() <=
+                    1e-9 * min(k.scale for k in self.constraints)):
+                return NewtonOutcome(True, it, rnorm, cnorm)
+        return NewtonOutcome(False, self.max_iterations, rnorm, cnorm,
+                             f"no convergence in {self.max_iterations} iterations")
+
+    @staticmethod
+    def rigid_body_modes(V):
+        """Near-nullspace of elasticity on a blocked vector space: translations and infinitesimal rotations
+        (3 in 2D, 6 in 3D), orthonormalized, as a PETSc ``NullSpace``."""
+        import dolfinx.la
+        from petsc4py import PETSc
+
+        gdim = V.mesh.geometry.dim
+        imap = V.dofmap.index_map
+        n = imap.size_local
+        x = V.tabulate_dof_coordinates()[:n]
+        rot = [(0, 1)] if gdim == 2 else [(0, 1), (1, 2), (2, 0)]
+        basis = [dolfinx.la.create_petsc_vector(imap, gdim) for _ in range(gdim + len(rot))]
+        arrays = [b.array.reshape(-1, gdim) for b in basis]
+        for i in range(gdim):
+            arrays[i][:n, i] = 1.0
+        for k, (i, j) in enumerate(rot):
+            a = arrays[gdim + k]
+            a[:n, i] = -x[:, j]
+            a[:n, j] = x[:, i]
+        dolfinx.la.orthonormalize(basis)
+        return PETSc.NullSpace().create(vectors=basis)
+
+    def destroy(self):
+        for obj in (self.ksp, self.A, self.b, self.dx):
+            obj.destroy()
+

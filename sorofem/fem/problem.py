@@ -1,0 +1,683 @@
+"""The :class:`Fem` problem builder: hyperelastic statics on DOLFINx with adaptive load stepping.
+
+Weak form (reference configuration, weight :math:`w` = 1, or :math:`2\\pi R` when axisymmetric): find
+:math:`u` with :math:`R(u; v) = 0` for all admissible :math:`v`,
+
+.. math::
+
+    R(u; v) = \\int_\\Omega \\frac{\\partial \\psi}{\\partial F} : \\delta F(v)\\, w\\,dX
+      + \\sum_{\\text{pressures}} \\int_{\\Gamma_i} p_i(t)\\, (J F^{-T} N)\\cdot v\\, w\\,dA
+      + \\sum_{\\text{springs}} \\int_{\\Gamma_k} k\\, u\\cdot v\\, w\\,dA
+      - \\sum_{\\text{tractions}} \\int_{\\Gamma_j} t_j(t)\\cdot v\\, w\\,dA
+      - \\int_\\Omega \\rho\\, g(t) \\cdot v\\, w\\,dX .
+
+Pressures are follower loads (they act along the current normal on the current area, Nanson's formula);
+a positive pressure pushes on the body's surface (inflates a cavity). With ``mixed=True`` the energy is
+:math:`\\int W_{iso}(F) + p (J - 1) - p^2/(2\\kappa)` with Taylor-Hood P2/P1 fields (no volumetric locking
+as :math:`\\nu \\to 1/2`); its volumetric law is :math:`U = \\kappa (J-1)^2/2`, equal at small strain to the
+displacement formulation's.
+
+Loads depend on a parameter ``t`` marched from 0 to ``t_end`` by :meth:`Fem.solve`: a number ``a`` is applied
+as :math:`a\\,t` (a ramp reaching ``a`` at ``t = 1``); a callable ``f`` is applied as ``f(t)``.
+"""
+import logging
+import math
+import time as _time
+
+import numpy as np
+
+from .._jit import silence_compiler_logs
+from ..errors import ConvergenceError, MeshError, ParameterError
+from ..materials import Hyperelastic, Material
+from ..units import standard_gravity
+from .kinematics import FORMULATIONS, Kinematics
+from .newton import NewtonSolver, VolumeConstraint
+from .results import Trajectory, VertexGatherer
+
+__all__ = ["Fem"]
+
+
+def _max_op():
+    from mpi4py import MPI
+    return MPI.MAX
+
+log = logging.getLogger(__name__)
+silence_compiler_logs()
+
+_COMPONENTS = {"x": 0, "y": 1, "z": 2, "r": 0}
+
+
+def _components(components, gdim):
+    if components is None:
+        return list(range(gdim))
+    if isinstance(components, (int, str)):
+        components = [components]
+    out = []
+    for c in components:
+        i = _COMPONENTS.get(c, c) if isinstance(c, str) else c
+        if not isinstance(i, (int, np.integer)) or not 0 <= i < gdim:
+            raise ParameterError(f"component {c!r} does not exist in {gdim}D; use 0..{gdim - 1} or "
+                                 f"{'x, y' if gdim == 2 else 'x, y, z'}")
+        out.append(int(i))
+    return sorted(set(out))
+
+
+class _Load:
+    """A load value as a function of the load parameter: numbers ramp (a*t), callables are called."""
+
+    def __init__(self, name, value, shape):
+        self.name, self.shape = name, shape
+        if callable(value):
+            self.fn = value
+        else:
+            a = np.asarray(value, dtype=float)
+            if a.shape != shape:
+                raise ParameterError(f"{name}: expected a value of shape {shape or 'scalar'}, got {a.shape}")
+            if not np.all(np.isfinite(a)):
+                raise ParameterError(f"{name}: the value must be finite, got {a}")
+            self.fn = lambda t, a=a: a * t
+
+    def __call__(self, t):
+        v = np.asarray(self.fn(t), dtype=float)
+        if v.shape != self.shape:
+            raise ParameterError(f"{self.name}: the function returned shape {v.shape} at t={t}, expected "
+                                 f"{self.shape or 'a scalar'}")
+        if not np.all(np.isfinite(v)):
+            raise ParameterError(f"{self.name}: the function returned a non-finite value {v} at t={t}")
+        return v
+
+
+class Fem:
+    """A hyperelastic finite-element model of a soft body on a :class:`sorofem.mesh.Mesh`.
+
+    Parameters
+    ----------
+    mesh : sorofem.mesh.Mesh
+        The body, with named regions (``left``, ``cavity_0``, ...).
+    material : sorofem.materials.Material
+        Material of every cell not assigned another one by :meth:`add_material`.
+    formulation : {"plane_strain", "axisymmetric", "3d"}, optional
+        Default: ``plane_strain`` on 2D meshes, ``3d`` on 3D meshes. Axisymmetric meshes lie in x >= 0
+        (x = r, y = z, axis = y axis); the radial displacement is fixed on the axis automatically.
+    degree : {1, 2}
+        Polynomial degree of the displacement (2 with ``mixed``).
+    mixed : bool
+        Taylor-Hood displacement-pressure formulation for nearly incompressible materials.
+    quadrature_degree : int, optional
+        Quadrature degree of all integrals (default ``2 * degree``).
+    petsc_options : dict, optional
+        Linear solver options (default: direct LU with MUMPS). For large 3D problems e.g.
+        ``{"ksp_type": "gmres", "pc_type": "gamg", "ksp_rtol": 1e-10}``.
+
+    Examples
+    --------
+    >>> from sorofem.mesh import Mesh                               # doctest: +SKIP
+    >>> from sorofem import materials
+    >>> fem = Fem(Mesh.rectangle(0.1, 0.01, 0.002), material=materials.Ecoflex0030())  # doctest: +SKIP
+    >>> traj = fem.add_support("left").add_gravity().solve(steps=4)  # doctest: +SKIP
+    """
+
+    def __init__(self, mesh, material, formulation=None, degree=1, mixed=False, quadrature_degree=None,
+                 petsc_options=None):
+        if not hasattr(mesh, "dolfinx") or not hasattr(mesh, "regions"):
+            raise ParameterError("Fem needs a sorofem.mesh.Mesh (e.g. Mesh.from_sdf(shape, size=...)), got "
+                                 f"{type(mesh).__name__}")
+        self.mesh = mesh
+        gdim = mesh.dolfinx.geometry.dim
+        if formulation is None:
+            formulation = "3d" if gdim == 3 else "plane_strain"
+        if formulation not in FORMULATIONS:
+            raise ParameterError(f"formulation must be one of {FORMULATIONS}, got {formulation!r}")
+        if (formulation == "3d") != (gdim == 3):
+            raise ParameterError(f"formulation {formulation!r} does not fit a {gdim}D mesh")
+        if formulation == "axisymmetric" and mesh.bounds[0][0] < -1e-9 * float(np.ptp(mesh.bounds[0] - mesh.bounds[1])):
+            raise ParameterError("an axisymmetric mesh must lie in x >= 0 (x is the radius); its x range starts at "
+                                 f"{mesh.bounds[0][0]:.3g} m")
+        if degree not in (1, 2):
+            raise ParameterError(f"degree must be 1 or 2, got {degree!r}")
+        if mixed and degree != 2:
+            raise ParameterError("the mixed formulation uses Taylor-Hood P2/P1 elements: pass degree=2")
+        self.formulation, self.degree, self.mixed = formulation, degree, bool(mixed)
+        self.quadrature_degree = int(quadrature_degree or 2 * degree)
+        self.petsc_options = dict(petsc_options or {})
+        self.gdim = gdim
+        self._materials = [(None, self._check_material(material))]
+        self._supports, self._displacements = [], []   # (region, components) / (region, components, _Load)
+        self._pressures, self._tractions, self._springs = [], [], []  # (region, _Load/value)
+        self._volumes = []                                           # (region, _Load of added volume)
+        self._expansions = []                                        # (cell region, _Load of strain)
+        self._tendons = []                                           # Tendon
+        self._body_forces = []                                       # (_Load of force density [N/m^3])
+        self._gravity = None                                         # _Load of acceleration [m/s^2]
+        self._built = None
+
+    # ------------------------------------------------------------------------------------------ builders
+    def _check_material(self, material):
+        if not isinstance(material, Material):
+            raise ParameterError(f"material must be a sorofem.materials.Material, got {type(material).__name__}")
+        return material
+
+    def _region(self, name, kind):
+        try:
+            ents = self.mesh.facets(name) if kind == "facets" else self.mesh.cells(name)
+        except MeshError as e:
+            raise MeshError(f"{e}. Add it with mesh.add_region({name!r}, ...) or use one of the names above") from e
+        if self.mesh.comm.allreduce(len(ents)) == 0:
+            raise MeshError(f"region {name!r} is empty")
+        return ents
+
+    def _changed(self):
+        self._built = None
+        return self
+
+    def add_material(self, region, material):
+        """Use ``material`` on the cells of ``region`` (a cell region, e.g. a strain-limiting layer)."""
+        self._region(region, "cells")
+        self._materials.append((region, self._check_material(material)))
+        return self._changed()
+
+    def add_support(self, region, components=None):
+        """Fix the displacement of ``region`` (all components, or some: ``components=("x",)``, ``[1]``)."""
+        self._region(region, "facets")
+        self._supports.append((region, _components(components, self.gdim)))
+        return self._changed()
+
+    def add_displacement(self, region, value, components=None):
+        """Prescribe the displacement [m] of ``region``: a number or vector per component (ramped with t),
+        or a callable ``value(t)``. One value per listed component (a scalar if one component)."""
+        self._region(region, "facets")
+        comps = _components(components, self.gdim)
+        shape = () if len(comps) == 1 else (len(comps),)
+        self._displacements.append((region, comps, _Load(f"displacement on {region!r}", value, shape)))
+        return self._changed()
+
+    def add_pressure(self, region, pressure):
+        """Follower pressure [Pa] on the surface ``region`` (e.g. ``"cavity_0"``): a number (ramped) or
+        ``pressure(t)``. Positive pushes on the body: it inflates a cavity."""
+        self._region(region, "facets")
+        self._pressures.append((region, _Load(f"pressure on {region!r}", pressure, ())))
+        return self._changed()
+
+    def add_volume(self, region, added_volume):
+        """Volume control of a cavity: inject ``added_volume`` [m^3; m^2 per m of depth in plane strain] into
+        the cavity bounded by ``region``; its pressure becomes an unknown (reported as ``pressure/<region>``).
+
+        A number is ramped (:math:`\\Delta V = a\\,t`), a callable gives :math:`\\Delta V(t)`. Unlike a
+        prescribed pressure, this follows a balloon through its pressure maximum (limit point). The region
+        may be a closed cavity or the part of it left by symmetry planes through the origin (which add
+        nothing to :math:`-\\frac1d\\oint x\\cdot n`).
+        """
+        self._region(region, "facets")
+        if any(r == region for r, _ in self._pressures + self._volumes):
+            raise ParameterError(f"{region!r} already has a pressure or volume load")
+        self._volumes.append((region, _Load(f"added volume in {region!r}", added_volume, ())))
+        return self._changed()
+
+    def add_force(self, region, traction):
+        """Dead traction [Pa = N/m^2 of reference area] on ``region``: a vector (ramped) or ``traction(t)``."""
+        self._region(region, "facets")
+        self._tractions.append((region, _Load(f"traction on {region!r}", traction, (self.gdim,))))
+        return self._changed()
+
+    def add_body_force(self, force_density):
+        """Dead body force [N/m^3] on the whole body: a vector (ramped) or ``force_density(t)``."""
+        self._body_forces.append(_Load("body force", force_density, (self.gdim,)))
+        return self._changed()
+
+    def add_gravity(self, acceleration=None):
+        """Gravity on every material (density from the material): default :math:`g` = 9.80665 m/s^2 along -y
+        in 2D (plane strain, axisymmetric) and -z in 3D; or a vector [m/s^2], ramped, or a callable."""
+        if acceleration is None:
+            acceleration = np.zeros(self.gdim)
+            acceleration[-1] = -standard_gravity
+        self._gravity = _Load("gravity", acceleration, (self.gdim,))
+        return self._changed()
+
+    def add_expansion(self, region, volumetric_strain):
+        """Prescribed isotropic expansion of the cells of ``region``: the stress-free volume grows by the factor
+        :math:`\\theta = 1 + e` (``volumetric_strain`` e [-], ramped, or ``e(t)``), through the split
+        :math:`F = F_e F_g`, :math:`F_g = \\theta^{1/3} I` and energy :math:`\\theta\\,\\psi(F_e)` per reference
+        volume. (In plane strain the out-of-plane growth is constrained and produces stress.) Used for
+        actuation by swelling or heating, and by topology optimization."""
+        self._region(region, "cells")
+        self._expansions.append((region, _Load(f"expansion of {region!r}", volumetric_strain, ())))
+        return self._changed()
+
+    def add_tendon(self, points, tension, pull_direction=None):
+        """A cable through anchor ``points`` (K, dim) [m] (entry first, tied at the last), pulled with
+        ``tension`` [N; N per m of depth in plane strain]: a number (ramped) or ``tension(t)``. See
+        :mod:`sorofem.fem.tendon` for the forces."""
+        from .tendon import Tendon
+
+        tendon = Tendon(points, _Load("tendon tension", tension, ()), pull_direction)
+        self._tendons.append(tendon)
+        return self._changed()
+
+    def add_spring(self, region, stiffness):
+        """Distributed springs to ground on ``region``: traction :math:`-k u`, ``stiffness`` k [N/m^3]."""
+        k = float(stiffness)
+        if not math.isfinite(k) or k <= 0:
+            raise ParameterError(f"spring stiffness must be positive and finite [N/m^3], got {stiffness}")
+        self._region(region, "facets")
+        self._springs.append((region, k))
+        return self._changed()
+
+    # ------------------------------------------------------------------------------------------ assembly
+    def _markers(self, names, dim):
+        """One MeshTags for possibly overlapping regions: each distinct set of regions gets its own value;
+        returns (meshtags, {region: tuple of values})."""
+        import dolfinx.mesh
+
+        member = {}
+        for k, name in enumerate(names):
+            ents = self.mesh.facets(name) if dim < self.mesh.dolfinx.topology.dim else self.mesh.cells(name)
+            for e in ents:
+                member.setdefault(int(e), set()).add(k)
+        if len(names) > 12:
+            raise ParameterError(f"at most 12 loaded facet regions are supported, got {len(names)}")
+        idx = np.array(sorted(member), dtype=np.int32)
+        # the value encodes the set of regions a facet belongs to (identical on every rank)
+        val = np.array([1 + sum(1 << k for k in member[e]) for e in idx], dtype=np.int32)
+        tags = dolfinx.mesh.meshtags(self.mesh.dolfinx, dim, idx, val)
+        ids = {}
+        n = len(names)
+        for k, name in enumerate(names):
+            # every subset of regions containing k, encoded like above (small n: a handful of load regions)
+            ids[name] = tuple(1 + m for m in range(1 << n) if m >> k & 1) or (-1,)
+        return tags, ids
+
+    def _build(self):
+        import ufl
+        import dolfinx.fem
+        import dolfinx.mesh
+
+        msh = self.mesh.dolfinx
+        tdim, fdim = msh.topology.dim, msh.topology.dim - 1
+        cell = msh.ufl_cell()
+        kin = Kinematics(self.formulation, msh)
+        if self.mixed:
+            el = ufl.MixedElement([ufl.VectorElement("Lagrange", cell, 2), ufl.FiniteElement("Lagrange", cell, 1)])
+            W = dolfinx.fem.FunctionSpace(msh, el)
+            V, _ = W.sub(0).collapse()
+        else:
+            W = V = dolfinx.fem.VectorFunctionSpace(msh, ("Lagrange", self.degree))
+        w = dolfinx.fem.Function(W, name="state")
+        if self.mixed:
+            u, p = ufl.split(w)
+            v, q = ufl.TestFunctions(W)
+        else:
+            u, v = w, ufl.TestFunction(W)
+        md = {"quadrature_degree": self.quadrature_degree}
+        wt = kin.weight
+
+        # cells: material markers (later assignments win)
+        n_local = msh.topology.index_map(tdim).size_local + msh.topology.index_map(tdim).num_ghosts
+        marker = np.zeros(n_local, dtype=np.int32)
+        for k, (region, _) in enumerate(self._materials[1:], start=1):
+            marker[self.mesh.cells(region)] = k
+        ctags = dolfinx.mesh.meshtags(msh, tdim, np.arange(n_local, dtype=np.int32), marker)
+        dx = ufl.Measure("dx", domain=msh, subdomain_data=ctags, metadata=md)
+
+        # growth: theta = det F_g per cell (DG0), 1 where nothing expands
+        growth = dolfinx.fem.Function(dolfinx.fem.FunctionSpace(msh, ("DG", 0)), name="growth")
+        growth.x.array[:] = 1.0
+        Fv = ufl.variable(kin.F(u))
+        Fe = Fv * growth ** (-1.0 / 3.0)
+
+        def density(mat):  # stored energy per reference volume, and its stress P = d(density)/dF
+            if not self.mixed:
+                return growth * mat.strain_energy(Fe)
+            if not isinstance(mat, Hyperelastic):
+                raise ParameterError(f"the mixed formulation needs hyperelastic materials; {mat.name} is "
+                                     f"{type(mat).__name__}")
+            Je = ufl.det(Fe)
+            return growth * (mat.isochoric_energy(Fe) + p * (Je - 1) - p**2 / (2 * mat.kappa))
+
+        energy = sum(density(mat) * wt * dx(k) for k, (_, mat) in enumerate(self._materials))
+        residual = ufl.derivative(energy, w, ufl.TestFunction(W))
+        stress_exprs = []  # von Mises of the Cauchy stress, per material
+        for _, mat in self._materials:
+            P = ufl.diff(density(mat), Fv)
+            sigma = P * Fv.T / ufl.det(Fv)
+            dev = sigma - ufl.tr(sigma) / 3 * ufl.Identity(3)
+            stress_exprs.append(ufl.sqrt(1.5 * ufl.inner(dev, dev)))
+
+        # facets: one marker for every region that carries a load, support or volume
+        load_regions = []
+        for region, *_ in self._pressures + self._tractions + self._springs + self._volumes:
+            load_regions.append(region)
+        load_regions += list(self.mesh.cavities)
+        load_regions = list(dict.fromkeys(load_regions))
+        if load_regions:
+            ftags, fids = self._markers(load_regions, fdim)
+            ds = ufl.Measure("ds", domain=msh, subdomain_data=ftags, metadata=md)
+        v3 = kin.embed(v)
+        consts = {}
+        for region, load in self._pressures:
+            c = consts[("pressure", region, id(load))] = (dolfinx.fem.Constant(msh, 0.0), load)
+            residual += c[0] * ufl.dot(kin.current_area_vector(u), v3) * wt * ds(fids[region])
+        d = kin.dimension
+        volume_expr = lambda name: -ufl.dot(kin.current_position(u), kin.current_area_vector(u)) / d * wt * ds(fids[name])  # noqa: E731
+        controls = []
+        for region, load in self._volumes:
+            pc = dolfinx.fem.Constant(msh, 0.0)
+            unit = ufl.dot(kin.current_area_vector(u), v3) * wt * ds(fids[region])
+            residual += pc * unit
+            vexpr = volume_expr(region)
+            controls.append((region, load, VolumeConstraint(
+                pressure=pc, load=dolfinx.fem.form(unit), value=dolfinx.fem.form(vexpr),
+                gradient=dolfinx.fem.form(ufl.derivative(vexpr, w, ufl.TestFunction(W))))))
+        for region, load in self._tractions:
+            c = consts[("traction", region, id(load))] = (dolfinx.fem.Constant(msh, np.zeros(self.gdim)), load)
+            residual -= ufl.dot(c[0], v) * wt * ds(fids[region])
+        for region, k in self._springs:
+            residual += k * ufl.dot(u, v) * wt * ds(fids[region])
+        for load in self._body_forces:
+            c = consts[("body", id(load))] = (dolfinx.fem.Constant(msh, np.zeros(self.gdim)), load)
+            residual -= ufl.dot(c[0], v) * wt * dx
+        if self._gravity is not None:
+            g = dolfinx.fem.Constant(msh, np.zeros(self.gdim))
+            consts[("gravity",)] = (g, self._gravity)
+            for k, (_, mat) in enumerate(self._materials):
+                residual -= mat.density * ufl.dot(g, v) * wt * dx(k)
+
+        # Dirichlet conditions
+        Wu = W.sub(0) if self.mixed else W
+        bcs, bc_consts, support_dofs = [], [], {}
+        fixed = [(r, comps, None) for r, comps in self._supports] + list(self._displacements)
+        if self.formulation == "axisymmetric":
+            axis = dolfinx.mesh.locate_entities_boundary(msh, fdim, lambda x: np.abs(x[0]) < 1e-9 * self._size())
+            if len(axis) or msh.comm.allreduce(len(axis)):
+                fixed.append(("__axis__", [0], None))
+                self._axis_facets = axis
+        for region, comps, load in fixed:
+            facets = self._axis_facets if region == "__axis__" else self.mesh.facets(region)
+            consts_here = []
+            for j, comp in enumerate(comps):
+                sub = Wu.sub(comp)
+                dofs = dolfinx.fem.locate_dofs_topological(sub, fdim, facets)
+                c = dolfinx.fem.Constant(msh, 0.0)
+                bcs.append(dolfinx.fem.dirichletbc(c, dofs, sub))
+                consts_here.append(c)
+                if region != "__axis__":
+                    support_dofs.setdefault(region, {}).setdefault(comp, []).append(dofs)
+            if load is not None:
+                bc_consts.append((consts_here, load))
+
+        jacobian = ufl.derivative(residual, w, ufl.TrialFunction(W))
+        R_form, J_form = dolfinx.fem.form(residual), dolfinx.fem.form(jacobian)
+
+        # outputs: strain energy, cavity volumes, P1 displacement at the vertices
+        energy_form = dolfinx.fem.form(sum(growth * mat.strain_energy(Fe) * wt * dx(k)
+                                           for k, (_, mat) in enumerate(self._materials)))
+        DG0 = growth.function_space
+        pts = DG0.element.interpolation_points()
+        material_cells = [np.flatnonzero(marker == k).astype(np.int32) for k in range(len(self._materials))]
+        von_mises = dolfinx.fem.Function(DG0, name="von_mises")
+        stress_exprs = [dolfinx.fem.Expression(e, pts) for e in stress_exprs]
+        expansion_cells = [(self.mesh.cells(region), load) for region, load in self._expansions]
+        volume_forms = {name: dolfinx.fem.form(volume_expr(name))
+                        for name in dict.fromkeys(list(self.mesh.cavities) + [r for r, _ in self._volumes])}
+        for region, _, con in controls:  # reference volume and a tolerance scale
+            con.reference = self._scalar(con.value)
+            con.scale = max(abs(con.reference), self._size() ** d * 1e-6)
+        V1 = dolfinx.fem.VectorFunctionSpace(msh, ("Lagrange", 1))
+        u1 = dolfinx.fem.Function(V1, name="displacement")
+        gatherer = VertexGatherer(V1)
+        owned = W.dofmap.index_map.size_local * W.dofmap.index_map_bs
+        for region in support_dofs:
+            for comp in support_dofs[region]:
+                dofs = np.unique(np.concatenate(support_dofs[region][comp]))
+                support_dofs[region][comp] = dofs[dofs < owned]
+        for tendon in self._tendons:
+            tendon.setup(msh, W, owned, bcs)
+        self._built = dict(W=W, V=V, w=w, kin=kin, bcs=bcs, cell_tags=ctags, bc_consts=bc_consts, consts=consts,
+                           R=R_form, J=J_form, energy=energy_form, volumes=volume_forms, V1=V1, u1=u1,
+                           gatherer=gatherer, support_dofs=support_dofs, controls=controls, growth=growth,
+                           expansion_cells=expansion_cells, von_mises=von_mises, stress_exprs=stress_exprs,
+                           material_cells=material_cells)
+        return self._built
+
+    def _size(self):
+        lo, hi = self.mesh.bounds
+        return float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
+
+    def _set_loads(self, t):
+        b = self._built
+        values = {}
+        for (kind, *rest), (const, load) in b["consts"].items():
+            v = load(t)
+            const.value = v
+            if kind == "pressure":
+                values[f"pressure/{rest[0]}"] = float(v)
+        b["t"] = t
+        for k, tendon in enumerate(self._tendons):
+            values[f"tension/{k}"] = float(tendon.tension(t))
+        if b["expansion_cells"]:
+            b["growth"].x.array[:] = 1.0
+            for cells, load in b["expansion_cells"]:
+                theta = 1.0 + float(load(t))
+                if theta <= 0:
+                    raise ParameterError(f"{load.name}: volumetric strain {theta - 1:.3g} at t={t} shrinks the "
+                                         "volume to nothing; it must stay > -1")
+                b["growth"].x.array[cells] = theta
+                values[f"expansion/{load.name.split(chr(39))[1]}"] = theta - 1.0
+        for region, load, con in b["controls"]:
+            con.target = con.reference + float(load(t))
+            values[f"added_volume/{region}"] = float(load(t))
+        for consts_here, load in b["bc_consts"]:
+            v = np.atleast_1d(load(t))
+            for c, vi in zip(consts_here, v):
+                c.value = float(vi)
+        return values
+
+    # ------------------------------------------------------------------------------------------ outputs
+    @property
+    def displacement(self):
+        """The current displacement as a DOLFINx Function (collapsed copy in the mixed formulation)."""
+        b = self._built or self._build()
+        return b["w"].sub(0).collapse() if self.mixed else b["w"]
+
+    def _scalar(self, form):
+        import dolfinx.fem
+        from mpi4py import MPI
+
+        return self.mesh.comm.allreduce(dolfinx.fem.assemble_scalar(form), op=MPI.SUM)
+
+    def _reactions(self, newton):
+        b = self._built
+        vec = newton.assemble_residual(lift=False)
+        arr = vec.getArray(readonly=True)
+        out = {}
+        for region, comps in b["support_dofs"].items():
+            f = np.zeros(self.gdim)
+            for comp, dofs in comps.items():
+                f[comp] = self.mesh.comm.allreduce(float(arr[dofs].sum()))
+            out[region] = f
+        return out
+
+    def _record(self, traj, t, iterations, inputs, newton, monitor=False):
+        b = self._built
+        if monitor:
+            traj.lowest_eigenvalue.append(self.eigen(1).eigenvalues[0])
+        b["u1"].interpolate(self.displacement)
+        u_vert = b["gatherer"].gather_function(b["u1"])
+        volumes = {k: self._scalar(f) for k, f in b["volumes"].items()}
+        inputs = {**inputs, **{f"pressure/{r}": float(con.pressure.value) for r, _, con in b["controls"]}}
+        vm = self.von_mises()
+        n_owned = self.mesh.dolfinx.topology.index_map(self.mesh.dolfinx.topology.dim).size_local
+        vm_cells = self.mesh.comm.gather(vm.x.array[:n_owned].copy(), root=0)
+        vm_cells = np.concatenate(vm_cells) if vm_cells is not None else None
+        traj.append(t, u_vert, iterations, self._scalar(b["energy"]), inputs, volumes, self._reactions(newton),
+                    von_mises=vm_cells, max_von_mises=self.mesh.comm.allreduce(float(vm.x.array[:n_owned].max(initial=0.0)),
+                                                                              op=_max_op()))
+
+    def von_mises(self):
+        """Von Mises equivalent of the Cauchy stress [Pa] at the current state, one value per cell (DG0
+        Function): :math:`\\sqrt{3/2\\, \\mathrm{dev}\\,\\sigma : \\mathrm{dev}\\,\\sigma}`,
+        :math:`\\sigma = J^{-1} P F^T` (3D stress, including the out-of-plane component in plane strain)."""
+        b = self._built or self._build()
+        vm = b["von_mises"]
+        for expr, cells in zip(b["stress_exprs"], b["material_cells"]):
+            if len(cells):
+                vm.interpolate(expr, cells)
+        vm.x.scatter_forward()
+        return vm
+
+    def evaluate(self, points):
+        """Displacement [m] at reference points (N, gdim): (N, gdim) on every rank.
+
+        Raises :class:`ParameterError` if a point lies outside the mesh."""
+        import dolfinx.geometry
+        from mpi4py import MPI
+
+        msh = self.mesh.dolfinx
+        pts = np.atleast_2d(np.asarray(points, dtype=float))
+        if pts.shape[1] != self.gdim:
+            raise ParameterError(f"points must have shape (N, {self.gdim}), got {pts.shape}")
+        p3 = np.zeros((len(pts), 3))
+        p3[:, : self.gdim] = pts
+        tree = dolfinx.geometry.BoundingBoxTree(msh, msh.topology.dim)
+        cand = dolfinx.geometry.compute_collisions(tree, p3)
+        cells = dolfinx.geometry.compute_colliding_cells(msh, cand, p3)
+        u = self.displacement
+        vals = np.full((len(pts), self.gdim), np.nan)
+        found = np.zeros(len(pts), dtype=np.int32)
+        n_owned = msh.topology.index_map(msh.topology.dim).size_local
+        for i in range(len(pts)):
+            c = cells.links(i)
+            c = c[c < n_owned]
+            if len(c):
+                vals[i] = u.eval(p3[i], c[:1])
+                found[i] = 1
+        hits = msh.comm.allreduce(found, op=MPI.SUM)
+        if np.any(hits == 0):
+            raise ParameterError(f"points {pts[hits == 0].tolist()} lie outside the mesh")
+        vals[found == 0] = 0.0
+        return msh.comm.allreduce(vals, op=MPI.SUM) / hits[:, None]
+
+    # ------------------------------------------------------------------------------------------ solve
+    def solve(self, t_end=1.0, steps=10, min_step=None, max_step=None, max_iterations=25, predictor=True,
+              monitor_stability=False, progress=False):
+        """March the load parameter from 0 to ``t_end`` in adaptive steps; return a :class:`Trajectory`.
+
+        A step whose Newton iteration fails (no convergence in ``max_iterations``, a non-finite residual,
+        a failed factorization) is undone and halved; an easy step (at most 4 iterations) lets the next one
+        grow by 1.5x up to ``max_step``. Reaching ``min_step`` raises :class:`ConvergenceError` naming the
+        load level, with the converged part of the trajectory in its ``trajectory`` attribute.
+
+        Parameters
+        ----------
+        t_end : float
+            Final load parameter (or time for time-dependent loads) [-].
+        steps : int
+            Requested number of steps: initial and largest step ``t_end / steps`` unless ``max_step`` is set.
+        min_step : float, optional
+            Smallest step before giving up (default ``t_end / steps / 1024``).
+        predictor : bool
+            Start each step from the linear extrapolation of the last two states.
+        monitor_stability : bool
+            After each converged step compute the lowest eigenvalue of :math:`K\\phi = \\lambda M\\phi`
+            (:attr:`Trajectory.lowest_eigenvalue`, [1/s^2]); it crosses zero where the equilibrium
+            loses stability (buckling, limit points).
+        progress : bool
+            Print one line per converged step (rank 0).
+        """
+        from petsc4py import PETSc
+
+        if not (math.isfinite(t_end) and t_end > 0):
+            raise ParameterError(f"t_end must be positive, got {t_end}")
+        if int(steps) < 1:
+            raise ParameterError(f"steps must be >= 1, got {steps}")
+        b = self._built or self._build()
+        dt0 = t_end / int(steps)
+        dt_max = float(max_step or dt0)
+        dt_min = float(min_step or dt0 / 1024)
+        w = b["w"]
+        x = w.vector
+        controls = [con for _, _, con in b["controls"]]
+        def tendon_forces(b_array, u_array):
+            for tendon in self._tendons:
+                tendon.subtract(b_array, u_array, b["t"])
+
+        def tendon_tangent(A, u_array):
+            for tendon in self._tendons:
+                tendon.add_tangent(A, u_array, b["t"])
+
+        gamg = self.petsc_options.get("pc_type") == "gamg" and not self.mixed
+        newton = NewtonSolver(b["R"], b["J"], w, b["bcs"], self.petsc_options, scale=self._size(),
+                              near_nullspace=NewtonSolver.rigid_body_modes(b["W"]) if gamg else None,
+                              max_iterations=max_iterations, constraints=controls,
+                              point_forces=tendon_forces if self._tendons else None,
+                              point_tangent=tendon_tangent if self._tendons else None)
+        traj = Trajectory(b["gatherer"].vertices, b["gatherer"].cells, self._cell_type(), time_kind="load",
+                          metadata=self._metadata())
+        t, dt = 0.0, dt0
+        inputs = self._set_loads(0.0)
+        out = newton.solve()  # the initial state (loads at t = 0 may be non-zero for callables)
+        if not out.converged:
+            newton.destroy()
+            raise ConvergenceError(f"the initial state (t = 0) did not converge: {out.reason}. Check that the "
+                                   "supports prevent rigid motion and that the loads at t = 0 are reasonable")
+        self._record(traj, 0.0, out.iterations, inputs, newton, monitor_stability)
+        x_old, x_prev, dt_prev = x.copy(), None, None
+        p_old = [float(c.pressure.value) for c in controls]
+        wall = _time.perf_counter()
+        try:
+            while t < t_end * (1 - 1e-12):
+                dt = min(dt, t_end - t)
+                if predictor and x_prev is not None:
+                    x.axpy(dt / dt_prev, x_old)  # u_n + dt/dt_prev (u_n - u_{n-1})
+                    x.axpy(-dt / dt_prev, x_prev)
+                    x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+                inputs = self._set_loads(t + dt)
+                out = newton.solve()
+                if out.converged:
+                    t += dt
+                    self._record(traj, t, out.iterations, inputs, newton, monitor_stability)
+                    x_prev, dt_prev = x_old, dt
+                    x_old = x.copy()
+                    p_old = [float(c.pressure.value) for c in controls]
+                    if progress and self.mesh.comm.rank == 0:
+                        print(f"  t = {t:.4g}  ({out.iterations} Newton iterations)", flush=True)
+                    if out.iterations <= 4:
+                        dt = min(1.5 * dt, dt_max)
+                    continue
+                log.info("step t=%.4g -> %.4g failed (%s); halving", t, t + dt, out.reason)
+                x_old.copy(x)
+                x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+                for c, p in zip(controls, p_old):
+                    c.pressure.value = p
+                x_prev = None  # restart the predictor after a failure
+                dt /= 2
+                if dt < dt_min:
+                    e = ConvergenceError(
+                        f"the load step from t = {t:.6g} failed at step size {2 * dt:.3g} < min_step {dt_min:.3g} "
+                        f"({out.reason}; residual {out.residual:.3e}). Reached t = {t:.6g} of {t_end:.6g}. Try: "
+                        "more or smaller steps, degree=2 with mixed=True for nearly incompressible materials, a "
+                        "displacement- or volume-controlled load past a limit point, or supports that remove "
+                        "rigid-body motion")
+                    e.trajectory, e.load_level = traj, t
+                    raise e
+        finally:
+            newton.destroy()
+            self._set_loads(t)
+        traj.metadata["wall_time_s"] = _time.perf_counter() - wall
+        return traj
+
+    def eigen(self, n=6, shift=0.0):
+        """The ``n`` eigenpairs of :math:`K\\phi = \\omega^2 M\\phi` nearest ``shift`` [1/s^2] about the current
+        state: vibration modes, or, along a load path, the buckling indicator (see :mod:`sorofem.fem.eigen`).
+        Returns :class:`sorofem.fem.eigen.Modes`."""
+        from .eigen import eigenmodes
+
+        return eigenmodes(self, n=n, shift=shift)
+
+    def _cell_type(self):
+        return self.mesh.dolfinx.topology.cell_type.name
+
+    def _metadata(self):
+        return {"formulation": self.formulation, "degree": self.degree, "mixed": self.mixed,
+                "materials": [{"region": r or "all", "name": m.name, "E": m.E, "nu": m.nu, "density": m.density}
+                              for r, m in self._materials],
+                "loads": {"pressures": [r for r, _ in self._pressures], "supports": [r for r, _ in self._supports]}}

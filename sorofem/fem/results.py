@@ -1,0 +1,271 @@
+"""Results of a FEM solve: a :class:`Trajectory` of converged states, gathered to rank 0 at the mesh vertices."""
+import contextlib
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DataError
+from ..snapshots import SnapshotWriter
+
+__all__ = ["Trajectory", "VertexGatherer"]
+
+
+class VertexGatherer:
+    """Gathers a P1 vector field and its mesh (global vertex numbering) to rank 0.
+
+    The P1 space's dofs are the mesh vertices; owned dofs of every rank are sent to rank 0 with their global
+    indices, so serial and parallel runs produce the same arrays.
+    """
+
+    def __init__(self, V1):
+        self.V1 = V1
+        comm = V1.mesh.comm
+        self.comm = comm
+        imap = V1.dofmap.index_map
+        self.n_owned = imap.size_local
+        start = imap.local_range[0]
+        self.local_to_global = np.concatenate([np.arange(start, start + self.n_owned), imap.ghosts]).astype(np.int64)
+        self.n_global = imap.size_global
+        tdim = V1.mesh.topology.dim
+        n_cells = V1.mesh.topology.index_map(tdim).size_local
+        cells = V1.dofmap.list.array.reshape(-1, V1.dofmap.dof_layout.num_dofs)[:n_cells]
+        X = V1.tabulate_dof_coordinates()[: self.n_owned, : V1.mesh.geometry.dim]
+        all_cells = comm.gather(self.local_to_global[cells], root=0)
+        self.vertices = self.gather(X)
+        self.cells = np.concatenate(all_cells) if comm.rank == 0 else None
+
+    def gather(self, owned_values):
+        """Arrays over owned vertices (n_owned, k) → (n_global, k) on rank 0 (None elsewhere)."""
+        parts = self.comm.gather((self.local_to_global[: self.n_owned], np.asarray(owned_values)), root=0)
+        if self.comm.rank != 0:
+            return None
+        out = np.empty((self.n_global, parts[0][1].shape[1]))
+        for idx, vals in parts:
+            out[idx] = vals
+        return out
+
+    def gather_function(self, u1):
+        """Values of a P1 vector Function at the vertices, (n_global, gdim) on rank 0."""
+        bs = self.V1.dofmap.index_map_bs
+        return self.gather(u1.x.array[: self.n_owned * bs].reshape(-1, bs))
+
+
+class Trajectory:
+    """Converged states of a solve: load levels or times, vertex displacements and per-step scalars.
+
+    Attributes (every rank unless noted)
+    ----------
+    times : (n_steps,) array
+        Load parameter or time of each state (the first is the initial state).
+    displacement : (n_steps, n_vertices, gdim) array [m], rank 0 only (None elsewhere)
+    vertices, cells : reference vertex coordinates [m] and linear connectivity, rank 0 only
+    cell_type : str
+    inputs : dict name -> (n_steps,) array of the load values applied (pressures [Pa], ...)
+    cavity_volumes : dict name -> (n_steps,) array [m^3]; in plane strain, area per unit depth [m^2]
+    reactions : dict support region -> (n_steps, gdim) array: the force [N] the support exerts on the body
+        (plane strain: [N/m])
+    von_mises : (n_steps, n_cells) array [Pa], rank 0 only; max_von_mises : (n_steps,) array [Pa]
+    energy : (n_steps,) strain energy [J] (plane strain: [J/m])
+    newton_iterations : (n_steps,) int
+    lowest_eigenvalue : list of float [1/s^2], filled when solved with ``monitor_stability=True``
+    metadata : dict
+    """
+
+    def __init__(self, vertices, cells, cell_type, time_kind="load", metadata=None):
+        self.vertices, self.cells, self.cell_type = vertices, cells, cell_type
+        self.time_kind = time_kind
+        self.metadata = dict(metadata or {})
+        self._times, self._u, self._iters, self._energy = [], [], [], []
+        self._inputs, self._volumes, self._reactions = {}, {}, {}
+        self.lowest_eigenvalue = []
+        self._vm, self._vm_max = [], []
+
+    def append(self, t, u_vertices, iterations, energy, inputs, volumes, reactions, von_mises=None,
+               max_von_mises=0.0):
+        self._times.append(float(t))
+        self._vm.append(von_mises)
+        self._vm_max.append(float(max_von_mises))
+        self._u.append(u_vertices)
+        self._iters.append(int(iterations))
+        self._energy.append(float(energy))
+        for store, data in ((self._inputs, inputs), (self._volumes, volumes), (self._reactions, reactions)):
+            for k, v in data.items():
+                store.setdefault(k, []).append(np.asarray(v, dtype=float))
+
+    def __len__(self):
+        return len(self._times)
+
+    @property
+    def times(self):
+        return np.array(self._times)
+
+    @property
+    def displacement(self):
+        return None if self._u[0] is None else np.array(self._u)
+
+    @property
+    def von_mises(self):
+        """(n_steps, n_cells) von Mises stress per cell [Pa] (rank 0; cell order of :attr:`cells`)."""
+        return None if self._vm[0] is None else np.array(self._vm)
+
+    @property
+    def max_von_mises(self):
+        """(n_steps,) largest cell von Mises stress [Pa]."""
+        return np.array(self._vm_max)
+
+    @property
+    def newton_iterations(self):
+        return np.array(self._iters)
+
+    @property
+    def energy(self):
+        return np.array(self._energy)
+
+    @property
+    def inputs(self):
+        return {k: np.array(v) for k, v in self._inputs.items()}
+
+    @property
+    def cavity_volumes(self):
+        return {k: np.array(v) for k, v in self._volumes.items()}
+
+    @property
+    def reactions(self):
+        return {k: np.array(v) for k, v in self._reactions.items()}
+
+    _MESHIO = {"triangle": "triangle", "quadrilateral": "quad", "tetrahedron": "tetra", "hexahedron": "hexahedron"}
+    # DOLFINx orders quadrilateral/hexahedron vertices lexicographically; VTK/XDMF go around the faces
+    _TO_VTK = {"quadrilateral": [0, 1, 3, 2], "hexahedron": [0, 1, 3, 2, 4, 5, 7, 6]}
+
+    def _rank0_cells_vtk(self):
+        order = self._TO_VTK.get(self.cell_type)
+        return self.cells if order is None else self.cells[:, order]
+
+    def write_xdmf(self, path):
+        """Write every state to an XDMF/HDF5 time series for ParaView (rank 0 writes; call on every rank):
+        point data ``displacement`` [m], cell data ``von_mises`` [Pa]. Both files appear together, atomically."""
+        from mpi4py import MPI
+
+        path = Path(path)
+        comm = MPI.COMM_WORLD
+        err = None
+        if comm.rank == 0:
+            try:
+                import meshio
+
+                path.parent.mkdir(parents=True, exist_ok=True)
+                tmpdir = Path(tempfile.mkdtemp(prefix=f".{path.stem}.", dir=path.parent))
+                try:
+                    cells = [(self._MESHIO[self.cell_type], self._rank0_cells_vtk())]
+                    # meshio 5.0 writes the .h5 into the working directory: write from inside tmpdir
+                    with contextlib.chdir(tmpdir), meshio.xdmf.TimeSeriesWriter(path.name) as w:
+                        w.write_points_cells(self.vertices, cells)
+                        for i, t in enumerate(self._times):
+                            cell_data = {} if self._vm[i] is None else {"von_mises": [self._vm[i]]}
+                            w.write_data(t, point_data={"displacement": self._u[i]}, cell_data=cell_data)
+                    for f in sorted(tmpdir.iterdir(), key=lambda f: f.suffix == ".xdmf"):  # .h5 first
+                        os.replace(f, path.parent / f.name)
+                finally:
+                    shutil.rmtree(tmpdir, ignore_errors=True)
+            except Exception as e:  # noqa: BLE001 - re-raised on every rank
+                err = e
+        err = comm.bcast(err, root=0)
+        if err is not None:
+            raise err
+        return path
+
+    def plot(self, path, step=-1, field="von_mises", scale=1.0, title=None):
+        """PNG of the deformed body at ``step`` coloured by ``field`` (``"von_mises"`` [kPa] or
+        ``"displacement"`` magnitude [mm]); 2D: filled cells, 3D: boundary faces. Rank 0 draws."""
+        from mpi4py import MPI
+
+        if MPI.COMM_WORLD.rank != 0:
+            return path
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        from matplotlib.collections import PolyCollection
+
+        from ..io import atomic_path
+
+        u = self._u[step]
+        x = self.vertices + scale * u
+        if field == "von_mises":
+            values, label = np.asarray(self._vm[step]) / 1e3, "von Mises stress [kPa]"
+        elif field == "displacement":
+            values, label = np.linalg.norm(u, axis=1)[self.cells].mean(axis=1) * 1e3, "|u| [mm]"
+        else:
+            raise ValueError(f"field must be 'von_mises' or 'displacement', got {field!r}")
+        cells = self._rank0_cells_vtk()
+        if x.shape[1] == 2:
+            fig, ax = plt.subplots(figsize=(7, 4))
+            pc = PolyCollection(x[cells] * 1e3, array=values, cmap="viridis", edgecolors="k", linewidths=0.1)
+            ax.add_collection(pc)
+            ax.autoscale()
+            ax.set_aspect("equal")
+            ax.set_xlabel("x [mm]")
+            ax.set_ylabel("y [mm]")
+        else:
+            from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+            faces, owner = _boundary_faces(self.cell_type, cells)
+            fig = plt.figure(figsize=(7, 5))
+            ax = fig.add_subplot(projection="3d")
+            pc = Poly3DCollection(x[faces] * 1e3, array=values[owner], cmap="viridis", edgecolors="k",
+                                  linewidths=0.05)
+            ax.add_collection3d(pc)
+            lo, hi = x.min(axis=0) * 1e3, x.max(axis=0) * 1e3
+            c, r = (lo + hi) / 2, (hi - lo).max() / 2
+            ax.set(xlim=(c[0] - r, c[0] + r), ylim=(c[1] - r, c[1] + r), zlim=(c[2] - r, c[2] + r),
+                   xlabel="x [mm]", ylabel="y [mm]", zlabel="z [mm]")
+        fig.colorbar(pc, ax=ax, label=label, shrink=0.8)
+        ax.set_title(title or f"t = {self._times[step]:.3g}")
+        fig.tight_layout()
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=130)
+        plt.close(fig)
+        return path
+
+    def save(self, path, regions=None, cavities=()):
+        """Write the trajectory as a snapshot file (see ``docs/snapshot-format.md``); rank 0 writes, every
+        rank must call. Returns the path."""
+        from mpi4py import MPI
+
+        comm = MPI.COMM_WORLD
+        err = None
+        if comm.rank == 0:
+            try:
+                if not len(self):
+                    raise DataError("the trajectory is empty: nothing to save")
+                with SnapshotWriter(path, self.vertices, self.cells, self.cell_type, regions=regions,
+                                    cavities=cavities, metadata=self.metadata, time_kind=self.time_kind) as w:
+                    for i in range(len(self)):
+                        w.append(self._times[i], self._u[i],
+                                 inputs={k: v[i] for k, v in self._inputs.items()},
+                                 cavity_volumes={k: v[i] for k, v in self._volumes.items()},
+                                 reactions={k: v[i] for k, v in self._reactions.items()},
+                                 energies={"strain": self._energy[i]},
+                                 cell_fields={"von_mises": self._vm[i]} if self._vm[i] is not None else None)
+            except Exception as e:  # noqa: BLE001 - re-raised on every rank
+                err = e
+        err = comm.bcast(err, root=0)
+        if err is not None:
+            raise err
+        return path
+
+
+_FACES = {"tetrahedron": [[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]],
+          "hexahedron": [[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]]}
+
+
+def _boundary_faces(cell_type, cells_vtk):
+    """Faces (VTK vertex order) that belong to one cell only, and the index of that cell."""
+    local = np.array(_FACES[cell_type])
+    faces = cells_vtk[:, local].reshape(-1, local.shape[1])
+    owner = np.repeat(np.arange(len(cells_vtk)), len(local))
+    key = np.sort(faces, axis=1)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    once = counts[inverse] == 1
+    return faces[once], owner[once]
