@@ -18,8 +18,15 @@ def test_every_demo_has_a_check():
 
 
 def check_chain(report, out):
-    assert report["area_error_rel"] < 1e-10  # a structured mesh of a rectangle covers it exactly
-    assert (out / "mesh.png").stat().st_size > 0
+    from sorofem.snapshots import Snapshots
+    assert report["stages"][:3] == ["design", "mesh", "fem_snapshots"]
+    assert report["cavities"] == 5  # one per chamber
+    assert report["bending_angle_deg"] > 30  # bends toward the strain-limiting layer
+    assert report["cavity_volume_change_rel"] > 0
+    snap = Snapshots(out / report["snapshot"])
+    assert snap.n_steps >= 5 and snap.inputs["pressure/cavity_0"][-1] == pytest.approx(report["max_pressure_kPa"] * 1e3)
+    for name in ("design.png", "mesh.png", "deformed.png", "bending.png"):
+        assert (out / name).stat().st_size > 0
 
 
 def check_sdf_gallery(report, out):
