@@ -387,3 +387,28 @@ def test_iterative_solver_option_matches_the_direct_solver():
         tips.append(fem.evaluate([[0.04, 0.0, 0.0]])[0])
         assert traj.newton_iterations[1:].max() <= 6
     np.testing.assert_allclose(tips[1], tips[0], rtol=1e-6)
+
+
+def test_two_materials_in_series_add_their_compliances():
+    """A bar of two halves (E1, E2), nu = 0, pulled by a small traction q: u(L) = q (L1/E1 + L2/E2)."""
+    L, A = 0.02, 0.005
+    msh = Mesh.box(L, A, A, size=A / 2, center=(L / 2, A / 2, A / 2), cell="hexahedron")
+    msh.add_region("stiff", lambda x: x[0] > L / 2, kind="cells")
+    E1, E2, q = 100 * kPa, 400 * kPa, 10.0
+    fem = Fem(msh, materials.NeoHookean(E=E1, nu=0.0))
+    fem.add_material("stiff", materials.NeoHookean(E=E2, nu=0.0))
+    fem.add_support("left", "x").add_support("front", "y").add_support("bottom", "z")
+    fem.add_force("right", [q, 0.0, 0.0]).solve(steps=1)
+    expected = q * (L / 2 / E1 + L / 2 / E2)
+    assert fem.evaluate([[L, A, A]])[0][0] == pytest.approx(expected, rel=1e-3)  # O(strain) = 1e-4 nonlinearity
+    assert fem.evaluate([[L / 2, A, A]])[0][0] == pytest.approx(q * L / 2 / E1, rel=1e-3)
+
+
+def test_springs_to_ground_carry_the_load():
+    """A block on distributed springs k under a small top traction q (nu = 0): u_top = -q/k - q h/E."""
+    h = 0.01
+    msh = Mesh.box(h, h, h, size=h / 2, center=(0, 0, h / 2), cell="hexahedron")
+    E, k, q = 100 * kPa, 1e7, 10.0
+    fem = Fem(msh, materials.NeoHookean(E=E, nu=0.0)).add_spring("bottom", k)
+    fem.add_force("top", [0.0, 0.0, -q]).solve(steps=1)
+    assert fem.evaluate([[0.0, 0.0, h]])[0][2] == pytest.approx(-q / k - q * h / E, rel=1e-3)
