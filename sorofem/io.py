@@ -11,7 +11,7 @@ import os
 import tempfile
 from pathlib import Path
 
-__all__ = ["atomic_path", "write_json"]
+__all__ = ["atomic_path", "write_json", "on_root"]
 
 
 @contextlib.contextmanager
@@ -80,3 +80,22 @@ def write_json(path, data):
     with atomic_path(path) as tmp:
         tmp.write_text(text + "\n")
     return Path(path)
+
+
+def on_root(comm, fn):
+    """Run ``fn()`` on rank 0 of ``comm`` and raise its exception, if any, on every rank.
+
+    Returns ``fn()``'s result on rank 0 and ``None`` elsewhere. Use it for work that only rank 0 does
+    (meshing, writing a gathered file) so that a failure stops every rank with the same error instead of
+    leaving the others waiting in a collective call.
+    """
+    out = err = None
+    if comm.rank == 0:
+        try:
+            out = fn()
+        except Exception as e:  # noqa: BLE001 - re-raised on every rank below
+            err = e
+    err = comm.bcast(err, root=0)
+    if err is not None:
+        raise err
+    return out

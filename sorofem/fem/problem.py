@@ -611,7 +611,7 @@ class Fem:
                               point_forces=tendon_forces if self._tendons else None,
                               point_tangent=tendon_tangent if self._tendons else None)
         traj = Trajectory(b["gatherer"].vertices, b["gatherer"].cells, self._cell_type(), time_kind="load",
-                          metadata=self._metadata())
+                          metadata=self._metadata(), comm=self.mesh.comm)
         t, dt = 0.0, dt0
         inputs = self._set_loads(0.0)
         out = newton.solve()  # the initial state (loads at t = 0 may be non-zero for callables)

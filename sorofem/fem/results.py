@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataError
+from ..io import on_root
 from ..snapshots import SnapshotWriter
 
 __all__ = ["Trajectory", "VertexGatherer"]
@@ -74,7 +75,10 @@ class Trajectory:
     metadata : dict
     """
 
-    def __init__(self, vertices, cells, cell_type, time_kind="load", metadata=None):
+    def __init__(self, vertices, cells, cell_type, time_kind="load", metadata=None, comm=None):
+        from mpi4py import MPI
+
+        self.comm = comm or MPI.COMM_WORLD  # the mesh's communicator: its rank 0 holds the gathered fields
         self.vertices, self.cells, self.cell_type = vertices, cells, cell_type
         self.time_kind = time_kind
         self.metadata = dict(metadata or {})
@@ -147,42 +151,33 @@ class Trajectory:
     def write_xdmf(self, path):
         """Write every state to an XDMF/HDF5 time series for ParaView (rank 0 writes; call on every rank):
         point data ``displacement`` [m], cell data ``von_mises`` [Pa]. Both files appear together, atomically."""
-        from mpi4py import MPI
-
         path = Path(path)
-        comm = MPI.COMM_WORLD
-        err = None
-        if comm.rank == 0:
-            try:
-                import meshio
 
-                path.parent.mkdir(parents=True, exist_ok=True)
-                tmpdir = Path(tempfile.mkdtemp(prefix=f".{path.stem}.", dir=path.parent))
-                try:
-                    cells = [(self._MESHIO[self.cell_type], self._rank0_cells_vtk())]
-                    # meshio 5.0 writes the .h5 into the working directory: write from inside tmpdir
-                    with contextlib.chdir(tmpdir), meshio.xdmf.TimeSeriesWriter(path.name) as w:
-                        w.write_points_cells(self.vertices, cells)
-                        for i, t in enumerate(self._times):
-                            cell_data = {} if self._vm[i] is None else {"von_mises": [self._vm[i]]}
-                            w.write_data(t, point_data={"displacement": self._u[i]}, cell_data=cell_data)
-                    for f in sorted(tmpdir.iterdir(), key=lambda f: f.suffix == ".xdmf"):  # .h5 first
-                        os.replace(f, path.parent / f.name)
-                finally:
-                    shutil.rmtree(tmpdir, ignore_errors=True)
-            except Exception as e:  # noqa: BLE001 - re-raised on every rank
-                err = e
-        err = comm.bcast(err, root=0)
-        if err is not None:
-            raise err
+        def write():
+            import meshio
+
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmpdir = Path(tempfile.mkdtemp(prefix=f".{path.stem}.", dir=path.parent))
+            try:
+                cells = [(self._MESHIO[self.cell_type], self._rank0_cells_vtk())]
+                # meshio 5.0 writes the .h5 into the working directory: write from inside tmpdir
+                with contextlib.chdir(tmpdir), meshio.xdmf.TimeSeriesWriter(path.name) as w:
+                    w.write_points_cells(self.vertices, cells)
+                    for i, t in enumerate(self._times):
+                        cell_data = {} if self._vm[i] is None else {"von_mises": [self._vm[i]]}
+                        w.write_data(t, point_data={"displacement": self._u[i]}, cell_data=cell_data)
+                for f in sorted(tmpdir.iterdir(), key=lambda f: f.suffix == ".xdmf"):  # .h5 first
+                    os.replace(f, path.parent / f.name)
+            finally:
+                shutil.rmtree(tmpdir, ignore_errors=True)
+
+        on_root(self.comm, write)
         return path
 
     def plot(self, path, step=-1, field="von_mises", scale=1.0, title=None):
         """PNG of the deformed body at ``step`` coloured by ``field`` (``"von_mises"`` [kPa] or
         ``"displacement"`` magnitude [mm]); 2D: filled cells, 3D: boundary faces. Rank 0 draws."""
-        from mpi4py import MPI
-
-        if MPI.COMM_WORLD.rank != 0:
+        if self.comm.rank != 0:
             return path
         import matplotlib
         matplotlib.use("Agg")
@@ -231,28 +226,20 @@ class Trajectory:
     def save(self, path, regions=None, cavities=()):
         """Write the trajectory as a snapshot file (see ``docs/snapshot-format.md``); rank 0 writes, every
         rank must call. Returns the path."""
-        from mpi4py import MPI
+        def write():
+            if not len(self):
+                raise DataError("the trajectory is empty: nothing to save")
+            with SnapshotWriter(path, self.vertices, self.cells, self.cell_type, regions=regions,
+                                cavities=cavities, metadata=self.metadata, time_kind=self.time_kind) as w:
+                for i in range(len(self)):
+                    w.append(self._times[i], self._u[i],
+                             inputs={k: v[i] for k, v in self._inputs.items()},
+                             cavity_volumes={k: v[i] for k, v in self._volumes.items()},
+                             reactions={k: v[i] for k, v in self._reactions.items()},
+                             energies={"strain": self._energy[i]},
+                             cell_fields={"von_mises": self._vm[i]} if self._vm[i] is not None else None)
 
-        comm = MPI.COMM_WORLD
-        err = None
-        if comm.rank == 0:
-            try:
-                if not len(self):
-                    raise DataError("the trajectory is empty: nothing to save")
-                with SnapshotWriter(path, self.vertices, self.cells, self.cell_type, regions=regions,
-                                    cavities=cavities, metadata=self.metadata, time_kind=self.time_kind) as w:
-                    for i in range(len(self)):
-                        w.append(self._times[i], self._u[i],
-                                 inputs={k: v[i] for k, v in self._inputs.items()},
-                                 cavity_volumes={k: v[i] for k, v in self._volumes.items()},
-                                 reactions={k: v[i] for k, v in self._reactions.items()},
-                                 energies={"strain": self._energy[i]},
-                                 cell_fields={"von_mises": self._vm[i]} if self._vm[i] is not None else None)
-            except Exception as e:  # noqa: BLE001 - re-raised on every rank
-                err = e
-        err = comm.bcast(err, root=0)
-        if err is not None:
-            raise err
+        on_root(self.comm, write)
         return path
 
 

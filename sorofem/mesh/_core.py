@@ -12,6 +12,7 @@ import numpy as np
 
 from .._jit import silence_compiler_logs
 from ..errors import GeometryError, MeshError
+from ..io import on_root
 from . import _contour, _gmsh, _regions
 
 __all__ = ["Mesh"]
@@ -49,20 +50,6 @@ def _check_cell(cell, dim):
             (c in ("tetrahedron", "tet", "hexahedron", "hex") and dim == 2):
         raise MeshError(f"cell {cell!r} does not match a {dim}D domain")
     return kind
-
-
-def _on_root(comm, fn):
-    """Run ``fn()`` on rank 0 and broadcast either its result or its exception to every rank."""
-    out = err = None
-    if comm.rank == 0:
-        try:
-            out = fn()
-        except Exception as e:  # noqa: BLE001 - re-raised on every rank below
-            err = e
-    err = comm.bcast(err, root=0)
-    if err is not None:
-        raise err
-    return out
 
 
 def _size_function(size, refine, shape, boundary_size, boundary_width, dim):
@@ -438,7 +425,7 @@ class Mesh:
         import ufl
 
         t0 = time.perf_counter()
-        data = _on_root(comm, build)
+        data = on_root(comm, build)
         if comm.rank == 0:
             x, cells, etype, gdim = data
             meta = (etype, cells.shape[1], gdim)
@@ -888,7 +875,7 @@ def _attach_msh_regions(msh, path):
     from scipy.spatial import cKDTree
 
     comm = msh.comm
-    groups = _on_root(comm, lambda: _msh_groups(path))
+    groups = on_root(comm, lambda: _msh_groups(path))
     groups = comm.bcast(groups, root=0)
     m = msh.dolfinx
     tdim, gdim = m.topology.dim, m.geometry.dim

@@ -578,58 +578,49 @@ class _NAry(SDF):
         super().__init__(flat[0].dim, {}, flat)
 
 
-class Union(_NAry):
+class _Extremum(_NAry):
+    """n-ary min (union) or max (intersection) of the operands' distances; subclasses set the reducer."""
+
+    _reduce = None     # np.minimum or np.maximum
+    _select = None     # np.argmin or np.argmax
+    _kernel_fn = None  # "min" or "max" in generated kernels
+
+    def _eval(self, p):
+        out = self.children[0]._eval(p)
+        for c in self.children[1:]:
+            type(self)._reduce(out, c._eval(p), out=out)
+        return out
+
+    def _grad(self, p, h):
+        ds, gs = zip(*(c._grad(p, h) for c in self.children))
+        return _pick(ds, gs, type(self)._select(np.stack(ds), axis=0))
+
+    def _bounds(self):
+        lo, hi = zip(*(c._bounds() for c in self.children))
+        if self._reduce is np.minimum:  # union: the box around all boxes
+            return np.min(lo, axis=0), np.max(hi, axis=0)
+        return np.max(lo, axis=0), np.min(hi, axis=0)  # intersection: their common box
+
+    def _emit(self, g, xs):
+        names = [c._emit(g, xs) for c in self.children]
+        out = names[0]
+        for n in names[1:]:
+            out = g.var(f"{self._kernel_fn}({out}, {n})")
+        return out
+
+
+class Union(_Extremum):
     """Union of shapes: d = min_i d_i (exact outside, a lower bound of |d| inside where operands overlap)."""
 
     op = "union"
-
-    def _eval(self, p):
-        out = self.children[0]._eval(p)
-        for c in self.children[1:]:
-            np.minimum(out, c._eval(p), out=out)
-        return out
-
-    def _grad(self, p, h):
-        ds, gs = zip(*(c._grad(p, h) for c in self.children))
-        return _pick(ds, gs, np.argmin(np.stack(ds), axis=0))
-
-    def _bounds(self):
-        bs = [c._bounds() for c in self.children]
-        return np.min([b[0] for b in bs], axis=0), np.max([b[1] for b in bs], axis=0)
-
-    def _emit(self, g, xs):
-        names = [c._emit(g, xs) for c in self.children]
-        out = names[0]
-        for n in names[1:]:
-            out = g.var(f"min({out}, {n})")
-        return out
+    _reduce, _select, _kernel_fn = np.minimum, np.argmin, "min"
 
 
-class Intersection(_NAry):
+class Intersection(_Extremum):
     """Intersection of shapes: d = max_i d_i (exact inside, a lower bound of d outside)."""
 
     op = "intersection"
-
-    def _eval(self, p):
-        out = self.children[0]._eval(p)
-        for c in self.children[1:]:
-            np.maximum(out, c._eval(p), out=out)
-        return out
-
-    def _grad(self, p, h):
-        ds, gs = zip(*(c._grad(p, h) for c in self.children))
-        return _pick(ds, gs, np.argmax(np.stack(ds), axis=0))
-
-    def _bounds(self):
-        bs = [c._bounds() for c in self.children]
-        return np.max([b[0] for b in bs], axis=0), np.min([b[1] for b in bs], axis=0)
-
-    def _emit(self, g, xs):
-        names = [c._emit(g, xs) for c in self.children]
-        out = names[0]
-        for n in names[1:]:
-            out = g.var(f"max({out}, {n})")
-        return out
+    _reduce, _select, _kernel_fn = np.maximum, np.argmax, "max"
 
 
 class Difference(SDF):
