@@ -32,6 +32,7 @@ from ..materials import Hyperelastic, Material
 from ..units import standard_gravity
 from .kinematics import FORMULATIONS, Kinematics
 from .newton import NewtonSolver, VolumeConstraint
+from .stepping import march
 from .results import Trajectory, VertexGatherer
 
 __all__ = ["Fem"]
@@ -264,26 +265,22 @@ class Fem:
 
     # ------------------------------------------------------------------------------------------ assembly
     def _markers(self, names, dim):
-        """One MeshTags for possibly overlapping regions: each distinct set of regions gets its own value;
-        returns (meshtags, {region: tuple of values})."""
+        """One MeshTags for possibly overlapping facet regions: each distinct set of regions that some facet
+        belongs to gets its own value; returns (meshtags, {region: tuple of the values that contain it})."""
         import dolfinx.mesh
 
         member = {}
         for k, name in enumerate(names):
-            ents = self.mesh.facets(name) if dim < self.mesh.dolfinx.topology.dim else self.mesh.cells(name)
-            for e in ents:
+            for e in self.mesh.facets(name):
                 member.setdefault(int(e), set()).add(k)
-        if len(names) > 12:
-            raise ParameterError(f"at most 12 loaded facet regions are supported, got {len(names)}")
         idx = np.array(sorted(member), dtype=np.int32)
-        # the value encodes the set of regions a facet belongs to (identical on every rank)
-        val = np.array([1 + sum(1 << k for k in member[e]) for e in idx], dtype=np.int32)
-        tags = dolfinx.mesh.meshtags(self.mesh.dolfinx, dim, idx, val)
-        ids = {}
-        n = len(names)
-        for k, name in enumerate(names):
-            # every subset of regions containing k, encoded like above (small n: a handful of load regions)
-            ids[name] = tuple(1 + m for m in range(1 << n) if m >> k & 1) or (-1,)
+        keys = [tuple(sorted(member[e])) for e in idx]
+        # number the region sets that occur anywhere, identically on every rank
+        sets = sorted(set().union(*self.mesh.comm.allgather(set(keys))))
+        number = {key: i + 1 for i, key in enumerate(sets)}
+        tags = dolfinx.mesh.meshtags(self.mesh.dolfinx, dim, idx,
+                                     np.array([number[key] for key in keys], dtype=np.int32))
+        ids = {name: tuple(number[key] for key in sets if k in key) or (-1,) for k, name in enumerate(names)}
         return tags, ids
 
     def _build(self):
@@ -321,10 +318,12 @@ class Fem:
         # growth: theta = det F_g per cell (DG0), 1 where nothing expands
         growth = dolfinx.fem.Function(dolfinx.fem.FunctionSpace(msh, ("DG", 0)), name="growth")
         growth.x.array[:] = 1.0
-        Fv = ufl.variable(kin.F(u))
-        Fe = Fv * growth ** (-1.0 / 3.0)
+        # F enters the residual as a plain expression (ufl.replace, used by the dynamics, does not look inside
+        # ufl.variable); the stress P = d(density)/dF is taken with a variable copy of it
+        F = kin.F(u)
 
-        def density(mat):  # stored energy per reference volume, and its stress P = d(density)/dF
+        def density(mat, F):  # stored energy per reference volume with the growth split F_e = F theta^(-1/3)
+            Fe = F * growth ** (-1.0 / 3.0)
             if not self.mixed:
                 return growth * mat.strain_energy(Fe)
             if not isinstance(mat, Hyperelastic):
@@ -333,11 +332,13 @@ class Fem:
             Je = ufl.det(Fe)
             return growth * (mat.isochoric_energy(Fe) + p * (Je - 1) - p**2 / (2 * mat.kappa))
 
-        energy = sum(density(mat) * wt * dx(k) for k, (_, mat) in enumerate(self._materials))
+        energy = sum(density(mat, F) * wt * dx(k) for k, (_, mat) in enumerate(self._materials))
         residual = ufl.derivative(energy, w, ufl.TestFunction(W))
+        internal = residual
         stress_exprs = []  # von Mises of the Cauchy stress, per material
+        Fv = ufl.variable(F)
         for _, mat in self._materials:
-            P = ufl.diff(density(mat), Fv)
+            P = ufl.diff(density(mat, Fv), Fv)
             sigma = P * Fv.T / ufl.det(Fv)
             dev = sigma - ufl.tr(sigma) / 3 * ufl.Identity(3)
             stress_exprs.append(ufl.sqrt(1.5 * ufl.inner(dev, dev)))
@@ -346,7 +347,6 @@ class Fem:
         load_regions = []
         for region, *_ in self._pressures + self._tractions + self._springs + self._volumes:
             load_regions.append(region)
-        load_regions += list(self.mesh.cavities)
         load_regions = list(dict.fromkeys(load_regions))
         if load_regions:
             ftags, fids = self._markers(load_regions, fdim)
@@ -357,13 +357,18 @@ class Fem:
             c = consts[("pressure", region, id(load))] = (dolfinx.fem.Constant(msh, 0.0), load)
             residual += c[0] * ufl.dot(kin.current_area_vector(u), v3) * wt * ds(fids[region])
         d = kin.dimension
-        volume_expr = lambda name: -ufl.dot(kin.current_position(u), kin.current_area_vector(u)) / d * wt * ds(fids[name])  # noqa: E731
+        def volume_expr(name, measure=None):
+            """Enclosed volume -1/d int x.n da of the cavity bounded by ``name`` (a UFL form)."""
+            if measure is None:  # a cavity without load: its own tags, so it adds nothing to the residual's
+                measure = ufl.ds(domain=msh, subdomain_data=self.mesh.meshtags(name),
+                                 subdomain_id=self.mesh.regions[name], metadata=md)
+            return -ufl.dot(kin.current_position(u), kin.current_area_vector(u)) / d * wt * measure
         controls = []
         for region, load in self._volumes:
             pc = dolfinx.fem.Constant(msh, 0.0)
             unit = ufl.dot(kin.current_area_vector(u), v3) * wt * ds(fids[region])
             residual += pc * unit
-            vexpr = volume_expr(region)
+            vexpr = volume_expr(region, ds(fids[region]))
             controls.append((region, load, VolumeConstraint(
                 pressure=pc, load=dolfinx.fem.form(unit), value=dolfinx.fem.form(vexpr),
                 gradient=dolfinx.fem.form(ufl.derivative(vexpr, w, ufl.TestFunction(W))))))
@@ -408,6 +413,7 @@ class Fem:
         R_form, J_form = dolfinx.fem.form(residual), dolfinx.fem.form(jacobian)
 
         # outputs: strain energy, cavity volumes, P1 displacement at the vertices
+        Fe = F * growth ** (-1.0 / 3.0)
         energy_form = dolfinx.fem.form(sum(growth * mat.strain_energy(Fe) * wt * dx(k)
                                            for k, (_, mat) in enumerate(self._materials)))
         DG0 = growth.function_space
@@ -435,7 +441,7 @@ class Fem:
                            R=R_form, J=J_form, energy=energy_form, volumes=volume_forms, V1=V1, u1=u1,
                            gatherer=gatherer, support_dofs=support_dofs, controls=controls, growth=growth,
                            expansion_cells=expansion_cells, von_mises=von_mises, stress_exprs=stress_exprs,
-                           material_cells=material_cells)
+                           material_cells=material_cells, residual_ufl=residual, internal_ufl=internal, dx=dx)
         return self._built
 
     def _size(self):
@@ -465,11 +471,14 @@ class Fem:
         for region, load, con in b["controls"]:
             con.target = con.reference + float(load(t))
             values[f"added_volume/{region}"] = float(load(t))
-        for consts_here, load in b["bc_consts"]:
-            v = np.atleast_1d(load(t))
-            for c, vi in zip(consts_here, v):
-                c.value = float(vi)
+        self._set_bcs(t)
         return values
+
+    def _set_bcs(self, t):
+        """Set the prescribed displacements to their values at ``t``."""
+        for consts_here, load in self._built["bc_consts"]:
+            for c, vi in zip(consts_here, np.atleast_1d(load(t))):
+                c.value = float(vi)
 
     # ------------------------------------------------------------------------------------------ outputs
     @property
@@ -496,10 +505,10 @@ class Fem:
             out[region] = f
         return out
 
-    def _record(self, traj, t, iterations, inputs, newton, monitor=False):
+    def _record(self, traj, t, iterations, inputs, newton, monitor=False, kinetic=0.0):
         b = self._built
         if monitor:
-            traj.lowest_eigenvalue.append(self.eigen(1).eigenvalues[0])
+            traj.lowest_eigenvalue.append(self._lowest_eigenvalue(traj.lowest_eigenvalue))
         b["u1"].interpolate(self.displacement)
         u_vert = b["gatherer"].gather_function(b["u1"])
         volumes = {k: self._scalar(f) for k, f in b["volumes"].items()}
@@ -509,7 +518,7 @@ class Fem:
         vm_cells = self.mesh.comm.gather(vm.x.array[:n_owned].copy(), root=0)
         vm_cells = np.concatenate(vm_cells) if vm_cells is not None else None
         traj.append(t, u_vert, iterations, self._scalar(b["energy"]), inputs, volumes, self._reactions(newton),
-                    von_mises=vm_cells, max_von_mises=self.mesh.comm.allreduce(float(vm.x.array[:n_owned].max(initial=0.0)),
+                    von_mises=vm_cells, kinetic=kinetic, max_von_mises=self.mesh.comm.allreduce(float(vm.x.array[:n_owned].max(initial=0.0)),
                                                                               op=_max_op()))
 
     def von_mises(self):
@@ -523,6 +532,16 @@ class Fem:
                 vm.interpolate(expr, cells)
         vm.x.scatter_forward()
         return vm
+
+    def _lowest_eigenvalue(self, history):
+        """The lowest eigenvalue of K phi = lambda M phi [1/s^2]. Shift-and-invert finds the eigenvalues
+        nearest its shift, so the shift is placed below the last lowest value by the scale of the first one
+        (the unloaded fundamental); of the three eigenvalues nearest it, the smallest is the lowest."""
+        if not history:
+            return float(self.eigen(1).eigenvalues[0])
+        scale = abs(history[0]) or 1.0
+        shift = min(history[-1], 0.0) - scale
+        return float(self.eigen(3, shift=shift).eigenvalues.min())
 
     def evaluate(self, points):
         """Displacement [m] at reference points (N, gdim): (N, gdim) on every rank.
@@ -591,11 +610,65 @@ class Fem:
             raise ParameterError(f"steps must be >= 1, got {steps}")
         b = self._built or self._build()
         dt0 = t_end / int(steps)
-        dt_max = float(max_step or dt0)
-        dt_min = float(min_step or dt0 / 1024)
-        w = b["w"]
-        x = w.vector
+        x = b["w"].vector
         controls = [con for _, _, con in b["controls"]]
+        newton = self._newton(b["R"], b["J"], max_iterations)
+        traj = self._trajectory("load")
+        inputs = self._set_loads(0.0)
+        out = newton.solve()  # the initial state (loads at t = 0 may be non-zero for callables)
+        if not out.converged:
+            newton.destroy()
+            raise ConvergenceError(f"the initial state (t = 0) did not converge: {out.reason}. Check that the "
+                                   "supports prevent rigid motion and that the loads at t = 0 are reasonable")
+        self._record(traj, 0.0, out.iterations, inputs, newton, monitor_stability)
+        state = {"x_old": x.copy(), "x_prev": None, "dt_prev": None,
+                 "p_old": [float(c.pressure.value) for c in controls]}
+
+        def attempt(t, dt):
+            if predictor and state["x_prev"] is not None:  # u_n + dt/dt_prev (u_n - u_{n-1})
+                x.axpy(dt / state["dt_prev"], state["x_old"])
+                x.axpy(-dt / state["dt_prev"], state["x_prev"])
+                x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+            state["inputs"] = self._set_loads(t + dt)
+            return newton.solve()
+
+        def accept(t, dt, out):
+            self._record(traj, t, out.iterations, state["inputs"], newton, monitor_stability)
+            state.update(x_prev=state["x_old"], dt_prev=dt, x_old=x.copy(),
+                         p_old=[float(c.pressure.value) for c in controls])
+            if progress and self.mesh.comm.rank == 0:
+                print(f"  t = {t:.4g}  ({out.iterations} Newton iterations)", flush=True)
+
+        def reject(t, dt, out):
+            log.info("step t=%.4g -> %.4g failed (%s); halving", t, t + dt, out.reason)
+            state["x_old"].copy(x)
+            x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+            for c, p in zip(controls, state["p_old"]):
+                c.pressure.value = p
+            state["x_prev"] = None  # restart the predictor after a failure
+
+        wall = _time.perf_counter()
+        t = 0.0
+        try:
+            t = march(0.0, t_end, dt0, float(min_step or dt0 / 1024), float(max_step or dt0), attempt, accept,
+                      reject, "more or smaller steps, degree=2 with mixed=True for nearly incompressible "
+                      "materials, a displacement- or volume-controlled load past a limit point, or supports "
+                      "that remove rigid-body motion")
+        except ConvergenceError as e:
+            t = e.load_level
+            e.trajectory = traj
+            raise
+        finally:
+            newton.destroy()
+            self._set_loads(t)
+        traj.metadata["wall_time_s"] = _time.perf_counter() - wall
+        return traj
+
+    def _newton(self, R, J, max_iterations):
+        """A Newton solver for the residual/Jacobian forms ``R``, ``J`` with this model's Dirichlet
+        conditions, volume controls, tendons and linear solver options."""
+        b = self._built
+
         def tendon_forces(b_array, u_array):
             for tendon in self._tendons:
                 tendon.subtract(b_array, u_array, b["t"])
@@ -605,65 +678,58 @@ class Fem:
                 tendon.add_tangent(A, u_array, b["t"])
 
         gamg = self.petsc_options.get("pc_type") == "gamg" and not self.mixed
-        newton = NewtonSolver(b["R"], b["J"], w, b["bcs"], self.petsc_options, scale=self._size(),
-                              near_nullspace=NewtonSolver.rigid_body_modes(b["W"]) if gamg else None,
-                              max_iterations=max_iterations, constraints=controls,
-                              point_forces=tendon_forces if self._tendons else None,
-                              point_tangent=tendon_tangent if self._tendons else None)
-        traj = Trajectory(b["gatherer"].vertices, b["gatherer"].cells, self._cell_type(), time_kind="load",
+        return NewtonSolver(R, J, b["w"], b["bcs"], self.petsc_options, scale=self._size(),
+                            near_nullspace=NewtonSolver.rigid_body_modes(b["W"]) if gamg else None,
+                            max_iterations=max_iterations, constraints=[c for _, _, c in b["controls"]],
+                            point_forces=tendon_forces if self._tendons else None,
+                            point_tangent=tendon_tangent if self._tendons else None)
+
+    def _trajectory(self, time_kind):
+        b = self._built
+        return Trajectory(b["gatherer"].vertices, b["gatherer"].cells, self._cell_type(), time_kind=time_kind,
                           metadata=self._metadata(), comm=self.mesh.comm)
-        t, dt = 0.0, dt0
-        inputs = self._set_loads(0.0)
-        out = newton.solve()  # the initial state (loads at t = 0 may be non-zero for callables)
-        if not out.converged:
-            newton.destroy()
-            raise ConvergenceError(f"the initial state (t = 0) did not converge: {out.reason}. Check that the "
-                                   "supports prevent rigid motion and that the loads at t = 0 are reasonable")
-        self._record(traj, 0.0, out.iterations, inputs, newton, monitor_stability)
-        x_old, x_prev, dt_prev = x.copy(), None, None
-        p_old = [float(c.pressure.value) for c in controls]
-        wall = _time.perf_counter()
-        try:
-            while t < t_end * (1 - 1e-12):
-                dt = min(dt, t_end - t)
-                if predictor and x_prev is not None:
-                    x.axpy(dt / dt_prev, x_old)  # u_n + dt/dt_prev (u_n - u_{n-1})
-                    x.axpy(-dt / dt_prev, x_prev)
-                    x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
-                inputs = self._set_loads(t + dt)
-                out = newton.solve()
-                if out.converged:
-                    t += dt
-                    self._record(traj, t, out.iterations, inputs, newton, monitor_stability)
-                    x_prev, dt_prev = x_old, dt
-                    x_old = x.copy()
-                    p_old = [float(c.pressure.value) for c in controls]
-                    if progress and self.mesh.comm.rank == 0:
-                        print(f"  t = {t:.4g}  ({out.iterations} Newton iterations)", flush=True)
-                    if out.iterations <= 4:
-                        dt = min(1.5 * dt, dt_max)
-                    continue
-                log.info("step t=%.4g -> %.4g failed (%s); halving", t, t + dt, out.reason)
-                x_old.copy(x)
-                x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
-                for c, p in zip(controls, p_old):
-                    c.pressure.value = p
-                x_prev = None  # restart the predictor after a failure
-                dt /= 2
-                if dt < dt_min:
-                    e = ConvergenceError(
-                        f"the load step from t = {t:.6g} failed at step size {2 * dt:.3g} < min_step {dt_min:.3g} "
-                        f"({out.reason}; residual {out.residual:.3e}). Reached t = {t:.6g} of {t_end:.6g}. Try: "
-                        "more or smaller steps, degree=2 with mixed=True for nearly incompressible materials, a "
-                        "displacement- or volume-controlled load past a limit point, or supports that remove "
-                        "rigid-body motion")
-                    e.trajectory, e.load_level = traj, t
-                    raise e
-        finally:
-            newton.destroy()
-            self._set_loads(t)
-        traj.metadata["wall_time_s"] = _time.perf_counter() - wall
-        return traj
+
+    def simulate(self, t_end, dt, scheme="generalized_alpha", rho_inf=0.8, beta=0.25, gamma=0.5,
+                 rayleigh=(0.0, 0.0), velocity=None, max_step=None, min_step=None, max_iterations=25,
+                 record_every=1, progress=False):
+        """Implicit dynamics from the current state (the reference one, or the result of :meth:`solve`) to
+        time ``t_end`` [s]; returns a :class:`Trajectory` (``time_kind="time"``, with kinetic energies).
+
+        Loads given as callables are functions of time [s] here. See :mod:`sorofem.fem.dynamics`.
+
+        Parameters
+        ----------
+        dt : float
+            Time step [s]. A step whose Newton iteration fails is halved (down to ``min_step``, default
+            ``dt/1024``), and steps grow back by 1.5x after easy ones up to ``max_step`` (default ``dt``:
+            a fixed step unless a failure forces a smaller one).
+        scheme : {"generalized_alpha", "newmark"}
+        rho_inf : float
+            Spectral radius at infinite frequency for generalized-alpha (1: no numerical damping).
+        beta, gamma : float
+            Newmark parameters (``scheme="newmark"``).
+        rayleigh : (alpha_M [1/s], alpha_K [s])
+            Rayleigh damping :math:`C = \\alpha_M M + \\alpha_K K`; for a damping ratio :math:`\\zeta` at two
+            angular frequencies see :meth:`rayleigh_coefficients`.
+        velocity : (gdim,) array or callable, optional
+            Initial velocity [m/s]: a constant vector, or ``f(x) -> (gdim, N)`` array as DOLFINx interpolates.
+        record_every : int
+            Keep every n-th step in the trajectory (the last one always).
+        """
+        from .dynamics import simulate
+
+        return simulate(self, t_end, dt, scheme=scheme, rho_inf=rho_inf, beta=beta, gamma=gamma, rayleigh=rayleigh,
+                        velocity=velocity, max_step=max_step, min_step=min_step, max_iterations=max_iterations,
+                        record_every=record_every, progress=progress)
+
+    @staticmethod
+    def rayleigh_coefficients(zeta, omega_1, omega_2):
+        """(alpha_M, alpha_K) giving damping ratio ``zeta`` at the angular frequencies ``omega_1`` and
+        ``omega_2`` [rad/s]: :math:`\\zeta(\\omega) = \\alpha_M/(2\\omega) + \\alpha_K\\omega/2`."""
+        w1, w2 = float(omega_1), float(omega_2)
+        if not 0 < w1 < w2:
+            raise ParameterError(f"need 0 < omega_1 < omega_2, got {omega_1}, {omega_2}")
+        return 2 * zeta * w1 * w2 / (w1 + w2), 2 * zeta / (w1 + w2)
 
     def eigen(self, n=6, shift=0.0):
         """The ``n`` eigenpairs of :math:`K\\phi = \\omega^2 M\\phi` nearest ``shift`` [1/s^2] about the current

@@ -69,7 +69,7 @@ class Trajectory:
     reactions : dict support region -> (n_steps, gdim) array: the force [N] the support exerts on the body
         (plane strain: [N/m])
     von_mises : (n_steps, n_cells) array [Pa], rank 0 only; max_von_mises : (n_steps,) array [Pa]
-    energy : (n_steps,) strain energy [J] (plane strain: [J/m])
+    energy : (n_steps,) strain energy [J] (plane strain: [J/m]); kinetic_energy : (n_steps,) [J]
     newton_iterations : (n_steps,) int
     lowest_eigenvalue : list of float [1/s^2], filled when solved with ``monitor_stability=True``
     metadata : dict
@@ -85,11 +85,12 @@ class Trajectory:
         self._times, self._u, self._iters, self._energy = [], [], [], []
         self._inputs, self._volumes, self._reactions = {}, {}, {}
         self.lowest_eigenvalue = []
-        self._vm, self._vm_max = [], []
+        self._vm, self._vm_max, self._kinetic = [], [], []
 
     def append(self, t, u_vertices, iterations, energy, inputs, volumes, reactions, von_mises=None,
-               max_von_mises=0.0):
+               max_von_mises=0.0, kinetic=0.0):
         self._times.append(float(t))
+        self._kinetic.append(float(kinetic))
         self._vm.append(von_mises)
         self._vm_max.append(float(max_von_mises))
         self._u.append(u_vertices)
@@ -119,6 +120,11 @@ class Trajectory:
     def max_von_mises(self):
         """(n_steps,) largest cell von Mises stress [Pa]."""
         return np.array(self._vm_max)
+
+    @property
+    def kinetic_energy(self):
+        """(n_steps,) kinetic energy [J] (zero for quasi-static solves)."""
+        return np.array(self._kinetic)
 
     @property
     def newton_iterations(self):
@@ -236,7 +242,7 @@ class Trajectory:
                              inputs={k: v[i] for k, v in self._inputs.items()},
                              cavity_volumes={k: v[i] for k, v in self._volumes.items()},
                              reactions={k: v[i] for k, v in self._reactions.items()},
-                             energies={"strain": self._energy[i]},
+                             energies={"strain": self._energy[i], "kinetic": self._kinetic[i]},
                              cell_fields={"von_mises": self._vm[i]} if self._vm[i] is not None else None)
 
         on_root(self.comm, write)

@@ -412,3 +412,41 @@ def test_springs_to_ground_carry_the_load():
     fem = Fem(msh, materials.NeoHookean(E=E, nu=0.0)).add_spring("bottom", k)
     fem.add_force("top", [0.0, 0.0, -q]).solve(steps=1)
     assert fem.evaluate([[0.0, 0.0, h]])[0][2] == pytest.approx(-q / k - q * h / E, rel=1e-3)
+
+
+def test_many_cavities_each_with_its_own_pressure_and_volume():
+    """16 holes, every one pressurized: the loaded-region markers scale with the regions that occur (no
+    limit on their number), and each cavity reports its own volume."""
+    from sorofem import sdf
+    pitch, r = 0.01, 0.003
+    holes = sdf.Circle(r, center=(pitch / 2, pitch / 2)).repeat((pitch, pitch), (4, 4))
+    msh = Mesh.from_sdf(sdf.Rectangle(4 * pitch, 4 * pitch, center=(2 * pitch, 2 * pitch)) - holes, size=0.0015)
+    assert len(msh.cavities) == 16
+    fem = Fem(msh, materials.NeoHookean(E=100 * kPa, nu=0.45)).add_support("bottom")
+    for k, cavity in enumerate(msh.cavities):
+        fem.add_pressure(cavity, 100.0 * (1 + k % 2))
+    traj = fem.solve(steps=1)
+    v0 = np.array([traj.cavity_volumes[c][0] for c in msh.cavities])
+    v1 = np.array([traj.cavity_volumes[c][1] for c in msh.cavities])
+    np.testing.assert_allclose(v0, [msh.cavity_volume(c) for c in msh.cavities], rtol=1e-10)
+    np.testing.assert_allclose(v0, np.pi * r**2, rtol=5e-2)  # polygonal holes of the order-1 mesh
+    assert np.all(v1 > v0)
+    assert np.mean(v1[1::2] / v0[1::2]) > np.mean(v1[0::2] / v0[0::2])  # double pressure, larger growth
+
+
+def test_stability_monitor_tracks_the_lowest_eigenvalue_through_euler_buckling():
+    """A slender strut (L/H = 20), clamped at the bottom, its top pushed down by a uniform displacement (so the
+    top cannot rotate but may sway): the lowest eigenvalue of K phi = lambda M phi falls and crosses zero at
+    the Euler strain of the clamped-sliding column, pi^2 H^2 / (12 L^2), within 5 % (shear and finite-strain
+    corrections are O(H/L)^2)."""
+    L, H = 0.1, 0.005
+    msh = Mesh.rectangle(H, L, size=H / 2, center=(0.0, L / 2), cell="quadrilateral")
+    fem = Fem(msh, materials.NeoHookean(E=1 * MPa, nu=0.3), degree=2).add_support("bottom")
+    eps_cr = np.pi**2 * H**2 / (12 * L**2)
+    fem.add_displacement("top", -1.5 * eps_cr * L, "y")
+    traj = fem.solve(steps=16, monitor_stability=True)
+    lam = np.array(traj.lowest_eigenvalue)
+    assert lam[0] > 0 and lam[-1] < 0 and np.all(np.diff(lam[: len(lam) // 2]) < 0)
+    k = np.flatnonzero(lam < 0)[0]
+    t_cr = np.interp(0.0, [lam[k], lam[k - 1]], [traj.times[k], traj.times[k - 1]])
+    assert 1.5 * eps_cr * t_cr == pytest.approx(eps_cr, rel=5e-2)
