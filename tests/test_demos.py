@@ -44,10 +44,27 @@ def check_mesh_gallery(report, out):
     assert (out / "pneunet.png").stat().st_size > 0
 
 
+def check_porous_buckling(report, out):
+    assert -0.125 < report["critical_strain"] < -0.02  # the lowest eigenvalue crossed zero under compression
+    assert report["lambda1_at_zero"] > 0
+    assert report["ellipse_alternation"] >= 0.75  # the mutually orthogonal ellipses of the seed's Fig. 7
+    assert (out / "modes.png").stat().st_size > 0 and (out / "stability.png").stat().st_size > 0
+
+
+def check_pneunet_inflation(report, out):
+    assert report["reached_pressure_kPa_2d"] == pytest.approx(report["max_pressure_kPa"])
+    assert report["tip_angle_deg_2d"] > 30 and report["tip_angle_deg_3d"] > 5  # curls toward the layer
+    assert report["cavities_2d"] == report["chambers"]
+    for name in ("angle_vs_pressure.png", "deformed_2d.png", "deformed_3d.png"):
+        assert (out / name).stat().st_size > 0
+
+
 CHECKS = {
     "chain": check_chain,
     "sdf_gallery": check_sdf_gallery,
     "mesh_gallery": check_mesh_gallery,
+    "porous_buckling": check_porous_buckling,
+    "pneunet_inflation": check_pneunet_inflation,
 }
 
 
