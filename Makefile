@@ -18,12 +18,15 @@ doctor: bootstrap
 	$(VENV)/bin/soro doctor
 
 # The serial suite (everything but `bench` and `mpi`), then the MPI tests on two ranks, then one summary line.
+# Time limits turn a hung test (e.g. an MPI rank waiting for a peer that failed) into a failure.
 test: bootstrap
 	@mkdir -p out/test
 	@rm -f out/test/*.xml
 	@status=0; \
-	$(PY) -m pytest -m "not bench and not mpi" --junitxml=out/test/serial.xml $(PYTEST_OPTS) || status=$$?; \
-	$(MPIRUN_ENV) mpirun -n 2 $(PY) scripts/mpi_pytest.py -m mpi --junitxml=out/test/mpi.xml $(PYTEST_OPTS) \
+	timeout --kill-after=30 2400 $(PY) -m pytest -m "not bench and not mpi" --junitxml=out/test/serial.xml \
+	  $(PYTEST_OPTS) || status=$$?; \
+	$(MPIRUN_ENV) timeout --kill-after=30 900 mpirun -n 2 $(PY) scripts/mpi_pytest.py -m mpi \
+	  --junitxml=out/test/mpi.xml $(PYTEST_OPTS) \
 	  || { s=$$?; [ $$status -ne 0 ] || status=$$s; }; \
 	$(PY) scripts/test_summary.py out/test/serial.xml out/test/mpi.xml || { [ $$status -ne 0 ] || status=1; }; \
 	exit $$status

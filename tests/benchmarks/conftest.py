@@ -12,6 +12,7 @@ import pytest
 OUT = Path(__file__).resolve().parents[2] / "out" / "bench"
 
 
+@pytest.hookimpl(tryfirst=True)  # mark before `-m` deselects
 def pytest_collection_modifyitems(items):
     for item in items:
         if Path(str(item.fspath)).parent == Path(__file__).parent:
