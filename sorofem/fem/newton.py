@@ -3,7 +3,8 @@
 One Newton solve for :math:`R(u) = 0` with Dirichlet conditions: at each iteration assemble the residual
 :math:`b = R(u)` lifted so that the correction also enforces the prescribed values, assemble the tangent
 :math:`A = \\partial R/\\partial u`, solve :math:`A\\,\\delta = b` and update :math:`u \\leftarrow u - \\delta`.
-Converged when :math:`\\|\\delta\\| \\le \\text{rtol}_u \\max(\\|u\\|, \\text{scale})` or
+A step that turns elements inside out (non-finite residual) is halved, up to five times, before the
+iteration gives up. Converged when :math:`\\|\\delta\\| \\le \\text{rtol}_u \\max(\\|u\\|, \\text{scale})` or
 :math:`\\|b\\| \\le \\max(\\text{rtol}_r \\|b_0\\|, \\text{atol}_r)`. It stops early, without raising, on a non-finite
 residual, a failed factorization or a residual that grew by ``divergence_factor``; the caller (the load
 stepper) restores the last state and cuts the step.
@@ -136,6 +137,27 @@ class NewtonSolver:
             dolfinx.fem.petsc.set_bc(b, self.bcs, x, -1.0)
         return b
 
+    def _safeguard(self, cnorm, halvings=5):
+        """After the update u <- u - dx: if the residual there is not finite (elements turned inside out),
+        step back along dx by halves until it is (at most ``halvings`` times). Returns the residual norm at
+        the accepted point (the next iteration's, so it is not assembled twice) and the size of the step
+        taken."""
+        from petsc4py import PETSc
+
+        x = self.u.vector
+        trial = self.assemble_residual().norm()
+        alpha = 1.0
+        for _ in range(halvings):
+            if math.isfinite(trial):
+                break
+            alpha /= 2
+            x.axpy(alpha, self.dx)  # back from u0 - 2 alpha dx to u0 - alpha dx
+            x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+            trial = self.assemble_residual().norm()
+        if alpha < 1:
+            log.debug("newton step damped to %.3g to keep every element orientable", alpha)
+        return trial, alpha * cnorm
+
     def _assemble_border_vector(self, form):
         """Assemble a vector form with zeros on the Dirichlet rows."""
         import dolfinx.fem.petsc
@@ -192,10 +214,11 @@ class NewtonSolver:
         from petsc4py import PETSc
 
         x = self.u.vector
-        r0 = None
+        r0 = trial = None
         rnorm = cnorm = math.nan
         for it in range(1, self.max_iterations + 1):
-            rnorm = self.assemble_residual().norm()
+            rnorm = self.assemble_residual().norm() if trial is None else trial
+            trial = None
             if not math.isfinite(rnorm):
                 return NewtonOutcome(False, it, rnorm, cnorm, "non-finite residual (inverted elements?)")
             # reference residual: the first one; under volume control the first residual vanishes (only the
@@ -229,6 +252,8 @@ class NewtonSolver:
                 return NewtonOutcome(False, it, rnorm, cnorm, "non-finite Newton correction (singular tangent?)")
             x.axpy(-1.0, self.dx)
             x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+            if not self.constraints:
+                trial, cnorm = self._safeguard(cnorm)
             log.debug("newton %d: |R| = %.3e, |du| = %.3e", it, rnorm, cnorm)
             if cnorm <= self.rtol_u * max(x.norm(), self.scale) and (
                     not self.constraints or np.abs(self._constraint_values()).max() <=

@@ -295,13 +295,12 @@ class Fem:
         if self.mixed:
             el = ufl.MixedElement([ufl.VectorElement("Lagrange", cell, 2), ufl.FiniteElement("Lagrange", cell, 1)])
             W = dolfinx.fem.FunctionSpace(msh, el)
-            V, _ = W.sub(0).collapse()
         else:
-            W = V = dolfinx.fem.VectorFunctionSpace(msh, ("Lagrange", self.degree))
+            W = dolfinx.fem.VectorFunctionSpace(msh, ("Lagrange", self.degree))
         w = dolfinx.fem.Function(W, name="state")
         if self.mixed:
             u, p = ufl.split(w)
-            v, q = ufl.TestFunctions(W)
+            v, _ = ufl.TestFunctions(W)
         else:
             u, v = w, ufl.TestFunction(W)
         md = {"quadrature_degree": self.quadrature_degree}
@@ -318,8 +317,8 @@ class Fem:
         # growth: theta = det F_g per cell (DG0), 1 where nothing expands
         growth = dolfinx.fem.Function(dolfinx.fem.FunctionSpace(msh, ("DG", 0)), name="growth")
         growth.x.array[:] = 1.0
-        # F enters the residual as a plain expression (ufl.replace, used by the dynamics, does not look inside
-        # ufl.variable); the stress P = d(density)/dF is taken with a variable copy of it
+        # F enters the residual as a plain expression of u (the dynamics substitute u); the stress
+        # P = d(density)/dF is taken with a ufl.variable copy of it
         F = kin.F(u)
 
         def density(mat, F):  # stored energy per reference volume with the growth split F_e = F theta^(-1/3)
@@ -437,7 +436,7 @@ class Fem:
                 support_dofs[region][comp] = dofs[dofs < owned]
         for tendon in self._tendons:
             tendon.setup(msh, W, owned, bcs)
-        self._built = dict(W=W, V=V, w=w, kin=kin, bcs=bcs, cell_tags=ctags, bc_consts=bc_consts, consts=consts,
+        self._built = dict(W=W, w=w, kin=kin, bcs=bcs, cell_tags=ctags, bc_consts=bc_consts, consts=consts,
                            R=R_form, J=J_form, energy=energy_form, volumes=volume_forms, V1=V1, u1=u1,
                            gatherer=gatherer, support_dofs=support_dofs, controls=controls, growth=growth,
                            expansion_cells=expansion_cells, von_mises=von_mises, stress_exprs=stress_exprs,
