@@ -148,6 +148,7 @@ class Fem:
         self._volumes = []                                           # (region, _Load of added volume)
         self._expansions = []                                        # (cell region, _Load of strain)
         self._tendons = []                                           # Tendon
+        self._contacts = []                                          # Contact
         self._body_forces = []                                       # (_Load of force density [N/m^3])
         self._gravity = None                                         # _Load of acceleration [m/s^2]
         self._built = None
@@ -168,6 +169,9 @@ class Fem:
         return ents
 
     def _changed(self):
+        """A load or region was added: forms are rebuilt on the next solve, starting from the current state."""
+        if self._built is not None:
+            self._carry = self._built["w"].x.array.copy()
         self._built = None
         return self
 
@@ -254,6 +258,28 @@ class Fem:
         self._tendons.append(tendon)
         return self._changed()
 
+    def add_contact(self, obstacle, stiffness=None, friction=0.0, regularization=None, motion=None):
+        """Contact with a rigid obstacle, a shape from :mod:`sorofem.sdf` of the mesh's dimension (e.g.
+        ``sdf.Line(point, normal)`` for a floor, any boolean tree), optionally moving by ``motion(t)`` [m].
+
+        Parameters
+        ----------
+        stiffness : float, optional
+            Penalty stiffness k [Pa/m] (default ``100 E / h``; see :mod:`sorofem.fem.contact`).
+        friction : float
+            Coulomb coefficient :math:`\\mu` [-].
+        regularization : float, optional
+            Slip [m] over which friction builds up (default ``1e-3 h``).
+
+        The force the obstacle exerts on the body and the contact area are reported per step in
+        ``Trajectory.reactions["contact_k"]`` and ``Trajectory.contact_areas["contact_k"]``.
+        """
+        from .contact import Contact
+
+        self._contacts.append(Contact(obstacle, stiffness, friction, regularization, motion,
+                                      name=f"contact_{len(self._contacts)}"))
+        return self._changed()
+
     def add_spring(self, region, stiffness):
         """Distributed springs to ground on ``region``: traction :math:`-k u`, ``stiffness`` k [N/m^3]."""
         k = float(stiffness)
@@ -298,6 +324,9 @@ class Fem:
         else:
             W = dolfinx.fem.VectorFunctionSpace(msh, ("Lagrange", self.degree))
         w = dolfinx.fem.Function(W, name="state")
+        carry = getattr(self, "_carry", None)
+        if carry is not None and carry.shape == w.x.array.shape:  # same spaces: keep the current state
+            w.x.array[:] = carry
         if self.mixed:
             u, p = ufl.split(w)
             v, _ = ufl.TestFunctions(W)
@@ -436,6 +465,8 @@ class Fem:
                 support_dofs[region][comp] = dofs[dofs < owned]
         for tendon in self._tendons:
             tendon.setup(msh, W, owned, bcs)
+        for contact in self._contacts:
+            contact.setup(self, W, wt)
         self._built = dict(W=W, w=w, kin=kin, bcs=bcs, cell_tags=ctags, bc_consts=bc_consts, consts=consts,
                            R=R_form, J=J_form, energy=energy_form, volumes=volume_forms, V1=V1, u1=u1,
                            gatherer=gatherer, support_dofs=support_dofs, controls=controls, growth=growth,
@@ -512,11 +543,16 @@ class Fem:
         u_vert = b["gatherer"].gather_function(b["u1"])
         volumes = {k: self._scalar(f) for k, f in b["volumes"].items()}
         inputs = {**inputs, **{f"pressure/{r}": float(con.pressure.value) for r, _, con in b["controls"]}}
+        reactions = self._reactions(newton)
+        areas = {}
+        for contact in self._contacts:
+            reactions[contact.name], areas[contact.name] = contact.totals(b["w"].x.array, b["t"])
         vm = self.von_mises()
         n_owned = self.mesh.dolfinx.topology.index_map(self.mesh.dolfinx.topology.dim).size_local
         vm_cells = self.mesh.comm.gather(vm.x.array[:n_owned].copy(), root=0)
         vm_cells = np.concatenate(vm_cells) if vm_cells is not None else None
-        traj.append(t, u_vert, iterations, self._scalar(b["energy"]), inputs, volumes, self._reactions(newton),
+        traj.append(t, u_vert, iterations, self._scalar(b["energy"]), inputs, volumes, reactions,
+                    contact_areas=areas,
                     von_mises=vm_cells, kinetic=kinetic, max_von_mises=self.mesh.comm.allreduce(float(vm.x.array[:n_owned].max(initial=0.0)),
                                                                               op=_max_op()))
 
@@ -619,6 +655,7 @@ class Fem:
             newton.destroy()
             raise ConvergenceError(f"the initial state (t = 0) did not converge: {out.reason}. Check that the "
                                    "supports prevent rigid motion and that the loads at t = 0 are reasonable")
+        self._commit_contacts()
         self._record(traj, 0.0, out.iterations, inputs, newton, monitor_stability)
         state = {"x_old": x.copy(), "x_prev": None, "dt_prev": None,
                  "p_old": [float(c.pressure.value) for c in controls]}
@@ -632,6 +669,7 @@ class Fem:
             return newton.solve()
 
         def accept(t, dt, out):
+            self._commit_contacts()
             self._record(traj, t, out.iterations, state["inputs"], newton, monitor_stability)
             state.update(x_prev=state["x_old"], dt_prev=dt, x_old=x.copy(),
                          p_old=[float(c.pressure.value) for c in controls])
@@ -668,20 +706,26 @@ class Fem:
         conditions, volume controls, tendons and linear solver options."""
         b = self._built
 
-        def tendon_forces(b_array, u_array):
-            for tendon in self._tendons:
-                tendon.subtract(b_array, u_array, b["t"])
+        point_loads = self._tendons + self._contacts  # forces at nodes, with their derivatives
 
-        def tendon_tangent(A, u_array):
-            for tendon in self._tendons:
-                tendon.add_tangent(A, u_array, b["t"])
+        def point_forces(b_array, u_array):
+            for load in point_loads:
+                load.subtract(b_array, u_array, b["t"])
+
+        def point_tangent(A, u_array):
+            for load in point_loads:
+                load.add_tangent(A, u_array, b["t"])
 
         gamg = self.petsc_options.get("pc_type") == "gamg" and not self.mixed
         return NewtonSolver(R, J, b["w"], b["bcs"], self.petsc_options, scale=self._size(),
                             near_nullspace=NewtonSolver.rigid_body_modes(b["W"]) if gamg else None,
                             max_iterations=max_iterations, constraints=[c for _, _, c in b["controls"]],
-                            point_forces=tendon_forces if self._tendons else None,
-                            point_tangent=tendon_tangent if self._tendons else None)
+                            point_forces=point_forces if point_loads else None,
+                            point_tangent=point_tangent if point_loads else None)
+
+    def _commit_contacts(self):
+        for contact in self._contacts:
+            contact.commit(self._built["w"].x.array)
 
     def _trajectory(self, time_kind):
         b = self._built

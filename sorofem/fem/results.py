@@ -86,10 +86,13 @@ class Trajectory:
         self._inputs, self._volumes, self._reactions = {}, {}, {}
         self.lowest_eigenvalue = []
         self._vm, self._vm_max, self._kinetic = [], [], []
+        self._areas = {}
 
     def append(self, t, u_vertices, iterations, energy, inputs, volumes, reactions, von_mises=None,
-               max_von_mises=0.0, kinetic=0.0):
+               max_von_mises=0.0, kinetic=0.0, contact_areas=None):
         self._times.append(float(t))
+        for k, v in (contact_areas or {}).items():
+            self._areas.setdefault(k, []).append(float(v))
         self._kinetic.append(float(kinetic))
         self._vm.append(von_mises)
         self._vm_max.append(float(max_von_mises))
@@ -120,6 +123,11 @@ class Trajectory:
     def max_von_mises(self):
         """(n_steps,) largest cell von Mises stress [Pa]."""
         return np.array(self._vm_max)
+
+    @property
+    def contact_areas(self):
+        """dict contact name -> (n_steps,) contact area [m^2] (plane strain: [m] per m of depth)."""
+        return {k: np.array(v) for k, v in self._areas.items()}
 
     @property
     def kinetic_energy(self):
