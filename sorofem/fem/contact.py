@@ -44,7 +44,7 @@ class Contact:
         self.motion = motion
 
     # ------------------------------------------------------------------------------------------ setup
-    def setup(self, fem, W, wt, t0=0.0):
+    def setup(self, fem, W, wt, u_array, t0=0.0):
         """Find the boundary nodes, their areas and dofs; check that the body starts outside the obstacle."""
         import ufl
         import dolfinx.fem
@@ -80,15 +80,16 @@ class Contact:
         E = max(mat.E for _, mat in fem._materials)
         self.k = float(self._stiffness or 100.0 * E / self.h)
         self.eps = float(self._regularization or 1e-3 * self.h)
-        gap = self.gap(self.X, t0)[0]
+        x = self.X + u_array[self.dofs]  # the current state (a model may be solved before contact is added)
+        gap = self.gap(x, t0)[0]
         worst = msh.comm.allgather((float(gap.min()) if len(gap) else np.inf,
-                                    self.X[np.argmin(gap)].tolist() if len(gap) else None))
+                                    x[np.argmin(gap)].tolist() if len(gap) else None))
         g_min, where = min(worst, key=lambda w: w[0])
         if g_min < -1e-6 * fem._size():
             raise ParameterError(f"the body starts inside obstacle {self.name!r}: a boundary point at "
                                  f"{np.round(where, 6).tolist()} m is {-g_min:.3g} m deep; move the obstacle "
                                  "or the body so that they only touch")
-        self.x_prev = self.X.copy()
+        self.x_prev = x
         return self
 
     def offset(self, t):

@@ -106,6 +106,7 @@ def simulate(fem, t_end, dt, scheme="generalized_alpha", rho_inf=0.8, beta=0.25,
         raise ParameterError(f"Rayleigh coefficients must be >= 0, got {rayleigh}")
     integ = TimeIntegrator(scheme, rho_inf, beta, gamma)
     b = fem._built or fem._build()
+    fem._set_ramp(False)  # numbers are constant loads in time
     W, w, wt, dx = b["W"], b["w"], b["kin"].weight, b["dx"]
     w_n, v_n, a_n = (dolfinx.fem.Function(W) for _ in range(3))
     w_n.x.array[:] = w.x.array

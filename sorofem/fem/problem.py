@@ -18,7 +18,8 @@ as :math:`\\nu \\to 1/2`); its volumetric law is :math:`U = \\kappa (J-1)^2/2`, 
 displacement formulation's.
 
 Loads depend on a parameter ``t`` marched from 0 to ``t_end`` by :meth:`Fem.solve`: a number ``a`` is applied
-as :math:`a\\,t` (a ramp reaching ``a`` at ``t = 1``); a callable ``f`` is applied as ``f(t)``.
+as :math:`a\\,t` (a ramp reaching ``a`` at ``t = 1``); a callable ``f`` is applied as ``f(t)``. In
+:meth:`Fem.simulate` ``t`` is time [s] and a number is applied as the constant ``a``.
 """
 import logging
 import math
@@ -64,10 +65,15 @@ def _components(components, gdim):
 
 
 class _Load:
-    """A load value as a function of the load parameter: numbers ramp (a*t), callables are called."""
+    """A load value as a function of t. Callables are called. A number ``a`` is ramped, ``a * t``, by the
+    quasi-static solver (t is the load parameter) and held constant, ``a``, by the dynamic solver (t is
+    time); the solvers set :attr:`ramp`."""
+
+    ramp = True
 
     def __init__(self, name, value, shape):
         self.name, self.shape = name, shape
+        self.constant = None
         if callable(value):
             self.fn = value
         else:
@@ -76,7 +82,8 @@ class _Load:
                 raise ParameterError(f"{name}: expected a value of shape {shape or 'scalar'}, got {a.shape}")
             if not np.all(np.isfinite(a)):
                 raise ParameterError(f"{name}: the value must be finite, got {a}")
-            self.fn = lambda t, a=a: a * t
+            self.constant = a
+            self.fn = lambda t, a=a: a * t if self.ramp else a
 
     def __call__(self, t):
         v = np.asarray(self.fn(t), dtype=float)
@@ -466,7 +473,7 @@ class Fem:
         for tendon in self._tendons:
             tendon.setup(msh, W, owned, bcs)
         for contact in self._contacts:
-            contact.setup(self, W, wt)
+            contact.setup(self, W, wt, w.x.array)
         self._built = dict(W=W, w=w, kin=kin, bcs=bcs, cell_tags=ctags, bc_consts=bc_consts, consts=consts,
                            R=R_form, J=J_form, energy=energy_form, volumes=volume_forms, V1=V1, u1=u1,
                            gatherer=gatherer, support_dofs=support_dofs, controls=controls, growth=growth,
@@ -644,6 +651,7 @@ class Fem:
         if int(steps) < 1:
             raise ParameterError(f"steps must be >= 1, got {steps}")
         b = self._built or self._build()
+        self._set_ramp(True)
         dt0 = t_end / int(steps)
         x = b["w"].vector
         controls = [con for _, _, con in b["controls"]]
@@ -723,6 +731,19 @@ class Fem:
                             point_forces=point_forces if point_loads else None,
                             point_tangent=point_tangent if point_loads else None)
 
+    def _loads(self):
+        """Every load of the model (to switch numbers between ramped and constant)."""
+        yield from (load for _, load in self._pressures + self._tractions + self._volumes + self._expansions)
+        yield from (load for _, _, load in self._displacements)
+        yield from self._body_forces
+        yield from (t.tension for t in self._tendons)
+        if self._gravity is not None:
+            yield self._gravity
+
+    def _set_ramp(self, ramp):
+        for load in self._loads():
+            load.ramp = ramp
+
     def _commit_contacts(self):
         for contact in self._contacts:
             contact.commit(self._built["w"].x.array)
@@ -738,7 +759,8 @@ class Fem:
         """Implicit dynamics from the current state (the reference one, or the result of :meth:`solve`) to
         time ``t_end`` [s]; returns a :class:`Trajectory` (``time_kind="time"``, with kinetic energies).
 
-        Loads given as callables are functions of time [s] here. See :mod:`sorofem.fem.dynamics`.
+        Loads given as callables are functions of time [s] here; loads given as numbers are held constant
+        (the quasi-static :meth:`solve` ramps them instead). See :mod:`sorofem.fem.dynamics`.
 
         Parameters
         ----------
