@@ -59,12 +59,21 @@ def check_pneunet_inflation(report, out):
         assert (out / name).stat().st_size > 0
 
 
+def check_crawler(report, out):
+    weight = 1070.0 * 9.80665 * (150e-3 * 12e-3)  # upper bound of the section's weight per m of depth [N/m]
+    assert report["steps"] == 100  # one 0.4 s period at 4 ms: no step had to be cut
+    assert report["max_contact_force_N_per_m"] < 3 * weight  # landings, no violent impacts
+    assert abs(report["com_dy_mm"]) < 0.1  # back on the floor after the cycle
+    assert (out / "com.png").stat().st_size > 0 and (out / "gait.png").stat().st_size > 0
+
+
 CHECKS = {
     "chain": check_chain,
     "sdf_gallery": check_sdf_gallery,
     "mesh_gallery": check_mesh_gallery,
     "porous_buckling": check_porous_buckling,
     "pneunet_inflation": check_pneunet_inflation,
+    "crawler": check_crawler,
 }
 
 

@@ -203,7 +203,7 @@ def simulate(fem, t_end, dt, scheme="generalized_alpha", rho_inf=0.8, beta=0.25,
     try:
         march(0.0, t_end, float(dt), float(min_step or dt / 1024), float(max_step or dt), attempt, accept, reject,
               "a smaller time step, generalized-alpha with rho_inf < 1 to damp unresolved frequencies, or Rayleigh "
-              "damping", easy=3)
+              "damping", easy=5)
     except ConvergenceError as e:
         e.trajectory = traj
         raise
