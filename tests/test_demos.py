@@ -57,6 +57,8 @@ def check_pneunet_inflation(report, out):
     assert report["cavities_2d"] == report["chambers"]
     for name in ("angle_vs_pressure.png", "deformed_2d.png", "deformed_3d.png"):
         assert (out / name).stat().st_size > 0
+    from sorofem.snapshots import Snapshots
+    assert Snapshots(out / "pneunet_2d.h5").n_steps == report["steps_2d"] + 1
 
 
 def check_crawler(report, out):
