@@ -215,6 +215,17 @@ def _poly_ad(xi, c1, c2, c3, c4):
 # hat / vee and adjoints
 # ----------------------------------------------------------------------------------------------------------
 @njit(cache=True)
+def _put_skew(A, r, c, x, k):
+    """Write the skew matrix of ``x[k:k+3]`` into ``A[r:r+3, c:c+3]`` (the other entries are untouched)."""
+    A[r + 0, c + 1] = -x[k + 2]
+    A[r + 0, c + 2] = x[k + 1]
+    A[r + 1, c + 0] = x[k + 2]
+    A[r + 1, c + 2] = -x[k + 0]
+    A[r + 2, c + 0] = -x[k + 1]
+    A[r + 2, c + 1] = x[k + 0]
+
+
+@njit(cache=True)
 def hat3(w):
     r"""so(3) hat map: the skew matrix :math:`\hat w` with :math:`\hat w x = w \times x`.
 
@@ -227,12 +238,7 @@ def hat3(w):
     (3, 3) ndarray :math:`\begin{bmatrix} 0 & -w_3 & w_2 \\ w_3 & 0 & -w_1 \\ -w_2 & w_1 & 0 \end{bmatrix}`.
     """
     W = np.zeros((3, 3))
-    W[0, 1] = -w[2]
-    W[0, 2] = w[1]
-    W[1, 0] = w[2]
-    W[1, 2] = -w[0]
-    W[2, 0] = -w[1]
-    W[2, 1] = w[0]
+    _put_skew(W, 0, 0, w, 0)
     return W
 
 
@@ -271,12 +277,7 @@ def hat6(xi):
     (4, 4) ndarray
     """
     X = np.zeros((4, 4))
-    X[0, 1] = -xi[2]
-    X[0, 2] = xi[1]
-    X[1, 0] = xi[2]
-    X[1, 2] = -xi[0]
-    X[2, 0] = -xi[1]
-    X[2, 1] = xi[0]
+    _put_skew(X, 0, 0, xi, 0)
     X[0, 3] = xi[3]
     X[1, 3] = xi[4]
     X[2, 3] = xi[5]
@@ -319,20 +320,9 @@ def ad6(xi):
     (6, 6) ndarray
     """
     A = np.zeros((6, 6))
-    for b in range(2):
-        o = 3 * b
-        A[o + 0, o + 1] = -xi[2]
-        A[o + 0, o + 2] = xi[1]
-        A[o + 1, o + 0] = xi[2]
-        A[o + 1, o + 2] = -xi[0]
-        A[o + 2, o + 0] = -xi[1]
-        A[o + 2, o + 1] = xi[0]
-    A[3, 1] = -xi[5]
-    A[3, 2] = xi[4]
-    A[4, 0] = xi[5]
-    A[4, 2] = -xi[3]
-    A[5, 0] = -xi[4]
-    A[5, 1] = xi[3]
+    _put_skew(A, 0, 0, xi, 0)
+    _put_skew(A, 3, 3, xi, 0)
+    _put_skew(A, 3, 0, xi, 3)
     return A
 
 
