@@ -46,7 +46,7 @@ __all__ = [
     "hat3", "vee3", "hat6", "vee6",
     "ad6", "coad6", "Ad", "Ad_inv", "coAd", "invSE3",
     "expSO3", "logSO3", "expSE3", "logSE3",
-    "JlSO3", "JlSO3_inv", "TSE3", "TSE3_inv",
+    "JlSO3", "JlSO3_inv", "TSE3", "TSE3_inv", "dTSE3",
 ]
 
 SMALL_ANGLE = 0.5
@@ -82,6 +82,14 @@ _T3 = _coeffs((1, 24), (-1, 360), (1, 13440), (-1, 907200), (1, 95800320), (-1, 
 _T4 = _coeffs((1, 120), (-1, 2520), (1, 120960), (-1, 9979200), (1, 1245404160), (-1, 217945728000),
               (1, 50812489728000), (-1, 15205637551104000), (1, 5676771352412160000),
               (-1, 2585201673888497664000))
+# Derivatives of the T coefficients divided by theta: c1'/t = t^2 D3, c2'/t = t^2 D4 (sympy).
+_D3 = _coeffs((-1, 180), (1, 3360), (-1, 151200), (1, 11975040), (-1, 1452971520), (1, 249080832000),
+              (-1, 57164050944000), (1, 16895152834560000), (-1, 6244448487653376000),
+              (1, 2820220007878361088000))
+_D4 = _coeffs((-1, 1260), (1, 30240), (-1, 1663200), (1, 155675520), (-1, 21794572800), (1, 4234374144000),
+              (-1, 1086116967936000), (1, 354798209525760000), (-1, 143622315216027648000),
+              (1, 70505500196959027200000))
+_SMALL_ANGLE_D = 1.5  # the derivative closed forms cancel as t^6 / 90 against 8: keep the series longer
 _TI2 = _coeffs((1, 12), (0, 1), (-1, 30240), (-1, 604800), (-1, 15966720), (-691, 326918592000), (-1, 14944849920),
                (-3617, 1778437140480000), (-43867, 729870602452992000), (-174611, 100357207837286400000),
                (-77683, 1566788893265756160000), (-236364091, 169382413673174366945280000),
@@ -145,6 +153,20 @@ def _tse3_coeffs(theta):
         c3 = (4.0 * h * h - theta * s) / (2.0 * t2 * t2)
         c4 = (2.0 * theta - 3.0 * s + theta * c) / (2.0 * t2 * t2 * theta)
     return c1, c2, c3, c4
+
+
+@njit(cache=True)
+def _tse3_dcoeffs(theta):
+    """Derivatives of the coefficients of :func:`_tse3_coeffs` divided by theta: (c1'/t, c2'/t, c3'/t, c4'/t)."""
+    t2 = theta * theta
+    if theta < _SMALL_ANGLE_D:
+        d3, d4 = _series(_D3, t2), _series(_D4, t2)
+    else:
+        s, c = np.sin(theta), np.cos(theta)
+        t6 = t2 * t2 * t2
+        d3 = (-t2 * c + 5.0 * theta * s + 8.0 * c - 8.0) / (2.0 * t6)
+        d4 = (-t2 * s - 7.0 * theta * c - 8.0 * theta + 15.0 * s) / (2.0 * t6 * theta)
+    return t2 * d3, t2 * d4, d3, d4
 
 
 @njit(cache=True)
@@ -623,7 +645,8 @@ def TSE3(xi):
 @njit(cache=True)
 def TSE3_inv(xi):
     r"""Inverse of the tangent operator :func:`TSE3`:
-    :math:`T(\xi)^{-1} = \frac{\mathrm{ad}_\xi}{I - e^{-\mathrm{ad}_\xi}} = \sum_k \frac{B_k^+}{k!} \mathrm{ad}_\xi^k` (Bernoulli numbers with :math:`B_1^+ = +\frac12`).
+    :math:`T(\xi)^{-1} = \frac{\mathrm{ad}_\xi}{I - e^{-\mathrm{ad}_\xi}} = \sum_k \frac{B_k^+}{k!}
+    \mathrm{ad}_\xi^k` (Bernoulli numbers with :math:`B_1^+ = +\frac12`).
 
     The odd part of :math:`x / (1 - e^{-x})` is exactly :math:`x/2`, the even part is :math:`\frac{x}{2}
     \coth\frac{x}{2}`, so with :math:`\varphi(\theta) = \frac{\theta}{2}\cot\frac{\theta}{2} - 1`,
@@ -645,3 +668,44 @@ def TSE3_inv(xi):
     """
     c2, c4 = _tse3_inv_coeffs(_norm3(xi[:3]))
     return _poly_ad(xi, 0.5, c2, 0.0, c4)
+
+
+@njit(cache=True)
+def dTSE3(xi, delta):
+    r"""Directional derivative of the tangent operator :func:`TSE3`:
+    :math:`dT = \frac{d}{d\epsilon} T(\xi + \epsilon\delta)\big|_{\epsilon=0}`.
+
+    With :math:`A = \mathrm{ad}_\xi`, :math:`D = \mathrm{ad}_\delta`, :math:`T = I - c_1 A + c_2 A^2 - c_3 A^3 +
+    c_4 A^4` and :math:`\theta' = \omega\cdot\delta_\omega / \theta`,
+
+    .. math::
+
+        dT = \sum_{k=1}^4 (-1)^k \left(\frac{c_k'}{\theta}(\omega\cdot\delta_\omega) A^k
+             + c_k \sum_{j=0}^{k-1} A^j D A^{k-1-j}\right).
+
+    The coefficient derivatives :math:`c_k'/\theta` use their Taylor series below 1.5 rad. A Cosserat rod's
+    Jacobian rate :math:`\dot J` needs it: :math:`\frac{d}{dt}(T(\Omega)\Omega') = dT[\dot\Omega]\,\Omega' +
+    T\,\dot\Omega'`.
+
+    Parameters
+    ----------
+    xi, delta : (6,) float64 arrays :math:`(\omega, v)`.
+
+    Returns
+    -------
+    (6, 6) ndarray
+    """
+    theta = _norm3(xi[:3])
+    c1, c2, c3, c4 = _tse3_coeffs(theta)
+    d1, d2, d3, d4 = _tse3_dcoeffs(theta)
+    sd = xi[0] * delta[0] + xi[1] * delta[1] + xi[2] * delta[2]
+    A1 = ad6(xi)
+    D = ad6(delta)
+    A2 = _mm6(A1, A1)
+    A3 = _mm6(A2, A1)
+    A4 = _mm6(A3, A1)
+    P2 = _mm6(D, A1) + _mm6(A1, D)
+    P3 = _mm6(P2, A1) + _mm6(A2, D)
+    P4 = _mm6(P3, A1) + _mm6(A3, D)
+    return (sd * (-d1 * A1 + d2 * A2 - d3 * A3 + d4 * A4)
+            - c1 * D + c2 * P2 - c3 * P3 + c4 * P4)

@@ -253,3 +253,24 @@ def test_kernels_compile_in_nopython_mode():
     for angle in (0.0, 1e-9, 1.0, math.pi - 1e-7):
         xi = _twist(rng, angle)
         assert _chain_in_numba(xi, rng.normal(size=6)) < 1e-12
+
+
+@pytest.mark.parametrize("angle", [0.0, 1e-7, 0.3, 1.49, 1.51, 2.5, np.pi - 1e-3])
+def test_tangent_operator_derivative_against_finite_differences(angle):
+    rng = np.random.default_rng(7)
+    w = rng.normal(size=3)
+    xi = np.concatenate([angle * w / np.linalg.norm(w), rng.normal(size=3)])
+    delta = rng.normal(size=6)
+    eps = 1e-6
+    fd = (lie.TSE3(xi + eps * delta) - lie.TSE3(xi - eps * delta)) / (2 * eps)
+    assert np.allclose(lie.dTSE3(xi, delta), fd, atol=1e-8, rtol=1e-7)
+
+
+def test_tangent_operator_derivative_series_and_closed_form_agree_at_the_switch():
+    rng = np.random.default_rng(3)
+    w = rng.normal(size=3)
+    w /= np.linalg.norm(w)
+    v, delta = rng.normal(size=3), rng.normal(size=6)
+    below = lie.dTSE3(np.concatenate([(lie._SMALL_ANGLE_D - 1e-12) * w, v]), delta)
+    above = lie.dTSE3(np.concatenate([(lie._SMALL_ANGLE_D + 1e-12) * w, v]), delta)
+    assert np.allclose(below, above, rtol=1e-11, atol=1e-12)
