@@ -1,18 +1,23 @@
 """soroshapes: reduced-order Cosserat beam models, data-driven strain bases and networks of dynamic systems.
 
 Runs without DOLFINx: it uses :mod:`sorofem.sdf` for sections and contact and reads FEM results only as
-snapshot files. Numba kernels compile on first use, not at import: submodules (such as :mod:`soroshapes.lie`,
-the SO(3)/SE(3) kernels) are loaded on first attribute access, so ``import soroshapes`` does not import numba.
+snapshot files. Numba kernels compile on first use, not at import: submodules (:mod:`~soroshapes.lie` the
+SO(3)/SE(3) kernels, :mod:`~soroshapes.basis` the modal strain bases, :mod:`~soroshapes.shapes` the Cosserat
+beam model, :mod:`~soroshapes.render` tube rendering) and the public classes are loaded on first attribute
+access, so ``import soroshapes`` does not import numba.
 """
 import importlib
 
-_SUBMODULES = ("lie",)
+_SUBMODULES = ("lie", "basis", "shapes", "render")
+_CLASSES = {"Basis": "basis", "Shapes": "shapes", "BeamTrajectory": "shapes", "IKResult": "shapes"}
 
-__all__: list[str] = [*_SUBMODULES]
+__all__: list[str] = [*_SUBMODULES, *_CLASSES]
 
 
 def __getattr__(name):
-    """Import the submodule ``name`` on first access (PEP 562), so numba loads only when a kernel is used."""
+    """Import the submodule ``name`` (or the module of the class ``name``) on first access (PEP 562)."""
     if name in _SUBMODULES:
         return importlib.import_module(f"{__name__}.{name}")
+    if name in _CLASSES:
+        return getattr(importlib.import_module(f"{__name__}.{_CLASSES[name]}"), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,0 +1,927 @@
+r"""Reduced-order Cosserat beams with a modal strain basis (geometric variable strain), the ``Shapes`` of the seed.
+
+The model
+---------
+A rod of length :math:`L` [m] along its body :math:`x` axis; its cross-section (a 2D SDF) lies in the body
+:math:`(y, z)` plane. The strain :math:`\xi = (\kappa_x, \kappa_y, \kappa_z, \epsilon_x, \gamma_y, \gamma_z)`
+(torsion [1/m], two bendings [1/m], stretch, two shears [-]; angular part first as in :mod:`soroshapes.lie`)
+is
+
+.. math:: \xi(\sigma) = \Theta(\sigma)\, q + \xi_\circ(\sigma), \qquad \xi_\circ = (0, 0, 0, 1, 0, 0)
+          \text{ for a straight rod,}
+
+where :math:`\Theta` stacks, for each strain :math:`i` with ``dofs[i] > 0``, the first ``dofs[i]`` functions of
+the basis (Sorotoki's ``dof`` mask). The frames :math:`g(\sigma) \in SE(3)` solve :math:`g' = g\hat\xi`,
+:math:`g(0) =` ``base``; they are integrated by a Magnus expansion of order 2 or 4 on ``segments`` pieces (see
+:mod:`soroshapes._beam`). The equations of motion are
+
+.. math:: M(q)\ddot q + C(q, \dot q)\dot q + D\dot q + K q = f_g(q) + G(q)\, u + f_{ext}(q, \dot q, t),
+
+with :math:`M = \int J^T \mathcal M J\, d\sigma`, :math:`K = \int \Theta^T \mathcal K \Theta\, d\sigma` (constant:
+the material is linear in the strain), :math:`\mathcal K = \mathrm{diag}(GJ_p, EI_y, EI_z, EA, GA, GA)` (plus the
+product-of-area coupling :math:`-EI_{yz}` of the bendings) and :math:`\mathcal M = \rho\,\mathrm{diag}(J_p, I_y,
+I_z, A, A, A)`. Inputs are internal actuation wrenches (pressure chambers and tendons placed off the axis),
+point wrenches, contact with SDF environments and user callables.
+
+Units: SI throughout (m, kg, s, N, Pa); :math:`q` carries the unit of its strain times the (dimensionless) basis.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sorofem.errors import ConvergenceError, DataError, ParameterError
+
+from .basis import Basis
+
+__all__ = ["Shapes", "BeamTrajectory", "IKResult", "STRAINS"]
+
+#: Names of the six strains, in the order of the ``dofs`` mask.
+STRAINS = ("torsion", "bending_y", "bending_z", "stretch", "shear_y", "shear_z")
+
+
+
+def _as_pose(base):
+    g = np.eye(4) if base is None else np.array(base, dtype=float)
+    if g.shape == (3,):
+        p, g = g, np.eye(4)
+        g[:3, 3] = p
+    if g.shape != (4, 4) or not np.all(np.isfinite(g)):
+        raise ParameterError(f"base must be a 4x4 homogeneous pose (or a 3-vector position) [m], got shape "
+                             f"{np.shape(base)}")
+    R = g[:3, :3]
+    if not np.allclose(R.T @ R, np.eye(3), atol=1e-9) or np.linalg.det(R) < 0:
+        raise ParameterError("base rotation must be orthonormal with det +1; build it with soroshapes.lie."
+                             "expSO3 or scipy.spatial.transform.Rotation")
+    return g
+
+
+def _material_moduli(material, E, G):
+    """(E, G, density, damping ratio) from a sorofem material (small-strain moduli) or explicit numbers."""
+    if material is not None:
+        try:
+            E = material.E if E is None else E
+            G = material.G if G is None else G
+            rho = material.density
+            zeta = getattr(material, "damping", 0.0)
+        except AttributeError as err:
+            raise ParameterError(f"material must provide E, G [Pa], density [kg/m^3] (a sorofem.materials "
+                                 f"material does): {err}") from None
+    else:
+        raise ParameterError("give a material, e.g. material=sorofem.materials.NeoHookean(E=1e6, nu=0.45, "
+                             "density=1000)")
+    for name, v in (("Young's modulus E", E), ("shear modulus G", G), ("density", rho)):
+        if not (np.isfinite(v) and v > 0):
+            raise ParameterError(f"{name} must be positive and finite, got {v!r}")
+    return float(E), float(G), float(rho), float(zeta)
+
+
+@dataclass
+class BeamTrajectory:
+    """Result of :meth:`Shapes.simulate`: times ``t`` (m,) [s], coordinates ``q`` and rates ``qd`` (m, n),
+    energies (m,) [J] (``kinetic``, ``potential`` = elastic + gravity, ``total``), tip positions (m, 3) [m],
+    and the solver statistics (``newton_iterations`` per step, ``steps``, ``wall_time`` [s])."""
+
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    kinetic: np.ndarray
+    potential: np.ndarray
+    tip: np.ndarray
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def total(self):
+        """Total mechanical energy [J] (kinetic + elastic + gravity)."""
+        return self.kinetic + self.potential
+
+
+@dataclass
+class IKResult:
+    """Result of :meth:`Shapes.inverse_kinematics`: coordinates ``q``, final error norm ``error`` [m],
+    ``iterations``, ``converged`` (error below the tolerance)."""
+
+    q: np.ndarray
+    error: float
+    iterations: int
+    converged: bool
+
+
+class Shapes:
+    r"""A Cosserat beam with a modal strain basis.
+
+    Parameters
+    ----------
+    basis : Basis or sequence of 6 Basis/None
+        One basis for every active strain (strain ``i`` uses its first ``dofs[i]`` functions), or one per strain.
+    dofs : 6 ints
+        Number of modes per strain (torsion, bending y, bending z, stretch, shear y, shear z); 0 fixes it.
+    length : float [m]
+    section : 2D SDF (:mod:`sorofem.sdf`), e.g. ``sdf.Circle(5*mm)``; its centroid is on the backbone and its
+        2D axes (x, y) are the body axes (y, z).
+    material : a :mod:`sorofem.materials` material (its small-strain ``E``, ``G``, ``density``, ``damping``).
+    base : (4, 4) pose of the clamped end (default identity: the rod points along the spatial x axis).
+    xi0 : (6,) reference strain, or callable ``sigma -> (6,)``; default straight ``(0, 0, 0, 1, 0, 0)``.
+    segments : int
+        Magnus segments (the nodes are their ends; default 20); pieces of a piecewise basis get whole segments.
+    order : 2 or 4
+        Magnus order (4: two Gauss points per segment, fourth-order accurate).
+    damping : float, optional
+        Kelvin-Voigt time constant :math:`\tau` [s]: :math:`D = \tau K`. Default: from the material's damping
+        ratio :math:`\zeta` as :math:`\tau = 2\zeta/\omega_1`, which damps the first mode at :math:`\zeta`.
+    E, G : float [Pa], optional
+        Override the material's moduli.
+    contact_radius : float [m], optional
+        Radius of the tube that touches obstacles (default: the largest distance from the centroid to the
+        section's boundary along its axes, i.e. the bounding half-width).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sorofem import sdf, materials
+    >>> from soroshapes import Basis, Shapes
+    >>> shp = Shapes(Basis.chebyshev(3), dofs=(0, 0, 3, 0, 0, 0), length=0.1, section=sdf.Circle(0.005),
+    ...              material=materials.NeoHookean(E=1e6, nu=0.45, density=1000), damping=0.0)
+    >>> shp.n
+    3
+    >>> tip = shp.forward_kinematics(np.array([np.pi / 0.1, 0, 0]))[-1, :3, 3]   # one constant-curvature half turn
+    >>> bool(np.allclose(tip, [0, 2 * 0.1 / np.pi, 0], atol=1e-9))
+    True
+    """
+
+    def __init__(self, basis, dofs, length, section, material=None, *, base=None, xi0=None, segments=20,
+                 order=4, damping=None, E=None, G=None, contact_radius=None):
+        from . import _beam
+        self._beam = _beam
+        self.length = float(length)
+        if not (np.isfinite(self.length) and self.length > 0):
+            raise ParameterError(f"length must be a positive number of metres, got {length!r}")
+        dofs = tuple(int(d) for d in dofs) if np.ndim(dofs) == 1 else None
+        if dofs is None or len(dofs) != 6 or any(d < 0 for d in dofs):
+            raise ParameterError("dofs must be 6 non-negative integers (torsion, bending_y, bending_z, stretch, "
+                                 "shear_y, shear_z), e.g. (0, 3, 3, 0, 0, 0)")
+        if sum(dofs) == 0:
+            raise ParameterError("dofs are all zero: the beam would have no degrees of freedom")
+        self.dofs = dofs
+        self._bases = self._strain_bases(basis, dofs)
+        if order not in (2, 4):
+            raise ParameterError(f"order must be 2 or 4 (Magnus expansion), got {order!r}")
+        self.order = order
+        segments = int(segments)
+        if segments < 1:
+            raise ParameterError(f"segments must be >= 1, got {segments}")
+        self._segments = segments
+        self.base = _as_pose(base)
+        self.E, self.G, self.density, zeta = _material_moduli(material, E, G)
+        self.material = material
+        self._section(section, contact_radius)
+        self._xi0 = self._reference_strain(xi0)
+        self._discretize(segments)
+        self._stiffness()
+        # loads
+        self._gravity = np.zeros(3)
+        self._inputs = []        # (name, kind, data)
+        self._point_loads = []   # (node, force(t), moment(t), frame)
+        self._contacts = []
+        self._forces = []
+        self._work = _beam.scratch(self.n)
+        if damping is None:
+            damping = 2.0 * zeta / self.natural_frequencies(1)[0] / (2 * np.pi) if zeta > 0 else 0.0
+        if not (np.isfinite(damping) and damping >= 0):
+            raise ParameterError(f"damping must be a time constant >= 0 [s], got {damping!r}")
+        self.damping = float(damping)
+
+    # ------------------------------------------------------------------------------------------------
+    # construction
+    # ------------------------------------------------------------------------------------------------
+    @staticmethod
+    def _strain_bases(basis, dofs):
+        if isinstance(basis, Basis):
+            bases = [basis if d else None for d in dofs]
+        else:
+            try:
+                bases = list(basis)
+            except TypeError:
+                raise ParameterError(f"basis must be a Basis or 6 of them (None for fixed strains), got "
+                                     f"{type(basis).__name__}") from None
+            if len(bases) != 6:
+                raise ParameterError(f"give one basis per strain (6, None where dofs is 0), got {len(bases)}")
+        for i, (b, d) in enumerate(zip(bases, dofs)):
+            if d == 0:
+                continue
+            if not isinstance(b, Basis):
+                raise ParameterError(f"strain {STRAINS[i]} has dofs={d} but no Basis")
+            if b.n < d:
+                raise ParameterError(f"strain {STRAINS[i]} asks for {d} modes but its basis {b.name} has only "
+                                     f"{b.n}; lower dofs[{i}] or use a larger basis")
+        return bases
+
+    def _section(self, section, contact_radius):
+        from sorofem.sdf.properties import section_properties
+        if getattr(section, "dim", None) != 2:
+            raise ParameterError("section must be a 2D SDF from sorofem.sdf, e.g. sdf.Circle(5e-3)")
+        props = section_properties(section)
+        self.section = section
+        self.section_properties = props
+        A, Iy, Iz, Iyz, Jp = props.area, props.Iy, props.Iz, props.Iyz, props.J
+        self._Kdiag = np.diag([self.G * Jp, self.E * Iy, self.E * Iz, self.E * A, self.G * A, self.G * A])
+        self._Kdiag[1, 2] = self._Kdiag[2, 1] = -self.E * Iyz
+        self._Mdiag = self.density * np.array([Jp, Iy, Iz, A, A, A])
+        if contact_radius is None:
+            lo, hi = section.bounds
+            c = props.centroid
+            contact_radius = float(np.max(np.abs(np.concatenate([lo - c, hi - c]))))
+        if not (np.isfinite(contact_radius) and contact_radius > 0):
+            raise ParameterError(f"contact_radius must be positive [m], got {contact_radius!r}")
+        self.contact_radius = float(contact_radius)
+
+    def _reference_strain(self, xi0):
+        if xi0 is None:
+            return lambda s: np.tile([0.0, 0.0, 0.0, 1.0, 0.0, 0.0], (len(s), 1))
+        if callable(xi0):
+            return lambda s: np.asarray([xi0(x) for x in s], dtype=float).reshape(len(s), 6)
+        v = np.asarray(xi0, dtype=float)
+        if v.shape != (6,) or not np.all(np.isfinite(v)):
+            raise ParameterError("xi0 must be 6 finite numbers (kx, ky, kz [1/m], stretch, shear_y, shear_z) or a "
+                                 "callable of sigma [m]")
+        return lambda s: np.tile(v, (len(s), 1))
+
+    @property
+    def n(self):
+        """Number of generalized coordinates."""
+        return int(sum(self.dofs))
+
+    def theta(self, sigma):
+        r"""The modal matrix :math:`\Theta(\sigma)` at arc lengths ``sigma`` [m]: array (len(sigma), 6, n)."""
+        s = np.clip(np.atleast_1d(np.asarray(sigma, dtype=float)) / self.length, 0.0, 1.0)
+        out = np.zeros((len(s), 6, self.n))
+        col = 0
+        for i, (b, d) in enumerate(zip(self._bases, self.dofs)):
+            if d:
+                out[:, i, col:col + d] = b(s)[:, :d]
+                col += d
+        return out
+
+    def _breaks(self):
+        """Normalized points where some mode may be non-smooth; segments end on them. A basis with more pieces
+        than there are segments (data sampled densely, e.g. a DVS basis: cubic splines, C2 at their knots)
+        is integrated across its knots instead."""
+        br = {0.0, 1.0}
+        for b in self._bases:
+            if b is not None and len(b.breaks) - 1 <= self._segments:
+                br.update(float(x) for x in b.breaks)
+        return np.array(sorted(br))
+
+    def _discretize(self, segments):
+        br = self._breaks()
+        pieces = np.diff(br)
+        per = np.maximum(1, np.round(segments * pieces).astype(int))
+        nodes = np.concatenate([[0.0]] + [br[i] + pieces[i] * np.arange(1, per[i] + 1) / per[i]
+                                          for i in range(len(pieces))])
+        nodes[-1] = 1.0
+        sigma = nodes * self.length
+        h = np.diff(sigma)
+        gp = (0.5,) if self.order == 2 else self._beam.GAUSS2
+        pts = sigma[:-1, None] + h[:, None] * np.array(gp)[None, :]
+        # evaluate a piecewise basis inside each segment: nudge Gauss points off the breaks (they never sit on one)
+        th = self.theta(pts.ravel())
+        self.sigma = sigma
+        self._h = np.ascontiguousarray(h)
+        th = th.reshape(len(h), len(gp), 6, self.n)
+        self._rows = np.repeat(np.arange(6), self.dofs).astype(np.int64)
+        self._B = np.ascontiguousarray(th[:, :, self._rows, np.arange(self.n)])   # column k lives in row rows[k]
+        self._X0 = np.ascontiguousarray(self._xi0(pts.ravel()).reshape(len(h), len(gp), 6))
+        w = np.zeros(len(sigma))
+        w[:-1] += h / 2
+        w[1:] += h / 2
+        self._w = w
+        self._Md = np.ascontiguousarray(np.tile(self._Mdiag, (len(sigma), 1)))
+        N = len(sigma)
+        self._G = np.zeros((N, 4, 4))
+        self._J = np.zeros((N, 6, self.n))
+        self._Jd = np.zeros((N, 6, self.n))
+        self._eta = np.zeros((N, 6))
+
+    def _quad(self, f, a=0.0, b=None):
+        """Integrate ``f(sigma) -> (m, ...)`` over [a, b] by Gauss-Legendre on every basis piece, with
+        ``2 max(dofs) + 8`` points (exact for products of two polynomial modes)."""
+        b = self.length if b is None else b
+        br = self._breaks() * self.length
+        cuts = np.unique(np.clip(np.concatenate([[a, b], br]), a, b))
+        x, wg = np.polynomial.legendre.leggauss(2 * max(self.dofs) + 8)
+        total = 0.0
+        for lo, hi in zip(cuts[:-1], cuts[1:]):
+            if hi - lo <= 0:
+                continue
+            s = 0.5 * (lo + hi) + 0.5 * (hi - lo) * x
+            vals = f(s)
+            total = total + np.tensordot(0.5 * (hi - lo) * wg, vals, axes=(0, 0))
+        return total
+
+    def _stiffness(self):
+        Kd = self._Kdiag
+        self.K = self._quad(lambda s: np.einsum("mri,rc,mcj->mij", self.theta(s), Kd, self.theta(s)))
+        self.K = 0.5 * (self.K + self.K.T)
+        if np.linalg.cond(self.K) > 1e14:
+            raise ParameterError("the stiffness matrix is singular: the chosen basis functions are linearly "
+                                 "dependent on [0, L]; orthonormalize the basis or use fewer modes")
+
+    # ------------------------------------------------------------------------------------------------
+    # loads (builders return self)
+    # ------------------------------------------------------------------------------------------------
+    def add_gravity(self, g=(0.0, 0.0, -9.81)):
+        """Gravity: spatial acceleration ``g`` [m/s^2] (default 9.81 along -z)."""
+        g = np.asarray(g, dtype=float)
+        if g.shape != (3,) or not np.all(np.isfinite(g)):
+            raise ParameterError("gravity must be a 3-vector [m/s^2]")
+        self._gravity = g
+        return self
+
+    def _node(self, at):
+        at = self.length if at is None else float(at)
+        i = int(np.argmin(np.abs(self.sigma - at)))
+        if abs(self.sigma[i] - at) > 1e-9 * self.length:
+            raise ParameterError(f"point loads act at nodes; sigma={at:g} m is not one (nearest: "
+                                 f"{self.sigma[i]:g} m); pass at=one of shp.sigma or change segments")
+        return i
+
+    def add_point_load(self, force=None, moment=None, *, at=None, frame="spatial"):
+        """A point force [N] and/or moment [N m] at arc length ``at`` [m] (a node; default the tip), in the
+        ``"spatial"`` or ``"body"`` frame; each may be a 3-vector or a callable of time t [s]."""
+        if frame not in ("spatial", "body"):
+            raise ParameterError("frame must be 'spatial' or 'body'")
+
+        def signal(v, what):
+            if v is None:
+                return lambda t: np.zeros(3)
+            if callable(v):
+                return lambda t: np.asarray(v(t), dtype=float).reshape(3)
+            v = np.asarray(v, dtype=float)
+            if v.shape != (3,) or not np.all(np.isfinite(v)):
+                raise ParameterError(f"{what} must be a finite 3-vector or a callable of t")
+            return lambda t: v
+        self._point_loads.append((self._node(at), signal(force, "force"), signal(moment, "moment"), frame))
+        return self
+
+    def add_chamber(self, area, offset, span=None, name=None):
+        r"""A pressure chamber of cross-section ``area`` [m^2] whose centroid sits at ``offset`` = (y, z) [m] from
+        the backbone, along ``span`` = (sigma_a, sigma_b) [m] (default the whole rod). Adds one input: its
+        pressure [Pa]. The pressure acts as an internal wrench :math:`W = p A_c (r \times e_x, e_x)`
+        (an axial force off the axis: it stretches the chamber side and bends the rod away from it), so
+        :math:`\tau = \int \Theta^T W d\sigma` is constant in :math:`q`."""
+        area = float(area)
+        off = np.asarray(offset, dtype=float)
+        if not (np.isfinite(area) and area > 0) or off.shape != (2,):
+            raise ParameterError("a chamber needs area > 0 [m^2] and offset (y, z) [m]")
+        a, b = self._span(span)
+        W = area * np.array([0.0, off[1], -off[0], 1.0, 0.0, 0.0])
+        col = self._quad(lambda s: np.einsum("mri,r->mi", self.theta(s), W), a, b)
+        self._inputs.append((name or f"chamber{len(self._inputs)}", "chamber", col))
+        return self
+
+    def add_tendon(self, offset, span=None, name=None):
+        r"""A tendon routed parallel to the backbone at ``offset`` = (y, z) [m] along ``span`` (default the whole
+        rod), anchored at the span's end. Adds one input: its tension [N] (>= 0). The tension compresses the rod
+        along the tendon: internal wrench :math:`W = -T (d \times \hat t, \hat t)` with the tendon direction
+        :math:`\hat t = (\nu + \kappa \times d) / |\cdot|`, integrated at the Magnus Gauss points."""
+        off = np.asarray(offset, dtype=float)
+        if off.shape != (2,) or not np.all(np.isfinite(off)):
+            raise ParameterError("a tendon needs offset (y, z) [m]")
+        a, b = self._span(span)
+        gp = (0.5,) if self.order == 2 else self._beam.GAUSS2
+        pts = self.sigma[:-1, None] + self._h[:, None] * np.array(gp)[None, :]
+        wts = np.repeat(self._h[:, None] / len(gp), len(gp), axis=1)
+        mask = (pts >= a - 1e-12) & (pts <= b + 1e-12)
+        self._inputs.append((name or f"tendon{len(self._inputs)}", "tendon",
+                             (np.array([0.0, off[0], off[1]]), wts * mask)))
+        return self
+
+    def _span(self, span):
+        a, b = (0.0, self.length) if span is None else map(float, span)
+        if not (0.0 <= a < b <= self.length * (1 + 1e-12)):
+            raise ParameterError(f"span must satisfy 0 <= a < b <= length ({self.length:g} m), got {span!r}")
+        return a, b
+
+    def add_contact(self, obstacle, stiffness=None, damping=0.0, friction=0.0, regularization=1e-3):
+        r"""Contact of the tube (radius :attr:`contact_radius`) with a 3D SDF environment, at the nodes.
+
+        Penetration :math:`\delta = r - d(p)` (:math:`d` the signed distance of the node); normal force per
+        unit length :math:`f_n = \max(0, k\delta - c\,\dot d)` along the SDF gradient, with default stiffness
+        :math:`k = 10 E` [N/m^2] (a foundation modulus of ten Young's moduli: penetration stays a few percent
+        of the radius under loads that bend the rod) and damping ``c`` [N s/m^2]; regularized Coulomb friction
+        :math:`f_t = -\mu f_n v_t / \sqrt{|v_t|^2 + \epsilon^2}` with :math:`\epsilon` = ``regularization``
+        [m/s]. Forces act on the backbone (no rolling moment)."""
+        if getattr(obstacle, "dim", None) != 3:
+            raise ParameterError("contact needs a 3D SDF from sorofem.sdf (e.g. sdf.Sphere, sdf.Plane)")
+        k = 10.0 * self.E if stiffness is None else float(stiffness)
+        for name, v in (("stiffness", k), ("damping", damping), ("friction", friction),
+                        ("regularization", regularization)):
+            if not (np.isfinite(v) and v >= 0):
+                raise ParameterError(f"contact {name} must be >= 0, got {v!r}")
+        if k <= 0 or regularization <= 0:
+            raise ParameterError("contact stiffness and regularization must be positive")
+        self._contacts.append((obstacle, k, float(damping), float(friction), float(regularization)))
+        return self
+
+    def add_force(self, f):
+        """A user generalized force ``f(shapes, q, qd, t) -> (n,)`` [N or N m per coordinate]."""
+        if not callable(f):
+            raise ParameterError("add_force needs a callable f(shapes, q, qd, t) -> (n,) array")
+        self._forces.append(f)
+        return self
+
+    @property
+    def inputs(self):
+        """Names of the inputs (chambers [Pa], tendons [N]) in the order of ``u``."""
+        return [name for name, _, _ in self._inputs]
+
+    # ------------------------------------------------------------------------------------------------
+    # kinematics
+    # ------------------------------------------------------------------------------------------------
+    def _check_q(self, q, what="q"):
+        q = np.ascontiguousarray(q, dtype=float).reshape(-1) if q is not None else np.zeros(self.n)
+        if q.shape != (self.n,):
+            raise ParameterError(f"{what} must have {self.n} entries (dofs {self.dofs}), got {q.shape}")
+        if not np.all(np.isfinite(q)):
+            raise DataError(f"{what} contains NaN or inf")
+        return q
+
+    def _kin(self, q, qd=None, rate=False):
+        q = self._check_q(q)
+        qd = np.zeros(self.n) if qd is None else self._check_q(qd, "qd")
+        self._beam.kinematics(q, qd, rate, self.order, self._h, self._B, self._rows, self._X0, self.base, self._G,
+                              self._J, self._Jd, self._eta, *self._work)
+        return q, qd
+
+    def forward_kinematics(self, q):
+        """Frames g(sigma_i) at the nodes :attr:`sigma`: array (N+1, 4, 4); positions are ``[:, :3, 3]`` [m]."""
+        self._kin(q)
+        return self._G.copy()
+
+    def positions(self, q):
+        """Backbone positions at the nodes, (N+1, 3) [m]."""
+        self._kin(q)
+        return self._G[:, :3, 3].copy()
+
+    def jacobian(self, q, at=None, frame="body"):
+        r"""Geometric Jacobian at node ``at`` [m] (default the tip): body :math:`J` with :math:`\eta = J\dot q`
+        (6, n), or ``frame="spatial"``: :math:`\mathrm{Ad}_g J`; ``at="all"`` gives (N+1, 6, n) body Jacobians."""
+        self._kin(q)
+        if at == "all":
+            return self._J.copy()
+        i = self._node(at)
+        if frame == "body":
+            return self._J[i].copy()
+        if frame == "spatial":
+            from .lie import Ad
+            return Ad(self._G[i]) @ self._J[i]
+        raise ParameterError("frame must be 'body' or 'spatial'")
+
+    def jacobian_rate(self, q, qd, at=None):
+        r""":math:`\dot J(q, \dot q)` (body) at node ``at`` (default tip), or all nodes with ``at="all"``."""
+        self._kin(q, qd, True)
+        return self._Jd.copy() if at == "all" else self._Jd[self._node(at)].copy()
+
+    # ------------------------------------------------------------------------------------------------
+    # dynamics terms
+    # ------------------------------------------------------------------------------------------------
+    def _mcg(self, q, qd, want_c):
+        q, qd = self._kin(q, qd, want_c)
+        n = self.n
+        M, C, fg = np.empty((n, n)), np.empty((n, n)), np.empty(n)
+        self._beam.mass_coriolis_gravity(self._J, self._Jd, self._eta, self._G, self._w, self._Md, self._gravity,
+                                         M, C, fg, want_c)
+        return M, C, fg
+
+    def mass_matrix(self, q):
+        """Generalized mass matrix M(q), (n, n) (symmetric positive definite)."""
+        return self._mcg(q, None, False)[0]
+
+    def coriolis(self, q, qd):
+        r"""Coriolis/centrifugal matrix :math:`C(q, \dot q)` with :math:`\dot M - 2C` skew-symmetric."""
+        return self._mcg(q, qd, True)[1]
+
+    def dynamics(self, q, qd):
+        """(M, C, f_g): mass matrix, Coriolis matrix and gravity force for state (q, qd), from one kinematic pass."""
+        return self._mcg(q, qd, True)
+
+    @property
+    def damping_matrix(self):
+        """D = tau K [N m s per coordinate^2] (see ``damping``)."""
+        return self.damping * self.K
+
+    def natural_frequencies(self, count=None, q=None):
+        """Natural frequencies [Hz] of the undamped linearization about ``q`` (default straight), ascending:
+        :math:`K\\phi = \\omega^2 M\\phi` (geometric stiffness of gravity and loads not included)."""
+        from scipy.linalg import eigh
+        M = self.mass_matrix(q)
+        w2 = eigh(self.K, M, eigvals_only=True)
+        f = np.sqrt(np.maximum(w2, 0.0)) / (2 * np.pi)
+        return f[:count] if count else f
+
+    def input_map(self, q):
+        """G(q): (n, m) map from the inputs (:attr:`inputs`) to generalized forces."""
+        self._kin(q)
+        return self._input_map_current()
+
+    def _input_map_current(self):
+        cols = []
+        for _, kind, data in self._inputs:
+            if kind == "chamber":
+                cols.append(data)
+            else:
+                d, wts = data
+                col = np.zeros(self.n)
+                B, X0, rows = self._B, self._X0, self._rows
+                for s in range(B.shape[0]):
+                    for a in range(B.shape[1]):
+                        if wts[s, a] == 0:
+                            continue
+                        xi = X0[s, a].copy()
+                        np.add.at(xi, rows, B[s, a] * self._qcur)
+                        t = xi[3:] + np.cross(xi[:3], d)
+                        t /= np.linalg.norm(t)
+                        W = -np.concatenate([np.cross(d, t), t])
+                        col += wts[s, a] * B[s, a] * W[rows]
+                cols.append(col)
+        return np.column_stack(cols) if cols else np.zeros((self.n, 0))
+
+    def _external(self, q, qd, t, u, scale=1.0):
+        """Generalized force of gravity, inputs, point loads, contact and user forces at the current kinematics
+        (``_kin`` was called with q, qd). Loads except contact are multiplied by ``scale``."""
+        self._qcur = q
+        f = np.zeros(self.n)
+        if np.any(self._gravity):
+            M, C, fg = np.empty((self.n, self.n)), np.empty((self.n, self.n)), np.empty(self.n)
+            self._beam.mass_coriolis_gravity(self._J, self._Jd, self._eta, self._G, self._w, self._Md,
+                                             self._gravity, M, C, fg, False)
+            f += fg
+        if self._inputs:
+            u = self._inputs_at(u, t, q, qd)
+            f += self._input_map_current() @ u
+        for i, force, moment, frame in self._point_loads:
+            F, Mo = force(t), moment(t)
+            if frame == "spatial":
+                R = self._G[i, :3, :3]
+                F, Mo = R.T @ F, R.T @ Mo
+            f += self._J[i].T @ np.concatenate([Mo, F])
+        f *= scale
+        for fn in self._forces:
+            v = np.asarray(fn(self, q, qd, t), dtype=float).reshape(-1)
+            if v.shape != (self.n,) or not np.all(np.isfinite(v)):
+                raise DataError(f"user force returned {v.shape} / non-finite values; expected {self.n} finite")
+            f += scale * v
+        if self._contacts:
+            f += self._contact_force()
+        return f
+
+    def _inputs_at(self, u, t, q, qd):
+        m = len(self._inputs)
+        if u is None:
+            return np.zeros(m)
+        v = u(t) if callable(u) else u
+        v = np.asarray(v, dtype=float).reshape(-1)
+        if v.shape != (m,) or not np.all(np.isfinite(v)):
+            raise ParameterError(f"u must give {m} finite inputs ({', '.join(self.inputs)}), got {v.shape}")
+        return v
+
+    def _contact_force(self):
+        """Penalty contact with friction at every node; returns the generalized force."""
+        P = self._G[:, :3, 3]
+        f = np.zeros(self.n)
+        self.contact_forces = np.zeros((len(P), 3))
+        for obstacle, k, c, mu, eps in self._contacts:
+            d = obstacle(P)
+            hit = np.nonzero(d < self.contact_radius)[0]
+            if len(hit) == 0:
+                continue
+            nrm = obstacle.gradient(P[hit])
+            nrm /= np.linalg.norm(nrm, axis=1)[:, None]
+            for j, i in enumerate(hit):
+                R = self._G[i, :3, :3]
+                v = R @ self._eta[i, 3:]
+                vn = v @ nrm[j]
+                fn = max(0.0, k * (self.contact_radius - d[i]) - c * vn)
+                vt = v - vn * nrm[j]
+                F = fn * nrm[j] - mu * fn * vt / np.sqrt(vt @ vt + eps * eps)
+                F *= self._w[i]
+                self.contact_forces[i] += F
+                f += self._J[i, 3:].T @ (R.T @ F)
+        return f
+
+    def energy(self, q, qd=None):
+        """Energies [J]: dict with kinetic, elastic, gravity (potential of the uniform gravity field), total."""
+        q, qd = self._kin(q, qd)
+        M = self.mass_matrix(q)
+        P = self._G[:, :3, 3]
+        mlin = self._Md[:, 3]
+        kin = 0.5 * qd @ M @ qd
+        el = 0.5 * q @ self.K @ q
+        grav = -float(np.sum(self._w * mlin * (P @ self._gravity)))
+        return {"kinetic": kin, "elastic": el, "gravity": grav, "total": kin + el + grav}
+
+    # ------------------------------------------------------------------------------------------------
+    # solvers
+    # ------------------------------------------------------------------------------------------------
+    def _residual_static(self, q, u, scale, t=0.0):
+        self._kin(q)
+        return self.K @ q - self._external(q, np.zeros(self.n), t, u, scale)
+
+    def _fd_tangent(self, fun, q, r0):
+        n = self.n
+        Kt = np.empty((n, n))
+        for k in range(n):
+            e = 1e-7 * max(1.0, abs(q[k]))
+            dq = q.copy()
+            dq[k] += e
+            Kt[:, k] = (fun(dq) - r0) / e
+        return Kt
+
+    def statics(self, u=None, q0=None, *, steps=1, tol=1e-9, max_iterations=40, min_step=1e-4, t=0.0):
+        r"""Static equilibrium :math:`K q = f_g(q) + G(q)u + f_{ext}(q)` by Newton's method with load stepping.
+
+        The loads (all but contact) are ramped by a factor :math:`\lambda \in (0, 1]` in ``steps`` equal
+        increments; an increment whose Newton iterations fail is halved, down to ``min_step``, then a
+        :class:`~sorofem.errors.ConvergenceError` names the load level reached. The tangent is the finite
+        difference of the generalized forces (exact elastic part). Converged when the residual norm is below
+        ``tol`` times the norm of the elastic + applied forces.
+
+        Returns the coordinates q (n,).
+        """
+        q = self._check_q(q0)
+        lam, dlam = 0.0, 1.0 / max(1, int(steps))
+        self.newton_iterations = []
+        while lam < 1.0 - 1e-14:
+            target = min(1.0, lam + dlam)
+            qn, its = self._newton_static(q, u, target, tol, max_iterations, t)
+            if qn is None:
+                dlam *= 0.5
+                if dlam < min_step:
+                    raise ConvergenceError(f"statics: Newton failed at load level {target:.4g} (reached {lam:.4g}) "
+                                           "with the minimum increment; use more steps, a better q0, or check "
+                                           "that the loads are reachable")
+                continue
+            q, lam = qn, target
+            self.newton_iterations.append(its)
+            if its <= 4:
+                dlam = min(2 * dlam, 1.0)
+        return q
+
+    def _newton_static(self, q, u, scale, tol, max_iterations, t):
+        fun = lambda x: self._residual_static(x, u, scale, t)  # noqa: E731
+        q = q.copy()
+        r = fun(q)
+        for it in range(1, max_iterations + 1):
+            Kt = self._fd_tangent(fun, q, r)
+            try:
+                dq = -np.linalg.solve(Kt, r)
+            except np.linalg.LinAlgError:
+                return None, it
+            ref = np.linalg.norm(r)
+            step = 1.0
+            while True:
+                qn = q + step * dq
+                rn = fun(qn)
+                if np.all(np.isfinite(rn)) and np.linalg.norm(rn) <= (1 - 1e-4 * step) * ref or step < 1e-3:
+                    break
+                step *= 0.5
+            if not np.all(np.isfinite(rn)):
+                return None, it
+            q, r = qn, rn
+            scale_ref = np.linalg.norm(self.K @ q) + 1e-12 * np.linalg.norm(np.diag(self.K))
+            if np.linalg.norm(r) <= tol * scale_ref and np.linalg.norm(step * dq) <= 1e-8 * (1 + np.linalg.norm(q)):
+                return q, it
+        return None, max_iterations
+
+    # ------------------------------------------------------------------------------------------------
+    # dynamics
+    # ------------------------------------------------------------------------------------------------
+    def _accel_terms(self, q, qd, t, u):
+        """(M, C qd + D qd + K q - f): the left-hand side without the inertia term, at (q, qd, t)."""
+        M, C, _ = self._mcg(q, qd, True)
+        f = self._external(q, qd, t, u)
+        return M, C @ qd + self.damping * (self.K @ qd) + self.K @ q - f
+
+    def explicit_step_limit(self, q=None):
+        """Stability limit [s] of explicit time stepping, :math:`2/\\omega_{max}` (central difference), from
+        the largest natural frequency of the linearization about ``q``."""
+        return 2.0 / (2 * np.pi * self.natural_frequencies(q=q)[-1])
+
+    def simulate(self, t_end, dt, q0=None, qd0=None, u=None, *, method="implicit", tol=1e-10, max_iterations=20,
+                 min_dt=None, record_every=1, progress=False):
+        r"""Time integration of the equations of motion from (``q0``, ``qd0``) (default rest, straight).
+
+        ``method="implicit"``: the implicit midpoint rule (second order, A-stable, symplectic for constant
+        :math:`M`): with :math:`v_m = (\dot q_n + \dot q_{n+1})/2` and :math:`q_m = q_n + \tfrac h2 v_m`,
+
+        .. math:: M(q_m)\frac{2(v_m - \dot q_n)}{h} + C(q_m, v_m) v_m + D v_m + K q_m = f(q_m, v_m, t_n + h/2),
+
+        solved for :math:`v_m` by Newton iterations with the matrix :math:`2M/h + C + D + \tfrac h2 K` of the
+        current state (the geometric stiffness of the loads is left out: it changes the rate of convergence,
+        not the solution); then :math:`q_{n+1} = q_n + h v_m`, :math:`\dot q_{n+1} = 2v_m - \dot q_n`. A step
+        that does not converge in ``max_iterations`` is halved, down to ``min_dt`` (default dt/1024), then a
+        :class:`~sorofem.errors.ConvergenceError` reports the time. ``method="explicit"``: classical RK4
+        (stable only below about :meth:`explicit_step_limit`; a blow-up is reported, never returned).
+
+        ``u``: inputs, an array or a callable of t [s]. Returns a :class:`BeamTrajectory` recorded every
+        ``record_every`` steps (and at the end).
+        """
+        import time
+        if method not in ("implicit", "explicit"):
+            raise ParameterError("method must be 'implicit' or 'explicit'")
+        t_end, dt = float(t_end), float(dt)
+        if not (t_end > 0 and dt > 0 and np.isfinite(t_end) and np.isfinite(dt)):
+            raise ParameterError(f"t_end and dt must be positive [s], got {t_end!r}, {dt!r}")
+        min_dt = dt / 1024 if min_dt is None else float(min_dt)
+        q, qd = self._check_q(q0).copy(), self._check_q(qd0, "qd0").copy()
+        rec = {"t": [], "q": [], "qd": [], "kin": [], "pot": [], "tip": []}
+
+        def record(t):
+            e = self.energy(q, qd)
+            rec["t"].append(t)
+            rec["q"].append(q.copy())
+            rec["qd"].append(qd.copy())
+            rec["kin"].append(e["kinetic"])
+            rec["pot"].append(e["elastic"] + e["gravity"])
+            rec["tip"].append(self._G[-1, :3, 3].copy())
+        t, k = 0.0, 0
+        its_all = []
+        record(t)
+        t0 = time.perf_counter()
+        while t < t_end - 1e-12 * t_end:
+            h = min(dt, t_end - t)
+            while True:
+                if method == "implicit":
+                    step = self._midpoint_step(q, qd, t, h, u, tol, max_iterations)
+                else:
+                    step = self._rk4_step(q, qd, t, h, u)
+                if step is not None:
+                    break
+                h *= 0.5
+                if h < min_dt:
+                    raise ConvergenceError(f"simulate: the step at t = {t:.6g} s did not converge down to dt = "
+                                           f"{min_dt:.3g} s ({method}); use a smaller dt, the implicit method, "
+                                           "or check the loads")
+            q, qd, its = step
+            its_all.append(its)
+            t += h
+            k += 1
+            if k % record_every == 0 or t >= t_end - 1e-12 * t_end:
+                record(t)
+        wall = time.perf_counter() - t0
+        return BeamTrajectory(np.array(rec["t"]), np.array(rec["q"]), np.array(rec["qd"]), np.array(rec["kin"]),
+                              np.array(rec["pot"]), np.array(rec["tip"]),
+                              {"steps": k, "newton_iterations": np.array(its_all), "wall_time": wall,
+                               "method": method})
+
+    def _midpoint_step(self, q, qd, t, h, u, tol, max_iterations):
+        """One implicit-midpoint step: Newton iterations on v_m with the matrix 2M/h + C + D + h/2 K; when they
+        contract slowly (large steps with large rotations), the matrix is replaced by the finite-difference
+        Jacobian of the residual. Returns (q, qd, iterations) or None."""
+        Dm = self.damping * self.K
+
+        def residual(vm):
+            qm = q + 0.5 * h * vm
+            M, lhs = self._accel_terms(qm, vm, t + 0.5 * h, u)
+            return M @ (2.0 * (vm - qd) / h) + lhs, M, qm
+        vm = qd.copy()
+        R, M, qm = residual(vm)
+        S = 2.0 * M / h + self.coriolis(qm, vm) + Dm + 0.5 * h * self.K
+        prev = np.inf
+        for it in range(1, max_iterations + 1):
+            if not np.all(np.isfinite(R)):
+                return None
+            nr = np.linalg.norm(R)
+            if it > 3 and nr > 0.25 * prev:
+                S = self._fd_tangent(lambda v: residual(v)[0], vm, R)
+            prev = nr
+            dv = np.linalg.solve(S, -R)
+            vm = vm + dv
+            R, M, qm = residual(vm)
+            ref = np.linalg.norm(self.K @ qm) + np.linalg.norm(M @ vm) / h
+            if np.linalg.norm(dv) <= 1e2 * tol * (1.0 + np.linalg.norm(vm)) or np.linalg.norm(R) <= tol * ref:
+                return q + h * vm, 2.0 * vm - qd, it
+        return None
+
+    def _rk4_step(self, q, qd, t, h, u):
+        def f(x, v, tt):
+            M, lhs = self._accel_terms(x, v, tt, u)
+            return v, np.linalg.solve(M, -lhs)
+        k1 = f(q, qd, t)
+        k2 = f(q + 0.5 * h * k1[0], qd + 0.5 * h * k1[1], t + 0.5 * h)
+        k3 = f(q + 0.5 * h * k2[0], qd + 0.5 * h * k2[1], t + 0.5 * h)
+        k4 = f(q + h * k3[0], qd + h * k3[1], t + h)
+        qn = q + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
+        vn = qd + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
+        if not (np.all(np.isfinite(qn)) and np.all(np.isfinite(vn))) or np.linalg.norm(qn) > 1e6 * (
+                1 + np.linalg.norm(q)):
+            return None
+        return qn, vn, 0
+
+    # ------------------------------------------------------------------------------------------------
+    # inverse kinematics
+    # ------------------------------------------------------------------------------------------------
+    def _targets(self, targets):
+        """[(node, kind, value)] from a (3,) / (4, 4) tip target or a list of (at, target) pairs."""
+        arr = np.asarray(targets, dtype=object) if not isinstance(targets, list) else None
+        if arr is not None and not isinstance(targets, tuple):
+            targets = [(None, targets)]
+        out = []
+        for item in targets:
+            try:
+                at, value = item
+            except (TypeError, ValueError):
+                raise ParameterError("targets: give a (3,) position, a (4, 4) pose, or a list of (at [m], "
+                                     "target) pairs") from None
+            v = np.asarray(value, dtype=float)
+            if v.shape not in ((3,), (4, 4)) or not np.all(np.isfinite(v)):
+                raise ParameterError(f"an IK target must be a finite (3,) position [m] or (4, 4) pose, got "
+                                     f"shape {v.shape}")
+            out.append((self._node(at), "position" if v.shape == (3,) else "pose", v))
+        return out
+
+    def inverse_kinematics(self, targets, q0=None, *, tol=1e-8, max_iterations=200, damping=1e-6,
+                           rotation_weight=None, subtask=None, subtask_gain=0.1):
+        r"""Configuration(s) reaching target positions or poses at nodes of the backbone (damped least squares).
+
+        With the stacked body-frame errors :math:`e` (position: :math:`R_i^T(p_i^* - p_i)` [m]; pose:
+        :math:`\log(g_i^{-1} g_i^*)^\vee`, its angular part times ``rotation_weight`` [m], default :math:`L`)
+        and Jacobians :math:`J`, each iteration takes the Levenberg-Marquardt step
+
+        .. math:: \Delta q = J^T (J J^T + \lambda^2 I)^{-1} e + (I - J^\dagger J)(-\alpha \nabla\Psi),
+
+        adapting :math:`\lambda` (start ``damping`` [m]; halved after a step that lowers :math:`|e|`, raised
+        fourfold and the step retried otherwise). The null-space subtask (the seed's eq. 23) is ``"elastic"``
+        (:math:`\nabla\Psi = K q`: among the solutions, the least strained), a callable ``grad(q) -> (n,)``,
+        or None; its step is scaled to ``subtask_gain`` times the task step. Stops when :math:`|e| <` ``tol``
+        [m] or the step stalls (an unreachable target gives the least-squares configuration).
+
+        Parameters
+        ----------
+        targets : (3,) or (4, 4) array for the tip, or a list of ``(at, target)`` with ``at`` [m] a node.
+        q0 : (n,) initial guess (default straight).
+
+        Returns
+        -------
+        IKResult with ``q``, ``error`` (final |e| [m]), ``iterations``, ``converged``.
+        """
+        from .lie import logSE3
+        tg = self._targets(targets)
+        q = self._check_q(q0).copy()
+        wrot = self.length if rotation_weight is None else float(rotation_weight)
+        if subtask == "elastic":
+            grad = lambda x: self.K @ x  # noqa: E731
+        elif subtask is None or callable(subtask):
+            grad = subtask
+        else:
+            raise ParameterError("subtask must be 'elastic', a callable grad(q) -> (n,), or None")
+
+        def residual(x):
+            self._kin(x)
+            es, Js = [], []
+            for i, kind, v in tg:
+                g, J = self._G[i], self._J[i]
+                if kind == "position":
+                    es.append(g[:3, :3].T @ (v - g[:3, 3]))
+                    Js.append(J[3:])
+                else:
+                    e = logSE3(np.linalg.solve(g, v))
+                    e[:3] *= wrot
+                    JJ = J.copy()
+                    JJ[:3] *= wrot
+                    es.append(e)
+                    Js.append(JJ)
+            return np.concatenate(es), np.vstack(Js)
+        e, J = residual(q)
+        err = np.linalg.norm(e)
+        lam = float(damping)
+        it = 0
+        converged = err < tol
+        while not converged and it < max_iterations:
+            it += 1
+            A = J @ J.T
+            m = A.shape[0]
+            dq = J.T @ np.linalg.solve(A + lam * lam * np.eye(m), e)
+            if grad is not None:
+                Jp = J.T @ np.linalg.solve(A + 1e-12 * np.trace(A) * np.eye(m) + lam * lam * np.eye(m), np.eye(m))
+                gn = -(np.eye(self.n) - Jp @ J) @ np.asarray(grad(q), dtype=float)
+                ng = np.linalg.norm(gn)
+                if ng > 0:
+                    dq += subtask_gain * max(np.linalg.norm(dq), tol) * gn / ng
+            qn = q + dq
+            en, Jn = residual(qn)
+            errn = np.linalg.norm(en)
+            if errn < err or (grad is not None and errn <= err + tol):
+                stalled = np.linalg.norm(dq) < 1e-14 * (1 + np.linalg.norm(q))
+                q, e, J, err = qn, en, Jn, errn
+                lam = max(lam * 0.5, 1e-12)
+                converged = err < tol
+                if stalled:
+                    break
+            else:
+                lam *= 4.0
+                if lam > 1e6 * self.length:
+                    break
+        self._kin(q)
+        return IKResult(q=q, error=float(err), iterations=it, converged=bool(converged))
