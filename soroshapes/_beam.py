@@ -28,10 +28,14 @@ Kernels write into work arrays passed by the caller and allocate nothing.
 import numpy as np
 from numba import njit
 
-from .lie import _so3_coeffs, _tse3_coeffs, _tse3_dcoeffs
+from .lie import _so3_coeffs, _tse3_coeffs, _tse3_dcoeffs, invSE3, logSE3
 
 MAGNUS4_C = np.sqrt(3.0) / 12.0
 GAUSS2 = (0.5 - np.sqrt(3.0) / 6.0, 0.5 + np.sqrt(3.0) / 6.0)
+
+#: The implicit integrator refreshes its iteration matrix after a step that needed more than REFRESH_ITS Newton
+#: iterations, and at least every REFRESH_STEPS steps.
+REFRESH_ITS, REFRESH_STEPS = 5, 50
 
 # indices into the (12, 6, 6) scratch
 _A1, _A2, _A3, _A4, _D, _P2, _P3, _P4, _T, _DT, _AI, _TMP = range(12)
@@ -395,3 +399,417 @@ def mass_coriolis_gravity(J, Jd, eta, G, w, Md, ag, M, C, fg, want_c):
     for k in range(n):
         for l in range(k):
             M[k, l] = M[l, k]
+
+
+# ------------------------------------------------------------------------------------------------------------
+# vector (matrix-free) dynamics: the fast path of the implicit integrator
+# ------------------------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _dT_dd(Om, d, out, a1, a2, a3, a4, b, c_):
+    r"""out = dT[d] d (vector) for T = T(Om): with A = ad_Om, D = ad_d, a_k = A^k d and D d = 0,
+    :math:`dT[d]d = s(-d_1 a_1 + d_2 a_2 - d_3 a_3 + d_4 a_4) + c_2 D a_1 - c_3 (D a_2 + A D a_1)
+    + c_4 (D a_3 + A D a_2 + A^2 D a_1)`, :math:`s = \omega\cdot d_\omega`."""
+    theta = np.sqrt(Om[0] * Om[0] + Om[1] * Om[1] + Om[2] * Om[2])
+    c1, c2, c3, c4 = _tse3_coeffs(theta)
+    d1, d2, d3, d4 = _tse3_dcoeffs(theta)
+    sd = Om[0] * d[0] + Om[1] * d[1] + Om[2] * d[2]
+    _adv(Om, d, a1)
+    _adv(Om, a1, a2)
+    _adv(Om, a2, a3)
+    _adv(Om, a3, a4)
+    for r in range(6):
+        out[r] = sd * (-d1 * a1[r] + d2 * a2[r] - d3 * a3[r] + d4 * a4[r])
+    _adv(d, a1, b)            # D a1
+    for r in range(6):
+        out[r] += c2 * b[r]
+    _adv(Om, b, c_)           # A D a1
+    for r in range(6):
+        out[r] -= c3 * c_[r]
+    _adv(Om, c_, b)           # A^2 D a1
+    for r in range(6):
+        out[r] += c4 * b[r]
+    _adv(d, a2, b)            # D a2
+    for r in range(6):
+        out[r] -= c3 * b[r]
+    _adv(Om, b, c_)           # A D a2
+    for r in range(6):
+        out[r] += c4 * c_[r]
+    _adv(d, a3, b)            # D a3
+    for r in range(6):
+        out[r] += c4 * b[r]
+
+
+@njit(cache=True)
+def kinematics_vec(q, qd, order, h, B, rows, xi0, g0, G, J, eta, etad, S, E, V, Op, AJ, W):
+    r"""Like :func:`kinematics` but, instead of the Jacobian rates, the vectors :math:`\dot J \dot q` at the
+    nodes (``etad``, (N+1, 6)): :math:`\dot\eta_{s+1} = \mathrm{Ad}_{e^{-\Omega}}\dot\eta_s -
+    \mathrm{ad}_\psi \eta_{s+1} + dT[\dot\Omega]\dot\Omega + T\,\dot\Omega'\dot q` (no 6 x n rate matrices).
+    ``W`` is a (8, 6) work array."""
+    n = q.shape[0]
+    N = h.shape[0]
+    xi1, xi2, xd1, xd2, Om, Omd, psi, tmp = V[0], V[1], V[2], V[3], V[4], V[5], V[6], V[7]
+    Ai, T = S[_AI], S[_T]
+    zero = np.zeros(6)
+    G[0, :, :] = g0
+    J[0, :, :] = 0.0
+    eta[0, :] = 0.0
+    etad[0, :] = 0.0
+    for s in range(N):
+        hs = h[s]
+        _strain(B[s, 0], rows, xi0[s, 0], q, xi1)
+        _strain(B[s, 0], rows, zero, qd, xd1)
+        for r in range(6):
+            for k in range(n):
+                Op[r, k] = 0.0
+        if order == 2:
+            for r in range(6):
+                Om[r] = hs * xi1[r]
+                Omd[r] = hs * xd1[r]
+            for k in range(n):
+                Op[rows[k], k] = hs * B[s, 0, k]
+        else:
+            c = MAGNUS4_C * hs * hs
+            _strain(B[s, 1], rows, xi0[s, 1], q, xi2)
+            _strain(B[s, 1], rows, zero, qd, xd2)
+            _adv(xi1, xi2, tmp)
+            for r in range(6):
+                Om[r] = 0.5 * hs * (xi1[r] + xi2[r]) + c * tmp[r]
+            _adv(xd1, xi2, tmp)
+            for r in range(6):
+                Omd[r] = 0.5 * hs * (xd1[r] + xd2[r]) + c * tmp[r]
+            _adv(xi1, xd2, tmp)
+            for r in range(6):
+                Omd[r] += c * tmp[r]
+            for k in range(n):
+                r = rows[k]
+                b1, b2 = B[s, 0, k], B[s, 1, k]
+                Op[r, k] = 0.5 * hs * (b1 + b2)
+                _col_ad(xi1, r, b2, Op, k, c)
+                _col_ad(xi2, r, b1, Op, k, -c)
+        _exp_into(Om, E)
+        for i in range(3):
+            for j in range(4):
+                v = G[s, i, 0] * E[0, j] + G[s, i, 1] * E[1, j] + G[s, i, 2] * E[2, j]
+                if j == 3:
+                    v += G[s, i, 3]
+                G[s + 1, i, j] = v
+            G[s + 1, 3, i] = 0.0
+        G[s + 1, 3, 3] = 1.0
+        _adinv_into(E, Ai)
+        _tangent_into(Om, Omd, S, False)
+        _bvec(T, Omd, psi, 1.0, 0.0)
+        _bvec(Ai, eta[s], eta[s + 1], 1.0, 0.0)
+        for r in range(6):
+            eta[s + 1, r] += psi[r]
+        _bapply(Ai, J[s], AJ, 1.0, 0.0)
+        if order == 2:
+            for k in range(n):
+                r = rows[k]
+                f = Op[r, k]
+                for i in range(6):
+                    J[s + 1, i, k] = AJ[i, k] + T[i, r] * f
+        else:
+            for r in range(6):
+                for k in range(n):
+                    J[s + 1, r, k] = AJ[r, k]
+            _bapply(T, Op, J[s + 1], 1.0, 1.0)
+        # etad[s+1] = Ai etad[s] - ad_psi eta[s+1] + dT[Omd] Omd (+ T (2c ad_xd1 xd2) at order 4)
+        _bvec(Ai, etad[s], etad[s + 1], 1.0, 0.0)
+        _adv(psi, eta[s + 1], tmp)
+        for r in range(6):
+            etad[s + 1, r] -= tmp[r]
+        _dT_dd(Om, Omd, tmp, W[0], W[1], W[2], W[3], W[4], W[5])
+        for r in range(6):
+            etad[s + 1, r] += tmp[r]
+        if order != 2:
+            _adv(xd1, xd2, W[6])
+            c = 2.0 * MAGNUS4_C * hs * hs
+            _bvec(T, W[6], etad[s + 1], c, 1.0)
+
+
+@njit(cache=True)
+def generalized_inertial_force(J, eta, etad, G, w, Md, a, ag, pl_nodes, pl_W, pl_spatial, out):
+    r"""out = :math:`\sum_i w_i J_i^T [\mathcal M_i (J_i a + \dot J_i \dot q) - \mathrm{ad}_{\eta_i}^T
+    \mathcal M_i \eta_i - \mathcal M_i (0, R_i^T a_g)] - \sum_p J_p^T W_p`: inertia and Coriolis minus gravity
+    and point wrenches ``pl_W`` (p, 6) at nodes ``pl_nodes`` (spatial if ``pl_spatial``), matrix-free."""
+    n = a.shape[0]
+    for k in range(n):
+        out[k] = 0.0
+    F = np.empty(6)
+    for i in range(J.shape[0]):
+        wi = w[i]
+        if wi == 0.0:
+            continue
+        m = Md[i]
+        e = eta[i]
+        for r in range(6):
+            s = etad[i, r]
+            for k in range(n):
+                s += J[i, r, k] * a[k]
+            F[r] = m[r] * s
+        # - ad_eta^T (M eta) = (w x (m_w * w) + v x (m_v * v), w x (m_v * v))
+        mw0, mw1, mw2 = m[0] * e[0], m[1] * e[1], m[2] * e[2]
+        mv0, mv1, mv2 = m[3] * e[3], m[4] * e[4], m[5] * e[5]
+        F[0] += e[1] * mw2 - e[2] * mw1 + e[4] * mv2 - e[5] * mv1
+        F[1] += e[2] * mw0 - e[0] * mw2 + e[5] * mv0 - e[3] * mv2
+        F[2] += e[0] * mw1 - e[1] * mw0 + e[3] * mv1 - e[4] * mv0
+        F[3] += e[1] * mv2 - e[2] * mv1
+        F[4] += e[2] * mv0 - e[0] * mv2
+        F[5] += e[0] * mv1 - e[1] * mv0
+        for r in range(3):
+            F[r + 3] -= m[r + 3] * (G[i, 0, r] * ag[0] + G[i, 1, r] * ag[1] + G[i, 2, r] * ag[2])
+        for k in range(n):
+            s = 0.0
+            for r in range(6):
+                s += J[i, r, k] * F[r]
+            out[k] += wi * s
+    for p in range(pl_nodes.shape[0]):
+        i = pl_nodes[p]
+        for r in range(3):
+            if pl_spatial[p]:
+                F[r] = G[i, 0, r] * pl_W[p, 0] + G[i, 1, r] * pl_W[p, 1] + G[i, 2, r] * pl_W[p, 2]
+                F[r + 3] = G[i, 0, r] * pl_W[p, 3] + G[i, 1, r] * pl_W[p, 4] + G[i, 2, r] * pl_W[p, 5]
+            else:
+                F[r] = pl_W[p, r]
+                F[r + 3] = pl_W[p, r + 3]
+        for k in range(n):
+            s = 0.0
+            for r in range(6):
+                s += J[i, r, k] * F[r]
+            out[k] -= s
+
+
+@njit(cache=True)
+def _lu(A, piv):
+    """In-place LU factorization with partial pivoting (Doolittle); returns False if singular."""
+    n = A.shape[0]
+    for k in range(n):
+        p = k
+        big = abs(A[k, k])
+        for i in range(k + 1, n):
+            if abs(A[i, k]) > big:
+                big = abs(A[i, k])
+                p = i
+        if big == 0.0:
+            return False
+        piv[k] = p
+        if p != k:
+            for j in range(n):
+                A[k, j], A[p, j] = A[p, j], A[k, j]
+        for i in range(k + 1, n):
+            A[i, k] /= A[k, k]
+            f = A[i, k]
+            for j in range(k + 1, n):
+                A[i, j] -= f * A[k, j]
+    return True
+
+
+@njit(cache=True)
+def _lu_solve(LU, piv, b):
+    """Solve in place with the factors of :func:`_lu`."""
+    n = LU.shape[0]
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            b[k], b[p] = b[p], b[k]
+    for i in range(n):
+        s = b[i]
+        for j in range(i):
+            s -= LU[i, j] * b[j]
+        b[i] = s
+    for i in range(n - 1, -1, -1):
+        s = b[i]
+        for j in range(i + 1, n):
+            s -= LU[i, j] * b[j]
+        b[i] = s / LU[i, i]
+
+
+@njit(cache=True)
+def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_spatial, K, D, order, h, B, rows,
+                       xi0, g0, w, Md, ag, tol, max_it, out_t, out_q, out_qd, out_e, out_tip, its,
+                       G, J, Jd, eta, etad, S, E, V, Op, dOp, AJ, W):
+    r"""Implicit-midpoint time stepping in one compiled loop (the fast path of :meth:`Shapes.simulate`).
+
+    Per step, Newton iterations on :math:`v_m` for the residual
+    :math:`R = \sum_i w_i J_i^T[\ldots] + D v_m + K q_m - f_{ext}` (:func:`generalized_inertial_force` with
+    :math:`a = 2(v_m - \dot q_n)/h`, :math:`q_m = q_n + \tfrac h2 v_m`), with the LU factors of
+    :math:`S = 2M/h + C + D + \tfrac h2 K` refreshed when a step needed more than ``REFRESH_ITS`` iterations
+    (and every ``REFRESH_STEPS`` steps); the predictor extrapolates the previous step's acceleration. External forces: gravity ``ag``,
+    generalized forces ``fext`` (nsteps, n) and point wrenches ``pl_W`` (nsteps, p, 6), both at the step
+    midpoints. Converged when :math:`|\Delta v| \le` ``tol`` :math:`|v_m| + 10^{-12}`.
+
+    Records t, q, qd, (kinetic, potential) and the tip position every ``rec_every`` steps (row 0 the start)
+    into the ``out_*`` arrays; returns the number of steps done (< nsteps when a step failed to converge: the
+    state at that step is in ``q``, ``qd``).
+    """
+    n = q.shape[0]
+    vm = np.empty(n)
+    qm = np.empty(n)
+    a = np.empty(n)
+    R = np.empty(n)
+    Sm = np.empty((n, n))
+    piv = np.zeros(n, dtype=np.int64)
+    M = np.empty((n, n))
+    C = np.empty((n, n))
+    fg = np.empty(n)
+    acc_prev = np.zeros(n)
+    since = 1000
+    last_its = 100
+    rec = 0
+    for step in range(nsteps + 1):
+        if step % rec_every == 0 or step == nsteps:
+            kinematics_vec(q, qd, order, h, B, rows, xi0, g0, G, J, eta, etad, S, E, V, Op, AJ, W)
+            kin = 0.0
+            pot = 0.0
+            for i in range(eta.shape[0]):
+                for r in range(6):
+                    kin += 0.5 * w[i] * Md[i, r] * eta[i, r] * eta[i, r]
+                pot -= w[i] * Md[i, 3] * (G[i, 0, 3] * ag[0] + G[i, 1, 3] * ag[1] + G[i, 2, 3] * ag[2])
+            for k in range(n):
+                s = 0.0
+                for l in range(n):
+                    s += K[k, l] * q[l]
+                pot += 0.5 * q[k] * s
+            out_t[rec] = step * dt
+            out_q[rec, :] = q
+            out_qd[rec, :] = qd
+            out_e[rec, 0] = kin
+            out_e[rec, 1] = pot
+            for r in range(3):
+                out_tip[rec, r] = G[G.shape[0] - 1, r, 3]
+            rec += 1
+        if step == nsteps:
+            return nsteps
+        for k in range(n):
+            vm[k] = qd[k] + 0.5 * dt * acc_prev[k]
+        if last_its > REFRESH_ITS or since >= REFRESH_STEPS:
+            for k in range(n):
+                qm[k] = q[k] + 0.5 * dt * vm[k]
+            kinematics(qm, vm, True, order, h, B, rows, xi0, g0, G, J, Jd, eta, S, E, V, Op, dOp, AJ)
+            mass_coriolis_gravity(J, Jd, eta, G, w, Md, ag, M, C, fg, True)
+            for k in range(n):
+                for l in range(n):
+                    Sm[k, l] = 2.0 * M[k, l] / dt + C[k, l] + D[k, l] + 0.5 * dt * K[k, l]
+            if not _lu(Sm, piv):
+                return step
+            since = 0
+        since += 1
+        ok = False
+        for it in range(1, max_it + 1):
+            for k in range(n):
+                qm[k] = q[k] + 0.5 * dt * vm[k]
+                a[k] = 2.0 * (vm[k] - qd[k]) / dt
+            kinematics_vec(qm, vm, order, h, B, rows, xi0, g0, G, J, eta, etad, S, E, V, Op, AJ, W)
+            generalized_inertial_force(J, eta, etad, G, w, Md, a, ag, pl_nodes, pl_W[step], pl_spatial, R)
+            for k in range(n):
+                s = R[k] - fext[step, k]
+                for l in range(n):
+                    s += D[k, l] * vm[l] + K[k, l] * qm[l]
+                R[k] = -s
+            _lu_solve(Sm, piv, R)
+            dv = 0.0
+            nv = 0.0
+            for k in range(n):
+                vm[k] += R[k]
+                dv += R[k] * R[k]
+                nv += vm[k] * vm[k]
+            if not np.isfinite(dv):
+                return step
+            if np.sqrt(dv) <= tol * np.sqrt(nv) + 1e-12:
+                ok = True
+                its[step] = it
+                last_its = it
+                break
+        if not ok:
+            return step
+        for k in range(n):
+            qn = qd[k]
+            qd[k] = 2.0 * vm[k] - qd[k]
+            acc_prev[k] = (qd[k] - qn) / dt
+            q[k] += dt * vm[k]
+    return nsteps
+
+
+# ------------------------------------------------------------------------------------------------------------
+# inverse kinematics
+# ------------------------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _ik_error(nodes, kinds, targets, wrot, G, J, e, A):
+    """Stacked body-frame errors ``e`` and their Jacobian rows ``A`` (see :meth:`Shapes.inverse_kinematics`)."""
+    row = 0
+    for t in range(nodes.shape[0]):
+        i = nodes[t]
+        if kinds[t] == 0:   # position: R^T (p* - p), rows 3..5 of J
+            for r in range(3):
+                s = 0.0
+                for c in range(3):
+                    s += G[i, c, r] * (targets[t, c, 3] - G[i, c, 3])
+                e[row + r] = s
+                A[row + r, :] = J[i, 3 + r, :]
+            row += 3
+        else:               # pose: log(g^-1 g*), angular part scaled by wrot
+            x = logSE3(invSE3(G[i]) @ targets[t])
+            for r in range(6):
+                f = wrot if r < 3 else 1.0
+                e[row + r] = f * x[r]
+                A[row + r, :] = f * J[i, r, :]
+            row += 6
+    s = 0.0
+    for r in range(row):
+        s += e[r] * e[r]
+    return np.sqrt(s)
+
+
+@njit(cache=True)
+def ik_solve(q, nodes, kinds, targets, wrot, tol, max_it, lam0, lam_max, K, gain, order, h, B, rows, xi0, g0, G, J, Jd,
+             eta, S, E, V, Op, dOp, AJ):
+    r"""Levenberg-Marquardt inverse kinematics in one compiled loop (:meth:`Shapes.inverse_kinematics`):
+    :math:`\Delta q = A^T (A A^T + \lambda^2 I)^{-1} e`, plus, if ``gain`` > 0, the elastic null-space step
+    :math:`-(I - A^\dagger A) K q` scaled to ``gain`` times the task step. Updates ``q`` in place and returns
+    (error, iterations, converged)."""
+    n = q.shape[0]
+    m = 0
+    for t in range(kinds.shape[0]):
+        m += 3 if kinds[t] == 0 else 6
+    e, en = np.empty(m), np.empty(m)
+    A, An = np.empty((m, n)), np.empty((m, n))
+    qn = np.empty(n)
+    zero = np.zeros(n)
+    kinematics(q, zero, False, order, h, B, rows, xi0, g0, G, J, Jd, eta, S, E, V, Op, dOp, AJ)
+    err = _ik_error(nodes, kinds, targets, wrot, G, J, e, A)
+    lam = lam0
+    it = 0
+    while err >= tol and it < max_it:
+        it += 1
+        AAt = A @ A.T
+        for r in range(m):
+            AAt[r, r] += lam * lam
+        y = np.linalg.solve(AAt, e)
+        dq = A.T @ y
+        if gain > 0.0:
+            Kq = K @ q
+            z = np.linalg.solve(AAt, A @ Kq)
+            gnull = -(Kq - A.T @ z)
+            ng = np.sqrt(np.sum(gnull * gnull))
+            nd = max(np.sqrt(np.sum(dq * dq)), tol)
+            if ng > 0.0:
+                dq += gain * nd * gnull / ng
+        for k in range(n):
+            qn[k] = q[k] + dq[k]
+        kinematics(qn, zero, False, order, h, B, rows, xi0, g0, G, J, Jd, eta, S, E, V, Op, dOp, AJ)
+        errn = _ik_error(nodes, kinds, targets, wrot, G, J, en, An)
+        if errn < err or (gain > 0.0 and errn <= err + tol):
+            stalled = np.sqrt(np.sum(dq * dq)) < 1e-14 * (1.0 + np.sqrt(np.sum(q * q)))
+            q[:] = qn
+            e[:] = en
+            A[:, :] = An
+            err = errn
+            lam = max(0.5 * lam, 1e-12)
+            if stalled:
+                break
+        else:
+            lam *= 4.0
+            if lam > lam_max:
+                break
+    kinematics(q, zero, False, order, h, B, rows, xi0, g0, G, J, Jd, eta, S, E, V, Op, dOp, AJ)
+    return err, it, err < tol

@@ -37,6 +37,8 @@ from .basis import Basis
 
 __all__ = ["Shapes", "BeamTrajectory", "IKResult", "STRAINS"]
 
+_NO_NODES, _NO_WRENCH, _NO_FLAGS = np.zeros(0, dtype=np.int64), np.zeros((0, 6)), np.zeros(0, dtype=np.bool_)
+
 #: Names of the six strains, in the order of the ``dofs`` mask.
 STRAINS = ("torsion", "bending_y", "bending_z", "stretch", "shear_y", "shear_z")
 
@@ -506,6 +508,23 @@ class Shapes:
         """(M, C, f_g): mass matrix, Coriolis matrix and gravity force for state (q, qd), from one kinematic pass."""
         return self._mcg(q, qd, True)
 
+    def inverse_dynamics(self, q, qd, qdd):
+        r"""Generalized force that produces the acceleration ``qdd`` at state (q, qd) against inertia, damping,
+        elasticity and gravity: :math:`\tau = M\ddot q + C\dot q + D\dot q + Kq - f_g` (n,), computed
+        matrix-free (one kinematic pass with :math:`\dot J\dot q` as a vector; no M or C is formed).
+        Inputs, point loads, contact and user forces are not included: they are what :math:`\tau` is for."""
+        q, qd = self._check_q(q), self._check_q(qd, "qd")
+        qdd = self._check_q(qdd, "qdd")
+        if not hasattr(self, "_etad"):
+            self._etad, self._wvec = np.zeros((len(self.sigma), 6)), np.zeros((8, 6))
+        S, E, V, Op, _, AJ = self._work
+        self._beam.kinematics_vec(q, qd, self.order, self._h, self._B, self._rows, self._X0, self.base, self._G,
+                                  self._J, self._eta, self._etad, S, E, V, Op, AJ, self._wvec)
+        tau = np.empty(self.n)
+        self._beam.generalized_inertial_force(self._J, self._eta, self._etad, self._G, self._w, self._Md, qdd,
+                                              self._gravity, _NO_NODES, _NO_WRENCH, _NO_FLAGS, tau)
+        return tau + self.damping * (self.K @ qd) + self.K @ q
+
     @property
     def damping_matrix(self):
         """D = tau K [N m s per coordinate^2] (see ``damping``)."""
@@ -708,8 +727,8 @@ class Shapes:
         the largest natural frequency of the linearization about ``q``."""
         return 2.0 / (2 * np.pi * self.natural_frequencies(q=q)[-1])
 
-    def simulate(self, t_end, dt, q0=None, qd0=None, u=None, *, method="implicit", tol=1e-10, max_iterations=20,
-                 min_dt=None, record_every=1, progress=False):
+    def simulate(self, t_end, dt, q0=None, qd0=None, u=None, *, method="implicit", tol=1e-8, max_iterations=20,
+                 min_dt=None, record_every=1):
         r"""Time integration of the equations of motion from (``q0``, ``qd0``) (default rest, straight).
 
         ``method="implicit"``: the implicit midpoint rule (second order, A-stable, symplectic for constant
@@ -717,15 +736,18 @@ class Shapes:
 
         .. math:: M(q_m)\frac{2(v_m - \dot q_n)}{h} + C(q_m, v_m) v_m + D v_m + K q_m = f(q_m, v_m, t_n + h/2),
 
-        solved for :math:`v_m` by Newton iterations with the matrix :math:`2M/h + C + D + \tfrac h2 K` of the
-        current state (the geometric stiffness of the loads is left out: it changes the rate of convergence,
-        not the solution); then :math:`q_{n+1} = q_n + h v_m`, :math:`\dot q_{n+1} = 2v_m - \dot q_n`. A step
-        that does not converge in ``max_iterations`` is halved, down to ``min_dt`` (default dt/1024), then a
+        solved for :math:`v_m` by Newton iterations with the matrix :math:`2M/h + C + D + \tfrac h2 K` (the
+        geometric stiffness of the loads is left out: it changes the rate of convergence, not the solution)
+        until :math:`|\Delta v| \le` ``tol`` :math:`|v_m| + 10^{-12}`; then :math:`q_{n+1} = q_n + h v_m`,
+        :math:`\dot q_{n+1} = 2v_m - \dot q_n`. Scenes with gravity, chambers and point loads only (no
+        contact, tendons or user forces) run in one compiled loop (:func:`soroshapes._beam.integrate_midpoint`,
+        matrix-free residuals, the iteration matrix refreshed only when convergence slows). A step that does
+        not converge in ``max_iterations`` is halved, down to ``min_dt`` (default dt/1024), then a
         :class:`~sorofem.errors.ConvergenceError` reports the time. ``method="explicit"``: classical RK4
         (stable only below about :meth:`explicit_step_limit`; a blow-up is reported, never returned).
 
-        ``u``: inputs, an array or a callable of t [s]. Returns a :class:`BeamTrajectory` recorded every
-        ``record_every`` steps (and at the end).
+        The step is ``t_end / ceil(t_end / dt)`` (at most ``dt``). ``u``: inputs, an array or a callable of
+        t [s]. Returns a :class:`BeamTrajectory` recorded every ``record_every`` steps (and at the end).
         """
         import time
         if method not in ("implicit", "explicit"):
@@ -733,10 +755,73 @@ class Shapes:
         t_end, dt = float(t_end), float(dt)
         if not (t_end > 0 and dt > 0 and np.isfinite(t_end) and np.isfinite(dt)):
             raise ParameterError(f"t_end and dt must be positive [s], got {t_end!r}, {dt!r}")
+        record_every = int(record_every)
+        if record_every < 1:
+            raise ParameterError("record_every must be >= 1")
+        nsteps = int(np.ceil(t_end / dt - 1e-9))
+        dt = t_end / nsteps
         min_dt = dt / 1024 if min_dt is None else float(min_dt)
         q, qd = self._check_q(q0).copy(), self._check_q(qd0, "qd0").copy()
+        self._inputs_at(u, 0.0, q, qd)                      # validate u before the loop
+        t0 = time.perf_counter()
         rec = {"t": [], "q": [], "qd": [], "kin": [], "pot": [], "tip": []}
+        its_all = []
+        start = 0
+        if method == "implicit" and self._fast_eligible():
+            start, q, qd = self._simulate_fast(q, qd, dt, nsteps, u, tol, max_iterations, record_every, rec, its_all)
+        if start < nsteps:
+            self._simulate_python(q, qd, start, dt, nsteps, u, method, tol, max_iterations, min_dt, record_every,
+                                  rec, its_all)
+        wall = time.perf_counter() - t0
+        return BeamTrajectory(np.array(rec["t"]), np.array(rec["q"]), np.array(rec["qd"]), np.array(rec["kin"]),
+                              np.array(rec["pot"]), np.array(rec["tip"]),
+                              {"steps": nsteps, "dt": dt, "newton_iterations": np.array(its_all), "wall_time": wall,
+                               "method": method, "compiled_steps": start})
 
+    def _fast_eligible(self):
+        return not (self._contacts or self._forces or any(kind == "tendon" for _, kind, _ in self._inputs))
+
+    def _simulate_fast(self, q, qd, dt, nsteps, u, tol, max_iterations, record_every, rec, its_all):
+        """The compiled loop; returns (steps done, q, qd) and appends its records."""
+        n = self.n
+        tm = (np.arange(nsteps) + 0.5) * dt
+        fext = np.zeros((nsteps, n))
+        if self._inputs:
+            Gm = np.column_stack([d for _, _, d in self._inputs])      # chambers: constant columns
+            U = np.array([self._inputs_at(u, t, None, None) for t in tm]).reshape(nsteps, -1)
+            fext = np.ascontiguousarray(U @ Gm.T)
+        npl = len(self._point_loads)
+        pl_nodes = np.array([p[0] for p in self._point_loads], dtype=np.int64)
+        pl_spatial = np.array([p[3] == "spatial" for p in self._point_loads], dtype=np.bool_)
+        pl_W = np.zeros((nsteps, npl, 6))
+        for j, (_, force, moment, _) in enumerate(self._point_loads):
+            for k, t in enumerate(tm):
+                pl_W[k, j, :3] = moment(t)
+                pl_W[k, j, 3:] = force(t)
+        nrec = nsteps // record_every + 1 + (nsteps % record_every != 0)
+        out_t, out_q, out_qd = np.zeros(nrec), np.zeros((nrec, n)), np.zeros((nrec, n))
+        out_e, out_tip, its = np.zeros((nrec, 2)), np.zeros((nrec, 3)), np.zeros(nsteps, dtype=np.int64)
+        Ne = len(self.sigma)
+        etad, W = np.zeros((Ne, 6)), np.zeros((8, 6))
+        done = self._beam.integrate_midpoint(
+            q, qd, dt, nsteps, record_every, fext, pl_nodes, pl_W, pl_spatial, self.K, self.damping_matrix,
+            self.order, self._h, self._B, self._rows, self._X0, self.base, self._w, self._Md, self._gravity,
+            float(tol), int(max_iterations), out_t, out_q, out_qd, out_e, out_tip, its, self._G, self._J,
+            self._Jd, self._eta, etad, *self._work, W)
+        m = done // record_every + 1 + (done == nsteps and nsteps % record_every != 0)
+        if done < nsteps:
+            m = (done - 1) // record_every + 1 if done > 0 else 1
+        rec["t"] += list(out_t[:m])
+        rec["q"] += list(out_q[:m])
+        rec["qd"] += list(out_qd[:m])
+        rec["kin"] += list(out_e[:m, 0])
+        rec["pot"] += list(out_e[:m, 1])
+        rec["tip"] += list(out_tip[:m])
+        its_all += list(its[:done])
+        return done, q, qd
+
+    def _simulate_python(self, q, qd, start, dt, nsteps, u, method, tol, max_iterations, min_dt, record_every, rec,
+                         its_all):
         def record(t):
             e = self.energy(q, qd)
             rec["t"].append(t)
@@ -745,35 +830,31 @@ class Shapes:
             rec["kin"].append(e["kinetic"])
             rec["pot"].append(e["elastic"] + e["gravity"])
             rec["tip"].append(self._G[-1, :3, 3].copy())
-        t, k = 0.0, 0
-        its_all = []
-        record(t)
-        t0 = time.perf_counter()
-        while t < t_end - 1e-12 * t_end:
-            h = min(dt, t_end - t)
-            while True:
+        t_end = nsteps * dt
+        t, k = start * dt, start
+        if start == 0:
+            record(t)
+        while k < nsteps:
+            h, t_next = dt, (k + 1) * dt
+            while t < t_next - 1e-12 * dt:          # sub-steps when a step must be cut
+                hh = min(h, t_next - t)
                 if method == "implicit":
-                    step = self._midpoint_step(q, qd, t, h, u, tol, max_iterations)
+                    step = self._midpoint_step(q, qd, t, hh, u, tol, max_iterations)
                 else:
-                    step = self._rk4_step(q, qd, t, h, u)
-                if step is not None:
-                    break
-                h *= 0.5
-                if h < min_dt:
-                    raise ConvergenceError(f"simulate: the step at t = {t:.6g} s did not converge down to dt = "
-                                           f"{min_dt:.3g} s ({method}); use a smaller dt, the implicit method, "
-                                           "or check the loads")
-            q, qd, its = step
-            its_all.append(its)
-            t += h
-            k += 1
-            if k % record_every == 0 or t >= t_end - 1e-12 * t_end:
-                record(t)
-        wall = time.perf_counter() - t0
-        return BeamTrajectory(np.array(rec["t"]), np.array(rec["q"]), np.array(rec["qd"]), np.array(rec["kin"]),
-                              np.array(rec["pot"]), np.array(rec["tip"]),
-                              {"steps": k, "newton_iterations": np.array(its_all), "wall_time": wall,
-                               "method": method})
+                    step = self._rk4_step(q, qd, t, hh, u)
+                if step is None:
+                    h *= 0.5
+                    if h < min_dt:
+                        raise ConvergenceError(f"simulate: the step at t = {t:.6g} s did not converge down to dt = "
+                                               f"{min_dt:.3g} s ({method}); use a smaller dt, the implicit method, "
+                                               "or check the loads")
+                    continue
+                q[:], qd[:], its = step
+                its_all.append(its)
+                t += hh
+            t, k = t_next, k + 1
+            if k % record_every == 0 or k == nsteps:
+                record(min(t, t_end))
 
     def _midpoint_step(self, q, qd, t, h, u, tol, max_iterations):
         """One implicit-midpoint step: Newton iterations on v_m with the matrix 2M/h + C + D + h/2 K; when they
@@ -800,7 +881,7 @@ class Shapes:
             vm = vm + dv
             R, M, qm = residual(vm)
             ref = np.linalg.norm(self.K @ qm) + np.linalg.norm(M @ vm) / h
-            if np.linalg.norm(dv) <= 1e2 * tol * (1.0 + np.linalg.norm(vm)) or np.linalg.norm(R) <= tol * ref:
+            if np.linalg.norm(dv) <= tol * np.linalg.norm(vm) + 1e-12 or np.linalg.norm(R) <= 1e-3 * tol * ref:
                 return q + h * vm, 2.0 * vm - qd, it
         return None
 
@@ -866,62 +947,58 @@ class Shapes:
         -------
         IKResult with ``q``, ``error`` (final |e| [m]), ``iterations``, ``converged``.
         """
-        from .lie import logSE3
         tg = self._targets(targets)
         q = self._check_q(q0).copy()
         wrot = self.length if rotation_weight is None else float(rotation_weight)
-        if subtask == "elastic":
-            grad = lambda x: self.K @ x  # noqa: E731
-        elif subtask is None or callable(subtask):
-            grad = subtask
-        else:
+        if subtask is not None and subtask != "elastic" and not callable(subtask):
             raise ParameterError("subtask must be 'elastic', a callable grad(q) -> (n,), or None")
+        nodes = np.array([i for i, _, _ in tg], dtype=np.int64)
+        kinds = np.array([0 if k == "position" else 1 for _, k, _ in tg], dtype=np.int64)
+        goals = np.zeros((len(tg), 4, 4))
+        for j, (_, kind, v) in enumerate(tg):
+            if kind == "position":
+                goals[j] = np.eye(4)
+                goals[j, :3, 3] = v
+            else:
+                goals[j] = v
+        args = (nodes, kinds, goals, wrot, float(tol), int(max_iterations), float(damping), 1e6 * self.length)
+        model = (self.order, self._h, self._B, self._rows, self._X0, self.base, self._G, self._J, self._Jd,
+                 self._eta, *self._work)
+        if not callable(subtask):
+            err, it, converged = self._beam.ik_solve(q, *args, self.K, subtask_gain if subtask else 0.0, *model)
+        else:
+            err, it, converged = self._ik_python(q, args, subtask, subtask_gain)
+        return IKResult(q=q, error=float(err), iterations=int(it), converged=bool(converged))
 
-        def residual(x):
+    def _ik_python(self, q, args, grad, gain):
+        """:func:`soroshapes._beam.ik_solve` with a Python subtask gradient ``grad(q)`` (same algorithm)."""
+        nodes, kinds, goals, wrot, tol, max_it, lam, lam_max = args
+        m = int(sum(3 if k == 0 else 6 for k in kinds))
+        e, A = np.empty(m), np.empty((m, self.n))
+
+        def error(x):
             self._kin(x)
-            es, Js = [], []
-            for i, kind, v in tg:
-                g, J = self._G[i], self._J[i]
-                if kind == "position":
-                    es.append(g[:3, :3].T @ (v - g[:3, 3]))
-                    Js.append(J[3:])
-                else:
-                    e = logSE3(np.linalg.solve(g, v))
-                    e[:3] *= wrot
-                    JJ = J.copy()
-                    JJ[:3] *= wrot
-                    es.append(e)
-                    Js.append(JJ)
-            return np.concatenate(es), np.vstack(Js)
-        e, J = residual(q)
-        err = np.linalg.norm(e)
-        lam = float(damping)
+            return self._beam._ik_error(nodes, kinds, goals, wrot, self._G, self._J, e, A), e.copy(), A.copy()
+        err, ek, Ak = error(q)
         it = 0
-        converged = err < tol
-        while not converged and it < max_iterations:
+        while err >= tol and it < max_it:
             it += 1
-            A = J @ J.T
-            m = A.shape[0]
-            dq = J.T @ np.linalg.solve(A + lam * lam * np.eye(m), e)
-            if grad is not None:
-                Jp = J.T @ np.linalg.solve(A + 1e-12 * np.trace(A) * np.eye(m) + lam * lam * np.eye(m), np.eye(m))
-                gn = -(np.eye(self.n) - Jp @ J) @ np.asarray(grad(q), dtype=float)
-                ng = np.linalg.norm(gn)
-                if ng > 0:
-                    dq += subtask_gain * max(np.linalg.norm(dq), tol) * gn / ng
-            qn = q + dq
-            en, Jn = residual(qn)
-            errn = np.linalg.norm(en)
-            if errn < err or (grad is not None and errn <= err + tol):
+            AAt = Ak @ Ak.T + lam * lam * np.eye(m)
+            dq = Ak.T @ np.linalg.solve(AAt, ek)
+            g = np.asarray(grad(q), dtype=float).reshape(self.n)
+            gn = -(g - Ak.T @ np.linalg.solve(AAt, Ak @ g))
+            if np.linalg.norm(gn) > 0:
+                dq += gain * max(np.linalg.norm(dq), tol) * gn / np.linalg.norm(gn)
+            errn, en, An = error(q + dq)
+            if errn <= err + tol:
                 stalled = np.linalg.norm(dq) < 1e-14 * (1 + np.linalg.norm(q))
-                q, e, J, err = qn, en, Jn, errn
-                lam = max(lam * 0.5, 1e-12)
-                converged = err < tol
+                q[:], err, ek, Ak = q + dq, errn, en, An
+                lam = max(0.5 * lam, 1e-12)
                 if stalled:
                     break
             else:
                 lam *= 4.0
-                if lam > 1e6 * self.length:
+                if lam > lam_max:
                     break
         self._kin(q)
-        return IKResult(q=q, error=float(err), iterations=it, converged=bool(converged))
+        return err, it, err < tol

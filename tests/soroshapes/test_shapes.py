@@ -292,3 +292,22 @@ def test_bad_calls_are_refused():
         shp.statics(u=[1.0, 2.0])
     with pytest.raises(ConvergenceError, match="load level"):
         rod().add_point_load(moment=[0, 0, 40 * EI / L]).statics(max_iterations=1, min_step=0.3)
+
+
+def test_inverse_kinematics_with_a_callable_subtask_matches_the_compiled_elastic_one():
+    shp = rod(Basis.chebyshev(3), dofs=(0, 3, 3, 0, 0, 0), segments=10)
+    target, q0 = np.array([0.12, 0.08, 0.05]), np.array([0, 0, 30.0, 0, 0, -30.0])
+    a = shp.inverse_kinematics(target, q0=q0, subtask="elastic", max_iterations=2000)
+    b = shp.inverse_kinematics(target, q0=q0, subtask=lambda q: shp.K @ q, max_iterations=2000)
+    assert a.converged and b.converged
+    assert np.allclose(a.q, b.q, rtol=1e-6, atol=1e-6)
+
+
+@pytest.mark.parametrize("order", [2, 4])
+def test_matrix_free_inverse_dynamics_equals_the_assembled_equations(order):
+    shp = rod(Basis.chebyshev(2), dofs=(2, 2, 2, 2, 2, 2), order=order, damping=0.01).add_gravity((1.0, -2.0, -9.81))
+    rng = np.random.default_rng(5)
+    q, qd, qdd = 3 * rng.normal(size=12), rng.normal(size=12), rng.normal(size=12)
+    M, C, fg = shp.dynamics(q, qd)
+    expected = M @ qdd + C @ qd + shp.damping_matrix @ qd + shp.K @ q - fg
+    assert np.allclose(shp.inverse_dynamics(q, qd, qdd), expected, rtol=1e-10, atol=1e-12 * np.abs(expected).max())
