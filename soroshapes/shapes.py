@@ -466,6 +466,15 @@ class Shapes:
         self._kin(q)
         return self._G[:, :3, 3].copy()
 
+    def beam(self, q):
+        """This rod at coordinates ``q`` as a beam for :mod:`soroshapes.render`: ``{"frames", "radius"}``."""
+        return {"frames": self.forward_kinematics(q), "radius": self.contact_radius}
+
+    def render(self, path, q, **kw):
+        """Render the rod at ``q`` as a tube to a PNG (keywords of :func:`soroshapes.render.render_png`)."""
+        from .render import render_png
+        return render_png(path, [self.beam(q)], **kw)
+
     def jacobian(self, q, at=None, frame="body"):
         r"""Geometric Jacobian at node ``at`` [m] (default the tip): body :math:`J` with :math:`\eta = J\dot q`
         (6, n), or ``frame="spatial"``: :math:`\mathrm{Ad}_g J`; ``at="all"`` gives (N+1, 6, n) body Jacobians."""

@@ -16,3 +16,5 @@ def test_readme_tour_runs(repo, tmp_path, monkeypatch):
     assert (tmp_path / "run.h5").exists() and (tmp_path / "deformed.png").exists()
     assert len(namespace["modes"]) == 4
     assert namespace["motion"].times[-1] == pytest.approx(0.05)
+    assert namespace["ik"].converged and namespace["swing"].t[-1] == pytest.approx(1.0)
+    assert (tmp_path / "finger.png").exists()

@@ -311,3 +311,12 @@ def test_matrix_free_inverse_dynamics_equals_the_assembled_equations(order):
     M, C, fg = shp.dynamics(q, qd)
     expected = M @ qdd + C @ qd + shp.damping_matrix @ qd + shp.K @ q - fg
     assert np.allclose(shp.inverse_dynamics(q, qd, qdd), expected, rtol=1e-10, atol=1e-12 * np.abs(expected).max())
+
+
+def test_render_writes_the_tube_of_the_current_shape(tmp_path):
+    shp = rod()
+    q = np.array([20.0, 0.0, 0.0])
+    beam = shp.beam(q)
+    assert np.allclose(beam["frames"], shp.forward_kinematics(q)) and beam["radius"] == pytest.approx(R)
+    path = shp.render(tmp_path / "rod.png", q, title="curl")
+    assert path.exists() and path.stat().st_size > 1000
