@@ -341,7 +341,7 @@ def kinematics(q, qd, want_rate, order, h, B, rows, xi0, g0, G, J, Jd, eta, S, E
 
 
 @njit(cache=True)
-def mass_coriolis_gravity(J, Jd, eta, G, w, Md, ag, M, C, fg, want_c):
+def mass_coriolis_gravity(J, Jd, eta, G, w, Md, ag, M, C, fg, want_c, S, V, Y):
     r"""Generalized mass matrix, Coriolis matrix and gravity force by nodal quadrature (weights ``w``).
 
     :math:`M = \sum_i w_i J_i^T \mathcal M_i J_i`,
@@ -349,16 +349,14 @@ def mass_coriolis_gravity(J, Jd, eta, G, w, Md, ag, M, C, fg, want_c):
     - \mathrm{ad}_{\eta_i}^T \mathcal M_i) J_i)`,
     :math:`f_g = \sum_i w_i J_i^T \mathcal M_i (0, R_i^T a_g)`, with the sectional inertia per unit length
     :math:`\mathcal M_i = \mathrm{diag}` ``Md[i]`` and the gravity acceleration ``ag`` (spatial, m/s^2).
+    ``S``, ``V``, ``Y`` are work arrays of :func:`scratch` (``S``, ``V`` and one (6, n) array).
     """
     n = M.shape[0]
     M[:, :] = 0.0
     fg[:] = 0.0
     if want_c:
         C[:, :] = 0.0
-    Y = np.empty((6, n))
-    Bm = np.empty((6, 6))
-    A = np.empty((6, 6))
-    W = np.empty(6)
+    Bm, A, W = S[_P2], S[_D], V[7]
     for i in range(J.shape[0]):
         wi = w[i]
         if wi == 0.0:
@@ -686,7 +684,7 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
             for k in range(n):
                 qm[k] = q[k] + 0.5 * dt * vm[k]
             kinematics(qm, vm, True, order, h, B, rows, xi0, g0, G, J, Jd, eta, S, E, V, Op, dOp, AJ)
-            mass_coriolis_gravity(J, Jd, eta, G, w, Md, ag, M, C, fg, True)
+            mass_coriolis_gravity(J, Jd, eta, G, w, Md, ag, M, C, fg, True, S, V, AJ)
             for k in range(n):
                 for l in range(n):
                     Sm[k, l] = 2.0 * M[k, l] / dt + C[k, l] + D[k, l] + 0.5 * dt * K[k, l]

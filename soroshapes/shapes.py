@@ -501,8 +501,9 @@ class Shapes:
         q, qd = self._kin(q, qd, want_c)
         n = self.n
         M, C, fg = np.empty((n, n)), np.empty((n, n)), np.empty(n)
+        S, _, V, _, _, Y = self._work
         self._beam.mass_coriolis_gravity(self._J, self._Jd, self._eta, self._G, self._w, self._Md, self._gravity,
-                                         M, C, fg, want_c)
+                                         M, C, fg, want_c, S, V, Y)
         return M, C, fg
 
     def mass_matrix(self, q):
@@ -582,8 +583,9 @@ class Shapes:
         f = np.zeros(self.n)
         if np.any(self._gravity):
             M, C, fg = np.empty((self.n, self.n)), np.empty((self.n, self.n)), np.empty(self.n)
+            S, _, V, _, _, Y = self._work
             self._beam.mass_coriolis_gravity(self._J, self._Jd, self._eta, self._G, self._w, self._Md,
-                                             self._gravity, M, C, fg, False)
+                                             self._gravity, M, C, fg, False, S, V, Y)
             f += fg
         if self._inputs:
             u = self._inputs_at(u, t, q, qd)
