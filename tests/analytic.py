@@ -5,8 +5,8 @@ Every function takes SI inputs and returns SI outputs. They depend on numpy/scip
 import numpy as np
 from scipy.integrate import quad, solve_bvp
 
-__all__ = ["cylinder_inflation_pressure", "sphere_inflation_pressure", "elastica_tip", "cantilever_frequencies",
-           "EULER_BERNOULLI_BETA_L"]
+__all__ = ["cylinder_inflation_pressure", "sphere_inflation_pressure", "elastica_tip", "elastica_gravity_tip",
+           "cantilever_frequencies", "EULER_BERNOULLI_BETA_L"]
 
 #: Roots of cos(bL) cosh(bL) = -1: clamped-free Euler-Bernoulli beam, first three bending modes.
 EULER_BERNOULLI_BETA_L = (1.8751040687, 4.6940911330, 7.8547574382)
@@ -77,6 +77,47 @@ def elastica_tip(L, EI, P, n=400):
     sol = solve_bvp(rhs, bc, s, guess, tol=1e-10, max_nodes=100000)
     if not sol.success:
         raise RuntimeError(f"elastica BVP did not converge: {sol.message}")
+    return sol.y[2, -1] - L, sol.y[3, -1]
+
+
+def elastica_gravity_tip(L, EI, w, n=400, tol=1e-10):
+    """Tip displacement (dx, dy) [m] of an inextensible, unshearable clamped elastica of length ``L`` [m] and
+    bending stiffness ``EI`` [N m^2] under a uniform distributed dead load ``w`` [N/m] (along -y), e.g. its own
+    weight :math:`w = \\rho A g`.
+
+    With the slope :math:`\\theta(s)` (counter-clockwise from +x, so negative as the rod droops), the moment of
+    the load beyond :math:`s` is :math:`EI\\,\\theta'(s) = -w\\int_s^L (x(\\sigma) - x(s))\\,d\\sigma`;
+    differentiating once, :math:`EI\\,\\theta'' = w\\,(L - s)\\cos\\theta`, with :math:`\\theta(0) = 0`
+    (clamped) and :math:`\\theta'(L) = 0` (free end); then :math:`x' = \\cos\\theta`,
+    :math:`y' = \\sin\\theta`. The small-load limit is Euler-Bernoulli's :math:`dy = -wL^4/(8EI)`,
+    :math:`dx = -w^2L^7/(112\\,EI^2)`. Solved with scipy's collocation BVP solver (tolerance ``tol``) on
+    ``n`` initial nodes, by continuation in the load from the linear solution (steps that keep the linear tip
+    slope increment below 0.5 rad); ``dx = x(L) - L`` and ``dy = y(L)``.
+    """
+    s = np.linspace(0.0, L, n)
+    w_total = float(w)
+    steps = max(1, int(np.ceil(abs(w_total) * L**3 / (6 * EI) / 0.5)))
+    k = w_total / steps / EI
+    guess = np.zeros((4, n))  # y = [theta, theta', x, y]: the linear solution of the first load step
+    guess[0] = -k * (L**3 - (L - s) ** 3) / 6
+    guess[1] = -k * (L - s) ** 2 / 2
+    guess[2] = s
+    guess[3] = -k * (L**3 * s / 6 + ((L - s) ** 4 - L**4) / 24)
+
+    def bc(ya, yb):
+        return np.array([ya[0], yb[1], ya[2], ya[3]])
+
+    sol = None
+    for i in range(1, steps + 1):
+        ki = w_total * i / steps / EI
+
+        def rhs(s, y, ki=ki):
+            return np.vstack([y[1], ki * (L - s) * np.cos(y[0]), np.cos(y[0]), np.sin(y[0])])
+
+        mesh, y0 = (s, guess) if sol is None else (sol.x, sol.y)
+        sol = solve_bvp(rhs, bc, mesh, y0, tol=tol, max_nodes=100000)
+        if not sol.success:
+            raise RuntimeError(f"gravity elastica BVP did not converge at load step {i}/{steps}: {sol.message}")
     return sol.y[2, -1] - L, sol.y[3, -1]
 
 

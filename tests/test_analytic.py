@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from analytic import cantilever_frequencies, cylinder_inflation_pressure, elastica_tip, sphere_inflation_pressure
+from analytic import (cantilever_frequencies, cylinder_inflation_pressure, elastica_gravity_tip, elastica_tip,
+                      sphere_inflation_pressure)
 
 
 def test_elastica_small_load_is_euler_bernoulli():
@@ -18,6 +19,35 @@ def test_elastica_large_load_matches_tabulated_value():
     assert -dy == pytest.approx(0.30172, abs=2e-5)
     assert -dx == pytest.approx(0.05643, abs=2e-5)
 
+
+
+def test_gravity_elastica_small_load_is_euler_bernoulli():
+    """dy -> -w L^4 / (8 EI) and, to second order, dx -> -w^2 L^7 / (112 EI^2)."""
+    L, EI, w = 1.0, 1.0, 1e-4
+    dx, dy = elastica_gravity_tip(L, EI, w)
+    assert dy == pytest.approx(-w * L**4 / (8 * EI), rel=1e-6)
+    assert dx == pytest.approx(-w**2 * L**7 / (112 * EI**2), rel=1e-4)
+
+
+def test_gravity_elastica_large_load_self_converges_and_matches_shooting():
+    """w L^3 / EI = 12.6 (the soft benchmark rod under its own weight): the result does not depend on the
+    initial mesh, and an independent shooting solution (solve_ivp on theta'(0), root by brentq) agrees."""
+    from scipy.integrate import solve_ivp
+    from scipy.optimize import brentq
+
+    L, EI, w = 0.2, 4.908738521234052e-4, 0.7704755982928969
+    coarse, fine = elastica_gravity_tip(L, EI, w, n=40), elastica_gravity_tip(L, EI, w, n=4000)
+    np.testing.assert_allclose(coarse, fine, rtol=0, atol=1e-10 * L)
+
+    def shoot(kappa0, full=False):
+        def rhs(s, y):
+            return [y[1], w / EI * (L - s) * np.cos(y[0]), np.cos(y[0]), np.sin(y[0])]
+        sol = solve_ivp(rhs, (0, L), [0, kappa0, 0, 0], method="DOP853", rtol=1e-12, atol=1e-14)
+        return sol.y[:, -1] if full else sol.y[1, -1]
+    kappa0 = brentq(shoot, -w * L**2 / (2 * EI), 0.0, xtol=1e-14)
+    end = shoot(kappa0, full=True)
+    np.testing.assert_allclose(fine, (end[2] - L, end[3]), rtol=0, atol=1e-8 * L)
+    assert -fine[1] < w * L**4 / (8 * EI)  # well inside the (wrong, 1.57 L) linear prediction
 
 def test_thick_cylinder_small_strain_is_lame():
     """Small inflation of an incompressible plane-strain cylinder (Lame): u = C/r and
