@@ -763,8 +763,9 @@ def ik_solve(q, nodes, kinds, targets, wrot, tol, max_it, lam0, lam_max, K, gain
              eta, S, E, V, Op, dOp, AJ):
     r"""Levenberg-Marquardt inverse kinematics in one compiled loop (:meth:`Shapes.inverse_kinematics`):
     :math:`\Delta q = A^T (A A^T + \lambda^2 I)^{-1} e`, plus, if ``gain`` > 0, the elastic null-space step
-    :math:`-(I - A^\dagger A) K q` scaled to ``gain`` times the task step. Updates ``q`` in place and returns
-    (error, iterations, converged)."""
+    :math:`-(I - A^\dagger A) K q` scaled to ``gain`` times the task step. Stops at :math:`|e| <` ``tol``, when
+    the task step vanishes, or after 10 accepted steps that lower :math:`|e|` by less than 1e-9 relative.
+    Updates ``q`` in place and returns (error, iterations, converged)."""
     n = q.shape[0]
     m = 0
     for t in range(kinds.shape[0]):
@@ -777,13 +778,15 @@ def ik_solve(q, nodes, kinds, targets, wrot, tol, max_it, lam0, lam_max, K, gain
     err = _ik_error(nodes, kinds, targets, wrot, G, J, e, A)
     lam = lam0
     it = 0
-    while err >= tol and it < max_it:
+    best, since_best = err, 0
+    while err >= tol and it < max_it and since_best < 10:
         it += 1
         AAt = A @ A.T
         for r in range(m):
             AAt[r, r] += lam * lam
         y = np.linalg.solve(AAt, e)
         dq = A.T @ y
+        stalled = np.sqrt(np.sum(dq * dq)) < 1e-12 * (1.0 + np.sqrt(np.sum(q * q)))   # the task step
         if gain > 0.0:
             Kq = K @ q
             z = np.linalg.solve(AAt, A @ Kq)
@@ -797,7 +800,6 @@ def ik_solve(q, nodes, kinds, targets, wrot, tol, max_it, lam0, lam_max, K, gain
         kinematics(qn, zero, False, order, h, B, rows, xi0, g0, G, J, Jd, eta, S, E, V, Op, dOp, AJ)
         errn = _ik_error(nodes, kinds, targets, wrot, G, J, en, An)
         if errn < err or (gain > 0.0 and errn <= err + tol):
-            stalled = np.sqrt(np.sum(dq * dq)) < 1e-14 * (1.0 + np.sqrt(np.sum(q * q)))
             q[:] = qn
             e[:] = en
             A[:, :] = An
@@ -805,6 +807,10 @@ def ik_solve(q, nodes, kinds, targets, wrot, tol, max_it, lam0, lam_max, K, gain
             lam = max(0.5 * lam, 1e-12)
             if stalled:
                 break
+            if err < best * (1.0 - 1e-9):      # the subtask can keep q moving: stop when |e| stops falling
+                best, since_best = err, 0
+            else:
+                since_best += 1
         else:
             lam *= 4.0
             if lam > lam_max:

@@ -130,8 +130,11 @@ class Shapes:
     order : 2 or 4
         Magnus order (4: two Gauss points per segment, fourth-order accurate).
     damping : float, optional
-        Kelvin-Voigt time constant :math:`\tau` [s]: :math:`D = \tau K`. Default: from the material's damping
-        ratio :math:`\zeta` as :math:`\tau = 2\zeta/\omega_1`, which damps the first mode at :math:`\zeta`.
+        Kelvin-Voigt time constant :math:`\tau` [s]: :math:`D = \tau K` (stiffness-proportional: mode
+        :math:`i` gets the damping ratio :math:`\tau\omega_i/2`). Default: from the material's damping ratio
+        :math:`\zeta` as :math:`\tau = 2\zeta/\omega_1`, which damps the lowest mode of the *enabled* strains
+        at :math:`\zeta` and stiffer modes more (enabling a softer bending direction raises the damping of
+        the stiffer one); give ``damping`` explicitly to control it.
     E, G : float [Pa], optional
         Override the material's moduli.
     contact_radius : float [m], optional
@@ -916,9 +919,12 @@ class Shapes:
     # ------------------------------------------------------------------------------------------------
     def _targets(self, targets):
         """[(node, kind, value)] from a (3,) / (4, 4) tip target or a list of (at, target) pairs."""
-        arr = np.asarray(targets, dtype=object) if not isinstance(targets, list) else None
-        if arr is not None and not isinstance(targets, tuple):
-            targets = [(None, targets)]
+        try:
+            v = np.asarray(targets, dtype=float)
+        except (TypeError, ValueError):
+            v = None
+        if v is not None and v.shape in ((3,), (4, 4)):
+            targets = [(None, v)]
         out = []
         for item in targets:
             try:
@@ -947,7 +953,9 @@ class Shapes:
         fourfold and the step retried otherwise). The null-space subtask (the seed's eq. 23) is ``"elastic"``
         (:math:`\nabla\Psi = K q`: among the solutions, the least strained), a callable ``grad(q) -> (n,)``,
         or None; its step is scaled to ``subtask_gain`` times the task step. Stops when :math:`|e| <` ``tol``
-        [m] or the step stalls (an unreachable target gives the least-squares configuration).
+        [m], when the task step vanishes, or after 10 steps that lower :math:`|e|` by less than 1e-9 relative (an
+        unreachable target gives the least-squares configuration; with as many target equations as
+        coordinates there is no null space left for the subtask).
 
         Parameters
         ----------
@@ -992,21 +1000,23 @@ class Shapes:
             return self._beam._ik_error(nodes, kinds, goals, wrot, self._G, self._J, e, A), e.copy(), A.copy()
         err, ek, Ak = error(q)
         it = 0
-        while err >= tol and it < max_it:
+        best, since_best = err, 0
+        while err >= tol and it < max_it and since_best < 10:
             it += 1
             AAt = Ak @ Ak.T + lam * lam * np.eye(m)
             dq = Ak.T @ np.linalg.solve(AAt, ek)
+            stalled = np.linalg.norm(dq) < 1e-12 * (1 + np.linalg.norm(q))
             g = np.asarray(grad(q), dtype=float).reshape(self.n)
             gn = -(g - Ak.T @ np.linalg.solve(AAt, Ak @ g))
             if np.linalg.norm(gn) > 0:
                 dq += gain * max(np.linalg.norm(dq), tol) * gn / np.linalg.norm(gn)
             errn, en, An = error(q + dq)
             if errn <= err + tol:
-                stalled = np.linalg.norm(dq) < 1e-14 * (1 + np.linalg.norm(q))
                 q[:], err, ek, Ak = q + dq, errn, en, An
                 lam = max(0.5 * lam, 1e-12)
                 if stalled:
                     break
+                best, since_best = (err, 0) if err < best * (1 - 1e-9) else (best, since_best + 1)
             else:
                 lam *= 4.0
                 if lam > lam_max:

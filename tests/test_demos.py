@@ -69,6 +69,45 @@ def check_crawler(report, out):
     assert (out / "com.png").stat().st_size > 0 and (out / "gait.png").stat().st_size > 0
 
 
+def check_jellyfish_gripper(report, out):
+    assert len(report["ik_error_m"]) == report["fingers"] == 6
+    # 11 targets (33 equations) for 6 coordinates: a least-squares fit; 1 mm bounds the stacked residual
+    assert all(c or e < 1e-3 for c, e in zip(report["ik_converged"], report["ik_error_m"]))
+    assert report["max_penetration_mm"] < 0.5  # the finger surface stays outside the sphere
+    assert min(report["wrap_angle_deg"]) > 90  # each finger wraps the sphere, not just touches it
+    # the six fingers are the same problem rotated by 60 degrees: the same answer up to round-off
+    assert max(report["penetration_mm"]) - min(report["penetration_mm"]) < 0.02
+    assert (out / "jellyfish.png").stat().st_size > 0 and (out / "finger_plane.png").stat().st_size > 0
+
+
+def check_pcc_arm(report, out):
+    x, y, z = report["static_tip_mm"]
+    assert z < 0 and 0 < x < 360 and abs(y) < 1e-6  # sags below the clamp, in the vertical plane
+    kappa = report["segment_curvature_1_per_m"]
+    # the gravity moment decreases from the clamp to the tip, and so does the segment curvature
+    assert all(k > 0 for k in kappa) and all(a > b for a, b in zip(kappa, kappa[1:]))
+    # settled: the linearized in-plane decay (rate ~2/s) leaves an envelope of ~0.1 mm of the initial 250 mm
+    # at t_end = 4 s; 1 mm allows ten times that for the nonlinear first swing
+    assert report["settle_envelope_mm"] < 1.0
+    assert report["final_tip_error_mm"] < 1.0
+    assert report["energy_max_increase_J"] < 1e-9  # damping only removes energy
+    assert -1e-9 < report["energy_residual_J"] < 1e-3 * report["energy_released_J"]  # the static state is the minimum
+    for name in ("snapshots.png", "static.png", "tip.png"):
+        assert (out / name).stat().st_size > 0
+
+
+def check_cantilever_release(report, out):
+    assert report["energy_drift_implicit"] < 1e-2  # undamped: the midpoint rule keeps the energy
+    assert report["dt_explicit_s"] <= report["explicit_step_limit_s"]
+    # midpoint phase error after 0.5 s, (omega h)^2 / 24 * omega t: ~2e-5 rad for the 1.6 Hz swing (180 mm)
+    # and ~0.04 rad for the ~20 Hz third mode (~1 mm): a few hundredths of a mm; 0.5 mm is 0.3 % of the swing
+    assert report["max_tip_difference_mm"] < 0.5
+    # released from rest above its equilibrium, an undamped rod overshoots the static sag
+    assert report["lowest_tip_z_mm"] < report["static_tip_mm"][2]
+    assert report["period_s"] is not None and report["period_s"] > 0
+    assert (out / "tip.png").stat().st_size > 0 and (out / "energy.png").stat().st_size > 0
+
+
 CHECKS = {
     "chain": check_chain,
     "sdf_gallery": check_sdf_gallery,
@@ -76,6 +115,9 @@ CHECKS = {
     "porous_buckling": check_porous_buckling,
     "pneunet_inflation": check_pneunet_inflation,
     "crawler": check_crawler,
+    "jellyfish_gripper": check_jellyfish_gripper,
+    "pcc_arm": check_pcc_arm,
+    "cantilever_release": check_cantilever_release,
 }
 
 

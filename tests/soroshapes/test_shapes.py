@@ -320,3 +320,14 @@ def test_render_writes_the_tube_of_the_current_shape(tmp_path):
     assert np.allclose(beam["frames"], shp.forward_kinematics(q)) and beam["radius"] == pytest.approx(R)
     path = shp.render(tmp_path / "rod.png", q, title="curl")
     assert path.exists() and path.stat().st_size > 1000
+
+
+def test_inverse_kinematics_accepts_plain_sequences_and_stops_when_overdetermined():
+    shp = rod(Basis.chebyshev(3), dofs=(0, 3, 3, 0, 0, 0), segments=10)
+    P = shp.positions(np.array([5.0, 2.0, 1.0, -3.0, 1.0, 0.5]))
+    assert shp.inverse_kinematics(list(P[-1])).converged
+    targets = [(shp.sigma[i], P[i] * 1.02) for i in (4, 6, 8, 10)]      # 12 equations, 6 unknowns
+    plain = shp.inverse_kinematics(targets)
+    soft = shp.inverse_kinematics(targets, subtask="elastic")
+    assert not plain.converged and soft.iterations < 150
+    assert soft.error == pytest.approx(plain.error, rel=1e-6)
