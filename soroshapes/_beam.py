@@ -13,7 +13,7 @@ this map exactly gives the body Jacobian and its rate at the nodes,
 .. math::
 
     J_{s+1} = \mathrm{Ad}_{e^{-\Omega}} J_s + T(\Omega)\,\Omega',\qquad
-    \dot J_{s+1} = \mathrm{Ad}_{e^{-\Omega}}(\dot J_s - \ldots) - \mathrm{ad}_{\psi}\mathrm{Ad}_{e^{-\Omega}} J_s
+    \dot J_{s+1} = \mathrm{Ad}_{e^{-\Omega}}\dot J_s - \mathrm{ad}_{\psi}\mathrm{Ad}_{e^{-\Omega}} J_s
                    + dT[\dot\Omega]\,\Omega' + T\,\dot\Omega',
 
 with :math:`\Omega' = \partial\Omega/\partial q` (6 x n), :math:`\psi = T(\Omega)\dot\Omega` and :math:`T`, :math:`dT`
@@ -22,8 +22,10 @@ the dynamics assembled from it is the exact Lagrangian dynamics of the discrete 
 the continuous-time equations; :math:`\dot M - 2C` is skew-symmetric).
 
 Every 6 x 6 matrix met here (``ad``, ``Ad`` of a pose's inverse, ``T``, ``dT``) has the block form
-:math:`\begin{bmatrix} P & 0 \\ Q & P \end{bmatrix}`; products use that (81 instead of 216 multiplications).
-Kernels write into work arrays passed by the caller and allocate nothing.
+:math:`\begin{bmatrix} P & 0 \\ Q & P \end{bmatrix}`: products use it (27 instead of 36 multiplications per
+column), and ``T``, ``dT`` are built from closed forms of their 3 x 3 blocks (:func:`_tangent_closed`). Column
+``k`` of :math:`\Theta` has a single nonzero (in strain ``rows[k]``), which the order-2 updates exploit.
+Kernels write into work arrays passed by the caller (see :func:`scratch`).
 """
 import numpy as np
 from numba import njit
@@ -37,13 +39,13 @@ GAUSS2 = (0.5 - np.sqrt(3.0) / 6.0, 0.5 + np.sqrt(3.0) / 6.0)
 #: iterations, and at least every REFRESH_STEPS steps.
 REFRESH_ITS, REFRESH_STEPS = 5, 50
 
-# indices into the (12, 6, 6) scratch
-_A1, _A2, _A3, _A4, _D, _P2, _P3, _P4, _T, _DT, _AI, _TMP = range(12)
+# indices into the (6, 6, 6) scratch: tangent, its derivative, Ad of the segment's inverse, three temporaries
+_T, _DT, _AI, _TMP, _W1, _W2 = range(6)
 
 
 def scratch(n):
     """Work arrays of :func:`kinematics` for ``n`` generalized coordinates."""
-    return (np.zeros((12, 6, 6)), np.zeros((4, 4)), np.zeros((8, 6)), np.zeros((6, n)), np.zeros((6, n)),
+    return (np.zeros((6, 6, 6)), np.zeros((4, 4)), np.zeros((8, 6)), np.zeros((6, n)), np.zeros((6, n)),
             np.zeros((6, n)))
 
 
@@ -67,22 +69,6 @@ def _ad_into(x, A):
     A[4, 2] = -v0
     A[5, 0] = -v1
     A[5, 1] = v0
-
-
-@njit(cache=True)
-def _bmm(A, B, C, alpha, beta):
-    """C = alpha * A @ B + beta * C for block matrices [[P, 0], [Q, P]]."""
-    for i in range(3):
-        for j in range(3):
-            p = 0.0
-            q = 0.0
-            for k in range(3):
-                p += A[i, k] * B[k, j]
-                q += A[i + 3, k] * B[k, j] + A[i, k] * B[k + 3, j]
-            C[i, j] = alpha * p + beta * C[i, j]
-            C[i + 3, j + 3] = C[i, j]
-            C[i + 3, j] = alpha * q + beta * C[i + 3, j]
-            C[i, j + 3] = 0.0
 
 
 @njit(cache=True)
@@ -167,35 +153,98 @@ def _adinv_into(E, A):
 
 
 @njit(cache=True)
+def _tangent_closed(Om, T):
+    r"""T = T(Om) from its 3 x 3 blocks, with :math:`\phi, \rho` the angular and linear parts,
+    :math:`s = \phi\cdot\rho`, :math:`\theta = |\phi|` and the coefficients :math:`c_k` of
+    :func:`soroshapes.lie.TSE3`: the polynomial in :math:`\mathrm{ad}` reduces (with :math:`\hat\phi^3 =
+    -\theta^2\hat\phi`, :math:`\hat\phi\hat\rho\hat\phi = -s\hat\phi`) to
+
+    .. math:: T_\phi = I + \alpha\hat\phi + \gamma(\phi\phi^T - \theta^2 I),\quad
+              T_\rho = \alpha\hat\rho + 2sc_3\hat\phi + \gamma(\phi\rho^T + \rho\phi^T) - 2sc_4\phi\phi^T
+              - 2s(c_2 - 2\theta^2 c_4) I,
+
+    :math:`\alpha = \theta^2 c_3 - c_1`, :math:`\gamma = c_2 - \theta^2 c_4`; T = [[T_phi, 0], [T_rho, T_phi]]."""
+    p0, p1, p2, r0, r1, r2 = Om[0], Om[1], Om[2], Om[3], Om[4], Om[5]
+    t2 = p0 * p0 + p1 * p1 + p2 * p2
+    c1, c2, c3, c4 = _tse3_coeffs(np.sqrt(t2))
+    sd = p0 * r0 + p1 * r1 + p2 * r2
+    al = t2 * c3 - c1
+    ga = c2 - t2 * c4
+    be = 2.0 * sd * c3
+    de = -2.0 * sd * c4
+    ep = -2.0 * sd * (c2 - 2.0 * t2 * c4)
+    ph = (p0, p1, p2)
+    rh = (r0, r1, r2)
+    for i in range(3):
+        for j in range(3):
+            tw = ga * ph[i] * ph[j]
+            tv = ga * (ph[i] * rh[j] + rh[i] * ph[j]) + de * ph[i] * ph[j]
+            if i == j:
+                tw += 1.0 - ga * t2
+                tv += ep
+            T[i, j] = tw
+            T[i + 3, j + 3] = tw
+            T[i + 3, j] = tv
+            T[i, j + 3] = 0.0
+    # skew parts: alpha phi^ on the diagonal blocks, alpha rho^ + beta phi^ below
+    for (i, j, k, sg) in ((0, 1, 2, -1.0), (0, 2, 1, 1.0), (1, 0, 2, 1.0), (1, 2, 0, -1.0), (2, 0, 1, -1.0),
+                          (2, 1, 0, 1.0)):
+        T[i, j] += sg * al * ph[k]
+        T[i + 3, j + 3] += sg * al * ph[k]
+        T[i + 3, j] += sg * (al * rh[k] + be * ph[k])
+
+
+@njit(cache=True)
+def _dtangent_closed(Om, dO, dT):
+    """dT = dT(Om)[dO], the derivative of :func:`_tangent_closed` along dO (its coefficients differentiated
+    with :math:`c_k'/\theta` of :func:`soroshapes.lie._tse3_dcoeffs`)."""
+    p0, p1, p2, r0, r1, r2 = Om[0], Om[1], Om[2], Om[3], Om[4], Om[5]
+    q0, q1, q2, u0, u1, u2 = dO[0], dO[1], dO[2], dO[3], dO[4], dO[5]
+    t2 = p0 * p0 + p1 * p1 + p2 * p2
+    th = np.sqrt(t2)
+    c1, c2, c3, c4 = _tse3_coeffs(th)
+    d1, d2, d3, d4 = _tse3_dcoeffs(th)
+    sd = p0 * r0 + p1 * r1 + p2 * r2
+    t = p0 * q0 + p1 * q1 + p2 * q2                      # phi . dphi
+    ds = q0 * r0 + q1 * r1 + q2 * r2 + p0 * u0 + p1 * u1 + p2 * u2
+    al = t2 * c3 - c1
+    ga = c2 - t2 * c4
+    be = 2.0 * sd * c3
+    de = -2.0 * sd * c4
+    dal = t * (2.0 * c3 + t2 * d3 - d1)
+    dga = t * (d2 - 2.0 * c4 - t2 * d4)
+    dbe = 2.0 * (ds * c3 + sd * d3 * t)
+    dde = -2.0 * (ds * c4 + sd * d4 * t)
+    dep = -2.0 * (ds * (c2 - 2.0 * t2 * c4) + sd * t * (d2 - 4.0 * c4 - 2.0 * t2 * d4))
+    ph, rh, dp, dr = (p0, p1, p2), (r0, r1, r2), (q0, q1, q2), (u0, u1, u2)
+    for i in range(3):
+        for j in range(3):
+            pp = ph[i] * ph[j]
+            dpp = dp[i] * ph[j] + ph[i] * dp[j]
+            tw = dga * pp + ga * dpp
+            tv = (dga * (ph[i] * rh[j] + rh[i] * ph[j])
+                  + ga * (dp[i] * rh[j] + ph[i] * dr[j] + dr[i] * ph[j] + rh[i] * dp[j]) + dde * pp + de * dpp)
+            if i == j:
+                tw -= dga * t2 + 2.0 * ga * t
+                tv += dep
+            dT[i, j] = tw
+            dT[i + 3, j + 3] = tw
+            dT[i + 3, j] = tv
+            dT[i, j + 3] = 0.0
+    for (i, j, k, sg) in ((0, 1, 2, -1.0), (0, 2, 1, 1.0), (1, 0, 2, 1.0), (1, 2, 0, -1.0), (2, 0, 1, -1.0),
+                          (2, 1, 0, 1.0)):
+        w = dal * ph[k] + al * dp[k]
+        dT[i, j] += sg * w
+        dT[i + 3, j + 3] += sg * w
+        dT[i + 3, j] += sg * (dal * rh[k] + al * dr[k] + dbe * ph[k] + be * dp[k])
+
+
+@njit(cache=True)
 def _tangent_into(Om, Omd, S, want_d):
-    """S[_T] = T(Om); if want_d, S[_DT] = dT[Omd] (see :func:`soroshapes.lie.dTSE3`)."""
-    theta = np.sqrt(Om[0] * Om[0] + Om[1] * Om[1] + Om[2] * Om[2])
-    c1, c2, c3, c4 = _tse3_coeffs(theta)
-    A1, A2, A3, A4, T = S[_A1], S[_A2], S[_A3], S[_A4], S[_T]
-    _ad_into(Om, A1)
-    _bmm(A1, A1, A2, 1.0, 0.0)
-    _bmm(A2, A1, A3, 1.0, 0.0)
-    _bmm(A3, A1, A4, 1.0, 0.0)
-    for i in range(6):
-        for j in range(6):
-            T[i, j] = -c1 * A1[i, j] + c2 * A2[i, j] - c3 * A3[i, j] + c4 * A4[i, j]
-        T[i, i] += 1.0
-    if not want_d:
-        return
-    d1, d2, d3, d4 = _tse3_dcoeffs(theta)
-    sd = Om[0] * Omd[0] + Om[1] * Omd[1] + Om[2] * Omd[2]
-    D, P2, P3, P4, dT = S[_D], S[_P2], S[_P3], S[_P4], S[_DT]
-    _ad_into(Omd, D)
-    _bmm(D, A1, P2, 1.0, 0.0)
-    _bmm(A1, D, P2, 1.0, 1.0)
-    _bmm(P2, A1, P3, 1.0, 0.0)
-    _bmm(A2, D, P3, 1.0, 1.0)
-    _bmm(P3, A1, P4, 1.0, 0.0)
-    _bmm(A3, D, P4, 1.0, 1.0)
-    for i in range(6):
-        for j in range(6):
-            dT[i, j] = (sd * (-d1 * A1[i, j] + d2 * A2[i, j] - d3 * A3[i, j] + d4 * A4[i, j])
-                        - c1 * D[i, j] + c2 * P2[i, j] - c3 * P3[i, j] + c4 * P4[i, j])
+    """S[_T] = T(Om); if want_d, S[_DT] = dT(Om)[Omd] (closed forms; see :func:`soroshapes.lie.dTSE3`)."""
+    _tangent_closed(Om, S[_T])
+    if want_d:
+        _dtangent_closed(Om, Omd, S[_DT])
 
 
 @njit(cache=True)
@@ -356,7 +405,7 @@ def mass_coriolis_gravity(J, Jd, eta, G, w, Md, ag, M, C, fg, want_c, S, V, Y):
     fg[:] = 0.0
     if want_c:
         C[:, :] = 0.0
-    Bm, A, W = S[_P2], S[_D], V[7]
+    Bm, A, W = S[_W1], S[_W2], V[7]
     for i in range(J.shape[0]):
         wi = w[i]
         if wi == 0.0:
@@ -399,44 +448,59 @@ def mass_coriolis_gravity(J, Jd, eta, G, w, Md, ag, M, C, fg, want_c, S, V, Y):
             M[k, l] = M[l, k]
 
 
+@njit(cache=True)
+def coriolis_velocity_jacobian(J, Jd, eta, w, Md, C, Cv, S, Y):
+    r"""Cv = :math:`\partial (C(q, \dot q)\dot q)/\partial \dot q = C + \sum_i w_i J_i^T(\mathcal M_i \dot J_i -
+    \Lambda(\mathcal M_i \eta_i) J_i)` with :math:`\Lambda(y) = \begin{bmatrix} \hat y_\omega & \hat y_v \\
+    \hat y_v & 0 \end{bmatrix}` (so that :math:`\mathrm{ad}_x^T y = \Lambda(y) x`). It follows from the
+    Maurer-Cartan identity :math:`\dot J(q, w)\dot q = \dot J(q, \dot q) w + \mathrm{ad}_\eta J w` for the body
+    Jacobians. The iteration matrix of the implicit integrator uses it (``C`` from :func:`mass_coriolis_gravity`
+    at the same state)."""
+    n = C.shape[0]
+    Cv[:, :] = C
+    L = S[_W1]
+    for i in range(J.shape[0]):
+        wi = w[i]
+        if wi == 0.0:
+            continue
+        m = Md[i]
+        y = (m[0] * eta[i, 0], m[1] * eta[i, 1], m[2] * eta[i, 2], m[3] * eta[i, 3], m[4] * eta[i, 4],
+             m[5] * eta[i, 5])
+        for r in range(6):
+            for c in range(6):
+                L[r, c] = 0.0
+        for (ro, co, k) in ((0, 0, 0), (0, 3, 3), (3, 0, 3)):
+            L[ro + 0, co + 1] = -y[k + 2]
+            L[ro + 0, co + 2] = y[k + 1]
+            L[ro + 1, co + 0] = y[k + 2]
+            L[ro + 1, co + 2] = -y[k + 0]
+            L[ro + 2, co + 0] = -y[k + 1]
+            L[ro + 2, co + 1] = y[k + 0]
+        for r in range(6):
+            for k in range(n):
+                s = m[r] * Jd[i, r, k]
+                for c in range(6):
+                    s -= L[r, c] * J[i, c, k]
+                Y[r, k] = s
+        for k in range(n):
+            for l in range(n):
+                s = 0.0
+                for r in range(6):
+                    s += J[i, r, k] * Y[r, l]
+                Cv[k, l] += wi * s
+
+
+@njit(cache=True)
+def dynamics_terms(q, qd, want_c, order, h, B, rows, xi0, g0, G, J, Jd, eta, S, E, V, Op, dOp, AJ, w, Md, ag, M,
+                   C, fg):
+    """:func:`kinematics` then :func:`mass_coriolis_gravity`, in one call."""
+    kinematics(q, qd, want_c, order, h, B, rows, xi0, g0, G, J, Jd, eta, S, E, V, Op, dOp, AJ)
+    mass_coriolis_gravity(J, Jd, eta, G, w, Md, ag, M, C, fg, want_c, S, V, AJ)
+
+
 # ------------------------------------------------------------------------------------------------------------
 # vector (matrix-free) dynamics: the fast path of the implicit integrator
 # ------------------------------------------------------------------------------------------------------------
-@njit(cache=True)
-def _dT_dd(Om, d, out, a1, a2, a3, a4, b, c_):
-    r"""out = dT[d] d (vector) for T = T(Om): with A = ad_Om, D = ad_d, a_k = A^k d and D d = 0,
-    :math:`dT[d]d = s(-d_1 a_1 + d_2 a_2 - d_3 a_3 + d_4 a_4) + c_2 D a_1 - c_3 (D a_2 + A D a_1)
-    + c_4 (D a_3 + A D a_2 + A^2 D a_1)`, :math:`s = \omega\cdot d_\omega`."""
-    theta = np.sqrt(Om[0] * Om[0] + Om[1] * Om[1] + Om[2] * Om[2])
-    c1, c2, c3, c4 = _tse3_coeffs(theta)
-    d1, d2, d3, d4 = _tse3_dcoeffs(theta)
-    sd = Om[0] * d[0] + Om[1] * d[1] + Om[2] * d[2]
-    _adv(Om, d, a1)
-    _adv(Om, a1, a2)
-    _adv(Om, a2, a3)
-    _adv(Om, a3, a4)
-    for r in range(6):
-        out[r] = sd * (-d1 * a1[r] + d2 * a2[r] - d3 * a3[r] + d4 * a4[r])
-    _adv(d, a1, b)            # D a1
-    for r in range(6):
-        out[r] += c2 * b[r]
-    _adv(Om, b, c_)           # A D a1
-    for r in range(6):
-        out[r] -= c3 * c_[r]
-    _adv(Om, c_, b)           # A^2 D a1
-    for r in range(6):
-        out[r] += c4 * b[r]
-    _adv(d, a2, b)            # D a2
-    for r in range(6):
-        out[r] -= c3 * b[r]
-    _adv(Om, b, c_)           # A D a2
-    for r in range(6):
-        out[r] += c4 * c_[r]
-    _adv(d, a3, b)            # D a3
-    for r in range(6):
-        out[r] += c4 * b[r]
-
-
 @njit(cache=True)
 def kinematics_vec(q, qd, order, h, B, rows, xi0, g0, G, J, eta, etad, S, E, V, Op, AJ, W):
     r"""Like :func:`kinematics` but, instead of the Jacobian rates, the vectors :math:`\dot J \dot q` at the
@@ -494,7 +558,7 @@ def kinematics_vec(q, qd, order, h, B, rows, xi0, g0, G, J, eta, etad, S, E, V, 
             G[s + 1, 3, i] = 0.0
         G[s + 1, 3, 3] = 1.0
         _adinv_into(E, Ai)
-        _tangent_into(Om, Omd, S, False)
+        _tangent_into(Om, Omd, S, True)
         _bvec(T, Omd, psi, 1.0, 0.0)
         _bvec(Ai, eta[s], eta[s + 1], 1.0, 0.0)
         for r in range(6):
@@ -516,9 +580,7 @@ def kinematics_vec(q, qd, order, h, B, rows, xi0, g0, G, J, eta, etad, S, E, V, 
         _adv(psi, eta[s + 1], tmp)
         for r in range(6):
             etad[s + 1, r] -= tmp[r]
-        _dT_dd(Om, Omd, tmp, W[0], W[1], W[2], W[3], W[4], W[5])
-        for r in range(6):
-            etad[s + 1, r] += tmp[r]
+        _bvec(S[_DT], Omd, etad[s + 1], 1.0, 1.0)
         if order != 2:
             _adv(xd1, xd2, W[6])
             c = 2.0 * MAGNUS4_C * hs * hs
@@ -631,9 +693,9 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
     Per step, Newton iterations on :math:`v_m` for the residual
     :math:`R = \sum_i w_i J_i^T[\ldots] + D v_m + K q_m - f_{ext}` (:func:`generalized_inertial_force` with
     :math:`a = 2(v_m - \dot q_n)/h`, :math:`q_m = q_n + \tfrac h2 v_m`), with the LU factors of
-    :math:`S = 2M/h + C + D + \tfrac h2 K` refreshed when a step needed more than ``REFRESH_ITS`` iterations
-    (and every ``REFRESH_STEPS`` steps); the predictor extrapolates the previous step's acceleration. External forces: gravity ``ag``,
-    generalized forces ``fext`` (nsteps, n) and point wrenches ``pl_W`` (nsteps, p, 6), both at the step
+    :math:`S = 2M/h + \partial(Cv)/\partial v + D + \tfrac h2 K` (:func:`coriolis_velocity_jacobian`)
+    refreshed when a step needed more than ``REFRESH_ITS`` iterations (and every ``REFRESH_STEPS`` steps); the
+    predictor extrapolates the previous step's acceleration. External forces: gravity ``ag``, generalized forces ``fext`` (nsteps, n) and point wrenches ``pl_W`` (nsteps, p, 6), both at the step
     midpoints. Converged when :math:`|\Delta v| \le` ``tol`` :math:`|v_m| + 10^{-12}`.
 
     Records t, q, qd, (kinetic, potential) and the tip position every ``rec_every`` steps (row 0 the start)
@@ -649,6 +711,7 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
     piv = np.zeros(n, dtype=np.int64)
     M = np.empty((n, n))
     C = np.empty((n, n))
+    Cv = np.empty((n, n))
     fg = np.empty(n)
     acc_prev = np.zeros(n)
     since = 1000
@@ -685,9 +748,10 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
                 qm[k] = q[k] + 0.5 * dt * vm[k]
             kinematics(qm, vm, True, order, h, B, rows, xi0, g0, G, J, Jd, eta, S, E, V, Op, dOp, AJ)
             mass_coriolis_gravity(J, Jd, eta, G, w, Md, ag, M, C, fg, True, S, V, AJ)
+            coriolis_velocity_jacobian(J, Jd, eta, w, Md, C, Cv, S, AJ)
             for k in range(n):
                 for l in range(n):
-                    Sm[k, l] = 2.0 * M[k, l] / dt + C[k, l] + D[k, l] + 0.5 * dt * K[k, l]
+                    Sm[k, l] = 2.0 * M[k, l] / dt + Cv[k, l] + D[k, l] + 0.5 * dt * K[k, l]
             if not _lu(Sm, piv):
                 return step
             since = 0

@@ -27,6 +27,7 @@ Units: SI throughout (m, kg, s, N, Pa); :math:`q` carries the unit of its strain
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -191,6 +192,7 @@ class Shapes:
         self._contacts = []
         self._forces = []
         self._work = _beam.scratch(self.n)
+        self._zero = np.zeros(self.n)
         if damping is None:
             damping = 2.0 * zeta / self.natural_frequencies(1)[0] / (2 * np.pi) if zeta > 0 else 0.0
         if not (np.isfinite(damping) and damping >= 0):
@@ -448,7 +450,7 @@ class Shapes:
         q = np.ascontiguousarray(q, dtype=float).reshape(-1) if q is not None else np.zeros(self.n)
         if q.shape != (self.n,):
             raise ParameterError(f"{what} must have {self.n} entries (dofs {self.dofs}), got {q.shape}")
-        if not np.all(np.isfinite(q)):
+        if not math.isfinite(np.add.reduce(q)) and not np.all(np.isfinite(q)):   # the sum: a cheap first test
             raise DataError(f"{what} contains NaN or inf")
         return q
 
@@ -501,12 +503,13 @@ class Shapes:
     # dynamics terms
     # ------------------------------------------------------------------------------------------------
     def _mcg(self, q, qd, want_c):
-        q, qd = self._kin(q, qd, want_c)
+        q = self._check_q(q)
+        qd = self._zero if qd is None else self._check_q(qd, "qd")
         n = self.n
         M, C, fg = np.empty((n, n)), np.empty((n, n)), np.empty(n)
-        S, _, V, _, _, Y = self._work
-        self._beam.mass_coriolis_gravity(self._J, self._Jd, self._eta, self._G, self._w, self._Md, self._gravity,
-                                         M, C, fg, want_c, S, V, Y)
+        self._beam.dynamics_terms(q, qd, want_c, self.order, self._h, self._B, self._rows, self._X0, self.base,
+                                  self._G, self._J, self._Jd, self._eta, *self._work, self._w, self._Md,
+                                  self._gravity, M, C, fg)
         return M, C, fg
 
     def mass_matrix(self, q):
@@ -516,6 +519,15 @@ class Shapes:
     def coriolis(self, q, qd):
         r"""Coriolis/centrifugal matrix :math:`C(q, \dot q)` with :math:`\dot M - 2C` skew-symmetric."""
         return self._mcg(q, qd, True)[1]
+
+    def coriolis_jacobian(self, q, qd):
+        r""":math:`\partial (C(q, \dot q)\dot q) / \partial \dot q` (n, n), exact (see
+        :func:`soroshapes._beam.coriolis_velocity_jacobian`); Newton matrices of implicit integrators use it."""
+        C = self._mcg(q, qd, True)[1]
+        Cv = np.empty_like(C)
+        S, _, _, _, _, Y = self._work
+        self._beam.coriolis_velocity_jacobian(self._J, self._Jd, self._eta, self._w, self._Md, C, Cv, S, Y)
+        return Cv
 
     def dynamics(self, q, qd):
         """(M, C, f_g): mass matrix, Coriolis matrix and gravity force for state (q, qd), from one kinematic pass."""
@@ -750,8 +762,9 @@ class Shapes:
 
         .. math:: M(q_m)\frac{2(v_m - \dot q_n)}{h} + C(q_m, v_m) v_m + D v_m + K q_m = f(q_m, v_m, t_n + h/2),
 
-        solved for :math:`v_m` by Newton iterations with the matrix :math:`2M/h + C + D + \tfrac h2 K` (the
-        geometric stiffness of the loads is left out: it changes the rate of convergence, not the solution)
+        solved for :math:`v_m` by Newton iterations with the matrix :math:`2M/h + \partial(C v)/\partial v + D +
+        \tfrac h2 K` (:meth:`coriolis_jacobian`; the configuration derivatives of the inertial and external
+        forces are left out: they change the rate of convergence, not the solution)
         until :math:`|\Delta v| \le` ``tol`` :math:`|v_m| + 10^{-12}`; then :math:`q_{n+1} = q_n + h v_m`,
         :math:`\dot q_{n+1} = 2v_m - \dot q_n`. Scenes with gravity, chambers and point loads only (no
         contact, tendons or user forces) run in one compiled loop (:func:`soroshapes._beam.integrate_midpoint`,
@@ -871,7 +884,7 @@ class Shapes:
                 record(min(t, t_end))
 
     def _midpoint_step(self, q, qd, t, h, u, tol, max_iterations):
-        """One implicit-midpoint step: Newton iterations on v_m with the matrix 2M/h + C + D + h/2 K; when they
+        """One implicit-midpoint step: Newton iterations on v_m with the matrix 2M/h + dCv/dv + D + h/2 K; when they
         contract slowly (large steps with large rotations), the matrix is replaced by the finite-difference
         Jacobian of the residual. Returns (q, qd, iterations) or None."""
         Dm = self.damping * self.K
@@ -882,7 +895,7 @@ class Shapes:
             return M @ (2.0 * (vm - qd) / h) + lhs, M, qm
         vm = qd.copy()
         R, M, qm = residual(vm)
-        S = 2.0 * M / h + self.coriolis(qm, vm) + Dm + 0.5 * h * self.K
+        S = 2.0 * M / h + self.coriolis_jacobian(qm, vm) + Dm + 0.5 * h * self.K
         prev = np.inf
         for it in range(1, max_iterations + 1):
             if not np.all(np.isfinite(R)):
