@@ -11,6 +11,10 @@ from pathlib import Path
 import pytest
 from mpi4py import MPI
 
+# as `python -m pytest` does: the repository first on sys.path, so that `import soroshapes` finds the package
+# and not the namespace formed by tests/soroshapes/ (the editable install's finder comes after the path finder)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 rank = MPI.COMM_WORLD.rank
 args = sys.argv[1:]
 if rank != 0:
