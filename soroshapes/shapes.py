@@ -631,11 +631,18 @@ class Shapes:
             raise ParameterError(f"u must give {m} finite inputs ({', '.join(self.inputs)}), got {v.shape}")
         return v
 
+    def contact_forces(self, q, qd=None):
+        """Contact forces [N] on the nodes at state (q, qd): (N+1, 3) spatial forces (each node's share of the
+        distributed force: per-length force times its quadrature weight), zero where there is no contact."""
+        self._kin(q, qd)
+        self._contact_force()
+        return self.contact_forces_.copy()
+
     def _contact_force(self):
         """Penalty contact with friction at every node; returns the generalized force."""
         P = self._G[:, :3, 3]
         f = np.zeros(self.n)
-        self.contact_forces = np.zeros((len(P), 3))
+        self.contact_forces_ = np.zeros((len(P), 3))
         for obstacle, k, c, mu, eps in self._contacts:
             d = obstacle(P)
             hit = np.nonzero(d < self.contact_radius)[0]
@@ -651,7 +658,7 @@ class Shapes:
                 vt = v - vn * nrm[j]
                 F = fn * nrm[j] - mu * fn * vt / np.sqrt(vt @ vt + eps * eps)
                 F *= self._w[i]
-                self.contact_forces[i] += F
+                self.contact_forces_[i] += F
                 f += self._J[i, 3:].T @ (R.T @ F)
         return f
 

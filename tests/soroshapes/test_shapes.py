@@ -165,8 +165,7 @@ def test_gravity_sag_rests_on_a_floor_without_tunnelling():
     P = shp.positions(shp.statics(steps=4))
     assert P[:, 2].min() - R < floor                      # it touches
     assert floor - (P[:, 2].min() - R) < 0.01 * R          # and penetrates less than 1 % of the radius
-    # the floor carries what the clamp does not: vertical balance of the contact forces and the weight
-    assert shp.contact_forces[:, 2].sum() > 0
+    assert shp.contact_forces(shp.statics(steps=4))[:, 2].sum() > 0        # the floor pushes up
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -219,6 +218,20 @@ def test_explicit_blow_up_is_reported_not_returned():
     dt = 20 * shp.explicit_step_limit()
     with pytest.raises(ConvergenceError, match="did not converge"):
         shp.simulate(200 * dt, dt, qd0=np.ones(6), method="explicit", min_dt=dt / 2)
+
+
+def test_contact_forces_follow_the_penalty_and_regularized_coulomb_laws():
+    mu, eps, k, depth = 0.6, 1e-3, 2e5, 1e-4
+    shp = rod(Basis.chebyshev(2), dofs=(0, 0, 2, 0, 0, 0), segments=10)
+    shp.add_contact(sdf.Plane((0, 0, -R + depth), (0, 0, 1)), stiffness=k, friction=mu, regularization=eps)
+    qd = np.array([3.0, 0.0])                  # the rod sweeps sideways (+y) over the floor it presses into
+    F = shp.contact_forces(np.zeros(2), qd)
+    vy = (shp.jacobian(np.zeros(2), at="all")[:, 3:] @ qd)[:, 1]   # node velocities (straight: body = spatial)
+    fn = k * depth * shp._w
+    assert np.allclose(F[:, 2], fn, rtol=1e-9)
+    assert np.all(vy[1:] > 0)
+    assert np.allclose(F[:, 1], -mu * fn * vy / np.sqrt(vy**2 + eps**2), rtol=1e-9, atol=1e-15)
+    assert np.all(F[1:, 1] < 0) and np.allclose(F[:, 0], 0, atol=1e-15)   # friction opposes the sliding
 
 
 def test_contact_at_speed_does_not_tunnel_and_does_not_gain_energy():
@@ -357,3 +370,14 @@ def test_closed_form_tangent_blocks_match_the_lie_kernels(angle):
     _beam._dtangent_closed(xi, d, dT)
     assert np.allclose(T, lie.TSE3(xi), atol=1e-14)
     assert np.allclose(dT, lie.dTSE3(xi, d), atol=1e-13)
+
+
+def test_sliding_on_a_floor_dissipates_energy_only_with_friction():
+    losses = {}
+    for mu in (0.0, 0.6):
+        shp = rod(Basis.chebyshev(2), dofs=(0, 0, 2, 0, 0, 0), segments=10, material=elastic(1e5))
+        shp.add_contact(sdf.Plane((0, 0, -R + 1e-4), (0, 0, 1)), stiffness=2e5, friction=mu)
+        tr = shp.simulate(0.02, 2e-4, qd0=np.array([3.0, 0.0]), record_every=10)
+        losses[mu] = (tr.total[0] - tr.total[-1]) / tr.total[0]
+        assert np.all(np.diff(tr.total) <= 1e-9 * tr.total[0])          # never gains energy
+    assert abs(losses[0.0]) < 1e-4 and losses[0.6] > 0.1
