@@ -8,7 +8,7 @@ access, so ``import soroshapes`` does not import numba.
 """
 import importlib
 
-_SUBMODULES = ("lie", "basis", "shapes", "render")
+_SUBMODULES = ("lie", "basis", "shapes", "render", "dvs")
 _CLASSES = {"Basis": "basis", "Shapes": "shapes", "BeamTrajectory": "shapes", "IKResult": "shapes"}
 
 __all__: list[str] = [*_SUBMODULES, *_CLASSES]

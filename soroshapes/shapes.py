@@ -410,6 +410,23 @@ class Shapes:
             raise ParameterError(f"span must satisfy 0 <= a < b <= length ({self.length:g} m), got {span!r}")
         return a, b
 
+    def add_actuator(self, force, name=None):
+        """An input whose generalized force is ``force(u) -> (n,)`` for its value ``u`` (any unit), independent
+        of the configuration, e.g. an actuation map identified from FEM (:func:`soroshapes.dvs.identify`);
+        an (n,) array means the linear map ``column * u``."""
+        if callable(force):
+            fn = force
+            v = np.asarray(fn(0.0), dtype=float)
+            if v.shape != (self.n,):
+                raise ParameterError(f"an actuator must return {self.n} generalized forces, got shape {v.shape}")
+        else:
+            col = np.asarray(force, dtype=float).reshape(-1)
+            if col.shape != (self.n,) or not np.all(np.isfinite(col)):
+                raise ParameterError(f"an actuator column must have {self.n} finite entries")
+            fn = lambda u: col * u  # noqa: E731
+        self._inputs.append((name or f"actuator{len(self._inputs)}", "actuator", fn))
+        return self
+
     def add_contact(self, obstacle, stiffness=None, damping=0.0, friction=0.0, regularization=1e-3):
         r"""Contact of the tube (radius :attr:`contact_radius`) with a 3D SDF environment, at the nodes.
 
@@ -564,32 +581,46 @@ class Shapes:
         f = np.sqrt(np.maximum(w2, 0.0)) / (2 * np.pi)
         return f[:count] if count else f
 
-    def input_map(self, q):
-        """G(q): (n, m) map from the inputs (:attr:`inputs`) to generalized forces."""
+    def input_map(self, q, u=None):
+        """G(q): (n, m) derivative of the inputs' generalized force with respect to the inputs (:attr:`inputs`)
+        at the values ``u`` (default 0); constant for chambers, configuration-dependent for tendons."""
         self._kin(q)
-        return self._input_map_current()
-
-    def _input_map_current(self):
+        self._qcur = self._check_q(q)
+        u = np.zeros(len(self._inputs)) if u is None else np.asarray(u, dtype=float).reshape(-1)
         cols = []
-        for _, kind, data in self._inputs:
-            if kind == "chamber":
-                cols.append(data)
+        for i, (_, kind, data) in enumerate(self._inputs):
+            if kind == "actuator":
+                e = 1e-6 * max(1.0, abs(u[i]))
+                cols.append((np.asarray(data(u[i] + e)) - np.asarray(data(u[i] - e))) / (2 * e))
             else:
-                d, wts = data
-                col = np.zeros(self.n)
-                B, X0, rows = self._B, self._X0, self._rows
-                for s in range(B.shape[0]):
-                    for a in range(B.shape[1]):
-                        if wts[s, a] == 0:
-                            continue
-                        xi = X0[s, a].copy()
-                        np.add.at(xi, rows, B[s, a] * self._qcur)
-                        t = xi[3:] + np.cross(xi[:3], d)
-                        t /= np.linalg.norm(t)
-                        W = -np.concatenate([np.cross(d, t), t])
-                        col += wts[s, a] * B[s, a] * W[rows]
-                cols.append(col)
+                cols.append(self._input_column(kind, data))
         return np.column_stack(cols) if cols else np.zeros((self.n, 0))
+
+    def _input_column(self, kind, data):
+        """Generalized force per unit input of a chamber (constant) or a tendon (at the current kinematics)."""
+        if kind == "chamber":
+            return data
+        d, wts = data
+        col = np.zeros(self.n)
+        B, X0, rows = self._B, self._X0, self._rows
+        for s in range(B.shape[0]):
+            for a in range(B.shape[1]):
+                if wts[s, a] == 0:
+                    continue
+                xi = X0[s, a].copy()
+                np.add.at(xi, rows, B[s, a] * self._qcur)
+                t = xi[3:] + np.cross(xi[:3], d)
+                t /= np.linalg.norm(t)
+                W = -np.concatenate([np.cross(d, t), t])
+                col += wts[s, a] * B[s, a] * W[rows]
+        return col
+
+    def _input_force(self, u):
+        """Generalized force of the inputs ``u`` at the current kinematics."""
+        f = np.zeros(self.n)
+        for ui, (_, kind, data) in zip(u, self._inputs):
+            f += np.asarray(data(ui), dtype=float) if kind == "actuator" else self._input_column(kind, data) * ui
+        return f
 
     def _external(self, q, qd, t, u, scale=1.0):
         """Generalized force of gravity, inputs, point loads, contact and user forces at the current kinematics
@@ -603,8 +634,7 @@ class Shapes:
                                              self._gravity, M, C, fg, False, S, V, Y)
             f += fg
         if self._inputs:
-            u = self._inputs_at(u, t, q, qd)
-            f += self._input_map_current() @ u
+            f += self._input_force(self._inputs_at(u, t, q, qd))
         for i, force, moment, frame in self._point_loads:
             F, Mo = force(t), moment(t)
             if frame == "spatial":
@@ -820,10 +850,9 @@ class Shapes:
         n = self.n
         tm = (np.arange(nsteps) + 0.5) * dt
         fext = np.zeros((nsteps, n))
-        if self._inputs:
-            Gm = np.column_stack([d for _, _, d in self._inputs])      # chambers: constant columns
-            U = np.array([self._inputs_at(u, t, None, None) for t in tm]).reshape(nsteps, -1)
-            fext = np.ascontiguousarray(U @ Gm.T)
+        if self._inputs:                 # chambers and actuators: forces independent of the configuration
+            for k, t in enumerate(tm):
+                fext[k] = self._input_force(self._inputs_at(u, t, None, None))
         npl = len(self._point_loads)
         pl_nodes = np.array([p[0] for p in self._point_loads], dtype=np.int64)
         pl_spatial = np.array([p[3] == "spatial" for p in self._point_loads], dtype=np.bool_)

@@ -108,8 +108,20 @@ def check_cantilever_release(report, out):
     assert (out / "tip.png").stat().st_size > 0 and (out / "energy.png").stat().st_size > 0
 
 
+def check_dvs_pneunet(report, out):
+    # the bars: 3 % of the length on the training ramp, 5 % at a pressure not trained on, 1000x faster
+    assert report["dvs_modes"] == 3 and report["dvs_energy"] > 0.999
+    assert report["tip_error_train"] < 3.0 and report["tip_error_test"] < 5.0
+    assert report["speedup"] > 1000
+    assert report["selected"] is not None and report["selected"]["tip_error_test"] <= 0.03
+    assert {r["family"] for r in report["trade"]} == {"dvs", "chebyshev", "pcc"}
+    for name in ("modes.png", "shapes.png", "trade.png", "trade.txt", "train.h5", "test.h5"):
+        assert (out / name).stat().st_size > 0
+
+
 CHECKS = {
     "chain": check_chain,
+    "dvs_pneunet": check_dvs_pneunet,
     "sdf_gallery": check_sdf_gallery,
     "mesh_gallery": check_mesh_gallery,
     "porous_buckling": check_porous_buckling,

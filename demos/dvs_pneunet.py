@@ -1,0 +1,152 @@
+"""Data-driven beam model of a PneuNet from FEM (`soro demo dvs_pneunet`)
+=====================================================================
+
+Purpose
+-------
+The seed's Sec. V-D4: FEM inflation snapshots of a PneuNet bending actuator become a low-dimensional beam
+model that keeps the geometry's character. The 2D (plane-strain) PneuNet of the ``pneunet_inflation`` demo is
+inflated by a pressure ramp (training) and, separately, to a pressure between the training samples (test).
+Along a backbone in its strain-limiting layer the bending strain is recovered from the snapshots
+(:func:`soroshapes.dvs.recover_strains`), three DVS bending modes are extracted by POD, the beam's actuation is
+identified on the training ramp (:func:`soroshapes.dvs.identify`), and the beam model is compared with FEM on
+both. The speed-accuracy trade of DVS, Chebyshev and PCC bases of 1 to 6 modes is tabulated
+(:func:`soroshapes.dvs.trade`) and the cheapest model within 3 % of the length is selected.
+
+Parameters
+----------
+out : pathlib.Path
+    Output directory: ``train.h5`` and ``test.h5`` (snapshot files), ``modes.png`` (the DVS modes),
+    ``shapes.png`` (FEM and beam backbones), ``trade.png`` and ``trade.txt`` (error vs time per solve),
+    ``report.json``.
+quick : bool
+    Four chambers and a coarse mesh (a few seconds of FEM) instead of seven chambers.
+
+Figures
+-------
+``tip_error_train`` and ``tip_error_test`` (max over the snapshots, % of length) of the 3-mode DVS model,
+``shape_error_*`` (rms backbone distance, % of length), ``beam_solve_ms``, ``fem_solve_s`` (the test solve)
+and ``speedup`` (FEM test solve time / beam static solve time), ``dvs_energy`` (fraction of the strain
+variance captured by 3 modes), the ``trade`` table and ``selected`` (cheapest model within 3 % of the length
+on the test pressure).
+"""
+import importlib.util
+import time
+from pathlib import Path
+
+import numpy as np
+
+from sorofem.units import kPa, mm
+
+HERE = Path(__file__).resolve().parent
+
+
+def _pneunet():
+    spec = importlib.util.spec_from_file_location("pneunet_inflation", HERE / "pneunet_inflation.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def fem_snapshots(out, chambers, size, p_max, steps, p_test):
+    """Training ramp 0..p_max (``steps`` steps) and a test solve to ``p_test``; returns paths, length, times."""
+    pn = _pneunet()
+    fem, length = pn.build(2, chambers, size, p_max)
+    t0 = time.perf_counter()
+    fem.solve(steps=steps, max_step=1.0 / steps).save(out / "train.h5")
+    t_train = time.perf_counter() - t0
+    fem, _ = pn.build(2, chambers, size, p_max)
+    t0 = time.perf_counter()
+    fem.solve(t_end=p_test / p_max, steps=max(2, steps // 2), max_step=1.0 / steps).save(out / "test.h5")
+    t_test = time.perf_counter() - t0
+    return out / "train.h5", out / "test.h5", length, t_train, t_test, pn
+
+
+def beam_factory(length, pn):
+    """A maker of beam models of the actuator: the backbone starts at the clamped end; the section is the
+    actuator's (width x height; its stiffness scale is absorbed by the identified actuation)."""
+    from sorofem import materials, sdf
+    from soroshapes import Shapes
+
+    def make(bases, dofs):
+        return Shapes(bases, dofs, length=length, section=sdf.Rectangle(pn.WIDTH, pn.HEIGHT),
+                      material=materials.Ecoflex0030(), base=np.array([0.0, pn.LAYER / 2, 0.0]), damping=0.0,
+                      segments=40)
+    return make
+
+
+def main(out: Path, quick: bool = False) -> dict:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from soroshapes.dvs import Backbone, compare, dvs_basis, identify, recover_strains, trade_report
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    chambers, size, p_max, steps = (4, 1.2 * mm, 5 * kPa, 10) if quick else (7, 0.8 * mm, 6 * kPa, 16)
+    p_test = 0.55 * p_max
+    train_h5, test_h5, length, t_train, t_test, pn = fem_snapshots(out, chambers, size, p_max, steps, p_test)
+
+    backbone = Backbone.line([0.0, pn.LAYER / 2], [length, pn.LAYER / 2])
+    train = recover_strains(train_h5, backbone, samples=81)
+    test = recover_strains(test_h5, backbone, samples=81)
+    test = test.select([len(test.times) - 1])
+    inputs = ["pressure/cavity_0"]
+    make = beam_factory(length, pn)
+
+    bases, kept, info = dvs_basis(train, (0, 0, 3, 0, 0, 0))
+    shp = make(bases, kept)
+    ident = identify(shp, train, inputs=inputs)
+    cmp_train, cmp_test = compare(shp, train, inputs), compare(shp, test, inputs)
+    best = min(compare(shp, test, inputs)["solve_time"] for _ in range(3))
+
+    rows, pick = trade_report(train, test, make, inputs, out, tolerance=0.03)
+
+    # figures
+    s = train.sigma / length
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    for k in range(kept[2]):
+        ax.plot(s, bases[2](s)[:, k], label=f"mode {k + 1}")
+    ax.set_xlabel("sigma / L")
+    ax.set_ylabel("bending mode [1/sqrt(m)]")
+    ax.set_title(f"DVS bending modes of the PneuNet ({100 * info[2]['energy']:.3f} % of the variance)")
+    ax.legend()
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out / "modes.png", dpi=120)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    P_fem = train.positions()
+    for k in range(0, len(train.times), max(1, len(train.times) // 5)):
+        ax.plot(P_fem[k, :, 0] / mm, P_fem[k, :, 1] / mm, "k-", lw=2, alpha=0.5)
+        Pb = shp.positions(cmp_train["q"][k])
+        ax.plot(Pb[:, 0] / mm, Pb[:, 1] / mm, "C1--", lw=1.5)
+    Pt = test.positions()[0]
+    ax.plot(Pt[:, 0] / mm, Pt[:, 1] / mm, "C2-", lw=2, alpha=0.6, label=f"FEM test {p_test / kPa:.2f} kPa")
+    Pb = shp.positions(cmp_test["q"][0])
+    ax.plot(Pb[:, 0] / mm, Pb[:, 1] / mm, "C3--", lw=1.5, label="beam, test")
+    ax.plot([], [], "k-", alpha=0.5, label="FEM training ramp")
+    ax.plot([], [], "C1--", label="3-mode DVS beam")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("y [mm]")
+    ax.set_title("PneuNet backbone: FEM vs DVS beam")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out / "shapes.png", dpi=120)
+    plt.close(fig)
+
+    return {
+        "chambers": chambers, "length_mm": length / mm, "p_max_kPa": p_max / kPa, "p_test_kPa": p_test / kPa,
+        "training_steps": int(len(train.times)), "dvs_modes": int(kept[2]),
+        "dvs_energy": info[2]["energy"], "fit_error": ident.fit_error,
+        "tip_error_train": 100 * float(cmp_train["tip_error"].max()),
+        "tip_error_test": 100 * float(cmp_test["tip_error"].max()),
+        "shape_error_train": 100 * float(cmp_train["shape_error"].max()),
+        "shape_error_test": 100 * float(cmp_test["shape_error"].max()),
+        "beam_solve_ms": 1e3 * best, "fem_solve_s": t_test, "fem_ramp_s": t_train,
+        "speedup": t_test / best,
+        "trade": rows, "selected": pick,
+    }
