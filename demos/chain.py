@@ -10,10 +10,13 @@ check at a glance. Stages present now:
 2. **mesh**: gmsh triangles with the chambers found and named automatically (``cavity_0`` ...);
 3. **FEM snapshots**: plane-strain hyperelastic inflation with a follower pressure ramp on every chamber
    (Dragon Skin 10 body, Elastic 50A bottom layer), written to the snapshot file that reduced models read;
-4. **report**: PNGs (design, mesh, deformed state, bending angle vs pressure) and ``report.json``.
+4. **DVS beam model**: a second FEM solve at a pressure between the training steps (test data); the bending
+   strain recovered along a backbone in the strain-limiting layer, three DVS modes, the beam's actuation
+   identified on the training ramp, and the speed-accuracy trade of DVS, Chebyshev and PCC bases of 1-6 modes
+   against FEM (``trade.txt``, ``trade.png``), with the cheapest model within 3 % of the length;
+5. **report**: PNGs (design, mesh, deformed state, bending angle vs pressure) and ``report.json``.
 
-Still to come (their issues extend this file): DVS beam model from the snapshots, closed-loop control on the
-simulated board.
+Still to come (its issue extends this file): closed-loop control on the simulated board.
 
 Parameters
 ----------
@@ -22,7 +25,10 @@ layer; pressure 0 -> 16 kPa (quick: 0 -> 8 kPa); element size 1 mm (quick: 1.6 m
 
 Figure
 ------
-``bending_angle_deg``: the rotation of the free end toward the strain-limiting layer at the final pressure.
+``bending_angle_deg``: the rotation of the free end toward the strain-limiting layer at the final pressure;
+``dvs``: tip errors (% of length) of the 3-mode DVS beam on the training ramp and at the test pressure, its
+static solve time and the speedup over the FEM test solve; ``trade``: the table; ``selected``: the cheapest
+model within 3 % of the length.
 """
 import time
 from pathlib import Path
@@ -54,6 +60,34 @@ def tip_angle(traj, step):
     x = X + traj.displacement[step]
     d = x[hi] - x[lo]
     return float(np.arctan2(d[0], d[1]))
+
+
+def dvs_stage(out, cavity, fem_test_s):
+    """Recover strains from the two snapshot files, build the 3-mode DVS beam, compare it with FEM and run
+    the trade; returns the report entries."""
+    from soroshapes import Shapes
+    from soroshapes.dvs import Backbone, compare, dvs_basis, identify, recover_strains, trade_report
+
+    backbone = Backbone.line([0.0, LAYER / 2], [L, LAYER / 2])
+    train = recover_strains(out / "pneunet_inflation.h5", backbone, samples=61)
+    test = recover_strains(out / "pneunet_test.h5", backbone, samples=61)
+    test = test.select([len(test.times) - 1])
+    inputs = [f"pressure/{cavity}"]
+
+    def make(bases, dofs):   # the stiffness scale of the section is absorbed by the identified actuation
+        return Shapes(bases, dofs, length=L, section=sdf.Rectangle(10 * mm, H), material=materials.DragonSkin10(),
+                      base=np.array([0.0, LAYER / 2, 0.0]), damping=0.0, segments=30)
+    bases, kept, info = dvs_basis(train, (0, 0, 3, 0, 0, 0))
+    beam = make(bases, kept)
+    identify(beam, train, inputs=inputs)
+    c_train, c_test = compare(beam, train, inputs), compare(beam, test, inputs)
+    rows, pick = trade_report(train, test, make, inputs, out, tolerance=0.03)
+    return {"dvs": {"modes": int(kept[2]), "energy": info[2]["energy"],
+                    "tip_error_train_pct": 100 * float(c_train["tip_error"].max()),
+                    "tip_error_test_pct": 100 * float(c_test["tip_error"].max()),
+                    "beam_solve_ms": 1e3 * c_test["solve_time"], "fem_test_solve_s": fem_test_s,
+                    "speedup": fem_test_s / c_test["solve_time"]},
+            "trade": rows, "selected": pick}
 
 
 def main(out: Path, quick: bool = False) -> dict:
@@ -102,9 +136,23 @@ def main(out: Path, quick: bool = False) -> dict:
     traj.save(out / "pneunet_inflation.h5", cavities=())
     timings["fem_s"] = time.perf_counter() - t0
 
-    # 4. report
+    # 4. DVS beam model from the snapshots (and a test solve at a pressure between the training steps)
+    t0 = time.perf_counter()
+    p_test = 0.55 * p_max
+    fem_t = Fem(msh, materials.DragonSkin10(), degree=2)
+    fem_t.add_material("layer", materials.Elastic50A())
+    fem_t.add_support("left")
+    for cavity in msh.cavities:
+        fem_t.add_pressure(cavity, p_max)
+    t1 = time.perf_counter()
+    fem_t.solve(t_end=p_test / p_max, steps=2 if quick else 4).save(out / "pneunet_test.h5", cavities=())
+    fem_test_s = time.perf_counter() - t1
+    dvs = dvs_stage(out, msh.cavities[0], fem_test_s) if rank0 else {}
+    timings["dvs_s"] = time.perf_counter() - t0
+
+    # 5. report
     summary = {
-        "stages": ["design", "mesh", "fem_snapshots"],
+        "stages": ["design", "mesh", "fem_snapshots", "dvs_beam_model"],
         "section_area_mm2": props.area / mm**2,
         "cells": msh.num_cells,
         "cavities": len(msh.cavities),
@@ -115,6 +163,7 @@ def main(out: Path, quick: bool = False) -> dict:
         "timings_s": timings,
     }
     if rank0:
+        summary.update(dvs)
         angles = np.degrees(np.unwrap([tip_angle(traj, k) for k in range(len(traj))]))
         pressure = traj.inputs[f"pressure/{msh.cavities[0]}"] / kPa
         summary["bending_angle_deg"] = float(angles[-1])

@@ -25,8 +25,11 @@ def check_chain(report, out):
     assert report["cavity_volume_change_rel"] > 0
     snap = Snapshots(out / report["snapshot"])
     assert snap.n_steps >= 5 and snap.inputs["pressure/cavity_0"][-1] == pytest.approx(report["max_pressure_kPa"] * 1e3)
-    for name in ("design.png", "mesh.png", "deformed.png", "bending.png"):
+    for name in ("design.png", "mesh.png", "deformed.png", "bending.png", "trade.png", "trade.txt"):
         assert (out / name).stat().st_size > 0
+    assert report["stages"][3] == "dvs_beam_model"
+    assert report["dvs"]["tip_error_train_pct"] < 3.0 and report["dvs"]["tip_error_test_pct"] < 5.0
+    assert report["selected"] is not None and len(report["trade"]) >= 15
 
 
 def check_sdf_gallery(report, out):
