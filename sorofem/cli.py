@@ -7,6 +7,13 @@
 ``soro demo [NAME] [--quick] [--out DIR]``
     Run ``demos/NAME.py`` (default: ``chain``, the end-to-end job) and write its report (PNG figures and
     ``report.json``) to ``DIR/NAME/`` (default ``out/NAME/``). ``soro demo --list`` lists the demos.
+``soro sweep CONFIG.toml [--out DIR] [--group-size K] [--retry-failed] [--dry-run]``
+    Run a batch of FEM cases described by a TOML file (format: :mod:`sorofem.sweep`), one snapshot file and
+    one status file per case plus ``manifest.json`` in ``DIR`` (default ``out/sweeps/<config name>/``).
+    Resumable: run it again after an interruption and only the missing cases run; ``--retry-failed`` runs
+    the failed ones again. Under ``mpirun -n N`` cases run side by side on groups of ``K`` ranks.
+    ``--dry-run`` prints the case table (with each case's status in ``DIR``) and runs nothing. Exit status
+    0 when every case is done, 1 when some failed, 2 for an invalid configuration.
 
 This module imports only the standard library at load time; every check imports what it tests.
 """
@@ -22,7 +29,7 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ["main", "doctor", "run_demo", "list_demos", "DEMOS_DIR"]
+__all__ = ["main", "doctor", "run_demo", "list_demos", "run_sweep", "DEMOS_DIR"]
 
 #: Where ``soro demo`` looks for demo scripts (the repository's ``demos/``; ``$SORO_DEMOS`` overrides).
 DEMOS_DIR = Path(os.environ.get("SORO_DEMOS", Path(__file__).resolve().parents[1] / "demos"))
@@ -196,6 +203,62 @@ def run_demo(name=DEFAULT_DEMO, out="out", quick=False):
     return summary
 
 
+def _world_rank():
+    """This process's rank under mpirun (from the launcher's environment; 0 without MPI), without importing MPI."""
+    for var in ("OMPI_COMM_WORLD_RANK", "PMI_RANK", "PMIX_RANK"):
+        if os.environ.get(var, "").isdigit():
+            return int(os.environ[var])
+    return 0
+
+
+def run_sweep(config, out=None, group_size=1, retry_failed=False, dry_run=False, stream=None):
+    """``soro sweep``: run (or with ``dry_run`` list) the cases of a sweep configuration; return the exit status.
+
+    0 when every case is done, 1 when a case failed (or is still pending), 2 when the configuration is
+    invalid. World rank 0 prints one line per finished case and a one-line summary to ``stream``.
+    """
+    from .errors import SoroError
+    from .sweep import Sweep, format_record
+
+    stream = stream or sys.stdout
+    rank0 = _world_rank() == 0
+    out = Path(out) if out is not None else Path("out") / "sweeps" / Path(config).stem
+    try:
+        sweep = Sweep.from_toml(config)
+        if dry_run:
+            table = sweep.table(out)
+    except SoroError as e:
+        if rank0:
+            print(f"soro sweep: {e}", file=sys.stderr)
+        return 2
+    if dry_run:
+        if rank0:
+            print(table, file=stream)
+            print(f"{len(sweep)} cases; output directory {out}", file=stream)
+        return 0
+
+    def progress(rec, done, total):
+        print(format_record(rec, done, total), file=stream, flush=True)
+
+    t0 = time.perf_counter()
+    try:
+        manifest = sweep.run(out, group_size=group_size, retry_failed=retry_failed, progress=progress)
+    except SoroError as e:
+        if rank0:
+            print(f"soro sweep: {e}", file=sys.stderr)
+        return 2
+    counts = manifest["counts"]
+    failed = [c["id"] for c in manifest["cases"] if c["status"] == "failed"]
+    if rank0:
+        line = (f"sweep: {manifest['n_cases']} cases: {counts['done']} done, {counts['failed']} failed, "
+                f"{counts['pending']} pending ({time.perf_counter() - t0:.1f} s); manifest {out / 'manifest.json'}")
+        if failed:
+            more = " ..." if len(failed) > 10 else ""
+            line += f"; failed: {', '.join(failed[:10])}{more} (--retry-failed reruns them)"
+        print(line, file=stream, flush=True)
+    return 0 if counts["failed"] == 0 and counts["pending"] == 0 else 1
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="soro", description="Soft-robot design, simulation and control.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -205,6 +268,13 @@ def main(argv=None):
     p.add_argument("--quick", action="store_true", help="short run (what the tests use)")
     p.add_argument("--out", default="out", help="output directory (default: out)")
     p.add_argument("--list", action="store_true", help="list the demos and exit")
+    p = sub.add_parser("sweep", help="run a batch of FEM cases from a TOML configuration (resumable, MPI)")
+    p.add_argument("config", help="sweep configuration (TOML; format in sorofem.sweep)")
+    p.add_argument("--out", default=None, help="output directory (default: out/sweeps/<config name>)")
+    p.add_argument("--group-size", type=int, default=1, metavar="K",
+                   help="MPI ranks per case under mpirun (default: 1)")
+    p.add_argument("--retry-failed", action="store_true", help="run the cases that failed before again")
+    p.add_argument("--dry-run", action="store_true", help="print the case table and exit")
     args = parser.parse_args(argv)
 
     if args.command == "doctor":
@@ -221,6 +291,13 @@ def main(argv=None):
         print(json.dumps(summary, indent=2, default=str))
         print(f"report: {Path(args.out) / args.name / 'report.json'}")
         return 0
+    if args.command == "sweep":
+        try:
+            return run_sweep(args.config, out=args.out, group_size=args.group_size, retry_failed=args.retry_failed,
+                             dry_run=args.dry_run)
+        except KeyboardInterrupt:
+            print("interrupted: run the same command again to resume", file=sys.stderr)
+            return 130
     return 2  # pragma: no cover - argparse rejects unknown commands
 
 

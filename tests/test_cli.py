@@ -1,4 +1,5 @@
-"""The `soro` command: doctor (versions, JIT, MPI, fixes) and the demo runner."""
+"""The `soro` command: doctor (versions, JIT, MPI, fixes), the demo runner and the sweep subcommand
+(whose runs are tested in tests/sorofem/test_sweep.py)."""
 import json
 import subprocess
 import sys
@@ -55,3 +56,18 @@ def test_run_demo_writes_report(tmp_path, monkeypatch):
     assert report["value"] == 2.5 and report["quick"] is True and report["demo"] == "tiny"
     assert summary["wall_time_s"] >= 0
     assert (tmp_path / "out/tiny/x.txt").read_text() == "hi"
+
+
+def test_sweep_subcommand_options_and_lazy_import(capsys):
+    res = subprocess.run([sys.executable, "-c", "import sys, sorofem.cli; "
+                          "print('sorofem.sweep' in sys.modules, 'numpy' in sys.modules)"],
+                         capture_output=True, text=True, check=True)
+    assert res.stdout.split() == ["False", "False"], "sorofem.cli must import only the standard library"
+    with pytest.raises(SystemExit) as exit_:
+        cli.main(["sweep", "--help"])
+    assert exit_.value.code == 0
+    text = capsys.readouterr().out
+    for option in ("config", "--out", "--group-size", "--retry-failed", "--dry-run"):
+        assert option in text
+    assert cli.main(["sweep", "no/such/config.toml"]) == 2
+    assert "no sweep configuration at no/such/config.toml" in capsys.readouterr().err

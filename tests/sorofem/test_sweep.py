@@ -1,0 +1,432 @@
+"""Parameter sweeps (sorofem.sweep, `soro sweep`): sampling, configuration errors, snapshots and manifest,
+failure isolation, resume after a killed run, and MPI groups giving the serial results."""
+import inspect
+import json
+import math
+import os
+import subprocess
+import sys
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sorofem import cli
+from sorofem.errors import ParameterError
+from sorofem.sweep import MODES, SOLVE_KEYS, Sweep, grid, latin_hypercube
+
+REPO = Path(__file__).resolve().parents[2]
+SORO = [sys.executable, "-m", "sorofem.cli"]
+
+# A tiny 2D case: a 20 x 10 mm block with a circular cavity, clamped on the left, P1, ~120 cells (0.05 s a case
+# once the forms are compiled). Environment variables let the tests count builder calls (one marker file per
+# call in $SWEEP_TEST_MARKS) and kill the process hard at the (N+1)-th call ($SWEEP_TEST_EXIT_AFTER = N).
+BUILDER = '''
+import os
+import tempfile
+
+from sorofem import materials, sdf
+
+
+def build(params, comm):
+    marks = os.environ.get("SWEEP_TEST_MARKS")
+    if marks:
+        exit_after = os.environ.get("SWEEP_TEST_EXIT_AFTER")
+        if exit_after is not None and len(os.listdir(marks)) >= int(exit_after):
+            os._exit(3)  # killed: no cleanup, no status, no snapshot
+        key = f"{params['pressure']:g}-{params['material']}-{params.get('max_iterations', 25)}"
+        fd, _ = tempfile.mkstemp(prefix=key + ".", dir=marks)
+        os.close(fd)
+    if params["pressure"] < 0:
+        raise ValueError(f"negative pressure {params['pressure']:g} Pa")
+    from sorofem.fem import Fem
+    from sorofem.mesh import Mesh
+
+    body = sdf.Rectangle(0.02, 0.01, center=(0.01, 0.0)) - sdf.Circle(0.0025, center=(0.01, 0.0))
+    msh = Mesh.from_sdf(body, size=params.get("size", 0.002), comm=comm)
+    fem = Fem(msh, materials.PRESETS[params["material"]](), degree=1).add_support("left")
+    fem.add_pressure("cavity_0", params["pressure"])
+    if "max_iterations" in params:
+        return fem, {"max_iterations": params["max_iterations"]}
+    return fem
+
+
+def summary(traj, params):
+    if traj.comm.rank == 0:
+        return {"max_u": float(abs(traj.displacement[-1]).max())}
+'''
+
+
+def _config(folder, parameters, mode="grid", sweep="", fixed="", solve="steps = 2", head=None):
+    """Write case.py and sweep.toml into ``folder``; return the config path."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "case.py").write_text(BUILDER)
+    head = 'builder = "case.py:build"\nsummary = "case.py:summary"\n' if head is None else head
+    text = (f'{head}\n[sweep]\nmode = "{mode}"\n{sweep}\n\n[parameters]\n{parameters}\n\n'
+            f"[fixed]\n{fixed}\n\n[solve]\n{solve}\n")
+    path = folder / "sweep.toml"
+    path.write_text(text)
+    return path
+
+
+def _marks(folder):
+    """Builder calls per case key (from the marker files)."""
+    return Counter(p.name.rsplit(".", 1)[0] for p in Path(folder).iterdir())
+
+
+# ---------------------------------------------------------------------------------------------- sampling
+def test_grid_is_every_combination_in_order():
+    cases = grid({"p": [1.0, 2.0, 3.0], "m": ["Ecoflex0030", "DragonSkin10"], "h": {"linspace": [0.0, 1.0, 3]}})
+    assert len(cases) == 3 * 2 * 3
+    assert cases[0] == {"p": 1.0, "m": "Ecoflex0030", "h": 0.0}
+    assert cases[1] == {"p": 1.0, "m": "Ecoflex0030", "h": 0.5}  # the last parameter varies fastest
+    assert cases[-1] == {"p": 3.0, "m": "DragonSkin10", "h": 1.0}
+    assert len({json.dumps(c) for c in cases}) == len(cases)
+    assert grid({"n": {"choices": [2, 3]}}) == [{"n": 2}, {"n": 3}]
+
+
+def test_lhs_counts_bounds_strata_and_seed():
+    params = {"pressure": [1e3, 5e3], "thickness": {"range": [1e-3, 2e-3]},
+              "material": ["Ecoflex0030", "DragonSkin10", "Ecoflex0050"], "steps": {"choices": [2, 4]}}
+    n = 12
+    a = latin_hypercube(params, n, seed=3)
+    assert len(a) == n and all(set(c) == set(params) for c in a)
+    assert a == latin_hypercube(params, n, seed=3)  # reproducible
+    assert a != latin_hypercube(params, n, seed=4)
+    for name, (lo, hi) in (("pressure", (1e3, 5e3)), ("thickness", (1e-3, 2e-3))):
+        v = np.array([c[name] for c in a])
+        assert np.all((lo <= v) & (v < hi))
+        assert sorted(np.floor((v - lo) / (hi - lo) * n).astype(int)) == list(range(n))  # one per stratum
+    # categorical: stratified over the choices, so each is drawn n/k times
+    assert Counter(c["material"] for c in a) == {"Ecoflex0030": 4, "DragonSkin10": 4, "Ecoflex0050": 4}
+    assert Counter(c["steps"] for c in a) == {2: 6, 4: 6}
+    # the columns are independent permutations: not all in the same order
+    assert [c["pressure"] for c in a] != sorted(c["pressure"] for c in a)
+
+
+def test_lhs_categorical_is_uniform_over_many_seeds():
+    counts = Counter()
+    for seed in range(200):
+        counts.update(c["m"] for c in latin_hypercube({"m": ["a", "b", "c"]}, samples=1, seed=seed))
+    assert all(50 <= counts[k] <= 85 for k in "abc"), counts  # 200/3 = 66.7 each, binomial sd 6.7
+
+
+def test_sweep_from_config_lhs_and_fixed(tmp_path):
+    cfg = _config(tmp_path, 'pressure = [1e3, 3e3]\nmaterial = ["Ecoflex0030", "DragonSkin10"]', mode="lhs",
+                  sweep="samples = 6", fixed="size = 0.003")
+    sweep = Sweep.from_toml(cfg)
+    assert sweep.mode == "lhs" and sweep.seed == 0 and len(sweep) == 6
+    expected = latin_hypercube({"pressure": [1e3, 3e3], "material": ["Ecoflex0030", "DragonSkin10"]}, 6, seed=0)
+    assert sweep.cases == [{"size": 0.003, **c} for c in expected]
+    assert [sweep.case_id(i) for i in (0, 5)] == ["case_0000", "case_0005"]
+    table = sweep.table()
+    assert "lhs, 6 cases" in table and "case_0005" in table and "DragonSkin10" in table
+
+
+def test_solve_keys_are_arguments_of_fem_solve():
+    from sorofem.fem import Fem
+    assert set(SOLVE_KEYS) <= set(inspect.signature(Fem.solve).parameters)
+    assert MODES == ("grid", "lhs")
+
+
+# ---------------------------------------------------------------------------------------------- bad configs
+GOOD_HEAD = 'builder = "case.py:build"\n'
+BAD = {
+    "missing builder": (dict(head=""), "builder: missing"),
+    "unknown top-level key": (dict(head=GOOD_HEAD + 'outdir = "x"\n'), "outdir: unknown key"),
+    "unknown mode": (dict(mode="random"), "sweep.mode: unknown mode 'random'"),
+    "unknown sweep key": (dict(sweep="sample = 4"), "sweep.sample: unknown key"),
+    "grid with samples": (dict(sweep="samples = 4"), "sweep.samples: only mode = \"lhs\""),
+    "lhs without samples": (dict(mode="lhs"), "sweep.samples: mode = \"lhs\" needs"),
+    "lhs bad samples": (dict(mode="lhs", sweep="samples = 0"), "sweep.samples: must be a positive integer"),
+    "reversed range": (dict(mode="lhs", sweep="samples = 4", parameters="pressure = [5e3, 1e3]"),
+                       r"parameters.pressure: the range \[lo, hi\] needs finite lo < hi"),
+    "three-number range": (dict(mode="lhs", sweep="samples = 4", parameters="pressure = [1.0, 2.0, 3.0]"),
+                           "parameters.pressure: in lhs mode a parameter is a range"),
+    "range in a grid": (dict(parameters="pressure = { range = [1.0, 2.0] }"),
+                        "parameters.pressure: a range is sampled by mode = \"lhs\""),
+    "scalar in a grid": (dict(parameters="pressure = 2e3"), "parameters.pressure: a grid parameter is a list"),
+    "empty list": (dict(parameters="pressure = []"), "parameters.pressure: the list of values is empty"),
+    "not finite": (dict(parameters="pressure = [1e3, nan]"), r"parameters.pressure\[1\]: nan is not a finite"),
+    "unknown material": (dict(parameters='material = ["Ecoflex0030", "Ecoflx"]'),
+                         r"parameters.material\[1\]: unknown material preset 'Ecoflx'; known presets: Ecoflex0010"),
+    "unknown lhs material": (dict(mode="lhs", sweep="samples = 2", parameters='body_material = ["Nope"]'),
+                             r"parameters.body_material\[0\]: unknown material preset 'Nope'"),
+    "unknown fixed material": (dict(fixed='material = "Rubber"'), "fixed.material: unknown material preset"),
+    "fixed and varied": (dict(fixed="pressure = 1.0"), r"fixed: \['pressure'\] are also in \[parameters\]"),
+    "unknown solve key": (dict(solve="stpes = 3"), "solve.stpes: not a setting of Fem.solve"),
+    "no parameters": (dict(parameters=""), "parameters: no parameters"),
+    "builder file missing": (dict(head='builder = "nope.py:build"\n'), r"builder: no file .*nope.py"),
+    "builder function missing": (dict(head='builder = "case.py:nope"\n'), "builder: .*case.py has no function 'nope'"),
+    "builder module missing": (dict(head='builder = "no_such_pkg.cases:build"\n'),
+                               "builder: cannot import module 'no_such_pkg.cases'"),
+    "builder without function": (dict(head='builder = "case.py"\n'), "builder: expected \"file.py:function\""),
+    "summary missing": (dict(head=GOOD_HEAD + 'summary = "case.py:post"\n'), "summary: .* has no function 'post'"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BAD))
+def test_bad_configs_name_the_key(tmp_path, name):
+    kwargs, match = BAD[name]
+    kwargs = {"parameters": 'pressure = [2e3]\nmaterial = ["Ecoflex0030"]', **kwargs}
+    cfg = _config(tmp_path, **kwargs)
+    with pytest.raises(ParameterError, match=match):
+        Sweep.from_toml(cfg)
+
+
+def test_a_builder_file_that_does_not_import(tmp_path):
+    cfg = _config(tmp_path, "pressure = [2e3]", head='builder = "broken.py:build"\n')
+    (tmp_path / "broken.py").write_text("def build(params, comm)\n    return None\n")
+    with pytest.raises(ParameterError, match=r"builder: importing .*broken.py failed: SyntaxError"):
+        Sweep.from_toml(cfg)
+
+
+def test_bad_config_on_the_command_line(tmp_path, capsys):
+    (tmp_path / "bad.toml").write_text('builder = "case.py:build"\n[sweep]\nmode = "grid"\n[parameters\n')
+    assert cli.main(["sweep", str(tmp_path / "bad.toml")]) == 2
+    assert "not valid TOML" in capsys.readouterr().err
+    cfg = _config(tmp_path, 'material = ["Ecoflx"]\npressure = [1.0]')
+    assert cli.main(["sweep", str(cfg), "--out", str(tmp_path / "out")]) == 2
+    assert "parameters.material[0]: unknown material preset 'Ecoflx'" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def test_group_size_must_fit_the_ranks(tmp_path):
+    sweep = Sweep.from_toml(_config(tmp_path, 'pressure = [2e3]\nmaterial = ["Ecoflex0030"]'))
+    with pytest.raises(ParameterError, match="group_size 2 is larger than the 1 MPI rank"):
+        sweep.run(tmp_path / "out", group_size=2)
+
+
+# ---------------------------------------------------------------------------------------------- running
+def test_sweep_writes_snapshots_and_manifest_and_skips_done_cases(tmp_path, monkeypatch, capsys):
+    from sorofem.snapshots import Snapshots
+
+    marks = tmp_path / "marks"
+    marks.mkdir()
+    monkeypatch.setenv("SWEEP_TEST_MARKS", str(marks))
+    cfg = _config(tmp_path, 'pressure = [2e3, 4e3]\nmaterial = ["Ecoflex0030", "DragonSkin10"]')
+    out = tmp_path / "out"
+    # the dry run lists the cases and creates nothing
+    assert cli.main(["sweep", str(cfg), "--out", str(out), "--dry-run"]) == 0
+    text = capsys.readouterr().out
+    assert "grid, 4 cases" in text and "case_0003  4000      DragonSkin10" in text and not out.exists()
+
+    sweep = Sweep.from_toml(cfg)
+    seen = []
+    manifest = sweep.run(out, progress=lambda rec, k, n: seen.append((rec["id"], rec["status"], k, n)))
+    assert seen == [(f"case_000{i}", "done", i + 1, 4) for i in range(4)]
+    assert manifest == json.loads((out / "manifest.json").read_text())
+    assert manifest["counts"] == {"done": 4, "failed": 0, "pending": 0}
+    assert manifest["format"] == "soro-sweep" and manifest["n_cases"] == 4 and manifest["world_size"] == 1
+    assert sorted(os.listdir(out)) == sorted(["manifest.json", *(f"case_000{i}.{e}" for i in range(4)
+                                                                  for e in ("h5", "json"))])
+    max_u = {}
+    for case in manifest["cases"]:
+        assert case["status"] == "done" and case["ranks"] == 1 and case["attempts"] == 1
+        assert case["wall_time_s"] > 0 and case["error"] is None
+        snap = Snapshots(out / case["snapshot"])
+        assert snap.metadata["case"] == {"id": case["id"], "index": case["index"], "params": case["params"],
+                                         "sweep": str(cfg)}
+        assert snap.n_steps == case["steps"] + 1 == 3
+        assert snap.inputs["pressure/cavity_0"][-1] == pytest.approx(case["params"]["pressure"])
+        u = snap.displacement()
+        assert np.all(np.isfinite(u)) and case["summary"]["max_u"] == pytest.approx(np.abs(u[-1]).max())
+        assert json.loads((out / f"{case['id']}.json").read_text())["status"] == "done"
+        max_u[case["params"]["pressure"], case["params"]["material"]] = case["summary"]["max_u"]
+    # physics: more pressure inflates more; the stiffer silicone deforms less
+    assert max_u[4e3, "Ecoflex0030"] > max_u[2e3, "Ecoflex0030"] > max_u[2e3, "DragonSkin10"] > 0
+    assert sum(_marks(marks).values()) == 4
+
+    # a second run finds everything done: no builder call, same results
+    again = sweep.run(out, progress=lambda *a: seen.append(a))
+    assert len(seen) == 4 and sum(_marks(marks).values()) == 4
+    assert [c["wall_time_s"] for c in again["cases"]] == [c["wall_time_s"] for c in manifest["cases"]]
+    # a removed snapshot makes its case pending again; only that one runs
+    (out / "case_0002.h5").unlink()
+    assert "case_0002  4000      Ecoflex0030   pending" in sweep.table(out)
+    sweep.run(out)
+    assert _marks(marks)["4000-Ecoflex0030-25"] == 2 and sum(_marks(marks).values()) == 5
+    assert (out / "case_0002.h5").is_file()
+
+
+def test_a_failing_case_is_recorded_and_the_others_complete(tmp_path, monkeypatch, capsys):
+    marks = tmp_path / "marks"
+    marks.mkdir()
+    monkeypatch.setenv("SWEEP_TEST_MARKS", str(marks))
+    # pressure < 0 makes the builder raise; max_iterations = 1 (returned by the builder as a solve setting)
+    # makes the solve fail with a ConvergenceError
+    cfg = _config(tmp_path, 'pressure = [2e3, -1.0, 4e3]\nmaterial = ["Ecoflex0030"]\nmax_iterations = [25, 1]')
+    out = tmp_path / "out"
+    assert cli.main(["sweep", str(cfg), "--out", str(out)]) == 1
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert len(lines) == 7
+    assert lines[2].startswith("[3/6] case_0002  failed") and "ValueError: negative pressure -1 Pa" in lines[2]
+    assert lines[-1].startswith("sweep: 6 cases: 2 done, 4 failed, 0 pending")
+    assert "failed: case_0001, case_0002, case_0003, case_0005" in lines[-1] and "--retry-failed" in lines[-1]
+    manifest = json.loads((out / "manifest.json").read_text())
+    status = {c["id"]: c for c in manifest["cases"]}
+    assert [status[f"case_000{i}"]["status"] for i in range(6)] == ["done", "failed", "failed", "failed", "done",
+                                                                     "failed"]
+    conv = status["case_0001"]
+    assert conv["error"].startswith("ConvergenceError: ") and "no convergence in 1 iterations" in conv["error"]
+    assert conv["load_level"] == 0.0 and conv["snapshot"] is None and conv["steps"] is None
+    bad = status["case_0002"]
+    assert bad["error"] == "ValueError: negative pressure -1 Pa"
+    assert "raise ValueError" in bad["traceback"] and "case.py" in bad["traceback"]
+    assert not (out / "case_0002.h5").exists() and (out / "case_0000.h5").is_file()
+    assert sum(_marks(marks).values()) == 6
+
+    # failed cases stay failed on a plain rerun; --retry-failed runs exactly them again
+    assert cli.main(["sweep", str(cfg), "--out", str(out)]) == 1
+    assert sum(_marks(marks).values()) == 6
+    capsys.readouterr()
+    assert cli.main(["sweep", str(cfg), "--out", str(out), "--retry-failed"]) == 1
+    assert "[4/4]" in capsys.readouterr().out
+    calls = _marks(marks)
+    assert calls["2000-Ecoflex0030-25"] == calls["4000-Ecoflex0030-25"] == 1
+    assert calls["2000-Ecoflex0030-1"] == calls["-1-Ecoflex0030-25"] == 2
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert [c["attempts"] for c in manifest["cases"]] == [1, 2, 2, 2, 1, 2]
+
+
+def test_resume_after_a_killed_run_completes_each_case_once(tmp_path, subprocess_env):
+    """The sweep process is killed hard (os._exit, no cleanup) when the third case starts; a second run
+    completes the three missing cases only, and every case ran its builder to completion exactly once."""
+    marks = tmp_path / "marks"
+    marks.mkdir()
+    cfg = _config(tmp_path, 'pressure = [1e3, 2e3, 3e3, 4e3, 5e3]\nmaterial = ["Ecoflex0030"]')
+    out = tmp_path / "out"
+    cmd = [*SORO, "sweep", str(cfg), "--out", str(out)]
+    env = {**subprocess_env, "SWEEP_TEST_MARKS": str(marks), "SWEEP_TEST_EXIT_AFTER": "2"}
+    res = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300, cwd=tmp_path)
+    assert res.returncode == 3, res.stdout + res.stderr
+    assert [ln.split()[1] for ln in res.stdout.splitlines()] == ["case_0000", "case_0001"]
+    visible = sorted(f for f in os.listdir(out) if not f.startswith("."))
+    assert visible == ["case_0000.h5", "case_0000.json", "case_0001.h5", "case_0001.json", "manifest.json"]
+    started = json.loads((out / "manifest.json").read_text())  # written at the start of the killed run
+    assert started["counts"] == {"done": 0, "failed": 0, "pending": 5}
+
+    env.pop("SWEEP_TEST_EXIT_AFTER")
+    res = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300, cwd=tmp_path)
+    assert res.returncode == 0, res.stdout + res.stderr
+    lines = res.stdout.splitlines()
+    assert [ln.split()[1] for ln in lines[:-1]] == ["case_0002", "case_0003", "case_0004"]
+    assert lines[-1].startswith("sweep: 5 cases: 5 done, 0 failed, 0 pending")
+    assert _marks(marks) == {f"{p}-Ecoflex0030-25": 1 for p in (1000, 2000, 3000, 4000, 5000)}
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert [c["status"] for c in manifest["cases"]] == ["done"] * 5
+    assert all(c["attempts"] == 1 for c in manifest["cases"])
+    assert not [f for f in os.listdir(out) if f.startswith(".")], "claims and temporary files are cleaned up"
+
+
+def test_an_output_directory_of_another_sweep_is_refused(tmp_path):
+    out = tmp_path / "out"
+    Sweep.from_toml(_config(tmp_path / "a", 'pressure = [2e3]\nmaterial = ["Ecoflex0030"]')).run(out)
+    other = Sweep.from_toml(_config(tmp_path / "b", 'pressure = [3e3]\nmaterial = ["Ecoflex0030"]'))
+    with pytest.raises(ParameterError, match="holds the results of another sweep: case_0000.json was run with"):
+        other.run(out)
+    with pytest.raises(ParameterError, match="another sweep"):
+        other.table(out)
+
+
+def _rectangle_fem(comm):
+    from sorofem import materials
+    from sorofem.fem import Fem
+    from sorofem.mesh import Mesh
+    return Fem(Mesh.rectangle(0.02, 0.01, 0.005, comm=comm), materials.Ecoflex0030()).add_support("left")
+
+
+def _not_a_fem(params, comm):
+    return {"fem": None}
+
+
+def _wrong_settings(params, comm):
+    return _rectangle_fem(comm), {"stepz": 3}
+
+
+def _serial_mesh(params, comm):
+    from mpi4py import MPI
+    return _rectangle_fem(MPI.COMM_SELF)
+
+
+def test_builder_contract_violations_fail_the_case_with_a_clear_message(tmp_path):
+    for builder, message in ((_not_a_fem, "returned dict; it must return a Fem, or (fem, solve_kwargs)"),
+                             (_wrong_settings, "returned solve settings ['stepz']; use t_end, steps")):
+        m = Sweep(builder, {"x": [1.0]}).run(tmp_path / builder.__name__)
+        assert m["counts"]["failed"] == 1
+        assert m["cases"][0]["error"].startswith("ParameterError: the builder ")
+        assert message in m["cases"][0]["error"]
+
+
+def test_the_example_sweep_config_loads_and_is_not_a_demo():
+    sweep = Sweep.from_toml(REPO / "demos/sweeps/pneunet.toml")
+    assert sweep.mode == "grid" and len(sweep) == 6
+    assert {c["material"] for c in sweep.cases} == {"Ecoflex0030", "DragonSkin10"}
+    assert sweep.builder.__name__ == "build" and sweep.summary.__name__ == "summary"
+    assert not {"sweeps", "pneunet_case", "pneunet"} & set(cli.list_demos())
+
+
+@pytest.mark.slow
+def test_the_example_pneunet_case_bends(tmp_path):
+    """One case of the example sweep: the actuator curls toward its layer (tip angle > 0, grows with p)."""
+    sweep = Sweep.from_toml(REPO / "demos/sweeps/pneunet.toml")
+    sweep.cases = [c for c in sweep.cases if c["material"] == "Ecoflex0030"][:2]
+    m = sweep.run(tmp_path / "out")
+    angles = [c["summary"]["tip_angle_deg"] for c in m["cases"]]
+    assert m["counts"]["done"] == 2 and 0 < angles[0] < angles[1]
+
+
+# ---------------------------------------------------------------------------------------------- MPI
+def _vertex_order(X):
+    """Indices sorting the vertices by their coordinates (the same mesh numbered differently on N ranks)."""
+    key = np.round(X / np.abs(X).max(), 9)
+    return np.lexsort(key.T[::-1])
+
+
+@pytest.mark.mpi
+def test_mpi_groups_give_the_serial_results(tmp_path_factory):
+    from mpi4py import MPI
+
+    from sorofem.snapshots import Snapshots
+
+    comm = MPI.COMM_WORLD
+    if comm.size < 2:
+        pytest.skip("run under mpirun -n 2 (make test does)")
+    base = Path(comm.bcast(str(tmp_path_factory.mktemp("sweep")) if comm.rank == 0 else None, root=0))
+    if comm.rank == 0:
+        _config(base, 'pressure = [2e3, 4e3]\nmaterial = ["Ecoflex0030", "DragonSkin10"]')
+    comm.Barrier()
+    sweep = Sweep.from_toml(base / "sweep.toml")
+    seen = []
+    m1 = sweep.run(base / "g1", comm=comm, group_size=1, progress=lambda rec, k, n: seen.append(rec["id"]))
+    m2 = sweep.run(base / "g2", comm=comm, group_size=comm.size)
+    for m, ranks in ((m1, 1), (m2, comm.size)):
+        assert m["counts"] == {"done": 4, "failed": 0, "pending": 0}
+        assert {c["ranks"] for c in m["cases"]} == {ranks} and m["world_size"] == comm.size
+    # (assertions on data every rank holds, so that a failure stops every rank instead of hanging one)
+    seen = comm.allgather(seen)
+    assert sorted(seen[0]) == [f"case_000{i}" for i in range(4)] and not any(seen[1:])  # reported on rank 0
+    assert {c["group"] for c in m1["cases"]} == set(range(comm.size))  # cases went to every group
+    # a builder that ignores the communicator it gets is caught (and does not hang the group)
+    m = Sweep(_serial_mesh, {"x": [1.0]}).run(base / "wrong", comm=comm, group_size=comm.size)
+    assert m["counts"]["failed"] == 1
+    assert f"built its mesh on a communicator of 1 rank(s), not on the case's ({comm.size})" in m["cases"][0]["error"]
+    ms = sweep.run(base / "serial", comm=MPI.COMM_SELF) if comm.rank == 0 else None
+    comm.Barrier()
+    if comm.rank != 0:
+        return
+    assert ms["counts"]["done"] == 4
+    for case in ms["cases"]:
+        ref = Snapshots(base / "serial" / case["snapshot"])
+        for group in ("g1", "g2"):
+            snap = Snapshots(base / group / case["snapshot"])
+            assert snap.metadata["case"]["params"] == case["params"]
+            np.testing.assert_array_equal(snap.times, ref.times)
+            i, j = _vertex_order(snap.vertices), _vertex_order(ref.vertices)
+            np.testing.assert_allclose(snap.vertices[i], ref.vertices[j], rtol=0, atol=1e-14)
+            np.testing.assert_allclose(snap.displacement()[:, i], ref.displacement()[:, j], rtol=0, atol=1e-10)
+            assert abs(snap.displacement()[-1]).max() > 1e-5  # the cases really deformed
+            assert math.isclose(snap.cavity_volumes["cavity_0"][-1], ref.cavity_volumes["cavity_0"][-1],
+                                rel_tol=1e-9)
