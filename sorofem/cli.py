@@ -7,6 +7,11 @@
 ``soro demo [NAME] [--quick] [--out DIR]``
     Run ``demos/NAME.py`` (default: ``chain``, the end-to-end job) and write its report (PNG figures and
     ``report.json``) to ``DIR/NAME/`` (default ``out/NAME/``). ``soro demo --list`` lists the demos.
+``soro trade [TRAIN.h5 TEST.h5 --backbone X0,Y0[,Z0]:X1,Y1[,Z1] [--input NAME]] [--tolerance T] [--out DIR]``
+    The speed-accuracy trade of beam models (DVS, Chebyshev and PCC bases of 1-6 modes) against FEM
+    snapshots (:func:`soroshapes.dvs.trade_files`): a table of tip and shape errors and time per solve, a
+    PNG, and the cheapest model within the tolerance (a fraction of the length, default 0.03). Without files
+    it runs the PneuNet of ``demos/dvs_pneunet.py`` (``--quick`` for a short run).
 ``soro sweep CONFIG.toml [--out DIR] [--group-size K] [--retry-failed] [--dry-run]``
     Run a batch of FEM cases described by a TOML file (format: :mod:`sorofem.sweep`), one snapshot file and
     one status file per case plus ``manifest.json`` in ``DIR`` (default ``out/sweeps/<config name>/``).
@@ -29,7 +34,7 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ["main", "doctor", "run_demo", "list_demos", "run_sweep", "DEMOS_DIR"]
+__all__ = ["main", "doctor", "run_demo", "list_demos", "run_sweep", "run_trade", "DEMOS_DIR"]
 
 #: Where ``soro demo`` looks for demo scripts (the repository's ``demos/``; ``$SORO_DEMOS`` overrides).
 DEMOS_DIR = Path(os.environ.get("SORO_DEMOS", Path(__file__).resolve().parents[1] / "demos"))
@@ -259,6 +264,42 @@ def run_sweep(config, out=None, group_size=1, retry_failed=False, dry_run=False,
     return 0 if counts["failed"] == 0 and counts["pending"] == 0 else 1
 
 
+def run_trade(train=None, test=None, backbone=None, inputs=None, tolerance=0.03, out=None, quick=False,
+              stream=None):
+    """``soro trade``: the speed-accuracy table for two snapshot files along a backbone, or for the PneuNet
+    demo when no file is given. Prints the table; returns the exit status (1 if no model meets the
+    tolerance, 2 for bad arguments)."""
+    stream = stream or sys.stdout
+    if train is None:
+        if test is not None or backbone is not None:
+            print("soro trade: give both TRAIN and TEST snapshot files with --backbone, or none", file=sys.stderr)
+            return 2
+        out = Path(out or "out")
+        report = run_demo("dvs_pneunet", out=out, quick=quick)
+        print((out / "dvs_pneunet" / "trade.txt").read_text(), file=stream)
+        pick = next((r for r in sorted(report["trade"], key=lambda r: r["solve_time_s"])
+                     if r["tip_error_test"] <= tolerance), None)
+    else:
+        from sorofem.errors import SoroError
+        from soroshapes.dvs import Backbone, trade_files
+        if test is None or backbone is None:
+            print("soro trade: TRAIN needs a TEST file and --backbone", file=sys.stderr)
+            return 2
+        try:
+            points = [[float(v) for v in p.split(",")] for p in backbone.split(":")]
+            rows, pick, text = trade_files(train, test, Backbone(points), inputs=inputs, tolerance=tolerance,
+                                           out=Path(out or "out/trade"))
+        except (ValueError, SoroError) as e:
+            print(f"soro trade: {e}", file=sys.stderr)
+            return 2
+        print(text, file=stream)
+    if pick is None:
+        print(f"no model within {100 * tolerance:g} % of the length", file=stream)
+        return 1
+    print(f"selected: {pick['family']} with {pick['modes']} modes", file=stream)
+    return 0
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="soro", description="Soft-robot design, simulation and control.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -268,6 +309,14 @@ def main(argv=None):
     p.add_argument("--quick", action="store_true", help="short run (what the tests use)")
     p.add_argument("--out", default="out", help="output directory (default: out)")
     p.add_argument("--list", action="store_true", help="list the demos and exit")
+    p = sub.add_parser("trade", help="speed-accuracy trade of beam models against FEM snapshots")
+    p.add_argument("train", nargs="?", help="training snapshot file (default: the PneuNet demo's)")
+    p.add_argument("test", nargs="?", help="test snapshot file")
+    p.add_argument("--backbone", help="backbone polyline in the undeformed body, x0,y0[,z0]:x1,y1[,z1]:... [m]")
+    p.add_argument("--input", action="append", dest="inputs", help="input name(s) of the snapshot files")
+    p.add_argument("--tolerance", type=float, default=0.03, help="tip error bound, fraction of the length")
+    p.add_argument("--out", default=None, help="output directory")
+    p.add_argument("--quick", action="store_true", help="short PneuNet run (without files)")
     p = sub.add_parser("sweep", help="run a batch of FEM cases from a TOML configuration (resumable, MPI)")
     p.add_argument("config", help="sweep configuration (TOML; format in sorofem.sweep)")
     p.add_argument("--out", default=None, help="output directory (default: out/sweeps/<config name>)")
@@ -291,6 +340,8 @@ def main(argv=None):
         print(json.dumps(summary, indent=2, default=str))
         print(f"report: {Path(args.out) / args.name / 'report.json'}")
         return 0
+    if args.command == "trade":
+        return run_trade(args.train, args.test, args.backbone, args.inputs, args.tolerance, args.out, args.quick)
     if args.command == "sweep":
         try:
             return run_sweep(args.config, out=args.out, group_size=args.group_size, retry_failed=args.retry_failed,

@@ -34,13 +34,14 @@ Units: SI (m, rad/m, Pa).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from sorofem.errors import DataError, ParameterError
 
 __all__ = ["Backbone", "StrainData", "recover_strains", "dvs_basis", "Identified", "identify", "compare",
-           "trade", "cheapest", "trade_table", "trade_report", "polar_rotation", "mean_rotation"]
+           "trade", "cheapest", "trade_table", "trade_report", "trade_files", "polar_rotation", "mean_rotation"]
 
 
 # ------------------------------------------------------------------------------------------------------------
@@ -531,8 +532,6 @@ def trade_table(rows):
 def trade_report(train, test, make_shapes, inputs, out, tolerance=0.03, **kw):
     """:func:`trade`, then its table (``trade.txt``), a PNG of test tip error vs solve time (``trade.png``)
     and the selection within ``tolerance`` (a fraction of the length) in ``out``. Returns (rows, selected)."""
-    from pathlib import Path
-
     from sorofem.io import atomic_path
 
     rows = trade(train, test, make_shapes, inputs, **kw)
@@ -570,3 +569,28 @@ def trade_report(train, test, make_shapes, inputs, out, tolerance=0.03, **kw):
     with atomic_path(out / "trade.png") as tmp:
         fig.savefig(tmp, dpi=120, format="png")
     return rows, pick
+
+
+def trade_files(train_path, test_path, backbone, inputs=None, out="out/trade", tolerance=0.03, samples=81,
+                test_steps=None, **kw):
+    """The trade (:func:`trade_report`) from two snapshot files (training and test cases) and a backbone: the
+    beam models start at the backbone's first frame, with a 10 mm x 10 mm section of a 1 MPa material (the
+    stiffness scale is absorbed by the identified actuation of each model). ``inputs`` default to the first
+    input of the training file. Returns (rows, selected, table text)."""
+    from sorofem import materials, sdf
+
+    from .shapes import Shapes
+
+    train = recover_strains(train_path, backbone, samples=samples)
+    test = recover_strains(test_path, backbone, samples=samples, steps=test_steps)
+    inputs = [sorted(train.inputs)[0]] if inputs is None else list(inputs)
+    g0 = np.eye(4)
+    g0[:3, :3] = backbone.frames([0.0])[0]
+    g0[:3, 3] = backbone.positions([0.0])[0]
+    mat = materials.NeoHookean(E=1e6, nu=0.45, density=1000.0)
+
+    def make(bases, dofs):
+        return Shapes(bases, dofs, length=backbone.length, section=sdf.Rectangle(0.01, 0.01), material=mat, base=g0,
+                      damping=0.0, segments=40)
+    rows, pick = trade_report(train, test, make, inputs, out, tolerance=tolerance, **kw)
+    return rows, pick, (Path(out) / "trade.txt").read_text()

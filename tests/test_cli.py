@@ -71,3 +71,23 @@ def test_sweep_subcommand_options_and_lazy_import(capsys):
         assert option in text
     assert cli.main(["sweep", "no/such/config.toml"]) == 2
     assert "no sweep configuration at no/such/config.toml" in capsys.readouterr().err
+
+
+def test_soro_trade_on_snapshot_files(tmp_path):
+    """The trade from two snapshot files of a synthetic bending case (the DVS tests' field), through the CLI."""
+    import sys
+    sys.path.insert(0, str(Path(__file__).parent / "soroshapes"))
+    import numpy as np
+    from test_dvs import L, bar_mesh_2d, rod_field, write
+
+    V, cells = bar_mesh_2d(40, 2)
+    p = np.linspace(0, 1e4, 6)
+    fields = [rod_field(V, np.array([0, 0, 3e-3 * pk, 1, 0, 0])) for pk in p]
+    train = write(tmp_path / "train.h5", V, cells, "triangle", fields, inputs={"pressure": p})
+    test = write(tmp_path / "test.h5", V, cells, "triangle", [rod_field(V, np.array([0, 0, 16.5, 1, 0, 0]))],
+                 inputs={"pressure": [5.5e3]})
+    code = cli.main(["trade", str(train), str(test), "--backbone", f"0,0:{L},0", "--out", str(tmp_path / "t")])
+    assert code == 0
+    text = (tmp_path / "t" / "trade.txt").read_text()
+    assert "cheapest within 3 %" in text and (tmp_path / "t" / "trade.png").stat().st_size > 0
+    assert cli.main(["trade", str(train)]) == 2
