@@ -5,11 +5,13 @@ Purpose
 -------
 The seed's Sec. V-D4: FEM inflation snapshots of a PneuNet bending actuator become a low-dimensional beam
 model that keeps the geometry's character. The 2D (plane-strain) PneuNet of the ``pneunet_inflation`` demo is
-inflated by a pressure ramp (training) and, separately, to a pressure between the training samples (test).
+inflated by a pressure ramp (training), separately to a pressure between the training samples (test), and
+by the same ramp while it bends around a cylinder (contact).
 Along a backbone in its strain-limiting layer the bending strain is recovered from the snapshots
 (:func:`soroshapes.dvs.recover_strains`), three DVS bending modes are extracted by POD, the beam's actuation is
-identified on the training ramp (:func:`soroshapes.dvs.identify`), and the beam model is compared with FEM on
-both. The speed-accuracy trade of DVS, Chebyshev and PCC bases of 1 to 6 modes is tabulated
+identified on the free training ramp (:func:`soroshapes.dvs.identify`; the modes are learned from the free
+and the wrapping snapshots together), and the beam model is compared with FEM on the three cases (for the
+wrap, with the cylinder as an SDF contact of the beam). The speed-accuracy trade of DVS, Chebyshev and PCC bases of 1 to 6 modes is tabulated
 (:func:`soroshapes.dvs.trade`) and the cheapest model within 3 % of the length is selected.
 
 Parameters
@@ -23,7 +25,8 @@ quick : bool
 
 Figures
 -------
-``tip_error_train`` and ``tip_error_test`` (max over the snapshots, % of length) of the 3-mode DVS model,
+``tip_error_train``, ``tip_error_test`` and ``tip_error_contact`` (max over the snapshots, % of length) of
+the 3-mode DVS model,
 ``shape_error_*`` (rms backbone distance, % of length), ``beam_solve_ms``, ``fem_solve_s`` (the test solve)
 and ``speedup`` (FEM test solve time / beam static solve time), ``dvs_energy`` (fraction of the strain
 variance captured by 3 modes), the ``trade`` table and ``selected`` (cheapest model within 3 % of the length
@@ -47,8 +50,22 @@ def _pneunet():
     return mod
 
 
+#: The cylinder the actuator wraps around in the contact case: radius and centre, as fractions of the length
+#: (the centre below the bottom face, 1 mm of clearance).
+CYLINDER = (0.26, 0.55)
+
+
+def cylinder(length):
+    """(radius, (x, y)) of the obstacle [m]."""
+    r = CYLINDER[0] * length
+    return r, (CYLINDER[1] * length, -r - 1 * mm)
+
+
 def fem_snapshots(out, chambers, size, p_max, steps, p_test):
-    """Training ramp 0..p_max (``steps`` steps) and a test solve to ``p_test``; returns paths, length, times."""
+    """Training ramp 0..p_max (``steps`` steps), a test solve to ``p_test`` and the ramp with the actuator
+    wrapping a cylinder; returns the paths, the length, the test solve time, and the demo module."""
+    from sorofem import sdf
+
     pn = _pneunet()
     fem, length = pn.build(2, chambers, size, p_max)
     t0 = time.perf_counter()
@@ -58,7 +75,11 @@ def fem_snapshots(out, chambers, size, p_max, steps, p_test):
     t0 = time.perf_counter()
     fem.solve(t_end=p_test / p_max, steps=max(2, steps // 2), max_step=1.0 / steps).save(out / "test.h5")
     t_test = time.perf_counter() - t0
-    return out / "train.h5", out / "test.h5", length, t_train, t_test, pn
+    fem, _ = pn.build(2, chambers, size, p_max)
+    r, c = cylinder(length)
+    fem.add_contact(sdf.Circle(r, center=c))
+    fem.solve(steps=steps, max_step=1.0 / steps).save(out / "wrap.h5")
+    return out / "train.h5", out / "test.h5", out / "wrap.h5", length, t_train, t_test, pn
 
 
 def beam_factory(length, pn):
@@ -85,22 +106,33 @@ def main(out: Path, quick: bool = False) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     chambers, size, p_max, steps = (4, 1.2 * mm, 5 * kPa, 10) if quick else (7, 0.8 * mm, 6 * kPa, 16)
     p_test = 0.55 * p_max
-    train_h5, test_h5, length, t_train, t_test, pn = fem_snapshots(out, chambers, size, p_max, steps, p_test)
+    train_h5, test_h5, wrap_h5, length, t_train, t_test, pn = fem_snapshots(out, chambers, size, p_max, steps,
+                                                                             p_test)
 
     backbone = Backbone.line([0.0, pn.LAYER / 2], [length, pn.LAYER / 2])
     train = recover_strains(train_h5, backbone, samples=81)
     test = recover_strains(test_h5, backbone, samples=81)
     test = test.select([len(test.times) - 1])
+    wrap = recover_strains(wrap_h5, backbone, samples=81)
+    wrap = wrap.select([len(wrap.times) - 1])
     inputs = ["pressure/cavity_0"]
     make = beam_factory(length, pn)
+    r, c = cylinder(length)
 
-    bases, kept, info = dvs_basis(train, (0, 0, 3, 0, 0, 0))
+    def add_cylinder(shp):   # the backbone lies LAYER/2 above the bottom face: that is the radius that touches
+        from sorofem import sdf
+        shp.contact_radius = pn.LAYER / 2
+        return shp.add_contact(sdf.Cylinder(r, 1.0, center=(c[0], c[1], 0.0)))
+
+    bases, kept, info = dvs_basis([train, wrap], (0, 0, 3, 0, 0, 0))
     shp = make(bases, kept)
     ident = identify(shp, train, inputs=inputs)
     cmp_train, cmp_test = compare(shp, train, inputs), compare(shp, test, inputs)
     best = min(compare(shp, test, inputs)["solve_time"] for _ in range(3))
+    q_free = [shp.statics(u=[float(u)]) for u in train.inputs[inputs[0]]]
+    cmp_wrap = compare(add_cylinder(shp), wrap, inputs)
 
-    rows, pick = trade_report(train, test, make, inputs, out, tolerance=0.03)
+    rows, pick = trade_report(train, test, make, inputs, out, tolerance=0.03, contact=(wrap, add_cylinder))
 
     # figures
     s = train.sigma / length
@@ -120,13 +152,18 @@ def main(out: Path, quick: bool = False) -> dict:
     P_fem = train.positions()
     for k in range(0, len(train.times), max(1, len(train.times) // 5)):
         ax.plot(P_fem[k, :, 0] / mm, P_fem[k, :, 1] / mm, "k-", lw=2, alpha=0.5)
-        Pb = shp.positions(cmp_train["q"][k])
+        Pb = shp.positions(q_free[k])
         ax.plot(Pb[:, 0] / mm, Pb[:, 1] / mm, "C1--", lw=1.5)
     Pt = test.positions()[0]
     ax.plot(Pt[:, 0] / mm, Pt[:, 1] / mm, "C2-", lw=2, alpha=0.6, label=f"FEM test {p_test / kPa:.2f} kPa")
     Pb = shp.positions(cmp_test["q"][0])
     ax.plot(Pb[:, 0] / mm, Pb[:, 1] / mm, "C3--", lw=1.5, label="beam, test")
-    ax.plot([], [], "k-", alpha=0.5, label="FEM training ramp")
+    Pw = wrap.positions()[0]
+    ax.plot(Pw[:, 0] / mm, Pw[:, 1] / mm, "C4-", lw=2, alpha=0.6, label="FEM wrapping the cylinder")
+    Pb = shp.positions(cmp_wrap["q"][0])
+    ax.plot(Pb[:, 0] / mm, Pb[:, 1] / mm, "C5--", lw=1.5, label="beam with contact")
+    ax.add_patch(plt.Circle((c[0] / mm, c[1] / mm), r / mm, color="0.8", zorder=0))
+    ax.plot([], [], "k-", alpha=0.5, label="FEM training ramp (no obstacle)")
     ax.plot([], [], "C1--", label="3-mode DVS beam")
     ax.set_aspect("equal")
     ax.set_xlabel("x [mm]")
@@ -144,6 +181,8 @@ def main(out: Path, quick: bool = False) -> dict:
         "dvs_energy": info[2]["energy"], "fit_error": ident.fit_error,
         "tip_error_train": 100 * float(cmp_train["tip_error"].max()),
         "tip_error_test": 100 * float(cmp_test["tip_error"].max()),
+        "tip_error_contact": 100 * float(cmp_wrap["tip_error"].max()),
+        "shape_error_contact": 100 * float(cmp_wrap["shape_error"].max()),
         "shape_error_train": 100 * float(cmp_train["shape_error"].max()),
         "shape_error_test": 100 * float(cmp_test["shape_error"].max()),
         "beam_solve_ms": 1e3 * best, "fem_solve_s": t_test, "fem_ramp_s": t_train,

@@ -330,7 +330,7 @@ def dvs_basis(data, dofs, energy=None):
 
     Parameters
     ----------
-    data : :class:`StrainData`
+    data : :class:`StrainData` or a list of them (same backbone samples; their snapshots are pooled)
     dofs : 6 ints
         Number of modes per strain (as the ``dofs`` of :class:`~soroshapes.shapes.Shapes`); with ``energy``
         (a fraction in (0, 1]) they are upper bounds and each strain keeps the fewest modes whose squared
@@ -347,6 +347,12 @@ def dvs_basis(data, dofs, energy=None):
     dofs = [int(k) for k in dofs]
     if len(dofs) != 6 or min(dofs) < 0 or sum(dofs) == 0:
         raise ParameterError("dofs must be 6 non-negative integers, not all zero")
+    if isinstance(data, (list, tuple)):
+        if any(len(d.sigma) != len(data[0].sigma) or not np.allclose(d.sigma, data[0].sigma) for d in data):
+            raise ParameterError("pooled strain data must share their backbone samples")
+        data = StrainData(data[0].sigma, np.concatenate([d.xi for d in data]), data[0].xi0,
+                          np.concatenate([d.frames for d in data]), np.concatenate([d.times for d in data]),
+                          length=data[0].length)
     if energy is not None and not (0 < energy <= 1):
         raise ParameterError("energy must be a fraction in (0, 1]")
     w = data.weights
@@ -473,14 +479,17 @@ def compare(shapes, data, inputs):
 
 
 def trade(train, test, make_shapes, inputs, modes=range(1, 7), strain=2, families=("dvs", "chebyshev", "pcc"),
-          degree=3):
+          degree=3, contact=None):
     r"""The speed-accuracy trade of beam models of one FEM case.
 
     For each family (``"dvs"``: the POD of ``train``; ``"chebyshev"``; ``"pcc"``: piecewise constant on k
     equal sections) and each number of modes k, builds ``make_shapes(bases, dofs)`` with k modes on the strain
     ``strain`` (2 = bending about z, the planar bending), identifies its actuation on ``train``
     (:func:`identify`) and measures (:func:`compare`) the tip and shape errors on ``train`` and on ``test``
-    (snapshots not used for training) and the time per static solve. Returns a list of rows (dicts).
+    (snapshots not used for training) and the time per static solve. With ``contact = (data, add)``, the
+    DVS modes are learned from ``train`` and ``data`` together and each model, once identified, is also
+    compared with ``data`` after ``add(shapes)`` gave it the obstacle (columns ``*_contact``). Returns a list
+    of rows (dicts).
     """
     from .basis import Basis
 
@@ -490,7 +499,7 @@ def trade(train, test, make_shapes, inputs, modes=range(1, 7), strain=2, familie
             dofs = [0] * 6
             dofs[strain] = k
             if fam == "dvs":
-                bases, kept, _ = dvs_basis(train, dofs)
+                bases, kept, _ = dvs_basis([train, contact[0]] if contact else train, dofs)
                 if kept[strain] < k:
                     continue                   # the data hold fewer independent shapes than k
             elif fam == "chebyshev":
@@ -503,29 +512,41 @@ def trade(train, test, make_shapes, inputs, modes=range(1, 7), strain=2, familie
             shp = make_shapes(bases, tuple(dofs))
             identify(shp, train, inputs=inputs, degree=degree)
             tr, te = compare(shp, train, inputs), compare(shp, test, inputs)
-            rows.append({"family": fam, "modes": k, "tip_error_train": float(tr["tip_error"].max()),
-                         "shape_error_train": float(tr["shape_error"].max()),
-                         "tip_error_test": float(te["tip_error"].max()),
-                         "shape_error_test": float(te["shape_error"].max()),
-                         "solve_time_s": 0.5 * (tr["solve_time"] + te["solve_time"])})
+            row = {"family": fam, "modes": k, "tip_error_train": float(tr["tip_error"].max()),
+                   "shape_error_train": float(tr["shape_error"].max()),
+                   "tip_error_test": float(te["tip_error"].max()),
+                   "shape_error_test": float(te["shape_error"].max()),
+                   "solve_time_s": 0.5 * (tr["solve_time"] + te["solve_time"])}
+            if contact:
+                contact[1](shp)
+                co = compare(shp, contact[0], inputs)
+                row.update(tip_error_contact=float(co["tip_error"].max()),
+                           shape_error_contact=float(co["shape_error"].max()), solve_time_contact_s=co["solve_time"])
+            rows.append(row)
     return rows
 
 
-def cheapest(rows, tolerance, key="tip_error_test"):
-    """The row with the smallest solve time whose ``key`` error is at most ``tolerance`` (a fraction of the
-    length), or None."""
-    ok = [r for r in rows if r[key] <= tolerance]
+def cheapest(rows, tolerance, keys=("tip_error_test", "tip_error_contact")):
+    """The row with the smallest solve time whose errors ``keys`` (those present) are at most ``tolerance`` (a
+    fraction of the length), or None."""
+    ok = [r for r in rows if all(r[k] <= tolerance for k in keys if k in r)]
     return min(ok, key=lambda r: r["solve_time_s"]) if ok else None
 
 
 def trade_table(rows):
     """The trade rows as a text table (errors in % of the length, time in ms)."""
+    contact = bool(rows) and "tip_error_contact" in rows[0]
     head = f"{'family':<10} {'modes':>5} {'tip train %':>12} {'tip test %':>11} {'shape test %':>13} {'solve ms':>9}"
+    if contact:
+        head += f" {'tip contact %':>14} {'shape contact %':>16}"
     lines = [head, "-" * len(head)]
     for r in rows:
-        lines.append(f"{r['family']:<10} {r['modes']:>5} {100 * r['tip_error_train']:>12.3f} "
-                     f"{100 * r['tip_error_test']:>11.3f} {100 * r['shape_error_test']:>13.3f} "
-                     f"{1e3 * r['solve_time_s']:>9.3f}")
+        line = (f"{r['family']:<10} {r['modes']:>5} {100 * r['tip_error_train']:>12.3f} "
+                f"{100 * r['tip_error_test']:>11.3f} {100 * r['shape_error_test']:>13.3f} "
+                f"{1e3 * r['solve_time_s']:>9.3f}")
+        if contact:
+            line += f" {100 * r['tip_error_contact']:>14.3f} {100 * r['shape_error_contact']:>16.3f}"
+        lines.append(line)
     return "\n".join(lines)
 
 
@@ -554,14 +575,14 @@ def trade_report(train, test, make_shapes, inputs, out, tolerance=0.03, **kw):
         r = [row for row in rows if row["family"] == fam]
         if not r:
             continue
-        ax.loglog([row["solve_time_s"] * 1e3 for row in r], [max(100 * row["tip_error_test"], 1e-6) for row in r],
-                  mk, label=fam)
-        for row in r:
-            ax.annotate(str(row["modes"]), (row["solve_time_s"] * 1e3, max(100 * row["tip_error_test"], 1e-6)),
-                        fontsize=7)
+        err = [max(100 * max(row["tip_error_test"], row.get("tip_error_contact", 0.0)), 1e-6) for row in r]
+        ax.loglog([row["solve_time_s"] * 1e3 for row in r], err, mk, label=fam)
+        for row, e in zip(r, err):
+            ax.annotate(str(row["modes"]), (row["solve_time_s"] * 1e3, e), fontsize=7)
     ax.axhline(100 * tolerance, color="k", lw=0.8, ls=":")
     ax.set_xlabel("static solve [ms]")
-    ax.set_ylabel("tip error on the test data [% of L]")
+    ax.set_ylabel("tip error on the test data [% of L]" + (" (worst with contact)" if rows and
+                                                            "tip_error_contact" in rows[0] else ""))
     ax.set_title("speed-accuracy trade (labels: number of modes)")
     ax.legend()
     ax.grid(alpha=0.3, which="both")

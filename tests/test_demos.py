@@ -115,10 +115,13 @@ def check_dvs_pneunet(report, out):
     # the bars: 3 % of the length on the training ramp, 5 % at a pressure not trained on, 1000x faster
     assert report["dvs_modes"] == 3 and report["dvs_energy"] > 0.999
     assert report["tip_error_train"] < 3.0 and report["tip_error_test"] < 5.0
+    assert report["tip_error_contact"] < 5.0          # wrapping the cylinder, with the beam's SDF contact
     assert report["speedup"] > 1000
+    one_mode = [r for r in report["trade"] if r["modes"] == 1]
+    assert min(r["tip_error_contact"] for r in one_mode) > 0.03   # a constant curvature cannot wrap: the trade bites
     assert report["selected"] is not None and report["selected"]["tip_error_test"] <= 0.03
     assert {r["family"] for r in report["trade"]} == {"dvs", "chebyshev", "pcc"}
-    for name in ("modes.png", "shapes.png", "trade.png", "trade.txt", "train.h5", "test.h5"):
+    for name in ("modes.png", "shapes.png", "trade.png", "trade.txt", "train.h5", "test.h5", "wrap.h5"):
         assert (out / name).stat().st_size > 0
 
 
