@@ -229,6 +229,8 @@ class NewtonSolver:
                 if self.constraints else 0.0
             if it > 1 and rnorm <= max(self.rtol_r * r0, self.atol_r) and cons <= 1e-9:
                 return NewtonOutcome(True, it - 1, rnorm, cnorm)
+            if it == 1 and rnorm <= self.atol_r and not self.constraints:
+                return NewtonOutcome(True, 0, rnorm, 0.0)   # already in equilibrium (a KSP breaks down on b = 0)
             if it > 2 and rnorm > self.divergence_factor * r0:
                 return NewtonOutcome(False, it, rnorm, cnorm, f"residual grew from {r0:.3e} to {rnorm:.3e}")
             self.assemble_jacobian()

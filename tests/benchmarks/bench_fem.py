@@ -30,7 +30,7 @@ ROOT = Path(__file__).resolve().parents[2]
 PY = str(ROOT / ".venv" / "bin" / "python")
 
 # case -> (dim, chambers, element size [mm], pressure [kPa], load steps)
-CASES = {"2d": (2, 7, 0.43, 4.0, 4), "3d": (3, 7, 2.05, 6.0, 3)}
+CASES = {"2d": (2, 7, 0.43, 4.0, 4), "3d": (3, 7, 1.87, 6.0, 3)}
 KSP = {"lu": None, "gamg": {"ksp_type": "gmres", "pc_type": "gamg", "ksp_rtol": 1e-10, "ksp_max_it": 500}}
 
 
