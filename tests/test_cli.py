@@ -75,10 +75,8 @@ def test_sweep_subcommand_options_and_lazy_import(capsys):
 
 def test_soro_trade_on_snapshot_files(tmp_path):
     """The trade from two snapshot files of a synthetic bending case (the DVS tests' field), through the CLI."""
-    import sys
-    sys.path.insert(0, str(Path(__file__).parent / "soroshapes"))
     import numpy as np
-    from test_dvs import L, bar_mesh_2d, rod_field, write
+    from fields import L, bar_mesh_2d, rod_field, write
 
     V, cells = bar_mesh_2d(40, 2)
     p = np.linspace(0, 1e4, 6)
