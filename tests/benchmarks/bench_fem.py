@@ -31,7 +31,11 @@ PY = str(ROOT / ".venv" / "bin" / "python")
 
 # case -> (dim, chambers, element size [mm], pressure [kPa], load steps)
 CASES = {"2d": (2, 7, 0.43, 4.0, 4), "3d": (3, 7, 1.87, 6.0, 3)}
-KSP = {"lu": None, "gamg": {"ksp_type": "gmres", "pc_type": "gamg", "ksp_rtol": 1e-10, "ksp_max_it": 500}}
+# GAMG: flexible GMRES with Chebyshev/Jacobi smoothers (plain GMRES broke down, PETSc reason -5, near converged
+# Newton iterates of the PneuNet in 2D and 3D)
+KSP = {"lu": None, "gamg": {"ksp_type": "fgmres", "pc_type": "gamg", "ksp_rtol": 1e-10, "ksp_max_it": 1000,
+                            "ksp_gmres_restart": 200, "mg_levels_ksp_type": "chebyshev",
+                            "mg_levels_pc_type": "jacobi"}}
 
 
 def _demo():
