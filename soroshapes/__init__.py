@@ -3,13 +3,15 @@
 Runs without DOLFINx: it uses :mod:`sorofem.sdf` for sections and contact and reads FEM results only as
 snapshot files. Numba kernels compile on first use, not at import: submodules (:mod:`~soroshapes.lie` the
 SO(3)/SE(3) kernels, :mod:`~soroshapes.basis` the modal strain bases, :mod:`~soroshapes.shapes` the Cosserat
-beam model, :mod:`~soroshapes.render` tube rendering) and the public classes are loaded on first attribute
-access, so ``import soroshapes`` does not import numba.
+beam model, :mod:`~soroshapes.render` tube rendering, :mod:`~soroshapes.model` networks of beams, fluidic
+reservoirs and state-space systems) and the public classes are loaded on first attribute access, so
+``import soroshapes`` does not import numba.
 """
 import importlib
 
-_SUBMODULES = ("lie", "basis", "shapes", "render", "dvs")
-_CLASSES = {"Basis": "basis", "Shapes": "shapes", "BeamTrajectory": "shapes", "IKResult": "shapes"}
+_SUBMODULES = ("lie", "basis", "shapes", "render", "dvs", "model")
+_CLASSES = {"Basis": "basis", "Shapes": "shapes", "BeamTrajectory": "shapes", "IKResult": "shapes",
+            "Model": "model", "StateSpace": "model", "Fluidic": "model"}
 
 __all__: list[str] = [*_SUBMODULES, *_CLASSES]
 

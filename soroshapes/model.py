@@ -1,0 +1,972 @@
+r"""Networks of dynamic systems: ``StateSpace``, ``Fluidic`` reservoirs and ``Shapes`` beams composed in a ``Model``.
+
+The network (Sorotoki's ``Model``, eq. (24) of the paper)
+---------------------------------------------------------
+Each subsystem :math:`i` is a first-order system :math:`\dot x_i = f_i(x_i, w_i, t)`, where :math:`w_i` holds its
+inputs :math:`u_i` (and, for a :class:`Fluidic`, its volume :math:`V`). The model stacks the states,
+:math:`x = (x_1, \dots, x_N)`, and assembles every :math:`w_i` at the current :math:`(t, x)` from
+
+* the controller ``fn(model)`` (:meth:`Model.set_controller`), which gives the *free* inputs (those no coupling
+  drives) and reads the current state with ``model["finger"].x`` or ``model.state("finger", slice)``;
+* the couplings (:meth:`Model.connect`): an output of one system, or any callable of the model, feeds inputs of
+  another (chamber pressure -> beam input), or a callable gives a :class:`Fluidic` its volume (beam q -> V).
+
+so that the closed loop is one ODE :math:`\dot x = F(t, x) = (f_i(x_i, W_i(t, x), t))_i`. The controller and the
+couplings are part of :math:`F`: they are evaluated at every stage and every Newton iterate of the implicit
+integrators, so the closed loop keeps the integrator's order (a controller with internal memory must keep it
+in a :class:`StateSpace`, not in Python variables, for the same reason).
+
+A :class:`~soroshapes.shapes.Shapes` beam enters with the state :math:`x = (q, \dot q)` and
+
+.. math:: M(q)\ddot q = -C(q,\dot q)\dot q - D\dot q - Kq + f(q, \dot q, t, u),
+
+with :math:`M, C` from ``Shapes.dynamics`` and :math:`f` (gravity, inputs, point loads, contact, user forces)
+from the beam's documented private ``_kin``/``_external`` pair.
+
+Integration (``Model.simulate``)
+--------------------------------
+Implicit, with Newton's method on the global residual, step :math:`h`:
+
+* ``"trapezoidal"`` (Sorotoki's default, like ``ode23t``): :math:`x_{k+1} = x_k + \tfrac h2 (F_k + F_{k+1})`;
+* ``"midpoint"``: :math:`x_{k+1} = x_k + h F(t_k + \tfrac h2, \tfrac12(x_k + x_{k+1}))`;
+* ``"bdf2"``: :math:`x_{k+1} - \tfrac43 x_k + \tfrac13 x_{k-1} = \tfrac23 h F_{k+1}` (L-stable; the first step is
+  trapezoidal).
+
+All three are second order. The Newton matrix is :math:`I - c h J` with :math:`J = \partial F/\partial x` assembled
+block by block, :math:`J = \mathrm{blkdiag}(\partial f_i/\partial x_i) + \mathrm{blkdiag}(\partial f_i/\partial
+w_i)\, \partial W/\partial x`: the subsystem blocks come from a user Jacobian (:class:`StateSpace`) or finite
+differences, the coupling term :math:`\partial W/\partial x` from finite differences of the input assembly (cheap:
+no dynamics). The matrix is dense :math:`n \times n` for now (block-sparse storage is the next step) and reused
+across steps until Newton contracts slowly. Newton stops when every correction is below
+:math:`10^{-3}(\text{rtol}|x_j| + \text{atol}\, s_j)` (:math:`s_j` a per-state scale given by the subsystem).
+With ``adaptive=True`` (one-step methods), the local error is estimated by step doubling,
+:math:`e = (x_{h/2,h/2} - x_h)/3`, the step is accepted when :math:`\|e\|_{RMS}` weighted by
+:math:`\text{rtol}|x| + \text{atol}\, s` is below 1 (the two-half-step solution is kept) and resized by
+:math:`0.9\,\|e\|^{-1/3}`.
+
+Fluidic reservoir (eq. (25)-(29) of the paper)
+----------------------------------------------
+An enclosed ideal gas of volume :math:`V` [m^3] at temperature :math:`T` [K], gas constant :math:`R` [J/(kg K)].
+Pressures: ``p0`` is the ambient (atmospheric) **absolute** pressure [Pa] and the initial absolute pressure; the
+output and the regulator's set point are **gauge** pressures :math:`p_g = p - p_0` [Pa]. Net mass flow [kg/s]:
+:math:`\dot m = \dot m_{in} - \lambda (p - p_0)` (``leak`` :math:`\lambda` [kg/(s Pa)]).
+
+* Isothermal (``polytropic=1``): state :math:`m` [kg], :math:`p = mRT/V`. This is eq. (25) with :math:`n_k = 1`
+  integrated exactly (:math:`\dot p = (RT\dot m - p\dot V)/V` is the derivative of :math:`mRT/V`), so no
+  :math:`\dot V` is needed and a closed reservoir keeps :math:`pV = mRT` to round-off.
+* Polytropic :math:`n \ne 1`: state :math:`p` [Pa, absolute] with eq. (25),
+  :math:`\dot p = \tfrac{n}{V}(RT\dot m - p\dot V)` (:math:`V = J V_0`, so :math:`\tfrac{dV}{dJ}\dot J = \dot V`),
+  which for a closed reservoir conserves :math:`pV^n`. If the volume is not constant, :math:`\dot V` is replaced by
+  the dirty derivative of eq. (26)-(27) (Loria et al.) with one gain :math:`a` (``filter_gain`` [1/s]):
+  :math:`\dot z = -a(z + aV)`, :math:`\tilde{\dot V} = z + aV`, i.e. :math:`\tilde{\dot V} = \tfrac{as}{s+a}V`
+  (the paper's :math:`\alpha_1 = \alpha_2 = a`, with the signs that make the filter stable and of unit gain);
+  :math:`z` is a state, started at :math:`-aV(0)`.
+* Regulated (eq. (28)-(29)): the input is the desired gauge pressure :math:`p_d` [Pa];
+  :math:`e = p_d - p_g`, :math:`\nu = k_p e + k_i s`, :math:`\dot m_{in} = \Psi(\nu) = \mathrm{clip}(\nu,
+  \pm\dot m_{max})` (valve saturation), and the integrator state :math:`s` [Pa s] follows
+  :math:`\dot s = e + (\Psi(\nu) - \nu)/k_p` (back-calculation anti-windup; equal to :math:`e` when the valve is
+  not saturated). The paper writes :math:`\nu = k_p(p - p_d) + \dots`; we use :math:`e = p_d - p` so that
+  positive gains fill the reservoir.
+
+Example
+-------
+A closed isothermal reservoir squeezed to half its volume doubles its absolute pressure:
+
+>>> from soroshapes import Model, Fluidic
+>>> mdl = Model().add(Fluidic(lambda t: 1e-5 * (1 - 0.5 * t), p0=1e5), name="cup")
+>>> traj = mdl.simulate(1.0, 0.01)
+>>> round(float(traj["cup"].pressure[-1]), 3)      # gauge [Pa]: 2e5 absolute
+100000.0
+"""
+from __future__ import annotations
+
+import logging
+import time as _time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sorofem.errors import ConvergenceError, DataError, ParameterError, SoroError
+
+__all__ = ["StateSpace", "Fluidic", "Model", "ModelTrajectory", "SystemTrajectory"]
+
+log = logging.getLogger(__name__)
+_EPS = np.sqrt(np.finfo(float).eps)
+
+
+def _vec(v, what):
+    return np.atleast_1d(np.asarray(v, dtype=float)).reshape(-1)
+
+
+def _fd_columns(fun, x, f0, scale):
+    """Forward-difference Jacobian of ``fun`` at ``x`` (fun(x) = f0), steps sqrt(eps) * max(|x_j|, scale_j)."""
+    J = np.empty((len(f0), len(x)))
+    for j in range(len(x)):
+        h = _EPS * max(abs(x[j]), scale[j])
+        xp = x.copy()
+        xp[j] += h
+        J[:, j] = (fun(xp) - f0) / (xp[j] - x[j])
+    return J
+
+
+# ------------------------------------------------------------------------------------------------------------
+# subsystems
+# ------------------------------------------------------------------------------------------------------------
+class StateSpace:
+    r"""A first-order system :math:`\dot x = f(x, u, t)`, output :math:`y = h(x, u, t)` (default :math:`y = x`).
+
+    Parameters
+    ----------
+    f : callable ``(x (n,), u (m,), t) -> (n,)``
+    n, m : int
+        State and input dimensions.
+    jacobian : callable ``(x, u, t) -> (A (n, n), B (n, m))``, optional
+        :math:`\partial f/\partial x`, :math:`\partial f/\partial u`; default forward finite differences.
+    output : callable ``(x, u, t) -> (p,)``, optional
+    name : str, optional
+        Default name in a :class:`Model`.
+    x0 : (n,), optional
+        Default initial state (zeros).
+    scale : float or (n,), optional
+        Typical magnitude of the states (finite-difference steps and absolute tolerances), default 1.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> sys = StateSpace(lambda x, u, t: -x + u, n=1, m=1)
+    >>> A, B = sys.jacobian(np.zeros(1), np.ones(1), 0.0)
+    >>> bool(np.allclose(A, -1) and np.allclose(B, 1))
+    True
+    """
+
+    def __init__(self, f, n, m, jacobian=None, output=None, name=None, *, x0=None, scale=1.0):
+        if not callable(f):
+            raise ParameterError("StateSpace needs a callable f(x, u, t) -> xdot")
+        self.n, self.m = int(n), int(m)
+        if self.n < 1 or self.m < 0:
+            raise ParameterError(f"StateSpace needs n >= 1 states and m >= 0 inputs, got n={n}, m={m}")
+        for what, fn in (("jacobian", jacobian), ("output", output)):
+            if fn is not None and not callable(fn):
+                raise ParameterError(f"StateSpace {what} must be callable (x, u, t)")
+        self.f, self._jac, self._out, self.name = f, jacobian, output, name
+        self.x0 = np.zeros(self.n) if x0 is None else _vec(x0, "x0")
+        if self.x0.shape != (self.n,):
+            raise ParameterError(f"StateSpace x0 must have {self.n} entries, got {self.x0.shape}")
+        self.scale = np.broadcast_to(np.asarray(scale, dtype=float), (self.n,)).copy()
+        self.input_names = [f"u{k}" for k in range(self.m)]
+
+    def rhs(self, x, u, t):
+        """:math:`f(x, u, t)` as an (n,) array."""
+        v = _vec(self.f(x, u, t), "f")
+        if v.shape != (self.n,):
+            raise ParameterError(f"f returned shape {v.shape}, expected ({self.n},)")
+        return v
+
+    def jacobian(self, x, u, t):
+        """(A, B) = (:math:`\\partial f/\\partial x`, :math:`\\partial f/\\partial u`) at (x, u, t)."""
+        x, u = _vec(x, "x"), _vec(u, "u") if self.m else np.zeros(0)
+        if self._jac is not None:
+            A, B = self._jac(x, u, t)
+            A, B = np.asarray(A, dtype=float).reshape(self.n, self.n), np.asarray(B, dtype=float).reshape(self.n,
+                                                                                                           self.m)
+            return A, B
+        f0 = self.rhs(x, u, t)
+        A = _fd_columns(lambda xx: self.rhs(xx, u, t), x, f0, self.scale)
+        B = _fd_columns(lambda uu: self.rhs(x, uu, t), u, f0, np.ones(self.m)) if self.m else np.zeros((self.n, 0))
+        return A, B
+
+    def output(self, x, u, t):
+        """:math:`y = h(x, u, t)` (default the state)."""
+        return x.copy() if self._out is None else _vec(self._out(x, u, t), "output")
+
+
+class Fluidic:
+    r"""An enclosed ideal-gas reservoir (eq. (25)-(29) of the Sorotoki paper; see the module docstring).
+
+    Parameters
+    ----------
+    volume : float [m^3], callable ``t -> V`` [m^3], or None
+        None: the volume comes from a :class:`Model` coupling (``model.connect(fn, name, port="volume")``).
+    V0 : float [m^3], optional
+        Reference volume (scales); default the constant volume or ``volume(0)``.
+    p0 : float [Pa]
+        Ambient absolute pressure; also the initial absolute pressure (gauge 0).
+    T : float [K]
+    gas_constant : float [J/(kg K)] (air: 287.05)
+    polytropic : float
+        Polytropic index :math:`n` (1 isothermal, 1.4 adiabatic air).
+    leak : float [kg/(s Pa)]
+        Leak :math:`\dot m_{leak} = -\lambda(p - p_0)`.
+    regulator : dict, optional
+        ``dict(kp=[kg/(s Pa)], ki=[kg/(s^2 Pa)], max_flow=[kg/s])``: the input becomes the desired gauge pressure.
+    filter_gain : float [1/s]
+        Gain :math:`a` of the dirty derivative of :math:`V` (polytropic, varying volume only).
+    name : str, optional
+
+    The input is the mass flow [kg/s] into the reservoir (or the desired gauge pressure [Pa] with a
+    regulator); the output is the gauge pressure [Pa].
+
+    Examples
+    --------
+    >>> fl = Fluidic(1e-6, regulator=dict(kp=1e-9, ki=1e-7, max_flow=1e-4))
+    >>> fl.n, fl.input_names
+    (2, ['pressure_ref'])
+    """
+
+    def __init__(self, volume=None, V0=None, p0=101325.0, T=293.15, gas_constant=287.05, polytropic=1.0, leak=0.0,
+                 regulator=None, name=None, *, filter_gain=1e3):
+        self.name = name
+        if volume is None or callable(volume):
+            self.volume = volume
+            self.constant = False
+        else:
+            self.volume = float(volume)
+            if not (np.isfinite(self.volume) and self.volume > 0):
+                raise ParameterError(f"Fluidic volume must be > 0 [m^3], got {volume!r}")
+            self.constant = True
+        if V0 is None:
+            V0 = self.volume if self.constant else (float(volume(0.0)) if callable(volume) else None)
+        self.V0 = None if V0 is None else float(V0)
+        for what, v in (("V0", self.V0), ("p0", p0), ("T", T), ("gas_constant", gas_constant),
+                        ("polytropic", polytropic), ("filter_gain", filter_gain)):
+            if v is not None and not (np.isfinite(v) and v > 0):
+                raise ParameterError(f"Fluidic {what} must be positive and finite, got {v!r}")
+        if not (np.isfinite(leak) and leak >= 0):
+            raise ParameterError(f"Fluidic leak must be >= 0 [kg/(s Pa)], got {leak!r}")
+        self.p0, self.T, self.R, self.polytropic = float(p0), float(T), float(gas_constant), float(polytropic)
+        self.leak, self.filter_gain = float(leak), float(filter_gain)
+        self.isothermal = self.polytropic == 1.0
+        self.regulator = None
+        if regulator is not None:
+            try:
+                kp, ki, mx = (float(regulator[k]) for k in ("kp", "ki", "max_flow"))
+            except (KeyError, TypeError, ValueError):
+                raise ParameterError("regulator must be dict(kp=..., ki=..., max_flow=...) [SI]") from None
+            if not (kp > 0 and ki >= 0 and mx > 0):
+                raise ParameterError(f"regulator needs kp > 0, ki >= 0, max_flow > 0, got {regulator!r}")
+            self.regulator = (kp, ki, mx)
+        self.filtered = not self.isothermal and not self.constant
+        self.states = ["mass" if self.isothermal else "pressure"] + (["filter"] if self.filtered else []) \
+            + (["integral"] if self.regulator else [])
+        self.n, self.m = len(self.states), 1
+        self.input_names = ["pressure_ref" if self.regulator else "mass_flow"]
+
+    def volume_at(self, t):
+        """Volume [m^3] at time t from the constant or V(t) (None when a model coupling gives it)."""
+        if self.constant:
+            return self.volume
+        return None if self.volume is None else float(self.volume(t))
+
+    def absolute_pressure(self, x, V):
+        """Absolute pressure [Pa] at state x and volume V [m^3]."""
+        return x[0] * self.R * self.T / V if self.isothermal else x[0]
+
+    def pressure(self, x, V):
+        """Gauge pressure [Pa] at state x and volume V [m^3]."""
+        return self.absolute_pressure(x, V) - self.p0
+
+    def initial_state(self, V, pressure=0.0):
+        """State at gauge ``pressure`` [Pa] in volume ``V`` [m^3] (filter at rest, integrator empty)."""
+        p = self.p0 + float(pressure)
+        x = [p * V / (self.R * self.T) if self.isothermal else p]
+        if self.filtered:
+            x.append(-self.filter_gain * V)
+        if self.regulator:
+            x.append(0.0)
+        return np.array(x)
+
+    def scales(self, V):
+        """Typical magnitudes of the states (for tolerances and finite-difference steps)."""
+        s = [self.p0 * V / (self.R * self.T) if self.isothermal else self.p0]
+        if self.filtered:
+            s.append(self.filter_gain * V)
+        if self.regulator:
+            s.append(self.p0 * 1e-3)
+        return np.array(s)
+
+    def rhs(self, x, u, V):
+        """State derivative at state x, input u (mass flow [kg/s] or set point [Pa]) and volume V [m^3]."""
+        if not (V > 0 and np.isfinite(V)):
+            raise DataError(f"volume must be positive and finite, got {V!r} m^3")
+        p = self.absolute_pressure(x, V)
+        out = np.empty(self.n)
+        if self.regulator:
+            kp, ki, mx = self.regulator
+            e = u[0] - (p - self.p0)
+            nu = kp * e + ki * x[-1]
+            mdot = min(max(nu, -mx), mx)
+            out[-1] = e + (mdot - nu) / kp
+        else:
+            mdot = u[0]
+        mdot = mdot - self.leak * (p - self.p0)
+        if self.isothermal:
+            out[0] = mdot
+        else:
+            Vdot = 0.0
+            if self.filtered:
+                a = self.filter_gain
+                Vdot = x[1] + a * V                       # eq. (27)
+                out[1] = -a * (x[1] + a * V)              # eq. (26)
+            out[0] = self.polytropic / V * (self.R * self.T * mdot - p * Vdot)   # eq. (25)
+        return out
+
+
+# ------------------------------------------------------------------------------------------------------------
+# adapters: one interface for the model, w = (u, [V])
+# ------------------------------------------------------------------------------------------------------------
+class _Block:
+    kind = "statespace"
+
+    def __init__(self, name, system):
+        self.name, self.system = name, system
+        self.n, self.m = system.n, system.m
+        self.nw = self.m
+        self.input_names = list(system.input_names)
+
+    def default_x0(self):
+        return self.system.x0.copy()
+
+    def scale(self, x0):
+        return self.system.scale.copy()
+
+    def rhs(self, x, w, t):
+        return self.system.rhs(x, w, t)
+
+    def jac(self, x, w, t):
+        return self.system.jacobian(x, w, t)
+
+    def output(self, x, w, t):
+        return self.system.output(x, w, t)
+
+
+class _FluidicBlock(_Block):
+    kind = "fluidic"
+
+    def __init__(self, name, system):
+        super().__init__(name, system)
+        self.nw = 2                                        # (u, V)
+
+    def default_x0(self):
+        return None                                       # needs V(0): set by the model
+
+    def scale(self, x0):
+        V = self.system.V0 if self.system.V0 is not None else self._V_init
+        return self.system.scales(V)
+
+    def rhs(self, x, w, t):
+        return self.system.rhs(x, w[:1], w[1])
+
+    def jac(self, x, w, t):
+        f0 = self.rhs(x, w, t)
+        A = _fd_columns(lambda xx: self.rhs(xx, w, t), x, f0, self._scale)
+        B = _fd_columns(lambda ww: self.rhs(x, ww, t), w, f0, np.array([self._uscale, abs(w[1])]))
+        return A, B
+
+    def output(self, x, w, t):
+        return np.array([self.system.pressure(x, w[1])])
+
+
+class _ShapesBlock(_Block):
+    kind = "shapes"
+
+    def __init__(self, name, system):
+        self.name, self.system = name, system
+        self.nq = system.n
+        self.n, self.m = 2 * system.n, len(system.inputs)
+        self.nw = self.m
+        self.input_names = list(system.inputs)
+
+    def default_x0(self):
+        return np.zeros(self.n)
+
+    def scale(self, x0):
+        return np.ones(self.n)
+
+    def rhs(self, x, w, t):
+        shp, n = self.system, self.nq
+        q, qd = x[:n], x[n:]
+        M, C, _ = shp.dynamics(q, qd)
+        shp._kin(q, qd)                                   # _external works on the current kinematics
+        f = shp._external(q, qd, t, w)
+        qdd = np.linalg.solve(M, f - C @ qd - shp.damping * (shp.K @ qd) - shp.K @ q)
+        return np.concatenate([qd, qdd])
+
+    def jac(self, x, w, t):
+        f0 = self.rhs(x, w, t)
+        A = _fd_columns(lambda xx: self.rhs(xx, w, t), x, f0, np.ones(self.n))
+        B = (_fd_columns(lambda ww: self.rhs(x, ww, t), w, f0, np.maximum(np.abs(w), 1.0)) if self.m
+             else np.zeros((self.n, 0)))
+        return A, B
+
+    def output(self, x, w, t):
+        return x.copy()
+
+
+def _block(name, system):
+    if isinstance(system, Fluidic):
+        return _FluidicBlock(name, system)
+    if isinstance(system, StateSpace):
+        return _Block(name, system)
+    from .shapes import Shapes
+    if isinstance(system, Shapes):
+        return _ShapesBlock(name, system)
+    raise ParameterError(f"Model.add takes a StateSpace, Fluidic or Shapes, got {type(system).__name__}")
+
+
+# ------------------------------------------------------------------------------------------------------------
+# trajectories
+# ------------------------------------------------------------------------------------------------------------
+@dataclass
+class SystemTrajectory:
+    """One system's share of a :class:`ModelTrajectory`: ``t`` [s], states ``x`` (K, n), inputs ``u`` (K, m);
+    beams add ``q``, ``qd``; reservoirs add ``volume`` [m^3] and gauge ``pressure`` [Pa]."""
+    name: str
+    t: np.ndarray
+    x: np.ndarray
+    u: np.ndarray
+    extra: dict = field(default_factory=dict)
+
+    def __getattr__(self, key):
+        extra = self.__dict__.get("extra", {})
+        if key in extra:
+            return extra[key]
+        raise AttributeError(f"{key!r}: this system trajectory has t, x, u and {sorted(extra)}")
+
+
+@dataclass
+class ModelTrajectory:
+    """Result of :meth:`Model.simulate`: times ``t`` (K,) [s], stacked states ``x`` (K, n), all inputs ``u``
+    (K, m) (controller and couplings), ``stats`` (steps, rejected, newton_iterations, jacobians, wall_time);
+    ``traj["name"]`` is one system's :class:`SystemTrajectory`."""
+    t: np.ndarray
+    x: np.ndarray
+    u: np.ndarray
+    systems: dict
+    stats: dict
+
+    def __getitem__(self, name):
+        if name not in self.systems:
+            raise KeyError(f"no system {name!r}; systems: {', '.join(self.systems)}")
+        return self.systems[name]
+
+
+class _View:
+    """``model["name"]``: the current state ``x`` and inputs ``u`` of one system during a simulation."""
+
+    def __init__(self, model, blk):
+        self._model, self._blk = model, blk
+
+    @property
+    def x(self):
+        return self._model._x[self._blk.sl]
+
+    @property
+    def u(self):
+        return self._model._w[self._blk.wsl][:self._blk.m]
+
+    @property
+    def system(self):
+        return self._blk.system
+
+    @property
+    def pressure(self):
+        """Gauge pressure [Pa] of a Fluidic at the current state."""
+        if self._blk.kind != "fluidic":
+            raise AttributeError(f"system {self._blk.name!r} is not a Fluidic")
+        return self._blk.system.pressure(self.x, self._model._w[self._blk.wsl][1])
+
+
+# ------------------------------------------------------------------------------------------------------------
+# the model
+# ------------------------------------------------------------------------------------------------------------
+class Model:
+    r"""A network of dynamic systems solved as one implicit ODE (see the module docstring).
+
+    Build it with :meth:`add`, :meth:`connect` and :meth:`set_controller` (each returns ``self``), then
+    :meth:`simulate`. Inside a controller or coupling callable ``fn(model)``: ``model.t`` [s],
+    ``model["name"].x``, ``model["name"].u``, ``model["name"].pressure`` (Fluidic) and ``model.state(name, idx)``
+    give the current iterate.
+    """
+
+    def __init__(self):
+        self._blocks = {}
+        self._links = []             # (source, target block, input indices or "volume")
+        self._controller = None
+        self._prepared = False
+        self.t = 0.0
+
+    # -- building --------------------------------------------------------------------------------------
+    def add(self, system, name=None, x0=None):
+        """Add a :class:`StateSpace`, :class:`Fluidic` or :class:`~soroshapes.shapes.Shapes` as ``name``
+        (default its ``name`` or ``kind<k>``), optionally with its initial state ``x0``. Returns self."""
+        name = name or getattr(system, "name", None) or f"{type(system).__name__.lower()}{len(self._blocks)}"
+        if not isinstance(name, str) or name in self._blocks:
+            raise ParameterError(f"system name {name!r} is not a new string; names so far: {list(self._blocks)}")
+        blk = _block(name, system)
+        blk.x0 = None if x0 is None else _vec(x0, "x0")
+        if blk.x0 is not None and blk.x0.shape != (blk.n,):
+            raise ParameterError(f"x0 of system {name!r} must have {blk.n} entries, got {blk.x0.shape}")
+        self._blocks[name] = blk
+        self._prepared = False
+        return self
+
+    def _target(self, target):
+        if target not in self._blocks:
+            raise ParameterError(f"no system {target!r} in the model; systems: {', '.join(self._blocks)}")
+        return self._blocks[target]
+
+    def connect(self, source, target, index=None, *, port="input"):
+        """Declare a coupling; returns self.
+
+        Parameters
+        ----------
+        source : str or callable
+            A system name (its output: gauge pressure of a Fluidic, the state of a beam or, by default, of a
+            StateSpace), or ``fn(model) -> array`` of the current model state.
+        target : str
+            The system that receives it.
+        index : int, str, slice or sequence, optional
+            Which of the target's inputs (indices or input names; default all). Sizes must match.
+        port : "input" or "volume"
+            ``"volume"``: ``source`` is ``fn(model) -> V`` [m^3] for the Fluidic ``target``.
+        """
+        blk = self._target(target)
+        if not (callable(source) or source in self._blocks):
+            raise ParameterError(f"connect: source must be a system name or a callable of the model, got {source!r}"
+                                 f"; systems: {', '.join(self._blocks)}")
+        if port == "volume":
+            if blk.kind != "fluidic":
+                raise ParameterError(f"connect(port='volume'): target {target!r} is a {blk.kind}, not a Fluidic")
+            if not callable(source):
+                raise ParameterError("connect(port='volume') takes a callable fn(model) -> V [m^3]")
+            if any(t is blk and i == "volume" for _, t, i in self._links):
+                raise ParameterError(f"system {target!r} already has a volume coupling")
+            self._links.append((source, blk, "volume"))
+        elif port == "input":
+            idx = self._input_indices(blk, index)
+            taken = {i for _, t, ii in self._links if t is blk and ii != "volume" for i in ii}
+            if taken & set(idx):
+                raise ParameterError(f"inputs {sorted(taken & set(idx))} of system {target!r} are already coupled")
+            self._links.append((source, blk, idx))
+        else:
+            raise ParameterError(f"port must be 'input' or 'volume', got {port!r}")
+        self._prepared = False
+        return self
+
+    @staticmethod
+    def _input_indices(blk, index):
+        m = blk.m
+        if index is None:
+            idx = list(range(m))
+        elif isinstance(index, slice):
+            idx = list(range(m))[index]
+        else:
+            items = [index] if isinstance(index, (int, np.integer, str)) else list(index)
+            idx = []
+            for it in items:
+                if isinstance(it, str):
+                    if it not in blk.input_names:
+                        raise ParameterError(f"system {blk.name!r} has no input {it!r}; inputs: {blk.input_names}")
+                    idx.append(blk.input_names.index(it))
+                elif 0 <= int(it) < m:
+                    idx.append(int(it))
+                else:
+                    raise ParameterError(f"input index {it} out of range for system {blk.name!r} ({m} inputs)")
+        if not idx:
+            raise ParameterError(f"connect: no inputs of system {blk.name!r} selected ({m} inputs)")
+        return idx
+
+    def set_controller(self, fn):
+        """Set ``fn(model)`` giving the free inputs (those no coupling drives): a flat array in the order of
+        :attr:`inputs`, or a dict ``{system name: array of its free inputs}`` (missing systems get 0). It is
+        evaluated at every stage and Newton iterate (it is part of F). Returns self."""
+        if fn is not None and not callable(fn):
+            raise ParameterError("the controller must be a callable fn(model) -> inputs")
+        self._controller = fn
+        return self
+
+    # -- views -----------------------------------------------------------------------------------------
+    @property
+    def systems(self):
+        """Names of the systems, in state order."""
+        return list(self._blocks)
+
+    @property
+    def n(self):
+        """Total number of states."""
+        return sum(b.n for b in self._blocks.values())
+
+    @property
+    def inputs(self):
+        """Names ``system.input`` of the free inputs (set by the controller), in controller order."""
+        self._prepare_layout()
+        return [f"{b.name}.{b.input_names[k]}" for b, k in self._free]
+
+    def __getitem__(self, name):
+        self._prepare_layout()
+        if name not in self._blocks:
+            raise KeyError(f"no system {name!r}; systems: {', '.join(self._blocks)}")
+        return _View(self, self._blocks[name])
+
+    def state(self, name, index=slice(None)):
+        """Current state of system ``name`` (``index``: int, slice or indices)."""
+        return self[name].x[index]
+
+    # -- layout and assembly ---------------------------------------------------------------------------
+    def _prepare_layout(self):
+        if self._prepared:
+            return
+        if not self._blocks:
+            raise ParameterError("the model is empty: add systems with Model.add")
+        i = j = 0
+        for b in self._blocks.values():
+            b.sl, b.wsl = slice(i, i + b.n), slice(j, j + b.nw)
+            i, j = i + b.n, j + b.nw
+        self._N, self._NW = i, j
+        coupled = {(id(t), k) for _, t, ii in self._links if ii != "volume" for k in ii}
+        self._free = [(b, k) for b in self._blocks.values() for k in range(b.m) if (id(b), k) not in coupled]
+        self._vol_link = {id(t): s for s, t, ii in self._links if ii == "volume"}
+        for b in self._blocks.values():
+            if b.kind == "fluidic" and b.system.volume is None and id(b) not in self._vol_link:
+                raise ParameterError(f"Fluidic {b.name!r} has volume=None and no volume coupling: add "
+                                     f"model.connect(lambda mdl: V, {b.name!r}, port='volume')")
+        self._x, self._w = np.zeros(self._N), np.zeros(self._NW)
+        self._prepared = True
+
+    def _controller_values(self):
+        nfree = len(self._free)
+        if self._controller is None:
+            return np.zeros(nfree)
+        v = self._controller(self)
+        if v is None:
+            return np.zeros(nfree)
+        if isinstance(v, dict):
+            out = np.zeros(nfree)
+            for name, val in v.items():
+                pos = [p for p, (b, _) in enumerate(self._free) if b.name == name]
+                if name not in self._blocks:
+                    raise ParameterError(f"controller returned inputs for unknown system {name!r}; systems: "
+                                         f"{', '.join(self._blocks)}")
+                val = _vec(val, "controller")
+                if val.shape != (len(pos),):
+                    names = [self._blocks[name].input_names[k] for b, k in self._free if b.name == name]
+                    raise ParameterError(f"controller returned {val.size} inputs for system {name!r}, which has "
+                                         f"{len(pos)} free inputs {names}")
+                out[pos] = val
+        else:
+            out = _vec(v, "controller")
+            if out.shape != (nfree,):
+                per = {}
+                for b, k in self._free:
+                    per.setdefault(b.name, []).append(b.input_names[k])
+                raise ParameterError(f"controller returned {out.size} inputs, the model has {nfree} free inputs: "
+                                     + "; ".join(f"system {n!r}: {v}" for n, v in per.items())
+                                     + " (or return a dict {system name: inputs})")
+        if not np.all(np.isfinite(out)):
+            bad = {self._free[p][0].name for p in np.nonzero(~np.isfinite(out))[0]}
+            raise DataError(f"controller returned non-finite inputs for system(s) {sorted(bad)} at t = {self.t:.6g} s")
+        return out
+
+    def _assemble(self, t, x):
+        """w = W(t, x): volumes, controller, couplings (in declaration order)."""
+        self.t, self._x = t, x
+        w = self._w = np.zeros(self._NW)
+        for b in self._blocks.values():
+            if b.kind == "fluidic":
+                src = self._vol_link.get(id(b))
+                V = b.system.volume_at(t) if src is None else src(self)
+                V = float(np.asarray(V, dtype=float).reshape(-1)[0]) if np.size(V) == 1 else np.nan
+                if not (np.isfinite(V) and V > 0):
+                    raise DataError(f"the volume of Fluidic {b.name!r} is {V!r} at t = {t:.6g} s; it must be a "
+                                    "positive scalar [m^3]")
+                w[b.wsl.start + 1] = V
+        for p, val in enumerate(self._controller_values()):
+            b, k = self._free[p]
+            w[b.wsl.start + k] = val
+        for src, b, idx in self._links:
+            if idx == "volume":
+                continue
+            if callable(src):
+                val, what = _vec(src(self), "coupling"), "coupling callable"
+            else:
+                s = self._blocks[src]
+                val, what = _vec(s.output(x[s.sl], w[s.wsl], t), "output"), f"output of system {src!r}"
+            if val.shape != (len(idx),):
+                raise ParameterError(f"coupling into system {b.name!r}: the {what} has {val.size} entries, but "
+                                     f"{len(idx)} inputs {[b.input_names[k] for k in idx]} are connected")
+            if not np.all(np.isfinite(val)):
+                raise DataError(f"coupling into system {b.name!r}: the {what} is not finite at t = {t:.6g} s")
+            w[b.wsl.start + np.asarray(idx)] = val
+        return w
+
+    def _rhs(self, t, x):
+        w = self._assemble(t, x)
+        out = np.empty(self._N)
+        for b in self._blocks.values():
+            try:
+                v = b.rhs(x[b.sl], w[b.wsl], t)
+            except SoroError as err:
+                raise type(err)(f"system {b.name!r} at t = {t:.6g} s: {err}") from err
+            if v.shape != (b.n,) or not np.all(np.isfinite(v)):
+                raise DataError(f"system {b.name!r} gave a non-finite or mis-sized derivative {v.shape} at "
+                                f"t = {t:.6g} s (expected {b.n} finite values)")
+            out[b.sl] = v
+        return out
+
+    def jacobian(self, t, x):
+        r""":math:`\partial F/\partial x` (n, n) at (t, x), assembled block by block (module docstring)."""
+        self._prepare_layout()
+        x = np.asarray(x, dtype=float)
+        if getattr(self, "_scale", None) is None or len(self._scale) != self._N:
+            self._scale = self._scales(x)
+        w0 = self._assemble(t, x).copy()
+        J = np.zeros((self._N, self._N))
+        Bw = np.zeros((self._N, self._NW))
+        for b in self._blocks.values():
+            try:
+                A, B = b.jac(x[b.sl], w0[b.wsl], t)
+            except SoroError as err:
+                raise type(err)(f"system {b.name!r} at t = {t:.6g} s: {err}") from err
+            if not (np.all(np.isfinite(A)) and np.all(np.isfinite(B))):
+                raise DataError(f"the Jacobian of system {b.name!r} is not finite at t = {t:.6g} s")
+            J[b.sl, b.sl] = A
+            Bw[b.sl, b.wsl] = B
+        if self._controller is not None or self._links:
+            dW = _fd_columns(lambda xx: self._assemble(t, xx).copy(), x, w0, self._scale)
+            J += Bw @ dW
+        self._assemble(t, x)
+        return J
+
+    # -- initial state ---------------------------------------------------------------------------------
+    def initial_state(self, x0=None):
+        """The stacked initial state: ``x0`` if given, else each system's (``add(..., x0=)`` or its default;
+        a Fluidic starts at gauge 0 in its initial volume, which a volume coupling evaluates at the others')."""
+        self._prepare_layout()
+        if x0 is not None:
+            x = _vec(x0, "x0")
+            if x.shape != (self._N,):
+                raise ParameterError(f"x0 must have {self._N} entries ("
+                                     + ", ".join(f"{b.name}: {b.n}" for b in self._blocks.values()) + ")")
+        else:
+            x = np.zeros(self._N)
+            for b in self._blocks.values():
+                v = b.x0 if b.x0 is not None else b.default_x0()
+                if v is not None:
+                    x[b.sl] = v
+            self.t, self._x, self._w = 0.0, x, np.zeros(self._NW)
+            for b in self._blocks.values():
+                if b.kind == "fluidic" and b.x0 is None:
+                    src = self._vol_link.get(id(b))
+                    V = b.system.volume_at(0.0) if src is None else float(np.asarray(src(self)).reshape(-1)[0])
+                    x[b.sl] = b.system.initial_state(V)
+        for b in self._blocks.values():
+            if not np.all(np.isfinite(x[b.sl])):
+                raise DataError(f"the initial state of system {b.name!r} contains NaN or inf: {x[b.sl]}")
+        return x
+
+    def _scales(self, x0):
+        s = np.ones(self._N)
+        for b in self._blocks.values():
+            if b.kind == "fluidic":
+                w = self._assemble(0.0, x0)
+                b._V_init = w[b.wsl][1]
+                b._uscale = (b.system.p0 * 0.01 if b.system.regulator else
+                             b.system.scales(b._V_init)[0] * 10.0)
+            b._scale = b.scale(x0[b.sl])
+            s[b.sl] = b._scale
+        return s
+
+    # -- integration -----------------------------------------------------------------------------------
+    def simulate(self, t_end, dt, method="trapezoidal", x0=None, rtol=1e-6, atol=1e-9, adaptive=False, *,
+                 max_iterations=12, record_every=1, min_dt=None):
+        """Integrate the network from t = 0 to ``t_end`` [s] with step ``dt`` [s] (fixed: ``t_end/ceil(t_end/dt)``;
+        adaptive: the first step) by the implicit ``method`` ("trapezoidal", "midpoint", "bdf2").
+
+        ``rtol``, ``atol``: Newton stops when every correction is below 1e-3 of ``rtol*|x_j| + atol*s_j``; with
+        ``adaptive=True`` (trapezoidal or midpoint) the step-doubling local error is kept below the same
+        tolerance. A step whose Newton iterations fail is split (down to ``min_dt``, default dt/1024), then a
+        :class:`~sorofem.errors.ConvergenceError` gives the time. Returns a :class:`ModelTrajectory`.
+        """
+        if method not in ("trapezoidal", "midpoint", "bdf2"):
+            raise ParameterError(f"method must be 'trapezoidal', 'midpoint' or 'bdf2', got {method!r}")
+        t_end, dt = float(t_end), float(dt)
+        if not (t_end > 0 and dt > 0 and np.isfinite(t_end) and np.isfinite(dt)):
+            raise ParameterError(f"t_end and dt must be positive [s], got {t_end!r}, {dt!r}")
+        if adaptive and method == "bdf2":
+            raise ParameterError("adaptive steps use step doubling of a one-step method: use method='trapezoidal' "
+                                 "or 'midpoint' with adaptive=True (variable-step BDF2 is not implemented)")
+        if not (rtol > 0 and atol > 0):
+            raise ParameterError("rtol and atol must be positive")
+        self._prepare_layout()
+        x = self.initial_state(x0)
+        self._scale = self._scales(x)
+        self._rtol, self._atol, self._maxit = float(rtol), float(atol), int(max_iterations)
+        self._rhs(0.0, x)                                        # validates sizes, controller and couplings
+        self._last_error = None
+        self._J, self._lu_key, self._stats = None, None, {"steps": 0, "rejected": 0, "newton_iterations": 0,
+                                                         "jacobians": 0, "cut_steps": 0}
+        rec_t, rec_x, rec_w = [0.0], [x.copy()], [self._assemble(0.0, x).copy()]
+        wall = _time.perf_counter()
+        if adaptive:
+            self._run_adaptive(x, t_end, dt, method, rec_t, rec_x, rec_w)
+        else:
+            nsteps = int(np.ceil(t_end / dt - 1e-9))
+            h = t_end / nsteps
+            min_dt = h / 1024 if min_dt is None else float(min_dt)
+            prev = None
+            for k in range(nsteps):
+                t = k * h
+                if method == "bdf2" and prev is not None:
+                    xn = self._step("bdf2", t, x, h, prev)
+                    if xn is None:
+                        xn = self._split("trapezoidal", t, x, h, h / 2, min_dt)
+                        prev = None
+                    else:
+                        prev = x
+                else:
+                    base = "trapezoidal" if method == "bdf2" else method
+                    xn = self._step(base, t, x, h)
+                    if xn is None:
+                        xn = self._split(base, t, x, h, h / 2, min_dt)
+                    prev = x if method == "bdf2" else None
+                x = xn
+                self._stats["steps"] += 1
+                if (k + 1) % record_every == 0 or k == nsteps - 1:
+                    tt = t_end if k == nsteps - 1 else (k + 1) * h
+                    rec_t.append(tt)
+                    rec_x.append(x.copy())
+                    rec_w.append(self._assemble(tt, x).copy())
+        self._stats["wall_time"] = _time.perf_counter() - wall
+        self._stats["method"] = method
+        return self._trajectory(np.array(rec_t), np.array(rec_x), np.array(rec_w))
+
+    def _split(self, method, t, x, h, hh, min_dt):
+        """Cover [t, t+h] with steps of hh (halved on failure) after a failed step."""
+        self._stats["cut_steps"] += 1
+        end = t + h
+        while t < end - 1e-12 * h:
+            step = min(hh, end - t)
+            xn = self._step(method, t, x, step)
+            if xn is None:
+                hh *= 0.5
+                if hh < min_dt:
+                    why = getattr(self, "_last_error", None)
+                    raise ConvergenceError(f"Model.simulate: Newton failed at t = {t:.6g} s down to dt = "
+                                           f"{min_dt:.3g} s ({method}); use a smaller dt, check the couplings and controller for "
+                                           "discontinuities, or loosen rtol" + (f" (last error: {why})" if why else ""))
+                continue
+            x, t = xn, t + step
+        return x
+
+    def _weights(self, x):
+        return self._rtol * np.abs(x) + self._atol * self._scale
+
+    def _step(self, method, t, x0, h, xprev=None):
+        """One implicit step; returns x1 or None when Newton fails."""
+        N = self._N
+        if method == "trapezoidal":
+            f0 = self._rhs(t, x0)
+            c, t1 = 0.5 * h, t + h
+            res = lambda x1: x1 - x0 - 0.5 * h * (f0 + self._rhs(t1, x1))           # noqa: E731
+            jac_at = lambda x1: (t1, x1)                                            # noqa: E731
+            guess = x0 + h * f0
+        elif method == "midpoint":
+            c, tm = 0.5 * h, t + 0.5 * h
+            res = lambda x1: x1 - x0 - h * self._rhs(tm, 0.5 * (x0 + x1))            # noqa: E731
+            jac_at = lambda x1: (tm, 0.5 * (x0 + x1))                              # noqa: E731
+            guess = x0 + h * self._rhs(t, x0)
+        else:
+            c, t1 = 2.0 * h / 3.0, t + h
+            res = lambda x1: x1 - 4.0 / 3.0 * x0 + xprev / 3.0 - c * self._rhs(t1, x1)   # noqa: E731
+            jac_at = lambda x1: (t1, x1)                                            # noqa: E731
+            guess = 2.0 * x0 - xprev
+        from scipy.linalg import lu_factor, lu_solve
+        for attempt in range(2):
+            fresh = self._J is None or attempt == 1
+            if fresh:
+                try:
+                    self._J = self.jacobian(*jac_at(guess if attempt == 0 else x1))
+                except (DataError, FloatingPointError) as err:
+                    self._last_error, self._J = str(err), None
+                    return None
+                self._stats["jacobians"] += 1
+                self._lu_key = None
+                if not np.all(np.isfinite(self._J)):
+                    self._last_error, self._J = "the Jacobian is not finite", None
+                    return None
+            if self._lu_key != c:
+                self._lu = lu_factor(np.eye(N) - c * self._J)
+                self._lu_key = c
+            x1 = guess.copy()
+            prev_norm, ok = np.inf, False
+            for it in range(self._maxit):
+                try:
+                    r = res(x1)
+                except (DataError, FloatingPointError, np.linalg.LinAlgError) as err:
+                    self._last_error = str(err)
+                    break
+                if not np.all(np.isfinite(r)):
+                    break
+                dx = lu_solve(self._lu, r)
+                x1 = x1 - dx
+                self._stats["newton_iterations"] += 1
+                nrm = np.max(np.abs(dx) / self._weights(x1))
+                if not np.all(np.isfinite(x1)):
+                    break
+                if nrm <= 1e-3:
+                    ok = True
+                    break
+                if it >= 2 and nrm > 0.5 * prev_norm:
+                    break                                   # slow contraction: refresh the Jacobian
+                prev_norm = nrm
+            if ok:
+                return x1
+            log.debug("Newton at t = %.6g s, h = %.3g s: refreshing the Jacobian", t, h)
+            if not np.all(np.isfinite(x1)):
+                x1 = guess.copy()
+            if fresh and attempt == 1:
+                break
+        self._J = None
+        return None
+
+    def _run_adaptive(self, x, t_end, h, method, rec_t, rec_x, rec_w):
+        t = 0.0
+        min_dt = h * 1e-6
+        while t < t_end - 1e-12 * t_end:
+            h = min(h, t_end - t)
+            big = self._step(method, t, x, h)
+            half = self._step(method, t, x, 0.5 * h)
+            fine = None if half is None else self._step(method, t + 0.5 * h, half, 0.5 * h)
+            if big is None or fine is None:
+                err = np.inf
+            else:
+                e = (fine - big) / 3.0
+                err = float(np.sqrt(np.mean((e / (self._rtol * np.maximum(np.abs(x), np.abs(fine))
+                                                  + self._atol * self._scale)) ** 2)))
+            if err <= 1.0:
+                t, x = t + h, fine
+                self._stats["steps"] += 1
+                rec_t.append(t)
+                rec_x.append(x.copy())
+                rec_w.append(self._assemble(t, x).copy())
+            else:
+                self._stats["rejected"] += 1
+            h *= min(4.0, max(0.2, 0.9 * (err if err > 0 else 1e-12) ** (-1.0 / 3.0))) if np.isfinite(err) else 0.25
+            if h < min_dt:
+                raise ConvergenceError(f"Model.simulate (adaptive): the step fell below {min_dt:.3g} s at t = {t:.6g} "
+                                       "s; loosen rtol/atol or check the model for discontinuities")
+
+    def _trajectory(self, t, X, W):
+        systems, U = {}, []
+        for b in self._blocks.values():
+            x, w = X[:, b.sl], W[:, b.wsl]
+            u = w[:, :b.m]
+            U.append(u)
+            extra = {}
+            if b.kind == "shapes":
+                extra = {"q": x[:, :b.nq], "qd": x[:, b.nq:]}
+            elif b.kind == "fluidic":
+                V = w[:, 1]
+                extra = {"volume": V, "pressure": np.array([b.system.pressure(xi, Vi) for xi, Vi in zip(x, V)])}
+            systems[b.name] = SystemTrajectory(b.name, t, x, u, extra)
+        return ModelTrajectory(t, X, np.hstack(U) if U else np.zeros((len(t), 0)), systems, dict(self._stats))
