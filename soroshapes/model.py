@@ -852,8 +852,9 @@ class Model:
                 if hh < min_dt:
                     why = getattr(self, "_last_error", None)
                     raise ConvergenceError(f"Model.simulate: Newton failed at t = {t:.6g} s down to dt = "
-                                           f"{min_dt:.3g} s ({method}); use a smaller dt, check the couplings and controller for "
-                                           "discontinuities, or loosen rtol" + (f" (last error: {why})" if why else ""))
+                                           f"{min_dt:.3g} s ({method}); use a smaller dt, check the couplings and "
+                                           "controller for discontinuities, or loosen rtol"
+                                           + (f" (last error: {why})" if why else ""))
                 continue
             x, t = xn, t + step
         return x
