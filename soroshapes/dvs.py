@@ -423,7 +423,7 @@ def identify(shapes, data, inputs=None, degree=3, attach=True):
     if degree < 1:
         raise ParameterError("degree must be >= 1")
     q = data.project(shapes)
-    tau = np.array([shapes.K @ qk - shapes._mcg(qk, None, False)[2] for qk in q])    # (steps, n)
+    tau = np.array([shapes.K @ qk - shapes.gravity_force(qk) for qk in q])          # (steps, n)
     U = np.column_stack([data.inputs[nm] for nm in names]) if names else np.zeros((len(q), 0))
     A = np.column_stack([U[:, i] ** (d + 1) for i in range(len(names)) for d in range(degree)]) if names else \
         np.zeros((len(q), 0))

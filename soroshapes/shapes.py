@@ -533,6 +533,10 @@ class Shapes:
         """Generalized mass matrix M(q), (n, n) (symmetric positive definite)."""
         return self._mcg(q, None, False)[0]
 
+    def gravity_force(self, q):
+        r"""Generalized gravity force :math:`f_g(q) = \sum_i w_i J_i^T \mathcal M_i (0, R_i^T a_g)` (n,)."""
+        return self._mcg(q, None, False)[2]
+
     def coriolis(self, q, qd):
         r"""Coriolis/centrifugal matrix :math:`C(q, \dot q)` with :math:`\dot M - 2C` skew-symmetric."""
         return self._mcg(q, qd, True)[1]
