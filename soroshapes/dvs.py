@@ -189,24 +189,17 @@ class StrainData:
         return np.linalg.solve(A, rhs.T).T
 
 
-def _locate(vertices, cells, points):
-    """Cell index and barycentric coordinates (k, d+1) of each point (nearest cell if outside)."""
-    from scipy.spatial import cKDTree
-
-    X = vertices
+def _locate(X, cells, points, tree, edges):
+    """Cell index and barycentric coordinates (k, d+1) of each point (nearest cell if outside), from the
+    KD-tree of the cell centroids and the cells' edge matrices (n_cells, d, d)."""
     d = X.shape[1]
-    cent = X[cells].mean(axis=1)
-    tree = cKDTree(cent)
-    k = min(24, len(cells))
-    _, cand = tree.query(points, k=k)
+    _, cand = tree.query(points, k=min(24, len(cells)))
     cand = np.atleast_2d(cand)
-    T = np.swapaxes(X[cells[:, 1:]] - X[cells[:, :1]], 1, 2)     # (n_cells, d, d)
-    Tinv = np.linalg.inv(T)
     out_c = np.empty(len(points), dtype=int)
     out_l = np.empty((len(points), d + 1))
     for j, p in enumerate(points):
         cs = cand[j]
-        lam = np.einsum("cij,cj->ci", Tinv[cs], p - X[cells[cs, 0]])
+        lam = np.linalg.solve(edges[cs], (p - X[cells[cs, 0]])[..., None])[..., 0]
         lam = np.column_stack([1 - lam.sum(axis=1), lam])
         best = int(np.argmax(lam.min(axis=1)))
         out_c[j] = cs[best]
@@ -215,18 +208,13 @@ def _locate(vertices, cells, points):
     return out_c, out_l
 
 
-def _gradient_stencils(X, cells, points):
+def _gradient_stencils(cent, vol, points, tree):
     r"""For each point, its nearest cells (k, by centroid) and weights ``beta`` such that
     :math:`F(p) \approx \sum_c \beta_c F_c` is the value at p of the weighted least-squares linear fit of the
-    cell values (weights: cell volumes)."""
-    from scipy.spatial import cKDTree
-
-    d = X.shape[1]
-    cent = X[cells].mean(axis=1)
-    T = np.swapaxes(X[cells[:, 1:]] - X[cells[:, :1]], 1, 2)
-    vol = np.abs(np.linalg.det(T))
-    k = min(10 * (d + 1), len(cells))
-    _, nb = cKDTree(cent).query(points, k=k)
+    cell values (weights: cell volumes ``vol``)."""
+    d = cent.shape[1]
+    k = min(10 * (d + 1), len(cent))
+    _, nb = tree.query(points, k=k)
     nb = np.atleast_2d(nb)
     beta = np.zeros(nb.shape)
     for j, p in enumerate(points):
@@ -254,9 +242,9 @@ def recover_strains(snapshots, backbone, samples=101, steps=None):
     -------
     :class:`StrainData`
     """
-    from sorofem.snapshots import Snapshots, cell_deformation_gradients
+    from scipy.spatial import cKDTree
 
-    from .lie import logSE3, vee6  # noqa: F401  (numba kernels)
+    from sorofem.snapshots import Snapshots, cell_deformation_gradients
 
     snap = snapshots if isinstance(snapshots, Snapshots) else Snapshots(snapshots)
     if snap.cell_type not in ("triangle", "tetrahedron"):
@@ -271,7 +259,10 @@ def recover_strains(snapshots, backbone, samples=101, steps=None):
     Rref = backbone.frames(sigma)
     X, cells = snap.vertices, snap.cells
     d = snap.gdim
-    cidx, lam = _locate(X, cells, P[:, :d])
+    edges = np.swapaxes(X[cells[:, 1:]] - X[cells[:, :1]], 1, 2)       # (n_cells, d, d)
+    cent = X[cells].mean(axis=1)
+    tree = cKDTree(cent)
+    cidx, lam = _locate(X, cells, P[:, :d], tree, edges)
     # distance of the points to their cells: warn loudly if the backbone leaves the body
     inside = np.einsum("ka,kai->ki", lam, X[cells[cidx]])
     off = np.linalg.norm(inside - P[:, :d], axis=1).max()
@@ -281,7 +272,7 @@ def recover_strains(snapshots, backbone, samples=101, steps=None):
                              "undeformed body")
     # the deformation gradient at each point: a linear least-squares fit of the (cellwise constant) F of the
     # nearest cells, evaluated at the point -- unbiased at the ends of the body, where one-sided averages lag
-    nb, beta = _gradient_stencils(X, cells, P[:, :d])
+    nb, beta = _gradient_stencils(cent, np.abs(np.linalg.det(edges)), P[:, :d], tree)
     need = np.unique(nb)
     where = np.searchsorted(need, nb)
     steps = np.arange(snap.n_steps) if steps is None else np.asarray(steps)
