@@ -4,8 +4,8 @@
 #  1. Debian packages (FEniCSx/DOLFINx 0.5.2 with PETSc and SLEPc, gmsh, numba, SciPy, MPI, ...), installed
 #     with apt-get only when one is missing (`apt-get update` once, `sudo` when not root).
 #  2. .venv made from Debian's /usr/bin/python3 with --system-site-packages, so it sees those packages.
-#  3. The project, editable, plus PyPI extras (OpenCV, tqdm), with a constraints file that pins the versions
-#     of every numerical package Debian provides (numpy above all: a numpy 2 from PyPI breaks DOLFINx).
+#  3. The project, editable, plus PyPI extras (OpenCV, tqdm, Gymnasium), with a constraints file that pins the
+#     versions of every numerical package Debian provides (numpy above all: a numpy 2 from PyPI breaks DOLFINx).
 #
 # A second run checks a stamp (hash of this script, pyproject.toml and the installed package set) and
 # returns in about a second without changing anything. Usage: bash scripts/bootstrap.sh [--force]
@@ -99,7 +99,7 @@ grep -q '^numpy==' "$constraints" || die "Debian's numpy is not visible to /usr/
 say "installing the project (editable) and extras into $VENV"
 export PIP_DISABLE_PIP_VERSION_CHECK=1
 "$VENV/bin/python" -m pip install -q --no-build-isolation -c "$constraints" -e ".[extras]" \
-  || die "pip install failed; see the messages above (network access to PyPI is needed for opencv and tqdm)"
+  || die "pip install failed; see the messages above (network access to PyPI is needed for opencv, tqdm and gymnasium)"
 "$VENV/bin/python" - <<'PY' || exit 1
 import numpy, sys
 if not numpy.__file__.startswith("/usr/lib/python3/"):

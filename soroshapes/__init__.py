@@ -9,7 +9,7 @@ reservoirs and state-space systems) and the public classes are loaded on first a
 """
 import importlib
 
-_SUBMODULES = ("lie", "basis", "shapes", "render", "dvs", "model")
+_SUBMODULES = ("lie", "basis", "shapes", "render", "dvs", "model", "control", "gym")
 _CLASSES = {"Basis": "basis", "Shapes": "shapes", "BeamTrajectory": "shapes", "IKResult": "shapes",
             "Model": "model", "StateSpace": "model", "Fluidic": "model"}
 
