@@ -9,9 +9,10 @@ reservoirs and state-space systems) and the public classes are loaded on first a
 """
 import importlib
 
-_SUBMODULES = ("lie", "basis", "shapes", "render", "dvs", "model", "control", "gym")
+_SUBMODULES = ("lie", "basis", "shapes", "render", "dvs", "model", "rigid", "control", "gym")
 _CLASSES = {"Basis": "basis", "Shapes": "shapes", "BeamTrajectory": "shapes", "IKResult": "shapes",
-            "Model": "model", "StateSpace": "model", "Fluidic": "model"}
+            "Model": "model", "StateSpace": "model", "Fluidic": "model", "RigidBody": "rigid",
+            "SpinningBody": "rigid"}
 
 __all__: list[str] = [*_SUBMODULES, *_CLASSES]
 

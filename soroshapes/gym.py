@@ -2,8 +2,8 @@ r"""A Gymnasium environment over any :class:`~soroshapes.model.Model`.
 
 :class:`ModelEnv` holds the action :math:`a_k` constant over one step of length ``dt`` [s] (zero-order hold)
 and advances the closed network :math:`\dot x = F(t, x)` (free inputs :math:`u = u_{base}(model) + S a_k`:
-the model's own controller, if it had one, plus the action on the ``action_inputs``, a residual policy) with the model's implicit
-integrator (``Model.simulate(dt, dt/substeps, x0=x_k)``), so
+the model's own controller, if it had one, plus the action on the ``action_inputs``, a residual policy) with
+the model's implicit integrator (``Model.simulate(dt, dt/substeps, x0=x_k)``), so
 
 .. math:: x_{k+1} = \Phi_{dt}(x_k; a_k), \qquad o_k = \mathrm{observation}(model), \qquad
           r_k = \mathrm{reward}(model, a_k),

@@ -1,0 +1,469 @@
+r"""Rigid bodies for a :class:`~soroshapes.model.Model`: free 6-DOF bodies, bodies spinning about a fixed axis, and
+penalty contact between a Cosserat beam and a body's surface.
+
+Free body (Newton-Euler on SE(3), body coordinates)
+---------------------------------------------------
+The body frame has its origin at the **centre of mass**; its pose :math:`g = (R, p) \in SE(3)` maps body to
+spatial coordinates (:mod:`soroshapes.lie`), its body twist is :math:`\eta = (\omega, v)` (angular first,
+rad/s and m/s, both in body axes). With :math:`\mathcal M = \mathrm{diag}(I_b, m I_3)` (``inertia`` [kg m^2]
+about the centre of mass, ``mass`` [kg]),
+
+.. math::
+
+    \dot p = R v, \qquad \dot R = R\hat\omega + \tfrac\kappa2 R (I_3 - R^T R), \qquad
+    \mathcal M \dot\eta = \mathrm{ad}_\eta^T \mathcal M \eta + W_g + W_d + W_{ext},
+
+with :math:`\mathrm{ad}_\eta` of :func:`soroshapes.lie.ad6`, so that
+:math:`\mathrm{ad}_\eta^T\mathcal M\eta = (-\omega\times I_b\omega - v\times m v,\ -\omega\times m v)` (Euler's
+equations and the transport term of the linear momentum); the gravity wrench
+:math:`W_g = (0, m R^T a_g)` (``gravity`` :math:`a_g` [m/s^2], spatial), the damping wrench
+:math:`W_d = -(c_\omega\,\omega, c_v v)` (``damping = (c_v [N s/m], c_omega [N m s/rad])``) and the external
+wrench :math:`W_{ext} = (m, f)` [N m, N] in body coordinates (the input, 6 entries).
+
+State (18 entries, what a :class:`Model` integrates): :math:`x = (p, R, \omega, v)` with the rotation matrix
+stored row by row (9 entries). The matrix has no singularity (Euler angles do), and the equations stay
+polynomial (quadratic) in the state, so the ``"midpoint"`` integrator of :class:`Model` (which conserves every
+quadratic invariant) keeps :math:`R^TR = I`, the kinetic energy and the spatial angular momentum
+:math:`R I_b\omega` of a free spinning body exactly (to the Newton tolerance); the trapezoidal rule (conjugate to
+the midpoint rule) keeps them to a bounded :math:`O(h^2)` error without drift. BDF2 damps the rotation slowly:
+give it ``normalization`` :math:`\kappa > 0` [1/s], whose term is zero on :math:`SO(3)` and pulls :math:`R` back
+(leave it 0 with the midpoint rule: evaluated at the midpoint of two rotations it biases the norm). The pose
+(:meth:`RigidBody.pose`) is the re-orthonormalized (polar) factor of the stored matrix. (A unit quaternion
+needs 4 entries instead of 9 but makes the angular momentum a cubic function of the state, which no
+Runge-Kutta rule conserves.)
+
+Body spinning about a fixed axis
+--------------------------------
+:class:`SpinningBody` (``RigidBody.spinning``): a body (a bolt, a valve wheel) that can only turn about a unit
+``axis`` through its body origin, fixed in space: state :math:`(\theta, \dot\theta)` [rad, rad/s],
+
+.. math:: I_a \ddot\theta = -c\,\dot\theta + a\cdot m_{ext},
+
+pose :math:`g(\theta) = g_0\,(\exp(\theta\hat a), 0)`, twist :math:`(a\dot\theta, 0)`. The input is the same body
+wrench :math:`(m, f)` as a free body's (the bearing takes everything but the axial moment).
+
+Beam-body contact
+-----------------
+:func:`beam_contact` treats the beam as the tube of radius :math:`r` (``Shapes.contact_radius``) around its
+backbone nodes, as ``Shapes.add_contact`` does for a fixed obstacle, with the body's ``shape`` (a 3D SDF of
+:mod:`sorofem.sdf` in body coordinates) as the obstacle: node :math:`i` at :math:`P_i` [m] (spatial) has body
+coordinates :math:`P^b_i = R^T(P_i - p)`, distance :math:`d_i = \phi(P^b_i)` and normal :math:`n_i = R\,
+\nabla\phi/|\nabla\phi|`. The relative velocity of the node with respect to the body material point at the same
+place is :math:`v^{rel}_i = R_i \eta_{i,v} - R(v + \omega\times P^b_i)`; with :math:`\delta_i = r - d_i` and
+:math:`v_n = n_i\cdot v^{rel}_i`, the force on the beam at node :math:`i` is
+
+.. math:: F_i = w_i\left(f_n n_i - \mu f_n \frac{v_t}{\sqrt{|v_t|^2 + \epsilon^2}}\right), \qquad
+          f_n = \max(0, k\delta_i - c v_n),\quad v_t = v^{rel}_i - v_n n_i,
+
+(``stiffness`` :math:`k` [N/m^2] and ``damping`` :math:`c` [N s/m^2] per unit length, ``friction`` :math:`\mu`,
+``regularization`` :math:`\epsilon` [m/s], :math:`w_i` [m] the node's share of the rod length). The beam gets
+the generalized force :math:`\sum_i J_{i,v}^T R_i^T F_i`; the body gets :math:`-F_i` at the same points, i.e.
+the body wrench :math:`W = \sum_i (P^b_i \times f^b_i, f^b_i)`, :math:`f^b_i = -R^T F_i`, so the forces and the
+moments about any point cancel (Newton's third law) and the contact power is
+:math:`\sum_i F_i\cdot v^{rel}_i` (zero for a frictionless, undamped contact, which is then conservative with
+the energy :math:`\sum_i w_i k\delta_i^2/2`). :func:`couple_contact` wires both into a :class:`Model`.
+
+Example
+-------
+Free fall: the trapezoidal rule is exact for a constant acceleration, so :math:`z = -g t^2/2`:
+
+>>> import numpy as np
+>>> from soroshapes import Model
+>>> from soroshapes.rigid import RigidBody
+>>> ball = RigidBody(0.1, 4e-6, name="ball")
+>>> traj = Model().add(ball).simulate(0.5, 0.01)
+>>> round(float(ball.pose(traj["ball"].x[-1])[2, 3]), 6)      # -9.81 * 0.5**2 / 2 [m]
+-1.22625
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from sorofem.errors import ParameterError
+
+from .model import Model, StateSpace
+
+__all__ = ["RigidBody", "SpinningBody", "beam_contact", "couple_contact"]
+
+_WRENCH = ["moment_x", "moment_y", "moment_z", "force_x", "force_y", "force_z"]
+
+
+# ------------------------------------------------------------------------------------------------------------
+# small helpers
+# ------------------------------------------------------------------------------------------------------------
+def _finite(v, shape, what):
+    try:
+        a = np.asarray(v, dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{what} must be numeric with shape {shape}, got {v!r}") from None
+    if a.shape != shape or not np.all(np.isfinite(a)):
+        raise ParameterError(f"{what} must be finite with shape {shape}, got shape {a.shape}")
+    return a.copy()
+
+
+def _pose(g, what="pose0"):
+    g = _finite(g, (4, 4), what)
+    R = g[:3, :3]
+    if not np.allclose(R.T @ R, np.eye(3), atol=1e-9) or np.linalg.det(R) < 0 or \
+            not np.allclose(g[3], [0, 0, 0, 1]):
+        raise ParameterError(f"{what} must be a homogeneous pose [[R, p], [0, 1]] with R orthonormal, det +1 "
+                             "(build R with soroshapes.lie.expSO3)")
+    return g
+
+
+def _skew(w):
+    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+
+
+def _rotation(axis, angle):
+    """Rodrigues: rotation by ``angle`` [rad] about the unit ``axis``."""
+    K = _skew(axis)
+    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)
+
+
+def _polar(R):
+    """The rotation nearest to R (polar factor U V^T of its SVD)."""
+    U, _, Vt = np.linalg.svd(R)
+    Q = U @ Vt
+    if np.linalg.det(Q) < 0:
+        U[:, -1] *= -1
+        Q = U @ Vt
+    return Q
+
+
+def _shape(shape):
+    if shape is not None and getattr(shape, "dim", None) != 3:
+        raise ParameterError("shape must be a 3D SDF of sorofem.sdf in body coordinates (e.g. sdf.Cylinder, or "
+                             "sdf.Polygon(hexagon).extrude(height) for a bolt head), or None")
+    return shape
+
+
+def _wrench(u):
+    u = np.asarray(u, dtype=float).reshape(-1)
+    if u.shape != (6,):
+        raise ParameterError(f"the external wrench must have 6 entries (m [N m], f [N]) in body coordinates, "
+                             f"got {u.size}")
+    return u
+
+
+# ------------------------------------------------------------------------------------------------------------
+# free rigid body
+# ------------------------------------------------------------------------------------------------------------
+class RigidBody(StateSpace):
+    r"""A free rigid body: Newton-Euler equations on SE(3) in body coordinates (module docstring).
+
+    A :class:`~soroshapes.model.StateSpace` with 18 states :math:`(p, R, \omega, v)` and 6 inputs (the
+    external body wrench :math:`(m, f)` [N m, N]), so ``Model.add`` takes it as it is.
+
+    Parameters
+    ----------
+    mass : float [kg], > 0
+    inertia : float, (3,) or (3, 3) [kg m^2]
+        Inertia about the centre of mass in body axes (a number: isotropic; (3,): principal moments);
+        symmetric positive definite.
+    pose0 : (4, 4), optional
+        Initial pose (body -> spatial) [m]; identity by default.
+    twist0 : (6,), optional
+        Initial body twist :math:`(\omega, v)` [rad/s, m/s].
+    gravity : (3,) [m/s^2]
+        Spatial gravitational acceleration (``(0, 0, 0)`` for none).
+    damping : (2,)
+        ``(linear [N s/m], angular [N m s/rad])`` viscous damping on the body twist.
+    shape : 3D SDF, optional
+        The body's surface in body coordinates, for contact (:func:`beam_contact`).
+    name : str, optional
+    normalization : float [1/s]
+        Gain :math:`\kappa` pulling :math:`R` back to :math:`SO(3)` (default 0; see the module docstring).
+    """
+
+    def __init__(self, mass, inertia, pose0=None, twist0=None, gravity=(0.0, 0.0, -9.81), damping=(0.0, 0.0),
+                 name=None, *, shape=None, normalization=0.0):
+        try:
+            mass = float(mass)
+        except (TypeError, ValueError):
+            raise ParameterError(f"mass must be a positive number of kg, got {mass!r}") from None
+        if not (np.isfinite(mass) and mass > 0):
+            raise ParameterError(f"mass must be positive and finite [kg], got {mass!r}")
+        I = np.asarray(inertia, dtype=float)
+        if I.ndim == 0:
+            I = float(I) * np.eye(3)
+        elif I.shape == (3,):
+            I = np.diag(I)
+        if I.shape != (3, 3) or not np.all(np.isfinite(I)):
+            raise ParameterError(f"inertia must be a number, 3 principal moments or a 3x3 matrix [kg m^2], got "
+                                 f"shape {np.shape(inertia)}")
+        if not np.allclose(I, I.T, rtol=1e-12, atol=1e-15 * np.abs(I).max()) or np.linalg.eigvalsh(I).min() <= 0:
+            raise ParameterError(f"inertia must be symmetric positive definite [kg m^2], got eigenvalues "
+                                 f"{np.linalg.eigvals(I)}")
+        g0 = _pose(np.eye(4) if pose0 is None else pose0)
+        eta0 = np.zeros(6) if twist0 is None else _finite(twist0, (6,), "twist0")
+        self.gravity = _finite(gravity, (3,), "gravity")
+        dmp = _finite(damping, (2,), "damping (linear [N s/m], angular [N m s/rad])")
+        if np.any(dmp < 0):
+            raise ParameterError(f"damping (linear, angular) must be >= 0, got {tuple(dmp)}")
+        if not (np.isfinite(normalization) and normalization >= 0):
+            raise ParameterError(f"normalization must be >= 0 [1/s], got {normalization!r}")
+        self.mass, self.inertia = mass, 0.5 * (I + I.T)
+        self._Iinv = np.linalg.inv(self.inertia)
+        self.damping = (float(dmp[0]), float(dmp[1]))
+        self.shape = _shape(shape)
+        self.normalization = float(normalization)
+        x0 = self.state(g0, eta0)
+        super().__init__(self._f, 18, 6, jacobian=None, name=name, x0=x0, scale=1.0)
+        self.input_names = list(_WRENCH)
+        self.state_names = ["x", "y", "z"] + [f"R{i}{j}" for i in range(3) for j in range(3)] \
+            + ["omega_x", "omega_y", "omega_z", "v_x", "v_y", "v_z"]
+
+    @classmethod
+    def spinning(cls, axis, inertia, damping=0.0, shape=None, **kw):
+        """A :class:`SpinningBody`: a body that only turns about ``axis`` (see there for the keywords)."""
+        return SpinningBody(axis, inertia, damping, shape, **kw)
+
+    @property
+    def mass_matrix(self):
+        r""":math:`\mathcal M = \mathrm{diag}(I_b, m I_3)` (6, 6) [kg m^2, kg]."""
+        M = np.zeros((6, 6))
+        M[:3, :3], M[3:, 3:] = self.inertia, self.mass * np.eye(3)
+        return M
+
+    # -- state <-> pose, twist ----------------------------------------------------------------------------
+    @staticmethod
+    def state(pose, twist=None):
+        """The 18-entry state of a pose (4, 4) and a body twist (6,) [rad/s, m/s]."""
+        g = _pose(pose, "pose")
+        eta = np.zeros(6) if twist is None else _finite(twist, (6,), "twist")
+        return np.concatenate([g[:3, 3], g[:3, :3].reshape(9), eta])
+
+    @staticmethod
+    def pose(x):
+        """Pose (4, 4) of the state ``x`` (the stored rotation re-orthonormalized)."""
+        g = np.eye(4)
+        g[:3, :3], g[:3, 3] = _polar(np.reshape(x[3:12], (3, 3))), x[:3]
+        return g
+
+    @staticmethod
+    def twist(x):
+        r"""Body twist :math:`\eta = (\omega, v)` (6,) of the state ``x``."""
+        return np.asarray(x[12:18], dtype=float).copy()
+
+    def poses(self, X):
+        """Poses (K, 4, 4) of a trajectory of states (K, 18), e.g. ``traj["body"].x``."""
+        return np.array([self.pose(x) for x in np.atleast_2d(X)])
+
+    def momentum(self, x):
+        r"""Spatial momentum :math:`(L, P)`: angular momentum about the spatial origin [kg m^2/s] and linear
+        momentum [kg m/s], both in spatial axes (conserved without external wrench, gravity and damping)."""
+        g = self.pose(x)
+        R, p = g[:3, :3], g[:3, 3]
+        P = R @ (self.mass * x[15:18])
+        return np.concatenate([R @ (self.inertia @ x[12:15]) + np.cross(p, P), P])
+
+    def energy(self, x):
+        """Energies [J]: dict with kinetic (1/2 eta^T M eta), gravity (-m a_g . p) and total."""
+        w, v = x[12:15], x[15:18]
+        kin = 0.5 * (w @ self.inertia @ w + self.mass * v @ v)
+        pot = -self.mass * self.gravity @ x[:3]
+        return {"kinetic": float(kin), "gravity": float(pot), "total": float(kin + pot)}
+
+    # -- dynamics -----------------------------------------------------------------------------------------
+    def _f(self, x, u, t):
+        u = _wrench(u)
+        R, w, v = x[3:12].reshape(3, 3), x[12:15], x[15:18]
+        out = np.empty(18)
+        out[:3] = R @ v
+        dR = R @ _skew(w)
+        if self.normalization:
+            dR += 0.5 * self.normalization * (R - R @ (R.T @ R))
+        out[3:12] = dR.reshape(9)
+        Iw, mv = self.inertia @ w, self.mass * v
+        cv, cw = self.damping
+        moment = -np.cross(w, Iw) - np.cross(v, mv) - cw * w + u[:3]
+        force = -np.cross(w, mv) + self.mass * (R.T @ self.gravity) - cv * v + u[3:]
+        out[12:15] = self._Iinv @ moment
+        out[15:18] = force / self.mass
+        return out
+
+    def rhs(self, x, u, t):
+        """State derivative (18,) at state ``x``, external body wrench ``u`` (6,) [N m, N], time ``t`` [s]."""
+        x = np.asarray(x, dtype=float).reshape(-1)
+        if x.shape != (18,):
+            raise ParameterError(f"a RigidBody state has 18 entries (p, R row by row, omega, v), got {x.size}")
+        return self._f(x, u, t)
+
+
+# ------------------------------------------------------------------------------------------------------------
+# body spinning about a fixed axis
+# ------------------------------------------------------------------------------------------------------------
+class SpinningBody(StateSpace):
+    r"""A rigid body that can only turn about a fixed ``axis``: :math:`I_a\ddot\theta = -c\dot\theta + a\cdot m`.
+
+    A :class:`~soroshapes.model.StateSpace` with states :math:`(\theta, \dot\theta)` [rad, rad/s] and the 6
+    inputs of the body wrench :math:`(m, f)` [N m, N] (body coordinates; only :math:`a\cdot m` acts).
+
+    Parameters
+    ----------
+    axis : (3,)
+        Axis of rotation in body coordinates (normalized), through the body origin.
+    inertia : float [kg m^2], > 0
+        Moment of inertia about the axis.
+    damping : float [N m s/rad], >= 0
+    shape : 3D SDF, optional
+        The surface in body coordinates (for contact), e.g. a hexagonal bolt head
+        ``sdf.Polygon(hexagon).extrude(h)`` about ``axis = (0, 0, 1)``.
+    pose0 : (4, 4), optional
+        Pose at :math:`\theta = 0` (where the axis is in space).
+    angle0, rate0 : float [rad, rad/s]
+        Initial state.
+    name : str, optional
+    """
+
+    def __init__(self, axis, inertia, damping=0.0, shape=None, *, pose0=None, angle0=0.0, rate0=0.0, name=None):
+        a = _finite(axis, (3,), "axis")
+        if np.linalg.norm(a) == 0:
+            raise ParameterError("axis must be a non-zero 3-vector")
+        self.axis = a / np.linalg.norm(a)
+        try:
+            inertia, damping = float(inertia), float(damping)
+        except (TypeError, ValueError):
+            raise ParameterError("inertia [kg m^2] and damping [N m s/rad] must be numbers") from None
+        if not (np.isfinite(inertia) and inertia > 0):
+            raise ParameterError(f"inertia must be positive and finite [kg m^2], got {inertia!r}")
+        if not (np.isfinite(damping) and damping >= 0):
+            raise ParameterError(f"damping must be >= 0 [N m s/rad], got {damping!r}")
+        self.inertia, self.damping = inertia, damping
+        self.shape = _shape(shape)
+        self.pose0 = _pose(np.eye(4) if pose0 is None else pose0)
+        A = np.array([[0.0, 1.0], [0.0, -damping / inertia]])
+        B = np.zeros((2, 6))
+        B[1, :3] = self.axis / inertia
+        super().__init__(self._f, 2, 6, jacobian=lambda x, u, t: (A, B), name=name,
+                         x0=[float(angle0), float(rate0)])
+        self.input_names = list(_WRENCH)
+        self.state_names = ["angle", "rate"]
+
+    def _f(self, x, u, t):
+        u = _wrench(u)
+        return np.array([x[1], (self.axis @ u[:3] - self.damping * x[1]) / self.inertia])
+
+    def pose(self, x):
+        r"""Pose :math:`g_0 (\exp(\theta\hat a), 0)` (4, 4) at state ``x = (angle, rate)``."""
+        g = self.pose0.copy()
+        g[:3, :3] = self.pose0[:3, :3] @ _rotation(self.axis, float(x[0]))
+        return g
+
+    def twist(self, x):
+        r"""Body twist :math:`(a\dot\theta, 0)` (6,)."""
+        return np.concatenate([self.axis * float(x[1]), np.zeros(3)])
+
+    def energy(self, x):
+        """Kinetic energy [J] in a dict (``kinetic``, ``total``)."""
+        k = 0.5 * self.inertia * float(x[1]) ** 2
+        return {"kinetic": k, "total": k}
+
+
+# ------------------------------------------------------------------------------------------------------------
+# contact
+# ------------------------------------------------------------------------------------------------------------
+def beam_contact(beam, body, stiffness, damping=0.0, friction=0.0, regularization=1e-3, *, q, qd=None, x=None,
+                 nodes=False):
+    r"""Penalty + regularized-Coulomb contact between a beam's tube and a body's ``shape`` (module docstring).
+
+    Parameters
+    ----------
+    beam : :class:`~soroshapes.shapes.Shapes` (tube radius ``beam.contact_radius``).
+    body : :class:`RigidBody` or :class:`SpinningBody` with a ``shape``.
+    stiffness : float [N/m^2] (per unit length of rod), > 0
+    damping : float [N s/m^2], >= 0
+    friction : float, >= 0 (Coulomb coefficient)
+    regularization : float [m/s], > 0 (slip speed below which friction is viscous)
+    q, qd : beam coordinates and rates (qd default zeros).
+    x : body state (default ``body.x0``).
+    nodes : bool
+        Also return the (N+1, 3) spatial forces [N] on the beam nodes.
+
+    Returns
+    -------
+    f_beam : (n,) generalized force on the beam.
+    wrench : (6,) wrench :math:`(m, f)` [N m, N] on the body, in body coordinates (moment about the body origin).
+    forces : (N+1, 3) [N], only with ``nodes=True``.
+    """
+    shape = getattr(body, "shape", None)
+    if shape is None:
+        raise ParameterError("the body has no shape: give RigidBody(..., shape=sdf...) (body coordinates)")
+    k, c, mu, eps = (float(v) for v in (stiffness, damping, friction, regularization))
+    for what, v, pos in (("stiffness", k, True), ("damping", c, False), ("friction", mu, False),
+                         ("regularization", eps, True)):
+        if not np.isfinite(v) or v < 0 or (pos and v == 0):
+            raise ParameterError(f"contact {what} must be {'> 0' if pos else '>= 0'}, got {v!r}")
+    xb = body.x0 if x is None else np.asarray(x, dtype=float).reshape(-1)
+    beam._kin(q, qd)
+    G, eta, J, w = beam._G, beam._eta, beam._J, beam._w
+    r = beam.contact_radius
+    g = body.pose(xb)
+    Rb, pb = g[:3, :3], g[:3, 3]
+    etab = body.twist(xb)
+    Pb = (G[:, :3, 3] - pb) @ Rb                      # rows R^T (P - p)
+    d = np.asarray(shape(Pb), dtype=float).reshape(-1)
+    hit = np.nonzero(d < r)[0]
+    f = np.zeros(beam.n)
+    W = np.zeros(6)
+    F = np.zeros((len(d), 3))
+    if len(hit):
+        nb = np.asarray(shape.gradient(Pb[hit]), dtype=float).reshape(len(hit), 3)
+        nb /= np.linalg.norm(nb, axis=1)[:, None]
+        ns = nb @ Rb.T
+        vnode = np.einsum("kij,kj->ki", G[hit, :3, :3], eta[hit, 3:])
+        vbody = (etab[3:] + np.cross(etab[:3], Pb[hit])) @ Rb.T
+        vrel = vnode - vbody
+        vn = np.einsum("ki,ki->k", vrel, ns)
+        fn = np.maximum(0.0, k * (r - d[hit]) - c * vn)
+        vt = vrel - vn[:, None] * ns
+        slip = np.sqrt(np.einsum("ki,ki->k", vt, vt) + eps * eps)
+        Fh = w[hit, None] * (fn[:, None] * ns - mu * (fn / slip)[:, None] * vt)
+        F[hit] = Fh
+        for j, i in enumerate(hit):
+            f += J[i, 3:].T @ (G[i, :3, :3].T @ Fh[j])
+        fb = -Fh @ Rb                                 # rows R^T (-F)
+        W[:3] = np.cross(Pb[hit], fb).sum(axis=0)
+        W[3:] = fb.sum(axis=0)
+    return (f, W, F) if nodes else (f, W)
+
+
+def couple_contact(model, beam, body, stiffness, damping=0.0, friction=0.0, regularization=1e-3):
+    """Contact between the beam ``beam`` and the body ``body`` (system names) of ``model``; returns the model.
+
+    The beam gets the contact's generalized force through ``Shapes.add_force`` (reading the body's current
+    state from the model), the body gets the equal and opposite wrench through ``model.connect`` into all six
+    of its wrench inputs (they must be free). One contact evaluation serves both at a given state. Call it
+    once per pair (each call adds a force to the beam). Parameters as in :func:`beam_contact`.
+    """
+    if not isinstance(model, Model):
+        raise ParameterError("couple_contact needs a soroshapes Model")
+    for nm in (beam, body):
+        if nm not in model.systems:
+            raise ParameterError(f"no system {nm!r} in the model; systems: {', '.join(model.systems)}")
+    shp, bdy = model[beam].system, model[body].system
+    from .shapes import Shapes
+    if not isinstance(shp, Shapes):
+        raise ParameterError(f"system {beam!r} is a {type(shp).__name__}, not a Shapes beam")
+    if not isinstance(bdy, (RigidBody, SpinningBody)):
+        raise ParameterError(f"system {body!r} is a {type(bdy).__name__}, not a RigidBody or SpinningBody")
+    beam_contact(shp, bdy, stiffness, damping, friction, regularization, q=np.zeros(shp.n))   # validate now
+    n, cache = shp.n, {}
+
+    def evaluate(q, qd, xb):
+        key = (q.tobytes(), qd.tobytes(), xb.tobytes())
+        if cache.get("key") != key:
+            cache["val"] = beam_contact(shp, bdy, stiffness, damping, friction, regularization, q=q, qd=qd, x=xb)
+            cache["key"] = key
+        return cache["val"]
+
+    shp.add_force(lambda s, q, qd, t: evaluate(np.asarray(q, float), np.asarray(qd, float),
+                                               np.array(model.state(body)))[0])
+
+    def wrench(mdl):
+        xs = np.array(mdl.state(beam))
+        return evaluate(xs[:n], xs[n:], np.array(mdl.state(body)))[1]
+
+    model.connect(wrench, body)
+    return model
