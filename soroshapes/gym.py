@@ -3,7 +3,7 @@ r"""A Gymnasium environment over any :class:`~soroshapes.model.Model`.
 :class:`ModelEnv` holds the action :math:`a_k` constant over one step of length ``dt`` [s] (zero-order hold)
 and advances the closed network :math:`\dot x = F(t, x)` (free inputs :math:`u = u_{base}(model) + S a_k`:
 the model's own controller, if it had one, plus the action on the ``action_inputs``, a residual policy) with
-the model's implicit integrator (``Model.simulate(dt, dt/substeps, x0=x_k)``), so
+the model's implicit integrator (``Model.simulate(dt, dt/substeps, x0=x_k, t0=t_k)``), so
 
 .. math:: x_{k+1} = \Phi_{dt}(x_k; a_k), \qquad o_k = \mathrm{observation}(model), \qquad
           r_k = \mathrm{reward}(model, a_k),
@@ -146,9 +146,7 @@ class ModelEnv(_gym.Env):
         return u
 
     def _set_state(self, t, x):
-        # Model has no public "set the current state" yet: _assemble sets t, x and the inputs that the
-        # observation and reward callables read (see the hooks requested with this module).
-        self.model._assemble(t, x)
+        self.model.set_state(t, x)
 
     def _observe(self):
         o = np.asarray(self._obs_fn(self.model), dtype=float).reshape(-1)
@@ -180,12 +178,11 @@ class ModelEnv(_gym.Env):
         if a.shape != self.action_space.shape:
             raise ParameterError(f"action must have shape {self.action_space.shape}, got {a.shape}")
         self._action = np.clip(a, self.action_space.low, self.action_space.high)
-        # Model.simulate starts at t = 0: time-dependent parts of the model see t - t_k (hook requested)
-        traj = self.model.simulate(self.dt, self.dt / self.substeps, method=self.method, x0=self._x)
+        traj = self.model.simulate(self.dt, self.dt / self.substeps, method=self.method, x0=self._x, t0=self.t)
         self._x = traj.x[-1].copy()
         self._k += 1
         self.t = self._k * self.dt
-        self._set_state(self.dt, self._x)
+        self._set_state(self.t, self._x)
         obs = self._observe()
         reward = float(self._reward_fn(self.model, self._action))
         terminated = bool(self._terminate(self.model)) if self._terminate is not None else False

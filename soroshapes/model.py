@@ -667,6 +667,15 @@ class Model:
             raise DataError(f"controller returned non-finite inputs for system(s) {sorted(bad)} at t = {self.t:.6g} s")
         return out
 
+    def set_state(self, t, x):
+        """Make (t [s], x) the model's current state: volumes, controller and couplings are evaluated there, so
+        that ``model["name"].x``, ``.u`` and callables of the model read it. Returns the assembled inputs."""
+        self._prepare_layout()
+        x = _vec(x, "x")
+        if x.shape != (self._N,):
+            raise ParameterError(f"the state must have {self._N} entries, got {x.shape}")
+        return self._assemble(float(t), x).copy()
+
     def _assemble(self, t, x):
         """w = W(t, x): volumes, controller, couplings (in declaration order)."""
         self.t, self._x = t, x
@@ -738,7 +747,7 @@ class Model:
         return J
 
     # -- initial state ---------------------------------------------------------------------------------
-    def initial_state(self, x0=None):
+    def initial_state(self, x0=None, t=0.0):
         """The stacked initial state: ``x0`` if given, else each system's (``add(..., x0=)`` or its default;
         a Fluidic starts at gauge 0 in its initial volume, which a volume coupling evaluates at the others')."""
         self._prepare_layout()
@@ -753,22 +762,22 @@ class Model:
                 v = b.x0 if b.x0 is not None else b.default_x0()
                 if v is not None:
                     x[b.sl] = v
-            self.t, self._x, self._w = 0.0, x, np.zeros(self._NW)
+            self.t, self._x, self._w = t, x, np.zeros(self._NW)
             for b in self._blocks.values():
                 if b.kind == "fluidic" and b.x0 is None:
                     src = self._vol_link.get(id(b))
-                    V = b.system.volume_at(0.0) if src is None else float(np.asarray(src(self)).reshape(-1)[0])
+                    V = b.system.volume_at(t) if src is None else float(np.asarray(src(self)).reshape(-1)[0])
                     x[b.sl] = b.system.initial_state(V)
         for b in self._blocks.values():
             if not np.all(np.isfinite(x[b.sl])):
                 raise DataError(f"the initial state of system {b.name!r} contains NaN or inf: {x[b.sl]}")
         return x
 
-    def _scales(self, x0):
+    def _scales(self, x0, t0=0.0):
         s = np.ones(self._N)
         for b in self._blocks.values():
             if b.kind == "fluidic":
-                w = self._assemble(0.0, x0)
+                w = self._assemble(t0, x0)
                 b._V_init = w[b.wsl][1]
                 b._uscale = (b.system.p0 * 0.01 if b.system.regulator else
                              b.system.scales(b._V_init)[0] * 10.0)
@@ -778,9 +787,11 @@ class Model:
 
     # -- integration -----------------------------------------------------------------------------------
     def simulate(self, t_end, dt, method="trapezoidal", x0=None, rtol=1e-6, atol=1e-9, adaptive=False, *,
-                 max_iterations=12, record_every=1, min_dt=None):
-        """Integrate the network from t = 0 to ``t_end`` [s] with step ``dt`` [s] (fixed: ``t_end/ceil(t_end/dt)``;
-        adaptive: the first step) by the implicit ``method`` ("trapezoidal", "midpoint", "bdf2").
+                 max_iterations=12, record_every=1, min_dt=None, t0=0.0):
+        """Integrate the network from ``t0`` to ``t0 + t_end`` [s] with step ``dt`` [s] (fixed:
+        ``t_end/ceil(t_end/dt)``; adaptive: the first step) by the implicit ``method`` ("trapezoidal",
+        "midpoint", "bdf2"); ``t0`` lets a simulation continue from a state reached earlier (time-dependent
+        volumes, signals and controllers see the absolute time).
 
         ``rtol``, ``atol``: Newton stops when every correction is below 1e-3 of ``rtol*|x_j| + atol*s_j``; with
         ``adaptive=True`` (trapezoidal or midpoint) the step-doubling local error is kept below the same
@@ -797,25 +808,28 @@ class Model:
                                  "or 'midpoint' with adaptive=True (variable-step BDF2 is not implemented)")
         if not (rtol > 0 and atol > 0):
             raise ParameterError("rtol and atol must be positive")
+        t0 = float(t0)
+        if not np.isfinite(t0):
+            raise ParameterError(f"t0 must be a finite time [s], got {t0!r}")
         self._prepare_layout()
-        x = self.initial_state(x0)
-        self._scale = self._scales(x)
+        x = self.initial_state(x0, t0)
+        self._scale = self._scales(x, t0)
         self._rtol, self._atol, self._maxit = float(rtol), float(atol), int(max_iterations)
-        self._rhs(0.0, x)                                        # validates sizes, controller and couplings
+        self._rhs(t0, x)                                         # validates sizes, controller and couplings
         self._last_error = None
         self._J, self._lu_key, self._stats = None, None, {"steps": 0, "rejected": 0, "newton_iterations": 0,
                                                          "jacobians": 0, "cut_steps": 0}
-        rec_t, rec_x, rec_w = [0.0], [x.copy()], [self._assemble(0.0, x).copy()]
+        rec_t, rec_x, rec_w = [t0], [x.copy()], [self._assemble(t0, x).copy()]
         wall = _time.perf_counter()
         if adaptive:
-            self._run_adaptive(x, t_end, dt, method, rec_t, rec_x, rec_w)
+            self._run_adaptive(x, t0, t0 + t_end, dt, method, rec_t, rec_x, rec_w)
         else:
             nsteps = int(np.ceil(t_end / dt - 1e-9))
             h = t_end / nsteps
             min_dt = h / 1024 if min_dt is None else float(min_dt)
             prev = None
             for k in range(nsteps):
-                t = k * h
+                t = t0 + k * h
                 if method == "bdf2" and prev is not None:
                     xn = self._step("bdf2", t, x, h, prev)
                     if xn is None:
@@ -832,7 +846,7 @@ class Model:
                 x = xn
                 self._stats["steps"] += 1
                 if (k + 1) % record_every == 0 or k == nsteps - 1:
-                    tt = t_end if k == nsteps - 1 else (k + 1) * h
+                    tt = t0 + (t_end if k == nsteps - 1 else (k + 1) * h)
                     rec_t.append(tt)
                     rec_x.append(x.copy())
                     rec_w.append(self._assemble(tt, x).copy())
@@ -930,8 +944,7 @@ class Model:
         self._J = None
         return None
 
-    def _run_adaptive(self, x, t_end, h, method, rec_t, rec_x, rec_w):
-        t = 0.0
+    def _run_adaptive(self, x, t, t_end, h, method, rec_t, rec_x, rec_w):
         min_dt = h * 1e-6
         while t < t_end - 1e-12 * t_end:
             h = min(h, t_end - t)

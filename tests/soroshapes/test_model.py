@@ -224,3 +224,16 @@ def test_views_and_names():
     assert tr["fl"].x.shape == (11, 2) and tr.u.shape == (11, 1)
     with pytest.raises(KeyError, match="systems: osc, fl"):
         tr["nope"]
+
+
+def test_a_simulation_continued_from_t0_equals_one_run():
+    """Two runs chained with t0 give the run in one go, also for a time-dependent input."""
+    f = lambda x, u, t: np.array([x[1], -4.0 * x[0] + np.sin(3.0 * t)])  # noqa: E731
+    model = Model().add(StateSpace(f, 2, 0, name="osc", x0=np.array([1.0, 0.0])))
+    whole = model.simulate(2.0, 0.01, method="midpoint")
+    first = model.simulate(1.0, 0.01, method="midpoint")
+    second = model.simulate(1.0, 0.01, method="midpoint", x0=first.x[-1], t0=1.0)
+    assert second.t[0] == pytest.approx(1.0) and second.t[-1] == pytest.approx(2.0)
+    assert np.allclose(second.x[-1], whole.x[-1], rtol=1e-8, atol=1e-10)
+    model.set_state(0.5, np.array([0.3, -0.2]))
+    assert model.t == 0.5 and np.allclose(model["osc"].x, [0.3, -0.2])
