@@ -18,3 +18,5 @@ def test_readme_tour_runs(repo, tmp_path, monkeypatch):
     assert namespace["motion"].times[-1] == pytest.approx(0.05)
     assert namespace["ik"].converged and namespace["swing"].t[-1] == pytest.approx(1.0)
     assert (tmp_path / "finger.png").exists()
+    run = namespace["run"]
+    assert run.t[-1] == pytest.approx(0.3) and run["chamber"].pressure[-1] > 0
