@@ -288,6 +288,89 @@ def _col_ad(x, r, v, out, k, alpha):
 
 
 @njit(cache=True)
+def _segment(s, q, qd, want_dT, want_dOp, order, h, B, rows, xi0, G, S, E, V, Op, dOp, zero):
+    """The Magnus step of segment ``s``: :math:`\Omega`, :math:`\dot\Omega` (``V[4]``, ``V[5]``),
+    :math:`\Omega' = \partial\Omega/\partial q` (``Op``) and, if ``want_dOp``, its rate (``dOp``, order 4;
+    zeroed otherwise), :math:`E = \exp\hat\Omega`, the next frame ``G[s+1] = G[s] E``, ``Ad`` of
+    :math:`E^{-1}` and the tangent operator (and, if ``want_dT``, its derivative along :math:`\dot\Omega`) in
+    ``S``."""
+    n = q.shape[0]
+    xi1, xi2, xd1, xd2, Om, Omd, tmp = V[0], V[1], V[2], V[3], V[4], V[5], V[7]
+    hs = h[s]
+    _strain(B[s, 0], rows, xi0[s, 0], q, xi1)
+    _strain(B[s, 0], rows, zero, qd, xd1)
+    for r in range(6):
+        for k in range(n):
+            Op[r, k] = 0.0
+            dOp[r, k] = 0.0
+    if order == 2:
+        for r in range(6):
+            Om[r] = hs * xi1[r]
+            Omd[r] = hs * xd1[r]
+        for k in range(n):
+            Op[rows[k], k] = hs * B[s, 0, k]
+    else:
+        c = MAGNUS4_C * hs * hs
+        _strain(B[s, 1], rows, xi0[s, 1], q, xi2)
+        _strain(B[s, 1], rows, zero, qd, xd2)
+        _adv(xi1, xi2, tmp)
+        for r in range(6):
+            Om[r] = 0.5 * hs * (xi1[r] + xi2[r]) + c * tmp[r]
+        _adv(xd1, xi2, tmp)
+        for r in range(6):
+            Omd[r] = 0.5 * hs * (xd1[r] + xd2[r]) + c * tmp[r]
+        _adv(xi1, xd2, tmp)
+        for r in range(6):
+            Omd[r] += c * tmp[r]
+        # Op = h/2 (B1 + B2) + c (ad_xi1 B2 - ad_xi2 B1);  dOp = c (ad_xd1 B2 - ad_xd2 B1)
+        for k in range(n):
+            r = rows[k]
+            b1, b2 = B[s, 0, k], B[s, 1, k]
+            Op[r, k] = 0.5 * hs * (b1 + b2)
+            _col_ad(xi1, r, b2, Op, k, c)
+            _col_ad(xi2, r, b1, Op, k, -c)
+            if want_dOp:
+                _col_ad(xd1, r, b2, dOp, k, c)
+                _col_ad(xd2, r, b1, dOp, k, -c)
+    _exp_into(Om, E)
+    for i in range(3):
+        for j in range(4):
+            v = G[s, i, 0] * E[0, j] + G[s, i, 1] * E[1, j] + G[s, i, 2] * E[2, j]
+            if j == 3:
+                v += G[s, i, 3]
+            G[s + 1, i, j] = v
+        G[s + 1, 3, i] = 0.0
+    G[s + 1, 3, 3] = 1.0
+    _adinv_into(E, S[_AI])
+    _tangent_into(Om, Omd, S, want_dT)
+
+
+@njit(cache=True)
+def _propagate(s, order, rows, S, V, Op, eta, J, AJ):
+    """Node s+1 from node s: :math:`\psi = T\dot\Omega` (``V[6]``), :math:`\eta_{s+1} =
+    \mathrm{Ad}_{e^{-\Omega}}\eta_s + \psi`, ``AJ`` = :math:`\mathrm{Ad}_{e^{-\Omega}} J_s` and
+    :math:`J_{s+1} = AJ + T\,\Omega'` (sparse columns at order 2), after :func:`_segment`."""
+    n = J.shape[2]
+    Ai, T, Omd, psi = S[_AI], S[_T], V[5], V[6]
+    _bvec(T, Omd, psi, 1.0, 0.0)
+    _bvec(Ai, eta[s], eta[s + 1], 1.0, 0.0)
+    for r in range(6):
+        eta[s + 1, r] += psi[r]
+    _bapply(Ai, J[s], AJ, 1.0, 0.0)
+    if order == 2:
+        for k in range(n):
+            r = rows[k]
+            f = Op[r, k]
+            for i in range(6):
+                J[s + 1, i, k] = AJ[i, k] + T[i, r] * f
+    else:
+        for r in range(6):
+            for k in range(n):
+                J[s + 1, r, k] = AJ[r, k]
+        _bapply(T, Op, J[s + 1], 1.0, 1.0)
+
+
+@njit(cache=True)
 def kinematics(q, qd, want_rate, order, h, B, rows, xi0, g0, G, J, Jd, eta, S, E, V, Op, dOp, AJ):
     r"""Frames ``G`` (N+1, 4, 4), body Jacobians ``J`` (N+1, 6, n), body velocities ``eta`` (N+1, 6) and, if
     ``want_rate``, Jacobian rates ``Jd`` (N+1, 6, n) at the nodes, for coordinates ``q`` and rates ``qd``.
@@ -299,7 +382,7 @@ def kinematics(q, qd, want_rate, order, h, B, rows, xi0, g0, G, J, Jd, eta, S, E
     """
     n = q.shape[0]
     N = h.shape[0]
-    xi1, xi2, xd1, xd2, Om, Omd, psi, tmp = V[0], V[1], V[2], V[3], V[4], V[5], V[6], V[7]
+    psi = V[6]
     Ai, T, dT, A = S[_AI], S[_T], S[_DT], S[_TMP]
     zero = np.zeros(6)
     G[0, :, :] = g0
@@ -308,71 +391,8 @@ def kinematics(q, qd, want_rate, order, h, B, rows, xi0, g0, G, J, Jd, eta, S, E
     if want_rate:
         Jd[0, :, :] = 0.0
     for s in range(N):
-        hs = h[s]
-        _strain(B[s, 0], rows, xi0[s, 0], q, xi1)
-        _strain(B[s, 0], rows, zero, qd, xd1)
-        for r in range(6):
-            for k in range(n):
-                Op[r, k] = 0.0
-                dOp[r, k] = 0.0
-        if order == 2:
-            for r in range(6):
-                Om[r] = hs * xi1[r]
-                Omd[r] = hs * xd1[r]
-            for k in range(n):
-                Op[rows[k], k] = hs * B[s, 0, k]
-        else:
-            c = MAGNUS4_C * hs * hs
-            _strain(B[s, 1], rows, xi0[s, 1], q, xi2)
-            _strain(B[s, 1], rows, zero, qd, xd2)
-            _adv(xi1, xi2, tmp)
-            for r in range(6):
-                Om[r] = 0.5 * hs * (xi1[r] + xi2[r]) + c * tmp[r]
-            _adv(xd1, xi2, tmp)
-            for r in range(6):
-                Omd[r] = 0.5 * hs * (xd1[r] + xd2[r]) + c * tmp[r]
-            _adv(xi1, xd2, tmp)
-            for r in range(6):
-                Omd[r] += c * tmp[r]
-            # Op = h/2 (B1 + B2) + c (ad_xi1 B2 - ad_xi2 B1);  dOp = c (ad_xd1 B2 - ad_xd2 B1)
-            for k in range(n):
-                r = rows[k]
-                b1, b2 = B[s, 0, k], B[s, 1, k]
-                Op[r, k] = 0.5 * hs * (b1 + b2)
-                _col_ad(xi1, r, b2, Op, k, c)
-                _col_ad(xi2, r, b1, Op, k, -c)
-                if want_rate:
-                    _col_ad(xd1, r, b2, dOp, k, c)
-                    _col_ad(xd2, r, b1, dOp, k, -c)
-        _exp_into(Om, E)
-        for i in range(3):
-            for j in range(4):
-                v = G[s, i, 0] * E[0, j] + G[s, i, 1] * E[1, j] + G[s, i, 2] * E[2, j]
-                if j == 3:
-                    v += G[s, i, 3]
-                G[s + 1, i, j] = v
-            G[s + 1, 3, i] = 0.0
-        G[s + 1, 3, 3] = 1.0
-        _adinv_into(E, Ai)
-        _tangent_into(Om, Omd, S, want_rate)
-        # psi = T Omd ; eta[s+1] = Ai eta[s] + psi
-        _bvec(T, Omd, psi, 1.0, 0.0)
-        _bvec(Ai, eta[s], eta[s + 1], 1.0, 0.0)
-        for r in range(6):
-            eta[s + 1, r] += psi[r]
-        # AJ = Ai J[s] ; J[s+1] = AJ + T Op
-        _bapply(Ai, J[s], AJ, 1.0, 0.0)
-        if order == 2:
-            for k in range(n):
-                r = rows[k]
-                f = Op[r, k]
-                for i in range(6):
-                    J[s + 1, i, k] = AJ[i, k] + T[i, r] * f
-        else:
-            for r in range(6):
-                for k in range(n):
-                    J[s + 1, r, k] = AJ[r, k]
-            _bapply(T, Op, J[s + 1], 1.0, 1.0)
+        _segment(s, q, qd, want_rate, want_rate, order, h, B, rows, xi0, G, S, E, V, Op, dOp, zero)
+        _propagate(s, order, rows, S, V, Op, eta, J, AJ)
         if want_rate:
             # Jd[s+1] = Ai Jd[s] - ad_psi AJ + dT Op + T dOp
             _bapply(Ai, Jd[s], Jd[s + 1], 1.0, 0.0)
@@ -507,9 +527,8 @@ def kinematics_vec(q, qd, order, h, B, rows, xi0, g0, G, J, eta, etad, S, E, V, 
     nodes (``etad``, (N+1, 6)): :math:`\dot\eta_{s+1} = \mathrm{Ad}_{e^{-\Omega}}\dot\eta_s -
     \mathrm{ad}_\psi \eta_{s+1} + dT[\dot\Omega]\dot\Omega + T\,\dot\Omega'\dot q` (no 6 x n rate matrices).
     ``W`` is a (8, 6) work array."""
-    n = q.shape[0]
     N = h.shape[0]
-    xi1, xi2, xd1, xd2, Om, Omd, psi, tmp = V[0], V[1], V[2], V[3], V[4], V[5], V[6], V[7]
+    xd1, xd2, Omd, psi, tmp = V[2], V[3], V[5], V[6], V[7]
     Ai, T = S[_AI], S[_T]
     zero = np.zeros(6)
     G[0, :, :] = g0
@@ -517,64 +536,8 @@ def kinematics_vec(q, qd, order, h, B, rows, xi0, g0, G, J, eta, etad, S, E, V, 
     eta[0, :] = 0.0
     etad[0, :] = 0.0
     for s in range(N):
-        hs = h[s]
-        _strain(B[s, 0], rows, xi0[s, 0], q, xi1)
-        _strain(B[s, 0], rows, zero, qd, xd1)
-        for r in range(6):
-            for k in range(n):
-                Op[r, k] = 0.0
-        if order == 2:
-            for r in range(6):
-                Om[r] = hs * xi1[r]
-                Omd[r] = hs * xd1[r]
-            for k in range(n):
-                Op[rows[k], k] = hs * B[s, 0, k]
-        else:
-            c = MAGNUS4_C * hs * hs
-            _strain(B[s, 1], rows, xi0[s, 1], q, xi2)
-            _strain(B[s, 1], rows, zero, qd, xd2)
-            _adv(xi1, xi2, tmp)
-            for r in range(6):
-                Om[r] = 0.5 * hs * (xi1[r] + xi2[r]) + c * tmp[r]
-            _adv(xd1, xi2, tmp)
-            for r in range(6):
-                Omd[r] = 0.5 * hs * (xd1[r] + xd2[r]) + c * tmp[r]
-            _adv(xi1, xd2, tmp)
-            for r in range(6):
-                Omd[r] += c * tmp[r]
-            for k in range(n):
-                r = rows[k]
-                b1, b2 = B[s, 0, k], B[s, 1, k]
-                Op[r, k] = 0.5 * hs * (b1 + b2)
-                _col_ad(xi1, r, b2, Op, k, c)
-                _col_ad(xi2, r, b1, Op, k, -c)
-        _exp_into(Om, E)
-        for i in range(3):
-            for j in range(4):
-                v = G[s, i, 0] * E[0, j] + G[s, i, 1] * E[1, j] + G[s, i, 2] * E[2, j]
-                if j == 3:
-                    v += G[s, i, 3]
-                G[s + 1, i, j] = v
-            G[s + 1, 3, i] = 0.0
-        G[s + 1, 3, 3] = 1.0
-        _adinv_into(E, Ai)
-        _tangent_into(Om, Omd, S, True)
-        _bvec(T, Omd, psi, 1.0, 0.0)
-        _bvec(Ai, eta[s], eta[s + 1], 1.0, 0.0)
-        for r in range(6):
-            eta[s + 1, r] += psi[r]
-        _bapply(Ai, J[s], AJ, 1.0, 0.0)
-        if order == 2:
-            for k in range(n):
-                r = rows[k]
-                f = Op[r, k]
-                for i in range(6):
-                    J[s + 1, i, k] = AJ[i, k] + T[i, r] * f
-        else:
-            for r in range(6):
-                for k in range(n):
-                    J[s + 1, r, k] = AJ[r, k]
-            _bapply(T, Op, J[s + 1], 1.0, 1.0)
+        _segment(s, q, qd, True, False, order, h, B, rows, xi0, G, S, E, V, Op, AJ, zero)   # AJ: scratch here
+        _propagate(s, order, rows, S, V, Op, eta, J, AJ)
         # etad[s+1] = Ai etad[s] - ad_psi eta[s+1] + dT[Omd] Omd (+ T (2c ad_xd1 xd2) at order 4)
         _bvec(Ai, etad[s], etad[s + 1], 1.0, 0.0)
         _adv(psi, eta[s + 1], tmp)
@@ -583,7 +546,7 @@ def kinematics_vec(q, qd, order, h, B, rows, xi0, g0, G, J, eta, etad, S, E, V, 
         _bvec(S[_DT], Omd, etad[s + 1], 1.0, 1.0)
         if order != 2:
             _adv(xd1, xd2, W[6])
-            c = 2.0 * MAGNUS4_C * hs * hs
+            c = 2.0 * MAGNUS4_C * h[s] * h[s]
             _bvec(T, W[6], etad[s + 1], c, 1.0)
 
 
