@@ -1,0 +1,94 @@
+"""Speed of the Model composer on the seed's soft hand (demos/soft_hand.py), one core.
+
+Target (issue): real-time factor (simulated time / wall time) >= 50 for the soft hand, 5 fingers x 5 Chebyshev
+modes + 5 pressure-regulated reservoirs (60 states), with the demo's settings (BDF2, dt = 2 ms, rtol 1e-4,
+atol 1e-6). Also recorded: the Newton/Jacobian statistics and where the time goes (counts of network rhs
+evaluations F(t, x) and of input assemblies W(t, x), split into Newton and Jacobian work, and the cost of one
+of each), the breakdown that says what to speed up. Correctness of what was timed is asserted (never a time).
+"""
+import os
+
+os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+
+import importlib.util  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+DEMO = Path(__file__).resolve().parents[2] / "demos" / "soft_hand.py"
+
+
+def _hand():
+    spec = importlib.util.spec_from_file_location("soft_hand_demo", DEMO)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _count(obj, attr, counter, key):
+    """Wrap the bound method ``obj.attr`` (instance attribute) to count calls and time them."""
+    fn = getattr(obj, attr)
+
+    def wrapped(*a, **k):
+        t0 = time.perf_counter()
+        try:
+            return fn(*a, **k)
+        finally:
+            counter[key] += 1
+            counter[key + "_s"] += time.perf_counter() - t0
+    setattr(obj, attr, wrapped)
+
+
+def test_bench_soft_hand_realtime_factor(record):
+    H = _hand()
+    t_sim, dt, method, rtol, atol = 2.0, 2e-3, "bdf2", 1e-4, 1e-6
+    mdl, fingers = H.build()
+    assert mdl.n == 60
+    mdl.simulate(0.02, dt, method=method, rtol=rtol, atol=atol)          # warm up (numba)
+
+    # 1. the plain run, as in the demo
+    wall = np.inf
+    for _ in range(2):
+        t0 = time.perf_counter()
+        tr = mdl.simulate(t_sim, dt, method=method, rtol=rtol, atol=atol)
+        wall = min(wall, time.perf_counter() - t0)
+    st = tr.stats
+    assert st["cut_steps"] == 0 and np.all(np.isfinite(tr.x))
+    P = np.column_stack([tr[f"p_{n}"].pressure for n in H.NAMES])
+    assert 78e3 < P.max() < 83e3                                       # the plateaus are reached
+    rtf = t_sim / wall
+
+    # 2. the same run instrumented: where the time goes
+    mdl, fingers = H.build()
+    c = dict.fromkeys(["rhs", "rhs_s", "assemble", "assemble_s", "jacobian", "jacobian_s",
+                       "shapes_rhs", "shapes_rhs_s", "fluidic_rhs", "fluidic_rhs_s"], 0)
+    _count(mdl, "_rhs", c, "rhs")
+    _count(mdl, "_assemble", c, "assemble")
+    _count(mdl, "jacobian", c, "jacobian")
+    mdl._prepare_layout()
+    for b in mdl._blocks.values():
+        _count(b, "rhs", c, "shapes_rhs" if b.kind == "shapes" else "fluidic_rhs")
+    tri = mdl.simulate(t_sim, dt, method=method, rtol=rtol, atol=atol)
+    wall_i = tri.stats["wall_time"]
+    # rhs calls made inside jacobian(): block FD columns call the block rhs directly; dW calls _assemble
+    steps, its, jacs = tri.stats["steps"], tri.stats["newton_iterations"], tri.stats["jacobians"]
+    per_rhs = c["rhs_s"] / c["rhs"]
+    breakdown = {
+        "wall_instrumented_s": round(wall_i, 3),
+        "rhs_calls": c["rhs"], "rhs_calls_per_step": round(c["rhs"] / steps, 2),
+        "rhs_time_s": round(c["rhs_s"], 3), "rhs_us_each": round(1e6 * per_rhs, 1),
+        "jacobian_calls": c["jacobian"], "jacobian_time_s": round(c["jacobian_s"], 3),
+        "jacobian_ms_each": round(1e3 * c["jacobian_s"] / max(1, c["jacobian"]), 2),
+        "assemble_calls": c["assemble"], "assemble_time_s": round(c["assemble_s"], 3),
+        "shapes_block_rhs_calls": c["shapes_rhs"], "shapes_block_rhs_us_each":
+            round(1e6 * c["shapes_rhs_s"] / c["shapes_rhs"], 1),
+        "fluidic_block_rhs_calls": c["fluidic_rhs"], "fluidic_block_rhs_us_each":
+            round(1e6 * c["fluidic_rhs_s"] / c["fluidic_rhs"], 1),
+        "newton_share": round((c["rhs_s"] - 0.0) / wall_i, 3),
+        "jacobian_share": round(c["jacobian_s"] / wall_i, 3),
+    }
+    record(states=mdl.n, simulated_s=t_sim, dt=dt, method=method, rtol=rtol, atol=atol, wall_s=round(wall, 3),
+           realtime_factor=round(rtf, 3), steps=steps, newton_iterations=its,
+           newton_per_step=round(its / steps, 2), jacobians=jacs, cut_steps=tri.stats["cut_steps"],
+           breakdown=breakdown, target=50, met=bool(rtf >= 50))
