@@ -30,7 +30,7 @@ Kernels write into work arrays passed by the caller (see :func:`scratch`).
 import numpy as np
 from numba import njit
 
-from .lie import _so3_coeffs, _tse3_coeffs, _tse3_dcoeffs, invSE3, logSE3
+from .lie import _put_skew, _so3_coeffs, _tse3_coeffs, _tse3_dcoeffs, invSE3, logSE3
 
 MAGNUS4_C = np.sqrt(3.0) / 12.0
 GAUSS2 = (0.5 - np.sqrt(3.0) / 6.0, 0.5 + np.sqrt(3.0) / 6.0)
@@ -51,24 +51,13 @@ def scratch(n):
 
 @njit(cache=True)
 def _ad_into(x, A):
-    """A = ad_x = [[w^, 0], [v^, w^]]."""
-    w0, w1, w2, v0, v1, v2 = x[0], x[1], x[2], x[3], x[4], x[5]
+    """A = ad_x = [[w^, 0], [v^, w^]] (skew blocks written by :func:`soroshapes.lie._put_skew`)."""
     for i in range(6):
         for j in range(6):
             A[i, j] = 0.0
-    for o in (0, 3):
-        A[o + 0, o + 1] = -w2
-        A[o + 0, o + 2] = w1
-        A[o + 1, o + 0] = w2
-        A[o + 1, o + 2] = -w0
-        A[o + 2, o + 0] = -w1
-        A[o + 2, o + 1] = w0
-    A[3, 1] = -v2
-    A[3, 2] = v1
-    A[4, 0] = v2
-    A[4, 2] = -v0
-    A[5, 0] = -v1
-    A[5, 1] = v0
+    _put_skew(A, 0, 0, x, 0)
+    _put_skew(A, 3, 3, x, 0)
+    _put_skew(A, 3, 0, x, 3)
 
 
 @njit(cache=True)
@@ -478,24 +467,19 @@ def coriolis_velocity_jacobian(J, Jd, eta, w, Md, C, Cv, S, Y):
     at the same state)."""
     n = C.shape[0]
     Cv[:, :] = C
-    L = S[_W1]
+    L, y = S[_W1], S[_W2, 0]
     for i in range(J.shape[0]):
         wi = w[i]
         if wi == 0.0:
             continue
         m = Md[i]
-        y = (m[0] * eta[i, 0], m[1] * eta[i, 1], m[2] * eta[i, 2], m[3] * eta[i, 3], m[4] * eta[i, 4],
-             m[5] * eta[i, 5])
         for r in range(6):
+            y[r] = m[r] * eta[i, r]
             for c in range(6):
                 L[r, c] = 0.0
-        for (ro, co, k) in ((0, 0, 0), (0, 3, 3), (3, 0, 3)):
-            L[ro + 0, co + 1] = -y[k + 2]
-            L[ro + 0, co + 2] = y[k + 1]
-            L[ro + 1, co + 0] = y[k + 2]
-            L[ro + 1, co + 2] = -y[k + 0]
-            L[ro + 2, co + 0] = -y[k + 1]
-            L[ro + 2, co + 1] = y[k + 0]
+        _put_skew(L, 0, 0, y, 0)
+        _put_skew(L, 0, 3, y, 3)
+        _put_skew(L, 3, 0, y, 3)
         for r in range(6):
             for k in range(n):
                 s = m[r] * Jd[i, r, k]
