@@ -32,11 +32,15 @@ if [ "${VERSION_CODENAME:-}" != "bookworm" ]; then
   say "warning: tested on Debian bookworm, this is '${PRETTY_NAME:-unknown}'; continuing"
 fi
 
+# libopenblas0-serial: Debian's alternatives then route libblas.so.3/liblapack.so.3 (MUMPS, numpy, scipy) to
+# OpenBLAS instead of the reference BLAS: the 95k-DOF 3D MUMPS factorization drops from 8.1 s to 1.5 s.
+# The serial build, so that MPI ranks do not oversubscribe the cores with BLAS threads.
 PACKAGES=(
   python3 python3-venv python3-dev python3-pip python3-setuptools python3-wheel
   python3-dolfinx python3-petsc4py python3-slepc4py python3-mpi4py openmpi-bin
   python3-gmsh python3-meshio python3-h5py python3-numba python3-scipy python3-numpy
   python3-matplotlib python3-pytest python3-skimage
+  libopenblas0-serial
   build-essential make git ca-certificates
 )
 
