@@ -14,9 +14,13 @@ check at a glance. Stages present now:
    strain recovered along a backbone in the strain-limiting layer, three DVS modes, the beam's actuation
    identified on the training ramp, and the speed-accuracy trade of DVS, Chebyshev and PCC bases of 1-6 modes
    against FEM (``trade.txt``, ``trade.png``), with the cheapest model within 3 % of the length;
-5. **report**: PNGs (design, mesh, deformed state, bending angle vs pressure) and ``report.json``.
-
-Still to come (its issue extends this file): closed-loop control on the simulated board.
+5. **closed-loop control on the simulated board**: the DVS beam (with the material's damping) becomes the
+   plant of a simulated pneumatic board (:meth:`sorocontrol.Board.simulated`: board server, regulator
+   dynamics, limits set to the training pressure range, watchdog); the host runs a 100 Hz loop through the
+   protocol that reads the beam's coordinates from the board's sensors, computes the bending angle and sets
+   the pressure by feed-forward (the beam's static angle-pressure map) plus integral feedback, following steps of
+   the angle (``control.png``);
+6. **report**: PNGs (design, mesh, deformed state, bending angle vs pressure) and ``report.json``.
 
 Parameters
 ----------
@@ -28,7 +32,8 @@ Figure
 ``bending_angle_deg``: the rotation of the free end toward the strain-limiting layer at the final pressure;
 ``dvs``: tip errors (% of length) of the 3-mode DVS beam on the training ramp and at the test pressure, its
 static solve time and the speedup over the FEM test solve; ``trade``: the table; ``selected``: the cheapest
-model within 3 % of the length.
+model within 3 % of the length; ``control``: the angle steps, the tracking error at the end of each step
+and its RMS over each step's second half [deg], the loop's rate and jitter.
 """
 import time
 from pathlib import Path
@@ -74,20 +79,82 @@ def dvs_stage(out, cavity, fem_test_s):
     test = test.select([len(test.times) - 1])
     inputs = [f"pressure/{cavity}"]
 
-    def make(bases, dofs):   # the stiffness scale of the section is absorbed by the identified actuation
+    def make(bases, dofs, damping=0.0):   # the section's stiffness scale is absorbed by the identified actuation
         return Shapes(bases, dofs, length=L, section=sdf.Rectangle(10 * mm, H), material=materials.DragonSkin10(),
-                      base=np.array([0.0, LAYER / 2, 0.0]), damping=0.0, segments=30)
+                      base=np.array([0.0, LAYER / 2, 0.0]), damping=damping, segments=30)
     bases, kept, info = dvs_basis(train, (0, 0, 3, 0, 0, 0))
     beam = make(bases, kept)
     identify(beam, train, inputs=inputs)
     c_train, c_test = compare(beam, train, inputs), compare(beam, test, inputs)
     rows, pick = trade_report(train, test, make, inputs, out, tolerance=0.03)
-    return {"dvs": {"modes": int(kept[2]), "energy": info[2]["energy"],
+    plant = make(bases, kept, damping=None)      # Kelvin-Voigt damping from the material's damping ratio
+    identify(plant, train, inputs=inputs)
+    return plant, {"dvs": {"modes": int(kept[2]), "energy": info[2]["energy"],
                     "tip_error_train_pct": 100 * float(c_train["tip_error"].max()),
                     "tip_error_test_pct": 100 * float(c_test["tip_error"].max()),
                     "beam_solve_ms": 1e3 * c_test["solve_time"], "fem_test_solve_s": fem_test_s,
                     "speedup": fem_test_s / c_test["solve_time"]},
             "trade": rows, "selected": pick}
+
+
+def bend_angle(beam, q):
+    """Rotation of the beam's tip frame about z relative to its base [deg] (positive toward -y)."""
+    R = beam.forward_kinematics(q)[-1, :3, :3]
+    return float(np.degrees(np.arctan2(-R[1, 0], R[0, 0])))
+
+
+def control_stage(out, beam, p_max, quick):
+    """Closed-loop control of the bending angle of ``beam`` on a simulated board; returns the figures."""
+    import matplotlib.pyplot as plt
+
+    from sorocontrol import Board
+
+    # the static angle-pressure map of the model: feed-forward, and the reachable range
+    grid = np.linspace(0.0, p_max, 9)
+    angles = np.array([bend_angle(beam, beam.statics(u=[p], steps=2)) for p in grid])
+    steps = [0.35, 0.75, 0.55] if not quick else [0.4, 0.7]
+    refs = [float(angles[0] + f * (angles[-1] - angles[0])) for f in steps]
+    hold, rate = 1.5, 100.0
+    # integral feedback only, crossing over at ~1 rad/s: well below the beam's lightly damped first mode and
+    # the regulator's lag (a proportional term made the loop ring at the first mode)
+    ki = 1.0 * (grid[-1] - grid[0]) / (angles[-1] - angles[0])      # Pa/(deg s)
+    log, integral = [], 0.0
+    with Board.simulated(channels=1, beam=beam, p_min=0.0, p_max=p_max, board_rate=200.0) as brd:
+        state = brd.read()
+        for t in brd.loop(duration=hold * len(refs), rate=rate):
+            ref = refs[min(int(t // hold), len(refs) - 1)]
+            theta = bend_angle(beam, state.sensors[3:])
+            e = ref - theta
+            ff = float(np.interp(ref, angles, grid))
+            u = ff + ki * integral
+            if 0.0 < u < p_max:          # integrate only when not saturated (anti-windup)
+                integral += e / rate
+            state = brd.set_pressure([u])
+            log.append((t, ref, theta, state.requested[0], state.measured[0]))
+        stats = brd.loop_stats
+    log = np.array(log)
+    end_err, rms = [], []
+    for i in range(len(refs)):
+        sel = (log[:, 0] >= i * hold + hold / 2) & (log[:, 0] < (i + 1) * hold)
+        rms.append(float(np.sqrt(np.mean((log[sel, 1] - log[sel, 2]) ** 2))))
+        end_err.append(float(abs(log[sel, 1][-1] - log[sel, 2][-1])))
+    fig, (ax, bx) = plt.subplots(2, 1, figsize=(6, 4.5), sharex=True)
+    ax.plot(log[:, 0], log[:, 1], "k--", lw=1, label="reference")
+    ax.plot(log[:, 0], log[:, 2], lw=1.2, label="DVS beam on the board")
+    ax.set_ylabel("bending angle [deg]")
+    ax.legend(fontsize=8)
+    bx.plot(log[:, 0], log[:, 3] / kPa, lw=1, label="set-point")
+    bx.plot(log[:, 0], log[:, 4] / kPa, lw=1, label="measured")
+    bx.set(xlabel="t [s]", ylabel="pressure [kPa]")
+    bx.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / "control.png", dpi=120)
+    plt.close(fig)
+    return {"reference_deg": [round(r, 3) for r in refs], "end_error_deg": [round(e, 4) for e in end_err],
+            "rms_error_second_half_deg": [round(r, 4) for r in rms],
+            "static_range_deg": [round(float(angles[0]), 3), round(float(angles[-1]), 3)],
+            "loop_rate_hz": round(stats.rate, 2), "loop_jitter_p99_us": round(stats.jitter_p99 * 1e6, 1),
+            "loop_missed": stats.missed}
 
 
 def main(out: Path, quick: bool = False) -> dict:
@@ -147,12 +214,17 @@ def main(out: Path, quick: bool = False) -> dict:
     t1 = time.perf_counter()
     fem_t.solve(t_end=p_test / p_max, steps=2 if quick else 4).save(out / "pneunet_test.h5", cavities=())
     fem_test_s = time.perf_counter() - t1
-    dvs = dvs_stage(out, msh.cavities[0], fem_test_s) if rank0 else {}
+    plant, dvs = dvs_stage(out, msh.cavities[0], fem_test_s) if rank0 else (None, {})
     timings["dvs_s"] = time.perf_counter() - t0
+
+    # 5. closed-loop control of the DVS beam on the simulated board
+    t0 = time.perf_counter()
+    control = control_stage(out, plant, p_max, quick) if rank0 else {}
+    timings["control_s"] = time.perf_counter() - t0
 
     # 5. report
     summary = {
-        "stages": ["design", "mesh", "fem_snapshots", "dvs_beam_model"],
+        "stages": ["design", "mesh", "fem_snapshots", "dvs_beam_model", "board_control"],
         "section_area_mm2": props.area / mm**2,
         "cells": msh.num_cells,
         "cavities": len(msh.cavities),
@@ -164,6 +236,7 @@ def main(out: Path, quick: bool = False) -> dict:
     }
     if rank0:
         summary.update(dvs)
+        summary["control"] = control
         angles = np.degrees(np.unwrap([tip_angle(traj, k) for k in range(len(traj))]))
         pressure = traj.inputs[f"pressure/{msh.cavities[0]}"] / kPa
         summary["bending_angle_deg"] = float(angles[-1])

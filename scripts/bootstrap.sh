@@ -39,7 +39,7 @@ PACKAGES=(
   python3 python3-venv python3-dev python3-pip python3-setuptools python3-wheel
   python3-dolfinx python3-petsc4py python3-slepc4py python3-mpi4py openmpi-bin
   python3-gmsh python3-meshio python3-h5py python3-numba python3-scipy python3-numpy
-  python3-matplotlib python3-pytest python3-skimage
+  python3-matplotlib python3-pytest python3-skimage python3-hypothesis
   libopenblas0-serial
   build-essential make git ca-certificates
 )

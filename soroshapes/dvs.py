@@ -40,8 +40,8 @@ import numpy as np
 
 from sorofem.errors import DataError, ParameterError
 
-__all__ = ["Backbone", "StrainData", "recover_strains", "dvs_basis", "Identified", "identify", "compare",
-           "trade", "cheapest", "trade_table", "trade_report", "trade_files", "polar_rotation", "mean_rotation"]
+__all__ = ["Backbone", "StrainData", "recover_strains", "dvs_basis", "Identified", "PolynomialForce", "identify",
+           "compare", "trade", "cheapest", "trade_table", "trade_report", "trade_files", "polar_rotation", "mean_rotation"]
 
 
 # ------------------------------------------------------------------------------------------------------------
@@ -373,6 +373,17 @@ def dvs_basis(data, dofs, energy=None):
 # ------------------------------------------------------------------------------------------------------------
 # identification
 # ------------------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class PolynomialForce:
+    """:math:`\tau(u) = \sum_{d=1}^{D} c_d u^d` with ``coefficients`` (D, n): an identified actuator."""
+
+    coefficients: np.ndarray
+
+    def __call__(self, u):
+        c = self.coefficients
+        return sum(c[d] * float(u) ** (d + 1) for d in range(len(c)))
+
+
 @dataclass
 class Identified:
     """What :func:`identify` found: per input, polynomial coefficients ``coefficients[name]`` (degree, n) of
@@ -385,9 +396,9 @@ class Identified:
     volume_models: dict = field(default_factory=dict)
 
     def force(self, name):
-        """Generalized force of input ``name`` as a callable ``u -> (n,)``."""
-        c = self.coefficients[name]
-        return lambda u: sum(c[d] * float(u) ** (d + 1) for d in range(len(c)))
+        """Generalized force of input ``name`` as a callable ``u -> (n,)`` (picklable: a beam with identified
+        actuators can be sent to another process, e.g. a simulated board)."""
+        return PolynomialForce(self.coefficients[name])
 
     def volume(self, name, q):
         """Volume of cavity ``name`` [m^3] at coordinates ``q`` (quadratic fit)."""

@@ -80,6 +80,49 @@ def _material_moduli(material, E, G):
     return float(E), float(G), float(rho), float(zeta)
 
 
+# Small callables stored by a Shapes instead of closures, so that a Shapes pickles (multiprocessing, a
+# simulated board's process) whenever the user's own callables do.
+@dataclass(frozen=True)
+class _Constant:
+    value: np.ndarray
+
+    def __call__(self, t):
+        return self.value
+
+
+@dataclass(frozen=True)
+class _Vector3:
+    fn: object
+
+    def __call__(self, t):
+        return np.asarray(self.fn(t), dtype=float).reshape(3)
+
+
+@dataclass(frozen=True)
+class _Linear:
+    column: np.ndarray
+
+    def __call__(self, u):
+        return self.column * u
+
+
+@dataclass(frozen=True)
+class _Rows:
+    row: np.ndarray
+
+    def __call__(self, s):
+        return np.tile(self.row, (len(s), 1))
+
+
+@dataclass(frozen=True)
+class _PerPoint:
+    fn: object
+    width: int
+
+    def __call__(self, s):
+        return np.asarray([self.fn(x) for x in s], dtype=float).reshape(len(s), self.width)
+
+
 @dataclass
 class BeamTrajectory:
     """Result of :meth:`Shapes.simulate`: times ``t`` (m,) [s], coordinates ``q`` and rates ``qd`` (m, n),
@@ -155,6 +198,16 @@ class Shapes:
     >>> bool(np.allclose(tip, [0, 2 * 0.1 / np.pi, 0], atol=1e-9))
     True
     """
+
+    def __getstate__(self):
+        """Picklable (e.g. to run the beam in a simulated board's process): the kernel module is re-imported."""
+        state = self.__dict__.copy()
+        del state["_beam"]
+        return state
+
+    def __setstate__(self, state):
+        from . import _beam
+        self.__dict__.update(state, _beam=_beam)
 
     def __init__(self, basis, dofs, length, section, material=None, *, base=None, xi0=None, segments=20,
                  order=4, damping=None, E=None, G=None, contact_radius=None):
@@ -245,14 +298,14 @@ class Shapes:
 
     def _reference_strain(self, xi0):
         if xi0 is None:
-            return lambda s: np.tile([0.0, 0.0, 0.0, 1.0, 0.0, 0.0], (len(s), 1))
+            return _Rows(np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0]))
         if callable(xi0):
-            return lambda s: np.asarray([xi0(x) for x in s], dtype=float).reshape(len(s), 6)
+            return _PerPoint(xi0, 6)
         v = np.asarray(xi0, dtype=float)
         if v.shape != (6,) or not np.all(np.isfinite(v)):
             raise ParameterError("xi0 must be 6 finite numbers (kx, ky, kz [1/m], stretch, shear_y, shear_z) or a "
                                  "callable of sigma [m]")
-        return lambda s: np.tile(v, (len(s), 1))
+        return _Rows(v)
 
     @property
     def n(self):
@@ -361,13 +414,13 @@ class Shapes:
 
         def signal(v, what):
             if v is None:
-                return lambda t: np.zeros(3)
+                return _Constant(np.zeros(3))
             if callable(v):
-                return lambda t: np.asarray(v(t), dtype=float).reshape(3)
+                return _Vector3(v)
             v = np.asarray(v, dtype=float)
             if v.shape != (3,) or not np.all(np.isfinite(v)):
                 raise ParameterError(f"{what} must be a finite 3-vector or a callable of t")
-            return lambda t: v
+            return _Constant(v)
         self._point_loads.append((self._node(at), signal(force, "force"), signal(moment, "moment"), frame))
         return self
 
@@ -423,7 +476,7 @@ class Shapes:
             col = np.asarray(force, dtype=float).reshape(-1)
             if col.shape != (self.n,) or not np.all(np.isfinite(col)):
                 raise ParameterError(f"an actuator column must have {self.n} finite entries")
-            fn = lambda u: col * u  # noqa: E731
+            fn = _Linear(col)
         self._inputs.append((name or f"actuator{len(self._inputs)}", "actuator", fn))
         return self
 

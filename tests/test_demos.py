@@ -30,6 +30,11 @@ def check_chain(report, out):
     assert report["stages"][3] == "dvs_beam_model"
     assert report["dvs"]["tip_error_train_pct"] < 3.0 and report["dvs"]["tip_error_test_pct"] < 5.0
     assert report["selected"] is not None and len(report["trade"]) >= 15
+    # closed-loop control of the DVS beam on the simulated board: each angle step reached (the model's own
+    # static map + integral action; 0.1 deg measured, bound 1 deg), the loop kept its rate
+    assert report["stages"][4] == "board_control"
+    ctrl = report["control"]
+    assert max(ctrl["end_error_deg"]) < 1.0 and ctrl["loop_rate_hz"] > 95 and (out / "control.png").stat().st_size
 
 
 def check_sdf_gallery(report, out):
@@ -150,7 +155,16 @@ def check_soft_hand(report, out):
         assert (out / name).stat().st_size > 0
 
 
+def check_board_pick_place(report, out):
+    # the open-loop plan played through the simulated board reaches each waypoint (0.07-3.3 mm measured at
+    # 1 s holds; bound 5 mm = the arm's radius), the gripper channel is driven, the loop keeps 100 Hz
+    assert report["max_waypoint_error_mm"] < 5.0
+    assert report["gripper_peak_kPa"] > 55 and report["loop_rate_hz"] > 95 and report["loop_missed"] <= 2
+    assert (out / report["png"]).stat().st_size > 0
+
+
 CHECKS = {
+    "board_pick_place": check_board_pick_place,
     "soft_hand": check_soft_hand,
     "chain": check_chain,
     "dvs_pneunet": check_dvs_pneunet,

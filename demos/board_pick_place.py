@@ -1,0 +1,162 @@
+r"""Open-loop pick-and-place on the simulated pneumatic board (`soro demo board_pick_place`)
+=====================================================================================
+
+Purpose
+-------
+The seed's open-loop pick-and-place (Sorotoki paper, Fig. 16): a soft manipulator with a pneumatic gripper
+at its tip is driven through a sequence of pressure set-points, computed beforehand from a model, that take
+the gripper above an object, down to it, closes the gripper, carries the object to a place location, opens
+the gripper and returns. Here the board is the default simulated one (:meth:`sorocontrol.Board.simulated`:
+the board server with its limits, rate limits and watchdog, in its own process), whose plant is a reduced
+Cosserat beam driven by regulated pneumatic channels; the host sends the set-points through the protocol at
+100 Hz and reads the tip position back from the board's sensors. Figures: the tip's distance to each
+waypoint at the end of its hold (mm), the model's own inverse-statics error, the loop's rate and jitter, the
+pressures, and a PNG of the tip path.
+
+Equations
+---------
+*Manipulator.* Two segments of 60 mm, each of piecewise-constant curvature in the vertical plane
+(``Basis.pcc(2)``, ``dofs = (0, 2, 0, 0, 0, 0)``: :math:`q_j` = curvature of segment j about body y [1/m]),
+clamped horizontally at the origin (pointing along x), gravity along -z. Each segment has two chambers
+(area 60 mm^2, centroids at z = +-5 mm from the backbone): chamber pressure p acts as the internal bending
+moment :math:`p A_c z` (:meth:`Shapes.add_chamber`). Channel 4 is the gripper (no effect on the arm).
+Dynamics :math:`M\ddot q + C\dot q + \tau K\dot q + Kq = f_g(q) + G p`, integrated by the board's plant at
+its loop rate, behind first-order-like regulator dynamics (:class:`sorocontrol.SimulatedPlant`, 30 ms).
+
+*Plan (open loop).* For each waypoint :math:`x^*` in the x-z plane, inverse statics: find signed segment
+activations :math:`a \in [-90, 90]` kPa (:math:`a_j > 0` pressurizes the lower chamber of segment j,
+:math:`a_j < 0` the upper one) minimizing :math:`|p_{tip}(q(a)) - x^*|` with :math:`Kq = f_g(q) + G p(a)`
+(``Shapes.statics``; ``scipy.optimize.least_squares``). The pressures are then played open loop; the tip
+error on the board measures what the plan leaves (dynamics not settled, regulator tracking).
+
+Parameters
+----------
+=================  =====================================================================================
+arm                2 x 60 mm, circular section of radius 8 mm, Dragon Skin 30 (Yeoh preset)
+chambers           60 mm^2 at +-5 mm, per segment; activations bounded to 90 kPa
+board              5 channels, -100..100 kPa, slew limit 1 MPa/s, watchdog 0.5 s, board loop 200 Hz
+host loop          100 Hz for the whole sequence (9 waypoints x 1.2 s; quick: 4 x 1.0 s)
+=================  =====================================================================================
+"""
+import time
+from pathlib import Path
+
+import numpy as np
+
+from sorofem import materials, sdf
+from sorofem.units import kPa, mm
+
+SEGMENT = 60 * mm
+P_MAX = 90 * kPa
+GRIP = 60 * kPa
+
+
+def arm():
+    """The manipulator beam: 4 chamber inputs (segment 1 lower/upper, segment 2 lower/upper) + gripper."""
+    from soroshapes import Basis, Shapes
+
+    shp = Shapes(Basis.pcc(2), (0, 2, 0, 0, 0, 0), length=2 * SEGMENT, section=sdf.Circle(8 * mm),
+                 material=materials.DragonSkin30(), segments=12)
+    for j in range(2):
+        span = (j * SEGMENT, (j + 1) * SEGMENT)
+        shp.add_chamber(60 * mm**2, (0.0, -5 * mm), span, name=f"seg{j}_lower")
+        shp.add_chamber(60 * mm**2, (0.0, 5 * mm), span, name=f"seg{j}_upper")
+    shp.add_actuator(np.zeros(shp.n), name="gripper")
+    shp.add_gravity()
+    return shp
+
+
+def pressures(a, grip):
+    """Channel pressures [Pa] of signed segment activations ``a`` (2,) and the gripper's."""
+    return np.array([max(a[0], 0), max(-a[0], 0), max(a[1], 0), max(-a[1], 0), grip])
+
+
+def plan(shp, targets):
+    """Inverse statics for each target (x, z) [m]: activations, model tip and error [m]."""
+    from scipy.optimize import least_squares
+
+    out, a0 = [], np.zeros(2)
+    for x, z in targets:
+        def err(a):
+            q = shp.statics(u=pressures(a, 0.0))
+            tip = shp.positions(q)[-1]
+            return (tip[[0, 2]] - [x, z]) / mm
+        sol = least_squares(err, a0, bounds=(-P_MAX, P_MAX), x_scale=10 * kPa, xtol=1e-10)
+        a0 = sol.x
+        out.append((sol.x, float(np.linalg.norm(sol.fun)) * mm))
+    return out
+
+
+def main(out: Path, quick: bool = False) -> dict:
+    from sorocontrol import Board
+
+    shp = arm()
+    home = shp.positions(shp.statics(u=pressures([0, 0], 0)))[-1]
+    # waypoints: (name, x, z, gripper) -- above the object, at it, (grip), lift, above the place, place, release
+    # in the arm's workspace (a crescent 100-120 mm out, -69..47 mm high: two segments of fixed length)
+    seq = [("above_pick", 0.106, -0.050, 0.0), ("pick", 0.101, -0.058, 0.0), ("grip", 0.101, -0.058, GRIP),
+           ("lift", 0.111, -0.040, GRIP), ("above_place", 0.114, 0.036, GRIP), ("place", 0.116, 0.026, GRIP),
+           ("release", 0.116, 0.026, 0.0), ("retreat", 0.119, 0.010, 0.0), ("home", home[0], home[2], 0.0)]
+    if quick:
+        seq = [seq[1], seq[3], seq[5], seq[8]]
+    hold = 1.0 if quick else 1.2
+    t0 = time.perf_counter()
+    plans = plan(shp, [(x, z) for _, x, z, _ in seq])
+    plan_s = time.perf_counter() - t0
+
+    log_t, log_tip, log_p = [], [], []
+    reached = []
+    with Board.simulated(channels=5, beam=shp, board_rate=200.0) as brd:
+        k_end = [int(round((i + 1) * hold * 100)) for i in range(len(seq))]
+        it = 0
+        for t in brd.loop(duration=hold * len(seq), rate=100.0):
+            i = min(int(t // hold), len(seq) - 1)
+            (a, _), grip = plans[i], seq[i][3]
+            s = brd.set_pressure(pressures(a, grip))
+            log_t.append(t)
+            log_tip.append(s.sensors[:3].copy())
+            log_p.append(s.measured.copy())
+            it += 1
+            if it in k_end:
+                reached.append(s.sensors[:3].copy())
+        stats = brd.loop_stats
+    log_tip, log_p = np.array(log_tip), np.array(log_p)
+    while len(reached) < len(seq):
+        reached.append(log_tip[-1])
+    errors = [float(np.hypot(r[0] - x, r[2] - z)) for r, (_, x, z, _) in zip(reached, seq)]
+
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(10, 4))
+    ax.plot(log_tip[:, 0] / mm, log_tip[:, 2] / mm, lw=1, label="tip (board sensors)")
+    for (name, x, z, g), r in zip(seq, reached):
+        ax.plot(x / mm, z / mm, "o", mfc="none", color="C3" if g else "C2")
+        ax.annotate(name, (x / mm, z / mm), fontsize=7, xytext=(3, 3), textcoords="offset points")
+    for q in (shp.statics(u=pressures(plans[0][0], 0)), shp.statics(u=pressures(plans[-1][0], 0))):
+        P = shp.positions(q)
+        ax.plot(P[:, 0] / mm, P[:, 2] / mm, color="0.6", lw=4, alpha=0.5)
+    ax.set(xlabel="x [mm]", ylabel="z [mm]", aspect="equal", title="open-loop pick and place")
+    ax.legend(fontsize=7)
+    for c in range(5):
+        bx.plot(log_t, log_p[:, c] / kPa, lw=1, label=["s1 low", "s1 up", "s2 low", "s2 up", "gripper"][c])
+    bx.set(xlabel="t [s]", ylabel="measured pressure [kPa]")
+    bx.legend(fontsize=7)
+    fig.tight_layout()
+    from sorofem.io import atomic_path
+    with atomic_path(out / "pick_place.png") as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    plt.close(fig)
+
+    return {
+        "waypoints": [name for name, *_ in seq],
+        "waypoint_error_mm": [round(e / mm, 3) for e in errors],
+        "max_waypoint_error_mm": round(max(errors) / mm, 3),
+        "plan_error_mm": round(max(e for _, e in plans) / mm, 6),
+        "activations_kPa": [[round(v / kPa, 3) for v in a] for a, _ in plans],
+        "plan_time_s": round(plan_s, 3),
+        "gripper_peak_kPa": round(float(log_p[:, 4].max()) / kPa, 2),
+        "loop_rate_hz": round(stats.rate, 2), "loop_jitter_p99_us": round(stats.jitter_p99 * 1e6, 1),
+        "loop_missed": stats.missed,
+        "png": "pick_place.png",
+    }

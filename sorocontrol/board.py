@@ -1,0 +1,312 @@
+r"""The host-side client of the pneumatic board, and its real-time loop.
+
+>>> from sorocontrol import Board
+>>> with Board.simulated(channels=2) as brd:          # a simulated board in its own process, on loopback
+...     for t in brd.loop(duration=0.05, rate=100):
+...         state = brd.set_pressure([10e3 * t / 0.05, 0.0])
+>>> brd.loop_stats.iterations
+5
+
+:meth:`Board.connect` logs in to a board (``tcp://host:port`` and the shared secret), :meth:`Board.simulated`
+starts a :class:`~sorocontrol.server.BoardServer` with a :class:`~sorocontrol.drivers.SimulatedPlant` in a
+child process and connects to it. Every command is answered by the board's :class:`~sorocontrol.protocol.State`
+(requested, applied and measured pressures [Pa], per-channel flags: clamped, rate-limited, vented, sensor
+fault). Leaving the ``with`` block, normally or by an exception, vents the board and closes the connection.
+
+:meth:`Board.loop` paces a control loop without drift: iteration k is released at :math:`t_0 + k/f`
+(sleep until ~0.3 ms before, then spin), so delays do not accumulate; iterations whose release time has
+already passed by a whole period are skipped and counted as missed. After the loop, :attr:`Board.loop_stats`
+has the achieved rate, the period jitter :math:`|T_k - 1/f|` (median, 99th percentile, maximum) and the
+number of missed deadlines.
+"""
+import logging
+import math
+import os
+import socket
+import time
+from dataclasses import dataclass
+from urllib.parse import urlparse
+
+import numpy as np
+
+from sorofem.errors import ParameterError, ProtocolError
+
+from . import protocol as P
+
+log = logging.getLogger(__name__)
+
+__all__ = ["Board", "LoopStats"]
+
+
+@dataclass
+class LoopStats:
+    """Figures of the last :meth:`Board.loop`: ``iterations``, ``duration`` [s], ``rate`` achieved [Hz],
+    period jitter ``jitter_p50``/``jitter_p99``/``jitter_max`` [s] (:math:`|T_k - 1/f|`), ``lateness_p99``
+    [s] (release time minus deadline), ``missed`` deadlines and the ``periods`` [s] themselves."""
+    iterations: int
+    duration: float
+    rate: float
+    target_rate: float
+    jitter_p50: float
+    jitter_p99: float
+    jitter_max: float
+    lateness_p99: float
+    missed: int
+    periods: np.ndarray
+
+    def __str__(self):
+        return (f"{self.iterations} iterations in {self.duration:.3f} s: {self.rate:.1f} Hz (target "
+                f"{self.target_rate:g}), period jitter p50 {self.jitter_p50 * 1e6:.0f} us, p99 "
+                f"{self.jitter_p99 * 1e6:.0f} us, max {self.jitter_max * 1e6:.0f} us, {self.missed} missed")
+
+
+class Board:
+    """A connection to a pneumatic board (use :meth:`connect` or :meth:`simulated`).
+
+    Attributes
+    ----------
+    channels : int
+    p_min, p_max, rate : ndarray [Pa], [Pa/s]
+        The board's per-channel limits, announced at login.
+    watchdog : float [s]
+        The board vents when it hears nothing valid for this long.
+    state : sorocontrol.protocol.State
+        The last state received.
+    """
+
+    def __init__(self, sock, secret, process=None, timeout=1.0):
+        self._sock = sock
+        self._process = process
+        self._seq = 0
+        self._closed = False
+        self.loop_stats = None
+        self.state = None
+        self._sock.settimeout(timeout)
+        try:
+            self._login(secret)
+        except BaseException:
+            self._shutdown_process()
+            sock.close()
+            raise
+
+    # ---- constructors -------------------------------------------------------------------------------
+    @classmethod
+    def connect(cls, url="tcp://127.0.0.1:8888", secret=None, timeout=1.0):
+        """Connect and log in to the board at ``url`` (``tcp://host:port``) with the shared ``secret``
+        (bytes or str; default the environment variable ``SORO_BOARD_SECRET``)."""
+        parsed = urlparse(url)
+        if parsed.scheme != "tcp" or not parsed.hostname or not parsed.port:
+            raise ParameterError(f"board url must look like tcp://host:port, got {url!r}")
+        secret = secret if secret is not None else os.environ.get("SORO_BOARD_SECRET")
+        if not secret:
+            raise ParameterError("no shared secret: pass Board.connect(url, secret=...) or set SORO_BOARD_SECRET")
+        try:
+            sock = socket.create_connection((parsed.hostname, parsed.port), timeout=timeout)
+        except OSError as e:
+            raise ProtocolError(f"cannot reach the board at {url}: {e}; is the server running "
+                                "(python -m sorocontrol.server, or the soro-board service on the Pi)?") from e
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        return cls(sock, secret, timeout=timeout)
+
+    @classmethod
+    def simulated(cls, channels=4, *, p_min=-100e3, p_max=100e3, rate=1e6, watchdog=0.5, board_rate=400.0,
+                  volume=20e-6, time_constant=0.03, max_flow=2e-3, beam=None, timeout=5.0):
+        """Start a simulated board (:class:`~sorocontrol.drivers.SimulatedPlant` behind a
+        :class:`~sorocontrol.server.BoardServer`, same limits and watchdog as a real one) in a child process
+        (``python -m sorocontrol.server --driver simulated``) on loopback and connect to it; closing the board stops the process. ``beam``: a
+        :class:`soroshapes.Shapes` with one chamber input per channel, simulated as the robot (its tip
+        position and coordinates are the state's ``sensors``)."""
+        import pickle
+        import subprocess
+        import sys
+        import tempfile
+
+        secret = os.urandom(16).hex()
+        plant = dict(volume=volume, time_constant=time_constant, max_flow=max_flow, beam=beam)
+        with tempfile.NamedTemporaryFile("wb", suffix=".pkl", prefix="soro-plant-", delete=False) as f:
+            pickle.dump(plant, f)
+        cmd = [sys.executable, "-m", "sorocontrol.server", "--driver", "simulated", "--channels", str(channels),
+               "--port", "0", "--p-min", repr(p_min), "--p-max", repr(p_max), "--rate", repr(rate),
+               "--watchdog", repr(watchdog), "--board-rate", repr(board_rate), "--plant", f.name]
+        env = dict(os.environ, SORO_BOARD_SECRET=secret)   # not on the command line (visible to ps)
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, text=True)
+        try:
+            line = proc.stdout.readline()      # "listening HOST PORT" once ready
+            if not line.startswith("listening"):
+                proc.wait(10)
+                raise ParameterError(f"the simulated board did not start: {proc.stderr.read().strip()}")
+            port = int(line.split()[2])
+            sock = socket.create_connection(("127.0.0.1", port), timeout=timeout)
+        except BaseException:
+            if proc.poll() is None:
+                proc.kill()
+            raise
+        finally:
+            os.unlink(f.name)
+        proc.stdout.close()
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        return cls(sock, secret, process=proc, timeout=timeout)
+
+    # ---- protocol -----------------------------------------------------------------------------------
+    def _login(self, secret):
+        mtype, payload = self._receive()
+        if mtype != P.MessageType.HELLO:
+            raise ProtocolError(f"expected HELLO from the board, got {mtype.name}")
+        hello = P.unpack_hello(payload)
+        client_nonce = P.new_nonce()
+        self._sock.sendall(P.encode(P.MessageType.AUTH, P.pack_auth(
+            client_nonce, P.client_proof(secret, hello.nonce, client_nonce))))
+        mtype, payload = self._receive()
+        if mtype != P.MessageType.READY:
+            raise ProtocolError(f"expected READY from the board, got {mtype.name}")
+        if not P.hmac.compare_digest(payload, P.server_proof(secret, hello.nonce, client_nonce)):
+            raise ProtocolError("the board could not prove it knows the secret: wrong board or a "
+                                "man-in-the-middle")
+        self.hello = hello
+        self.channels = hello.channels
+        self.p_min, self.p_max, self.rate, self.watchdog = hello.p_min, hello.p_max, hello.rate, hello.watchdog
+
+    def _receive(self):
+        try:
+            mtype, payload = P.read_frame(self._sock)
+        except socket.timeout:
+            raise ProtocolError("the board did not answer within the timeout") from None
+        except ConnectionError as e:
+            raise ProtocolError(f"the board closed the connection ({e})") from None
+        if mtype == P.MessageType.ERROR:
+            code, message = P.unpack_error(payload)
+            name = P.ErrorCode(code).name if code in P.ErrorCode._value2member_map_ else str(code)
+            raise ProtocolError(f"board refused: {name}: {message}")
+        return mtype, payload
+
+    def _command(self, mtype, payload):
+        if self._closed:
+            raise ProtocolError("the board connection is closed")
+        try:
+            self._sock.sendall(P.encode(mtype, payload))
+        except OSError as e:
+            raise ProtocolError(f"lost the board: {e}") from e
+        rtype, rpayload = self._receive()
+        if rtype != P.MessageType.STATE:
+            raise ProtocolError(f"expected STATE from the board, got {rtype.name}")
+        self.state = P.unpack_state(rpayload)
+        self._sent = True
+        return self.state
+
+    def _next(self):
+        self._seq = (self._seq + 1) & 0xFFFFFFFF
+        return self._seq
+
+    # ---- commands -----------------------------------------------------------------------------------
+    def set_pressure(self, pressures):
+        """Request gauge pressures [Pa] (one per channel; a scalar sets all). The board clamps them to its
+        limits and slews at its rate limit; the returned state says so (``state.flagged(Flag.CLAMPED)``)."""
+        values = np.broadcast_to(np.asarray(pressures, float), (self.channels,)) if np.ndim(pressures) == 0 \
+            else np.asarray(pressures, float)
+        if values.shape != (self.channels,):
+            raise ParameterError(f"set_pressure needs {self.channels} values (one per channel), got shape "
+                                 f"{values.shape}")
+        if not np.all(np.isfinite(values)):
+            raise ParameterError(f"non-finite pressure on channel(s) {np.flatnonzero(~np.isfinite(values)).tolist()}")
+        state = self._command(P.MessageType.SET, P.pack_pressures(self._next(), values))
+        clamped = state.flagged(P.Flag.CLAMPED)
+        if clamped.size:
+            log.warning("board clamped channel(s) %s to its limits", clamped.tolist())
+        return state
+
+    def read(self):
+        """The board's state now (pressures [Pa], flags, sensors)."""
+        return self._command(P.MessageType.READ, P.pack_sequence(self._next()))
+
+    def heartbeat(self):
+        """Feed the watchdog without changing set-points; returns the state."""
+        return self._command(P.MessageType.HEARTBEAT, P.pack_sequence(self._next()))
+
+    def vent(self):
+        """All channels to 0 Pa at once (no rate limit)."""
+        return self._command(P.MessageType.VENT, P.pack_sequence(self._next()))
+
+    def close(self):
+        """Vent, say goodbye and close (idempotent); stops a simulated board's process."""
+        if self._closed:
+            return
+        try:
+            self.vent()
+            self._sock.sendall(P.encode(P.MessageType.BYE))
+        except (ProtocolError, OSError) as e:
+            log.warning("could not vent the board on close (%s); its watchdog vents it", e)
+        finally:
+            self._closed = True
+            self._sock.close()
+            self._shutdown_process()
+
+    def _shutdown_process(self):
+        proc, self._process = self._process, None
+        if proc is not None:
+            proc.terminate()
+            try:
+                proc.wait(5.0)
+            except Exception:  # noqa: BLE001 - TimeoutExpired: it must go anyway
+                proc.kill()
+                proc.wait()
+            for stream in (proc.stdout, proc.stderr):
+                if stream is not None:
+                    stream.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    # ---- real-time loop -----------------------------------------------------------------------------
+    def loop(self, duration, rate, spin=3e-4):
+        """Yield the loop time t [s] at ``rate`` [Hz] for ``duration`` [s], paced without drift.
+
+        When an iteration sends no command, the loop sends a heartbeat so that a slow-but-alive controller
+        is not vented (a hung one still is: the loop cannot send while the body runs). ``spin`` [s]: busy-wait
+        window before each release, for sub-millisecond jitter. Figures in :attr:`loop_stats` afterwards.
+        """
+        duration, rate = float(duration), float(rate)
+        if not (duration > 0 and rate > 0 and math.isfinite(duration) and math.isfinite(rate)):
+            raise ParameterError(f"loop needs positive duration [s] and rate [Hz], got {duration!r}, {rate!r}")
+        period = 1.0 / rate
+        count = int(round(duration * rate))
+        releases, missed = [], 0
+        t0 = time.perf_counter()
+        k = 0
+        try:
+            while k < count:
+                deadline = t0 + k * period
+                while True:
+                    left = deadline - time.perf_counter()
+                    if left <= 0:
+                        break
+                    if left > spin:
+                        time.sleep(left - spin)
+                now = time.perf_counter()
+                releases.append((deadline, now))
+                self._sent = False
+                yield k * period
+                if not self._sent and not self._closed:
+                    self.heartbeat()
+                k += 1
+                late = time.perf_counter() - (t0 + k * period)
+                if late > period:     # skip the deadlines already gone: no burst to catch up
+                    skip = int(late // period)
+                    missed += skip
+                    k += skip
+        finally:
+            self.loop_stats = self._stats(releases, missed, period, rate)
+
+    @staticmethod
+    def _stats(releases, missed, period, rate):
+        if not releases:
+            return LoopStats(0, 0.0, 0.0, rate, 0.0, 0.0, 0.0, 0.0, missed, np.zeros(0))
+        d = np.array(releases)
+        periods = np.diff(d[:, 1])
+        jitter = np.abs(periods - period) if periods.size else np.zeros(1)
+        span = d[-1, 1] - d[0, 1]
+        return LoopStats(len(d), float(span + period), float((len(d) - 1) / span) if span > 0 else 0.0, rate,
+                         float(np.median(jitter)), float(np.percentile(jitter, 99)), float(jitter.max()),
+                         float(np.percentile(d[:, 1] - d[:, 0], 99)), int(missed), periods)
