@@ -163,7 +163,38 @@ def check_board_pick_place(report, out):
     assert (out / report["png"]).stat().st_size > 0
 
 
+def check_wavy_wall(report, out):
+    # the tip stays on the wall (contact all along, penetration of the tube a few mm: no tunnelling through
+    # the penalty wall), presses with the impedance's K_c (delta + r) (3.3 N measured vs 3.3 N nominal;
+    # friction and the groove flanks shift it, bound 30 %), and follows the sliding set-point (5.9 mm RMS
+    # measured: friction mu F / K_c = 2.2 mm plus the damping lag; bound 15 mm)
+    assert report["contact_fraction"] > 0.95
+    assert -5.0 < report["surface_gap_mm"][0] <= report["surface_gap_mm"][1] < 0.5
+    assert report["force_N"]["mean"] == pytest.approx(report["force_N"]["nominal"], rel=0.3)
+    assert report["tracking_error_mm"] < 15.0
+    assert (out / report["png"]).stat().st_size > 0
+
+
+def check_pneunet_design(report, out):
+    assert report["iterations"] >= 30 and report["frames"] >= 5
+    assert report["design_rotation_deg"] > 1.0 > 0.1 > report["initial_rotation_deg"]  # the optimizer made it bend
+    assert report["flooded_cells"] > 0 and report["pressurized_cavities"] == 3  # one chamber per copy, all found
+    assert report["volume_fraction"] <= 0.5 + 5e-3
+    assert report["reached_pressure_kPa"] == pytest.approx(report["max_pressure_kPa"])
+    assert report["bending_angle_deg"] > 2.0  # the re-meshed, re-simulated design bends toward its base
+    assert report["bending_angle_deg"] > report["bending_angle_initial_deg"] + 2.0  # and beats the initial design
+    from sorofem.sdf.export import read_stl
+    tri, _ = read_stl(out / "design.stl")
+    assert len(tri) == report["stl_triangles"] > 1000
+    for name in ("density.png", "density.xdmf", "density.h5", "history.png", "inflated.png", "actuator.png",
+                 "design.npz"):
+        assert (out / name).stat().st_size > 0
+    assert len(list((out / "frames").glob("frame_*.png"))) == report["frames"]
+
+
 CHECKS = {
+    "wavy_wall": check_wavy_wall,
+    "pneunet_design": check_pneunet_design,
     "board_pick_place": check_board_pick_place,
     "soft_hand": check_soft_hand,
     "chain": check_chain,

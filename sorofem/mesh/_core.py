@@ -305,6 +305,10 @@ class Mesh:
             raise MeshError(f"no region {name!r}; available regions: {sorted(self.regions)}")
         return self._entities[name]
 
+    def region_dimension(self, name):
+        """Topological dimension of region ``name``: the mesh's for cell regions, one less for facet regions."""
+        return self._region(name)[0]
+
     def facets(self, name):
         """Local (this rank's, ghosts included) facet indices of region ``name``."""
         dim, ents = self._region(name)

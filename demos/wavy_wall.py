@@ -1,0 +1,163 @@
+r"""Impedance-controlled soft arm sliding along a wavy wall (`soro demo wavy_wall`)
+===========================================================================
+
+Purpose
+-------
+The seed's interaction experiment (Sorotoki paper, Sec. VI, after Della Santina, Katzschmann et al. 2020):
+a six-segment soft arm under Cartesian impedance control keeps its tip on a wall inclined by 40 degrees
+with wave indentations, while its set-point slides along the wall. The impedance controller is what makes
+this possible without a force sensor: it behaves as a spring :math:`K_c` between the tip and a set-point
+placed :math:`\delta` behind the wall's surface, so the tip presses with about :math:`K_c(\delta + r)`
+(:math:`r` the radius of the contact tube around the backbone) and
+follows the indentations by itself. Figures: tracking error along the wall, the tip's distance to the
+wall's surface (penetration of the contact tube), the contact force (mean, min, max over the sweep, and
+the fraction of time in contact), the real-time factor; PNG of the arm on the wall and the force history.
+
+Equations
+---------
+*Arm.* The planar arm of :mod:`demos.pcc_arm` hanging from its base along -z: six PCC segments of 60 mm
+(334 g each, rounded-rectangle section 20 x 60 mm, Dragon Skin 30), one bending coordinate per segment
+(``dofs = (0, 6, 0, 0, 0, 0)``), gravity along -z. Each segment is driven by a generalized torque on its
+coordinate (``add_actuator`` with unit columns: the antagonistic chamber pair of a real segment, whose
+pressure difference sets that torque), so :math:`G = I`.
+
+*Wall.* A slope rising at 40 degrees under the arm's tip: the half-space below the line through
+:math:`c` = (0.05, 0, -0.33) m with direction :math:`t = (\cos 40^\circ, 0, \sin 40^\circ)` and outward
+normal :math:`n = (-\sin 40^\circ, 0, \cos 40^\circ)`, minus smooth cylindrical grooves (radius 15 mm,
+centres 6 mm behind the surface, every 50 mm, the first at 25 mm): an SDF of :mod:`sorofem.sdf`, contact by :meth:`Shapes.add_contact` (penalty
+:math:`k` = 2e5 N/m^2 per unit length of the rod's contact tube, radius 10 mm at the tip region, Coulomb
+friction :math:`\mu` = 0.1 regularized at 1 mm/s).
+
+*Control.* :func:`soroshapes.control.impedance` (eq. (32)-(33) of the seed) on the tip's x and z:
+:math:`K_c` = 150 N/m, :math:`D_c` = 15 N s/m, gravity and elastic compensation, Cartesian Coriolis term,
+null-space damping. Set-point :math:`p_d(t) = c + s(t)\,t - \delta n` with :math:`\delta` = 12 mm and
+:math:`s(t)` a smooth (cosine) ramp from 0 to 150 mm up the slope over the sweep (quick: to 60 mm).
+
+*Integration.* ``Model.simulate`` with BDF2, dt = 4 ms.
+
+Figures
+-------
+``tracking_error_mm``: RMS over the sweep of the along-wall distance between tip and set-point;
+``surface_gap_mm``: min/max of the tip's signed distance to the wall surface minus the tube radius (negative:
+penetration); ``force_N``: contact force statistics; ``contact_fraction``.
+"""
+import time
+from pathlib import Path
+
+import numpy as np
+
+from sorofem import materials, sdf
+from sorofem.units import mm
+
+SEGMENTS, SEG_LEN, SEG_MASS = 6, 60 * mm, 0.334
+WIDTH, HEIGHT = 20 * mm, 60 * mm
+ANGLE = np.radians(40.0)
+T_DIR = np.array([np.cos(ANGLE), 0.0, np.sin(ANGLE)])
+N_DIR = np.array([-np.sin(ANGLE), 0.0, np.cos(ANGLE)])
+CORNER = np.array([0.05, 0.0, -0.33])
+DELTA = 12 * mm
+RADIUS = 10 * mm
+
+
+def wall():
+    """The inclined wall with grooves (3D SDF, solid behind the surface)."""
+    plane = sdf.Plane(point=tuple(CORNER), normal=tuple(N_DIR))
+    grooves = None
+    for s in np.arange(-0.075, 0.40, 0.05):
+        c = CORNER + s * T_DIR - 6 * mm * N_DIR
+        g = sdf.Cylinder(15 * mm, 0.3, center=tuple(c), axis=(0.0, 1.0, 0.0))
+        grooves = g if grooves is None else grooves | g
+    return plane.smooth_difference(grooves, 4 * mm)
+
+
+def arm():
+    """The hanging arm with one torque actuator per segment and contact with the wall."""
+    from sorofem.sdf.properties import section_properties
+    from soroshapes import Basis, Shapes
+
+    section = sdf.RoundedRectangle(WIDTH, HEIGHT)
+    density = SEG_MASS / (section_properties(section).area * SEG_LEN)
+    down = np.eye(4)
+    down[:3, :3] = [[0, 0, 1], [0, 1, 0], [-1, 0, 0]]      # body x (the rod axis) along spatial -z
+    shp = Shapes(Basis.pcc(SEGMENTS), dofs=(0, SEGMENTS, 0, 0, 0, 0), length=SEGMENTS * SEG_LEN,
+                 section=section, material=materials.DragonSkin30(density=density), segments=4 * SEGMENTS,
+                 base=down, contact_radius=RADIUS)
+    shp.add_gravity((0.0, 0.0, -9.81))
+    for i in range(SEGMENTS):
+        shp.add_actuator(np.eye(SEGMENTS)[i], name=f"segment{i}")
+    shp.add_contact(wall(), stiffness=2e5, damping=50.0, friction=0.1, regularization=1e-3)
+    return shp
+
+
+def main(out: Path, quick: bool = False) -> dict:
+    from soroshapes import Model
+    from soroshapes.control import impedance
+
+    shp = arm()
+    obstacle = wall()
+    T = 3.0 if quick else 8.0
+    s0, s1 = 0.0, (0.06 if quick else 0.15)
+
+    def arc(t):
+        return s0 + (s1 - s0) * 0.5 * (1 - np.cos(np.pi * min(max(t / T, 0.0), 1.0)))
+
+    def setpoint(t):
+        p = CORNER + arc(t) * T_DIR - DELTA * N_DIR
+        return p[[0, 2]]
+
+    # start: the static posture whose tip is the first set-point minus the push (IK on positions, then
+    # the compensation holds it), at rest
+    start = CORNER + s0 * T_DIR + 2 * mm * N_DIR
+    ik = shp.inverse_kinematics(start, q0=np.full(SEGMENTS, 1.0))
+    ctrl = impedance("arm", stiffness=150.0, damping=15.0, setpoint=setpoint, axes=(0, 2), null_damping=2e-3)
+    mdl = Model().add(shp, "arm", x0=np.concatenate([ik.q, np.zeros(SEGMENTS)])).set_controller(ctrl)
+    t0 = time.perf_counter()
+    tr = mdl.simulate(T, 4e-3, "bdf2")
+    wall_s = time.perf_counter() - t0
+
+    q, qd = tr["arm"].q, tr["arm"].qd
+    tips = np.array([shp.positions(qi)[-1] for qi in q])
+    force = np.array([np.linalg.norm(shp.contact_forces(qi, qdi).sum(axis=0)) for qi, qdi in zip(q, qd)])
+    along = (tips - CORNER) @ T_DIR - np.array([arc(t) for t in tr.t])
+    gap = obstacle(tips) - RADIUS
+    sweep = tr.t > 0.3                     # after the initial settling into contact
+    in_contact = force > 1e-3
+
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from sorofem.io import atomic_path
+
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.6))
+    xs, zs = np.meshgrid(np.linspace(-0.1, 0.3, 300), np.linspace(-0.42, 0.02, 300))
+    pts = np.column_stack([xs.ravel(), np.zeros(xs.size), zs.ravel()])
+    ax.contourf(xs, zs, obstacle(pts).reshape(xs.shape), levels=[-1, 0], colors=["0.8"])
+    for k in np.linspace(0, len(q) - 1, 6).astype(int):
+        P = shp.positions(q[k])
+        ax.plot(P[:, 0], P[:, 2], lw=3, alpha=0.4 + 0.6 * k / len(q), color="C0")
+    ax.plot(tips[:, 0], tips[:, 2], "C1", lw=1, label="tip")
+    sp = np.array([setpoint(t) for t in tr.t])
+    ax.plot(sp[:, 0], sp[:, 1], "k--", lw=0.8, label="set-point (behind the wall)")
+    ax.set(aspect="equal", xlabel="x [m]", ylabel="z [m]", title="impedance control on a wavy wall")
+    ax.legend(fontsize=7, loc="lower left")
+    bx.plot(tr.t, force, label="contact force [N]")
+    bx.plot(tr.t, 1e3 * along, label="along-wall error [mm]")
+    bx.set(xlabel="t [s]")
+    bx.legend(fontsize=8)
+    bx.grid(alpha=0.3)
+    fig.tight_layout()
+    with atomic_path(out / "wavy_wall.png") as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    plt.close(fig)
+
+    return {
+        "tracking_error_mm": round(float(np.sqrt(np.mean(along[sweep] ** 2))) / mm, 3),
+        "tracking_error_max_mm": round(float(np.abs(along[sweep]).max()) / mm, 3),
+        "surface_gap_mm": [round(float(gap[sweep].min()) / mm, 3), round(float(gap[sweep].max()) / mm, 3)],
+        "force_N": {"mean": round(float(force[sweep].mean()), 4), "min": round(float(force[sweep].min()), 4),
+                    "max": round(float(force[sweep].max()), 4), "nominal": 150.0 * (DELTA + RADIUS)},
+        "contact_fraction": round(float(in_contact[sweep].mean()), 4),
+        "sweep_mm": round((s1 - s0) / mm, 1), "simulated_s": T, "wall_time_s_sim": round(wall_s, 2),
+        "real_time_factor": round(T / wall_s, 3),
+        "png": "wavy_wall.png",
+    }
