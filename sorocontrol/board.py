@@ -233,6 +233,8 @@ class Board:
         try:
             self.vent()
             self._sock.sendall(P.encode(P.MessageType.BYE))
+            while self._sock.recv(4096):    # until the board closes: then it is free for the next client
+                pass
         except (ProtocolError, OSError) as e:
             log.warning("could not vent the board on close (%s); its watchdog vents it", e)
         finally:

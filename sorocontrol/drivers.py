@@ -85,8 +85,8 @@ class SimulatedPlant(Driver):
         into 20 ml, a step of 100 kPa in ~12 ms plus the loop's settling).
     beam : soroshapes.Shapes, optional
         A beam with as many inputs (chambers, in that order) as ``channels``; it is integrated with the
-        implicit midpoint rule at the board's tick, driven by the measured pressures. Its tip position [m]
-        (3) and coordinates q (n) are the sensors.
+        implicit midpoint rule at the board's tick, driven by the measured pressures, from its static
+        equilibrium at zero pressure. Its tip position [m] (3) and coordinates q (n) are the sensors.
     substep : float [s]
         Largest RK4 step of the pneumatics (default 1 ms: the loop's poles are at -1/(2 tau), so the
         truncation error is ~(h/2tau)^4 ~ 1e-7 relative at tau = 30 ms).
@@ -112,8 +112,9 @@ class SimulatedPlant(Driver):
             if len(beam.inputs) != self.channels:
                 raise ParameterError(f"the simulated beam has {len(beam.inputs)} inputs, the board "
                                      f"{self.channels} channels: they must match (one chamber per channel)")
-            self.q = np.zeros(beam.n)
+            self.q = beam.statics(u=np.zeros(self.channels), steps=4)   # at rest under its own weight
             self.qd = np.zeros(beam.n)
+            beam.simulate(1e-4, 1e-4, q0=self.q, u=np.zeros(self.channels))   # compile now, not in the loop
             self.sensor_names = ("tip_x", "tip_y", "tip_z") + tuple(f"q{i}" for i in range(beam.n))
 
     def pressures(self):
@@ -148,7 +149,8 @@ class SimulatedPlant(Driver):
                 x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
             self.x = x
             if self.beam is not None:
-                traj = self.beam.simulate(dt_total, dt_total, q0=self.q, qd0=self.qd, u=self.pressures())
+                traj = self.beam.simulate(dt_total, min(dt_total, 5e-3), q0=self.q, qd0=self.qd,
+                                          u=self.pressures())
                 self.q, self.qd = traj.q[-1].copy(), traj.qd[-1].copy()
             self.t = float(t)
         return self.pressures(), self._sensors(), np.zeros(self.channels, bool)
