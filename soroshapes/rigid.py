@@ -131,6 +131,17 @@ def _polar(R):
     return Q
 
 
+def _distance(shape):
+    """``P (N, 3) -> d (N,)`` for a body's SDF: its fused numba kernel when the tree has one (contact is
+    evaluated on a dozen points many times per step, where numpy's per-call overhead dominates). The normals
+    stay analytic (:meth:`sorofem.sdf.SDF.gradient`): finite differences of the distance put a small
+    tangential error into frictionless contact forces and round-off noise into the network's FD Jacobians."""
+    kernel = shape.compiled()
+    if kernel is None:
+        return lambda P: np.asarray(shape(P), dtype=float).reshape(-1)
+    return lambda P: np.asarray(kernel(np.ascontiguousarray(P, dtype=float)), dtype=float).reshape(-1)
+
+
 def _shape(shape):
     if shape is not None and getattr(shape, "dim", None) != 3:
         raise ParameterError("shape must be a 3D SDF of sorofem.sdf in body coordinates (e.g. sdf.Cylinder, or "
@@ -403,13 +414,14 @@ def beam_contact(beam, body, stiffness, damping=0.0, friction=0.0, regularizatio
     Rb, pb = g[:3, :3], g[:3, 3]
     etab = body.twist(xb)
     Pb = (G[:, :3, 3] - pb) @ Rb                      # rows R^T (P - p)
-    d = np.asarray(shape(Pb), dtype=float).reshape(-1)
+    distance = _distance(shape)
+    d = distance(Pb)
     hit = np.nonzero(d < r)[0]
     f = np.zeros(beam.n)
     W = np.zeros(6)
     F = np.zeros((len(d), 3))
     if len(hit):
-        nb = np.asarray(shape.gradient(Pb[hit]), dtype=float).reshape(len(hit), 3)
+        nb = np.asarray(shape.gradient(Pb[hit]), dtype=float).reshape(len(hit), 3)   # exact where analytic
         nb /= np.linalg.norm(nb, axis=1)[:, None]
         ns = nb @ Rb.T
         vnode = np.einsum("kij,kj->ki", G[hit, :3, :3], eta[hit, 3:])
@@ -434,8 +446,9 @@ def couple_contact(model, beam, body, stiffness, damping=0.0, friction=0.0, regu
 
     The beam gets the contact's generalized force through ``Shapes.add_force`` (reading the body's current
     state from the model), the body gets the equal and opposite wrench through ``model.connect`` into all six
-    of its wrench inputs (they must be free). One contact evaluation serves both at a given state. Call it
-    once per pair (each call adds a force to the beam). Parameters as in :func:`beam_contact`.
+    of its wrench inputs (free, or coupled by earlier calls of this function: several beams touching one body,
+    e.g. the fingers of a gripper, add up their wrenches). One contact evaluation serves both at a given
+    state. Call it once per pair (each call adds a force to the beam). Parameters as in :func:`beam_contact`.
     """
     if not isinstance(model, Model):
         raise ParameterError("couple_contact needs a soroshapes Model")
@@ -465,5 +478,9 @@ def couple_contact(model, beam, body, stiffness, damping=0.0, friction=0.0, regu
         xs = np.array(mdl.state(beam))
         return evaluate(xs[:n], xs[n:], np.array(mdl.state(body)))[1]
 
-    model.connect(wrench, body)
+    registry = model.__dict__.setdefault("_contact_wrenches", {})
+    if body not in registry:   # the first contact on this body connects the sum of all its contacts' wrenches
+        registry[body] = []
+        model.connect(lambda mdl: sum(w(mdl) for w in registry[body]), body)
+    registry[body].append(wrench)
     return model
