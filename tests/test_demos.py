@@ -211,7 +211,20 @@ def check_suzumori_gripper(report, out):
     assert (out / report["png"]).stat().st_size > 0
 
 
+def check_passive_walker(report, out):
+    # the walker standing on the slope has leg modes near the seed's gait frequency (second mode 22.4 Hz
+    # measured at the quick mesh, the seed's gait 21.1 Hz: bound 15-30 Hz), slides/walks downhill (mu < tan 30)
+    # and its implicit dynamics with contact never needed a cut step (a quick run is too short for the gait
+    # itself, which starts after ~0.13 s: the full run gives 23.8 Hz)
+    f = report["vibration_frequencies_hz"]
+    assert any(15.0 < v < 30.0 for v in f[:3])
+    assert report["com_dx_mm"] > 1.0 and report["newton_iterations_max"] <= 10
+    for name in ("gait.png", "gait_force.png"):
+        assert (out / name).stat().st_size > 0
+
+
 CHECKS = {
+    "passive_walker": check_passive_walker,
     "suzumori_gripper": check_suzumori_gripper,
     "shape_sensing": check_shape_sensing,
     "wavy_wall": check_wavy_wall,

@@ -171,8 +171,8 @@ def simulate(fem, t_end, dt, scheme="generalized_alpha", rho_inf=0.8, beta=0.25,
     def energy_now():
         return fem.mesh.comm.allreduce(dolfinx.fem.assemble_scalar(kinetic))
 
-    fem._commit_contacts()
     fem._record(traj, 0.0, 0, fem._set_loads(0.0), newton, kinetic=energy_now())
+    fem._commit_contacts()   # after recording: the reported friction is that of the step's slip
     x = w.x.array
     state = {"count": 0}
 
@@ -188,11 +188,11 @@ def simulate(fem, t_end, dt, scheme="generalized_alpha", rho_inf=0.8, beta=0.25,
         a1 = integ.acceleration(x, w_n.x.array, v_n.x.array, a_n.x.array, dt_step)
         v1 = integ.velocity(a1, v_n.x.array, a_n.x.array, dt_step)
         w_n.x.array[:], v_n.x.array[:], a_n.x.array[:] = x, v1, a1
-        fem._commit_contacts()
         state["count"] += 1
         if state["count"] % int(record_every) == 0 or t >= t_end - 1e-12 * t_end:
             v_now.x.array[:] = v1
             fem._record(traj, t, out.iterations, state["inputs"], newton, kinetic=energy_now())
+        fem._commit_contacts()   # after recording: the reported friction is that of the step's slip
         if progress and fem.mesh.comm.rank == 0:
             print(f"  t = {t:.4g} s ({out.iterations} Newton iterations)", flush=True)
 

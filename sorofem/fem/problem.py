@@ -519,6 +519,13 @@ class Fem:
 
     # ------------------------------------------------------------------------------------------ outputs
     @property
+    def contacts(self):
+        """The contacts added by :meth:`add_contact`, in order (``contact_0``, ...). Their ``friction`` may be
+        changed between solves (e.g. stand with sticking friction, then walk with the real one): it is read
+        at every evaluation, the forms do not depend on it."""
+        return tuple(self._contacts)
+
+    @property
     def displacement(self):
         """The current displacement as a DOLFINx Function (collapsed copy in the mixed formulation)."""
         b = self._built or self._build()
@@ -663,8 +670,8 @@ class Fem:
             newton.destroy()
             raise ConvergenceError(f"the initial state (t = 0) did not converge: {out.reason}. Check that the "
                                    "supports prevent rigid motion and that the loads at t = 0 are reasonable")
-        self._commit_contacts()
         self._record(traj, 0.0, out.iterations, inputs, newton, monitor_stability)
+        self._commit_contacts()   # after recording: the reported friction is that of the step's slip
         state = {"x_old": x.copy(), "x_prev": None, "dt_prev": None,
                  "p_old": [float(c.pressure.value) for c in controls]}
 
@@ -677,8 +684,8 @@ class Fem:
             return newton.solve()
 
         def accept(t, dt, out):
-            self._commit_contacts()
             self._record(traj, t, out.iterations, state["inputs"], newton, monitor_stability)
+            self._commit_contacts()
             state.update(x_prev=state["x_old"], dt_prev=dt, x_old=x.copy(),
                          p_old=[float(c.pressure.value) for c in controls])
             if progress and self.mesh.comm.rank == 0:

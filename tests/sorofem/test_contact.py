@@ -51,7 +51,13 @@ def test_block_on_an_incline_sticks_below_the_friction_angle_and_slides_above(th
         assert abs(x[-1] - x[10]) < 1e-2 * 0.5 * G * np.sin(th) * traj.times[-1] ** 2 and abs(accel) < 1e-3 * G
     else:
         assert accel == pytest.approx(expected, rel=1e-2)
-    assert traj.reactions["contact_0"][-1][1] == pytest.approx(mat.density * G * np.cos(th) * W * H, rel=1e-2)
+    fx, fy = traj.reactions["contact_0"][-1]
+    assert fy == pytest.approx(mat.density * G * np.cos(th) * W * H, rel=1e-2)
+    # the reported friction: it resists the slide (mu N uphill), or holds the block (m g sin theta uphill, on
+    # average over the second half: the elastic block still rocks on its contact after the landing)
+    if expected < 0:
+        fx = traj.reactions["contact_0"][len(traj.times) // 2:, 0].mean()
+    assert fx == pytest.approx(-(mat.density * G * np.sin(th) * W * H if expected < 0 else mu * fy), rel=2e-2)
 
 
 def test_a_disk_hitting_the_floor_at_speed_does_not_tunnel_and_rebounds_with_bounded_energy():
