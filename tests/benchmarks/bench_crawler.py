@@ -1,0 +1,85 @@
+"""Cost of the crawler demo's dynamics (2D hyperelastic FEM, generalized-alpha, pressure signals, floor contact
+with friction): wall time per simulated second at the demo's mesh and step, Newton iterations per step, and
+where the time goes.
+
+The demo's full settings (element size 2 mm, P2, dt = 2 ms, rho_inf = 0.8) over 0.2 s of the gait (100
+steps). Time is split by wrapping the pieces of the Newton iteration: residual assembly
+(``NewtonSolver.assemble_residual``), tangent assembly (``assemble_jacobian``), the contact's own work inside
+them (``Contact.subtract`` for the forces, ``Contact.add_tangent`` for the tangent blocks; included in the
+assembly figures and also reported alone), and the linear solve (MUMPS LU: time inside
+``NewtonSolver.solve`` minus assembly). Asserted: the run converged every step (no cut), the floor carries
+weight. Never a time.
+"""
+import importlib.util
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+DEMO = Path(__file__).resolve().parents[2] / "demos" / "crawler.py"
+
+
+def test_bench_crawler(record):
+    from sorofem.fem import contact, newton
+    from sorofem.fem import Fem
+    from sorofem import materials, sdf
+    from sorofem.mesh import Mesh
+    from sorofem.units import kPa, mm
+
+    spec = importlib.util.spec_from_file_location("crawler_demo", DEMO)
+    demo = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(demo)
+    msh = Mesh.from_sdf(demo.crawler_section(), size=2 * mm)
+    msh.add_region("layer", lambda x: x[1] < demo.LAYER + getattr(demo, "FOOT", 0.0), kind="cells")
+    fem = Fem(msh, materials.NeoHookean(E=200 * kPa, nu=0.45, density=1070.0), degree=2)
+    fem.add_material("layer", materials.NeoHookean(E=1000 * kPa, nu=0.45, density=1070.0))
+    fem.add_gravity()
+    fem.add_contact(sdf.Line((0.0, 0.0), (0.0, 1.0)), friction=demo.MU, regularization=0.05 * mm)
+    for k, cavity in enumerate(msh.cavities):
+        fem.add_pressure(cavity, demo.signal(k // demo.POCKETS))
+    dofs = fem._build()["W"].dofmap.index_map.size_global * 2
+
+    timers = {"residual": 0.0, "tangent": 0.0, "newton": 0.0, "contact_forces": 0.0, "contact_tangent": 0.0,
+              "iterations": 0}
+    wrapped = [(newton.NewtonSolver, "assemble_residual", "residual"), (newton.NewtonSolver, "assemble_jacobian",
+               "tangent"), (newton.NewtonSolver, "solve", "newton"), (contact.Contact, "subtract", "contact_forces"),
+               (contact.Contact, "add_tangent", "contact_tangent")]
+    orig = {(cls, name): getattr(cls, name) for cls, name, _ in wrapped}
+
+    def timed(cls, name, key):
+        def wrapper(*a, **k):
+            t = time.perf_counter()
+            try:
+                return orig[(cls, name)](*a, **k)
+            finally:
+                timers[key] += time.perf_counter() - t
+                if key == "tangent":
+                    timers["iterations"] += 1
+        return wrapper
+    for cls, name, key in wrapped:
+        setattr(cls, name, timed(cls, name, key))
+    try:
+        t_end, dt = 0.2, 2e-3
+        t0 = time.perf_counter()
+        traj = fem.simulate(t_end=t_end, dt=dt, rho_inf=0.8)
+        wall = time.perf_counter() - t0
+    finally:
+        for (cls, name), fn in orig.items():
+            setattr(cls, name, fn)
+    steps = len(traj) - 1
+    its = traj.newton_iterations[1:]
+    assert steps == round(t_end / dt), "a step was cut"
+    assert np.abs(traj.reactions["contact_0"][:, 1]).max() > 0
+    assembly = timers["residual"] + timers["tangent"]
+    solve = timers["newton"] - assembly
+    record(dofs=int(dofs), cells=int(msh.num_cells), dt_ms=dt * 1e3, steps=steps,
+           wall_per_simulated_s=round(wall / t_end, 2), wall_per_step_s=round(wall / steps, 4),
+           newton_iterations_per_step_mean=round(float(its.mean()), 2), newton_iterations_per_step_max=int(its.max()),
+           share_residual_assembly=round(timers["residual"] / wall, 3),
+           share_tangent_assembly=round(timers["tangent"] / wall, 3),
+           share_linear_solve=round(solve / wall, 3),
+           share_contact=round((timers["contact_forces"] + timers["contact_tangent"]) / wall, 3),
+           share_outside_newton=round(1 - timers["newton"] / wall, 3),
+           per_iteration_ms=round(1e3 * timers["newton"] / max(timers["iterations"], 1), 2),
+           periods_per_wall_hour=round(3600 / (wall / t_end) / (2 * math.pi / demo.OMEGA), 1))
