@@ -63,6 +63,13 @@ moments about any point cancel (Newton's third law) and the contact power is
 :math:`\sum_i F_i\cdot v^{rel}_i` (zero for a frictionless, undamped contact, which is then conservative with
 the energy :math:`\sum_i w_i k\delta_i^2/2`). :func:`couple_contact` wires both into a :class:`Model`.
 
+Ground and grasp
+----------------
+:func:`ground_contact` / :func:`couple_ground`: a fixed plane (table, floor) pushing on chosen body points
+(penalty, damping, regularized Coulomb friction). :func:`grasp_force` / :func:`couple_grasp`: a gripper as a
+spring-damper between a beam node and a body point, scaled by an engagement signal in [0, 1] (it closes and
+opens), equal and opposite on beam and body. Several contacts and couplings on one body add up.
+
 Example
 -------
 Free fall: the trapezoidal rule is exact for a constant acceleration, so :math:`z = -g t^2/2`:
@@ -83,7 +90,8 @@ from sorofem.errors import ParameterError
 
 from .model import Model, StateSpace
 
-__all__ = ["RigidBody", "SpinningBody", "beam_contact", "couple_contact"]
+__all__ = ["RigidBody", "SpinningBody", "beam_contact", "couple_contact", "ground_contact", "couple_ground",
+           "grasp_force", "couple_grasp"]
 
 _WRENCH = ["moment_x", "moment_y", "moment_z", "force_x", "force_y", "force_z"]
 
@@ -452,15 +460,8 @@ def couple_contact(model, beam, body, stiffness, damping=0.0, friction=0.0, regu
     """
     if not isinstance(model, Model):
         raise ParameterError("couple_contact needs a soroshapes Model")
-    for nm in (beam, body):
-        if nm not in model.systems:
-            raise ParameterError(f"no system {nm!r} in the model; systems: {', '.join(model.systems)}")
+    _check_pair(model, beam, body)
     shp, bdy = model[beam].system, model[body].system
-    from .shapes import Shapes
-    if not isinstance(shp, Shapes):
-        raise ParameterError(f"system {beam!r} is a {type(shp).__name__}, not a Shapes beam")
-    if not isinstance(bdy, (RigidBody, SpinningBody)):
-        raise ParameterError(f"system {body!r} is a {type(bdy).__name__}, not a RigidBody or SpinningBody")
     beam_contact(shp, bdy, stiffness, damping, friction, regularization, q=np.zeros(shp.n))   # validate now
     n, cache = shp.n, {}
 
@@ -478,9 +479,108 @@ def couple_contact(model, beam, body, stiffness, damping=0.0, friction=0.0, regu
         xs = np.array(mdl.state(beam))
         return evaluate(xs[:n], xs[n:], np.array(mdl.state(body)))[1]
 
+    _add_body_wrench(model, body, wrench)
+    return model
+
+
+def _add_body_wrench(model, body, wrench):
+    """Add ``wrench(model) -> (6,)`` (body coordinates) to the wrench inputs of ``body``: the first call
+    connects the sum of all of them, so that several contacts and couplings act on one body."""
     registry = model.__dict__.setdefault("_contact_wrenches", {})
-    if body not in registry:   # the first contact on this body connects the sum of all its contacts' wrenches
+    if body not in registry:
         registry[body] = []
         model.connect(lambda mdl: sum(w(mdl) for w in registry[body]), body)
     registry[body].append(wrench)
+
+
+def _check_pair(model, beam, body):
+    for nm in [n for n in (beam, body) if n is not None]:
+        if nm not in model.systems:
+            raise ParameterError(f"no system {nm!r} in the model; systems: {', '.join(model.systems)}")
+    if beam is not None:
+        from .shapes import Shapes
+        if not isinstance(model[beam].system, Shapes):
+            raise ParameterError(f"system {beam!r} is a {type(model[beam].system).__name__}, not a Shapes beam")
+    if not isinstance(model[body].system, (RigidBody, SpinningBody)):
+        raise ParameterError(f"system {body!r} is a {type(model[body].system).__name__}, not a RigidBody or "
+                             "SpinningBody")
+
+
+def ground_contact(body, x, points, stiffness, damping=0.0, friction=0.0, regularization=1e-3, *,
+                   plane=((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))):
+    r"""Wrench [N m, N] (body coordinates) of a fixed plane on the body points ``points`` (k, 3) [m, body
+    coordinates], e.g. the rim of a cylinder's base standing on a table.
+
+    Point :math:`r_j` is at :math:`P_j = p + R r_j` with velocity :math:`v_j = R(v + \omega	imes r_j)`; with
+    the plane through :math:`c` with unit normal :math:`n`, gap :math:`d_j = (P_j - c)\cdot n`, the force on the
+    body is :math:`F_j = f_n n - \mu f_n v_t/\sqrt{|v_t|^2 + \epsilon^2}` with
+    :math:`f_n = \max(0, -k d_j - c_d\, v_j\cdot n)` (``stiffness`` k [N/m] and ``damping`` c_d [N s/m] per
+    point), :math:`v_t` the tangential velocity; the wrench is :math:`\sum_j (r_j	imes R^TF_j, R^TF_j)`.
+    """
+    r = np.asarray(points, dtype=float).reshape(-1, 3)
+    c, n = (np.asarray(v, dtype=float) for v in plane)
+    n = n / np.linalg.norm(n)
+    g, eta = body.pose(x), body.twist(x)
+    R, p = g[:3, :3], g[:3, 3]
+    P = p + r @ R.T
+    v = (eta[3:] + np.cross(eta[:3], r)) @ R.T
+    d = (P - c) @ n
+    vn = v @ n
+    fn = np.maximum(0.0, -stiffness * d - damping * vn) * (d < 0)
+    vt = v - vn[:, None] * n
+    F = fn[:, None] * n - friction * (fn / np.sqrt(np.einsum("ki,ki->k", vt, vt) + regularization**2))[:, None] * vt
+    fb = F @ R
+    return np.concatenate([np.cross(r, fb).sum(axis=0), fb.sum(axis=0)])
+
+
+def couple_ground(model, body, points, stiffness, damping=0.0, friction=0.0, regularization=1e-3, *,
+                  plane=((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))):
+    """A fixed plane (a table, the floor) under the body ``body`` of ``model``, touching it at ``points``
+    (body coordinates): :func:`ground_contact` added to the body's wrench inputs. Returns the model."""
+    _check_pair(model, None, body)
+    bdy = model[body].system
+    ground_contact(bdy, bdy.x0, points, stiffness, damping, friction, regularization, plane=plane)   # validate
+    _add_body_wrench(model, body, lambda mdl: ground_contact(bdy, np.array(mdl.state(body)), points, stiffness,
+                                                             damping, friction, regularization, plane=plane))
+    return model
+
+
+def grasp_force(beam, body, q, qd, x, anchor, stiffness, damping, at=None):
+    r"""Force [N] (spatial) of a grasp: a spring-damper between the beam's node ``at`` (default the tip) and
+    the body point ``anchor`` (body coordinates): :math:`F = k(P_b - P_a) + c(\dot P_b - \dot P_a)` acts on
+    the body (and :math:`-F` on the beam). Returns (F, generalized force on the beam (n,), body wrench (6,))."""
+    i = len(beam.sigma) - 1 if at is None else beam._node(at)
+    beam._kin(np.asarray(q, float), np.asarray(qd, float))
+    G, eta, J = beam._G, beam._eta, beam._J
+    Pb, Vb = G[i, :3, 3], G[i, :3, :3] @ eta[i, 3:]
+    g, tw = body.pose(x), body.twist(x)
+    R = g[:3, :3]
+    a = np.asarray(anchor, dtype=float)
+    Pa, Va = g[:3, 3] + R @ a, R @ (tw[3:] + np.cross(tw[:3], a))
+    F = stiffness * (Pb - Pa) + damping * (Vb - Va)
+    fb = R.T @ F
+    return F, -(J[i, 3:].T @ (G[i, :3, :3].T @ F)), np.concatenate([np.cross(a, fb), fb])
+
+
+def couple_grasp(model, beam, body, anchor, stiffness, damping=0.0, engaged=None, at=None):
+    """A gripper at the node ``at`` (default the tip) of the beam ``beam`` holding the body ``body`` of
+    ``model`` at its point ``anchor`` (body coordinates): :func:`grasp_force` scaled by ``engaged(t)`` in
+    [0, 1] (default always 1: a closed gripper; a ramp closes it), equal and opposite on beam and body.
+    A reduced model of a gripper (suction cup or fingers closed on the object): it transmits force, not
+    moment, so the held body hangs from the grasp point. Returns the model."""
+    _check_pair(model, beam, body)
+    shp, bdy, n = model[beam].system, model[body].system, model[beam].system.n
+    on = (lambda t: 1.0) if engaged is None else engaged
+    grasp_force(shp, bdy, np.zeros(n), np.zeros(n), bdy.x0, anchor, stiffness, damping, at)   # validate now
+
+    def evaluate(q, qd, xb, t):
+        return [on(t) * v for v in grasp_force(shp, bdy, q, qd, xb, anchor, stiffness, damping, at)]
+
+    shp.add_force(lambda s, q, qd, t: evaluate(q, qd, np.array(model.state(body)), t)[1])
+
+    def wrench(mdl):
+        xs = np.array(mdl.state(beam))
+        return evaluate(xs[:n], xs[n:], np.array(mdl.state(body)), mdl.t)[2]
+
+    _add_body_wrench(model, body, wrench)
     return model

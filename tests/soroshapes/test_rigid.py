@@ -12,7 +12,8 @@ import pytest
 from sorofem import materials, sdf
 from sorofem.errors import ParameterError
 from soroshapes import Basis, Model, Shapes, lie
-from soroshapes.rigid import RigidBody, SpinningBody, beam_contact, couple_contact
+from soroshapes.rigid import (RigidBody, SpinningBody, beam_contact, couple_contact, couple_grasp, couple_ground,
+                              grasp_force, ground_contact)
 
 I_BODY = np.array([1.0, 2.0, 3.0]) * 1e-3        # kg m^2
 
@@ -239,6 +240,63 @@ def test_spinning_body_follows_its_axis_torque():
     assert np.allclose(tr["bolt"].x[:, 1], w_exact, rtol=1e-6)
     th = tr["bolt"].x[-1, 0]
     assert np.allclose(bolt.pose(tr["bolt"].x[-1])[:3, :3], lie.expSO3(np.array([0, 0, th])), atol=1e-12)
+
+
+def test_a_cylinder_on_a_table_settles_and_the_table_carries_its_weight():
+    """12 rim points on the plane z = 0, on an incline of the gravity below the friction angle: at rest the
+    plane's wrench balances gravity exactly (force m g, no moment about the centre beyond the lever of the
+    tilted gravity), and the body sinks by the penalty deflection m g cos / (12 k) only."""
+    m, r, h, k = 0.045, 0.02, 0.04, 3e3
+    grav = 9.81 * np.array([np.sin(0.2), 0.0, -np.cos(0.2)])        # 11.5 deg, mu = 0.5 holds it
+    pose = np.eye(4)
+    pose[2, 3] = h / 2
+    body = RigidBody(m, [1e-5, 1e-5, 9e-6], pose0=pose, gravity=grav, name="cyl", normalization=20.0)
+    ang = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    rim = np.column_stack([r * np.cos(ang), r * np.sin(ang), np.full(12, -h / 2)])
+    mdl = couple_ground(Model().add(body), "cyl", rim, k, damping=2.0, friction=0.5, regularization=2e-4)
+    tr = mdl.simulate(1.0, 2e-3, "bdf2", rtol=1e-7, atol=1e-10)
+    x = tr["cyl"].x[-1]
+    W = ground_contact(body, x, rim, k, 2.0, 0.5, 2e-4)
+    R = body.pose(x)[:3, :3]
+    assert np.allclose(R @ W[3:], -m * grav, rtol=2e-3, atol=1e-6)      # the table carries the weight
+    sink = h / 2 - body.pose(x)[2, 3]
+    assert sink == pytest.approx(m * 9.81 * np.cos(0.2) / (12 * k), rel=0.05)
+    # at rest up to the regularized creep v = eps tan / sqrt(mu^2 - tan^2) = 0.44 eps
+    assert np.linalg.norm(body.twist(x)[3:]) < 1e-4
+
+
+def test_grasp_forces_are_equal_and_opposite_and_do_virtual_work():
+    shp = finger()
+    body = RigidBody(0.05, 1e-5, pose0=lie.expSE3(np.array([0.1, -0.2, 0.3, 0.004, R_BOLT, 0.001])))
+    rng = np.random.default_rng(5)
+    q, qd = 0.3 * rng.normal(size=shp.n), rng.normal(size=shp.n)
+    x = body.state(body.pose(body.x0), np.array([0.5, -0.2, 0.1, 0.01, 0.02, -0.03]))
+    anchor = np.array([0.0, 0.001, 0.002])
+    F, fq, W = grasp_force(shp, body, q, qd, x, anchor, 500.0, 3.0)
+    R = body.pose(x)[:3, :3]
+    assert np.allclose(R @ W[3:], F) and np.allclose(W[:3], np.cross(anchor, R.T @ F))
+    # the beam's generalized force is the work of -F at the tip: fq . dq = -F . dP_tip
+    dq = 1e-7 * rng.normal(size=shp.n)
+    dP = shp.positions(q + dq)[-1] - shp.positions(q - dq)[-1]
+    assert fq @ (2 * dq) == pytest.approx(-F @ dP, rel=1e-5)
+
+
+def test_a_closed_grasp_holds_a_hanging_body_and_an_open_one_lets_it_fall():
+    shp = finger()
+    tip = shp.positions(np.zeros(shp.n))[-1]
+    pose = np.eye(4)
+    pose[:3, 3] = tip - [0.0, 0.0, 0.01]                  # anchor 10 mm above the centre, at the tip
+    for closed in (True, False):
+        body = RigidBody(0.002, 2e-8, pose0=pose, name="load", normalization=20.0)
+        mdl = Model().add(shp, "finger").add(body)
+        couple_grasp(mdl, "finger", "load", anchor=(0, 0, 0.01), stiffness=200.0, damping=0.5,
+                     engaged=(lambda t: 1.0) if closed else (lambda t: 0.0))
+        tr = mdl.simulate(0.3, 2e-3, "bdf2")
+        drop = pose[2, 3] - body.pose(tr["load"].x[-1])[2, 3]
+        if closed:   # held: it hangs 2 g * 9.81 / 200 N/m + the finger's own sag below the start, not more
+            assert drop < 0.002 * 9.81 / 200 + 1e-3
+        else:
+            assert drop == pytest.approx(9.81 * 0.3**2 / 2, rel=0.02)   # free fall
 
 
 # --------------------------------------------------------------------------------------------------------
