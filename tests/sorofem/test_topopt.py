@@ -159,6 +159,19 @@ def test_compliance_adjoint_matches_finite_differences(filt):
     assert _fd_check(prob, x, [0, 7, 20, 41]) < 1e-5
 
 
+def test_3d_cantilever_gradient_and_optimization():
+    """The same code in 3D (hexahedra): the adjoint gradient matches finite differences and MMA lowers the
+    compliance of a tip-loaded cantilever at the prescribed volume (774 -> 398 measured in 40 iterations)."""
+    msh = Mesh.box(8.0, 2.0, 4.0, 1.0, center=(4.0, 1.0, 2.0), cell="hexahedron")
+    prob = Compliance(msh, volume_fraction=0.3, penalty=3.0, radius=1.5)
+    prob.add_support("left").add_point_force((8.0, 1.0, 0.0), (0.0, 0.0, -1.0))
+    x = 0.2 + 0.5 * np.random.default_rng(4).random(prob.n)
+    assert _fd_check(prob, x, [0, 21, 40, 63]) < 1e-5
+    res = optimize(prob, method="mma", max_iterations=40)
+    assert res.objective < 0.6 * res.history[0]["objective"]
+    assert res.history[-1]["volume"] < 0.3 + 2e-3
+
+
 def test_mechanism_adjoint_matches_finite_differences():
     prob = _inverter(12, 6)
     x = 0.2 + 0.6 * np.random.default_rng(2).random(prob.n)
