@@ -314,7 +314,11 @@ class BoardServer:
             self._send_error(conn, P.ErrorCode.AUTH, "authentication failed: wrong shared secret")
         except ProtocolError as e:
             self._event(f"protocol error from {who}: {e}")
-            self._send_error(conn, P.ErrorCode.MALFORMED, str(e))
+            text = str(e)
+            code = (P.ErrorCode.VERSION if "protocol version" in text else P.ErrorCode.SIZE if "MAX_PAYLOAD" in text
+                    else P.ErrorCode.UNEXPECTED if text.startswith(("unexpected", "expected AUTH"))
+                    else P.ErrorCode.MALFORMED)
+            self._send_error(conn, code, text)
         except (ConnectionError, socket.timeout, OSError) as e:
             if self._client is conn:
                 self._event(f"client {who} lost: {e}")

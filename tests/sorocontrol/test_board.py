@@ -100,6 +100,17 @@ def test_second_client_is_refused(server):
         assert brd.read().sequence == 1
 
 
+def test_a_client_of_another_protocol_version_is_told_so(server):
+    sock = socket.create_connection(server.address, timeout=2.0)
+    P.read_frame(sock)   # HELLO
+    frame = bytearray(P.encode(P.MessageType.AUTH, b"\x00" * 64))
+    frame[2] = P.PROTOCOL_VERSION + 1
+    sock.sendall(bytes(frame))
+    mtype, payload = P.read_frame(sock)
+    assert mtype == P.MessageType.ERROR and P.unpack_error(payload)[0] == P.ErrorCode.VERSION
+    sock.close()
+
+
 def test_bad_secret_is_refused_and_the_server_goes_on(server):
     with pytest.raises(ProtocolError, match="AUTH"):
         Board.connect(url(server), secret="wrong")
@@ -144,6 +155,8 @@ def test_malformed_frames_after_login_vent_and_the_server_survives(server, garba
     sock.sendall(garbage)
     mtype, payload = P.read_frame(sock)
     assert mtype == P.MessageType.ERROR, "the server answers a bad frame with ERROR"
+    code, _ = P.unpack_error(payload)
+    assert code == (P.ErrorCode.UNEXPECTED if garbage[3:4] == bytes([P.MessageType.HELLO]) else P.ErrorCode.MALFORMED)
     wait_until(lambda: server._client is None and np.all(server.requested == 0))
     sock.close()
     with Board.connect(url(server), secret=SECRET) as brd:   # still serving
