@@ -81,7 +81,6 @@ def main(out: Path, quick: bool = False) -> dict:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.collections import PolyCollection
 
     from sorofem.fem import Fem
     from sorofem.mesh import Mesh
@@ -125,19 +124,6 @@ def main(out: Path, quick: bool = False) -> dict:
     fig.savefig(out / "com.png", dpi=120)
     plt.close(fig)
 
-    frames = np.linspace(0, len(traj) - 1, 6).round().astype(int)
-    fig, axes = plt.subplots(len(frames), 1, figsize=(7, 1.3 * len(frames)), sharex=True)
-    for ax, k in zip(axes, frames):
-        x = (X + U[k]) / mm
-        ax.add_collection(PolyCollection(x[cells], array=traj.von_mises[k] / kPa, cmap="viridis",
-                                         edgecolors="none"))
-        ax.axhline(0, color="k", lw=0.8)
-        ax.set_xlim(-10, L / mm + 20)
-        ax.set_ylim(-2, 34)
-        ax.set_aspect("equal")
-        ax.set_ylabel(f"{traj.times[k]:.2f} s", fontsize=8)
-    axes[-1].set_xlabel("x [mm]")
-    fig.tight_layout()
-    fig.savefig(out / "gait.png", dpi=120)
-    plt.close(fig)
+    traj.filmstrip(out / "gait.png", np.linspace(0, len(traj) - 1, 6).round(), floor=0.0,
+                   xlim=(-10, L / mm + 20))
     return summary

@@ -84,7 +84,6 @@ def main(out: Path, quick: bool = False) -> dict:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.collections import PolyCollection
 
     fem, msh = model((1.5 if quick else 1.0) * mm)
     floor = sdf.Line((0.0, 0.0), (0.0, 1.0))
@@ -138,19 +137,6 @@ def main(out: Path, quick: bool = False) -> dict:
     fig.savefig(out / "gait_force.png", dpi=120)
     plt.close(fig)
 
-    frames = np.searchsorted(t, t[-1] - np.linspace(1.0 / f_gait, 0.0, 5))
-    fig, axes = plt.subplots(len(frames), 1, figsize=(6, 1.4 * len(frames)), sharex=True)
-    for axk, k in zip(axes, frames):
-        x = (X + U[k]) / mm
-        axk.add_collection(PolyCollection(x[cells], array=traj.von_mises[k] / 1e3, cmap="viridis",
-                                          edgecolors="none"))
-        axk.axhline(0, color="k", lw=0.8)
-        axk.set_xlim(x[:, 0].min() - 5, x[:, 0].max() + 5)
-        axk.set_ylim(-2, 26)
-        axk.set_aspect("equal")
-        axk.set_ylabel(f"{t[k] * 1e3:.1f} ms", fontsize=8)
-    axes[-1].set_xlabel("x along the slope (downhill) [mm]")
-    fig.tight_layout()
-    fig.savefig(out / "gait.png", dpi=120)
-    plt.close(fig)
+    traj.filmstrip(out / "gait.png", np.searchsorted(t, t[-1] - np.linspace(1.0 / f_gait, 0.0, 5)), floor=0.0,
+                   ylim=(-2, 26), xlabel="x along the slope (downhill) [mm]")
     return summary

@@ -9,7 +9,7 @@ detection, ArUco calibration of the world frame, pixels to 3D) and :mod:`~soroco
 estimation: markers to beam coordinates by IK with the quasi-static prior). They load on first attribute
 access.
 """
-import importlib
+from sorofem._lazy import lazy_attributes
 
 _SUBMODULES = ("protocol", "server", "drivers", "board", "camera", "vision", "estimation")
 _CLASSES = {"Board": "board", "LoopStats": "board", "BoardServer": "server", "MockDriver": "drivers",
@@ -22,10 +22,4 @@ _CLASSES = {"Board": "board", "LoopStats": "board", "BoardServer": "server", "Mo
 __all__: list[str] = [*_SUBMODULES, *_CLASSES]
 
 
-def __getattr__(name):
-    """Import the submodule ``name`` (or the module of the class ``name``) on first access (PEP 562)."""
-    if name in _SUBMODULES:
-        return importlib.import_module(f"{__name__}.{name}")
-    if name in _CLASSES:
-        return getattr(importlib.import_module(f"{__name__}.{_CLASSES[name]}"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = lazy_attributes(__name__, _SUBMODULES, _CLASSES)

@@ -7,7 +7,7 @@ beam model, :mod:`~soroshapes.render` tube rendering, :mod:`~soroshapes.model` n
 reservoirs and state-space systems) and the public classes are loaded on first attribute access, so
 ``import soroshapes`` does not import numba.
 """
-import importlib
+from sorofem._lazy import lazy_attributes
 
 _SUBMODULES = ("lie", "basis", "shapes", "render", "dvs", "model", "rigid", "control", "gym")
 _CLASSES = {"Basis": "basis", "Shapes": "shapes", "BeamTrajectory": "shapes", "IKResult": "shapes",
@@ -17,10 +17,4 @@ _CLASSES = {"Basis": "basis", "Shapes": "shapes", "BeamTrajectory": "shapes", "I
 __all__: list[str] = [*_SUBMODULES, *_CLASSES]
 
 
-def __getattr__(name):
-    """Import the submodule ``name`` (or the module of the class ``name``) on first access (PEP 562)."""
-    if name in _SUBMODULES:
-        return importlib.import_module(f"{__name__}.{name}")
-    if name in _CLASSES:
-        return getattr(importlib.import_module(f"{__name__}.{_CLASSES[name]}"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = lazy_attributes(__name__, _SUBMODULES, _CLASSES)

@@ -237,6 +237,42 @@ class Trajectory:
         plt.close(fig)
         return path
 
+    def filmstrip(self, path, steps, floor=None, xlim=None, ylim=None, xlabel="x [mm]"):
+        """PNG of a 2D body at several ``steps``, one panel each (deformed cells coloured by von Mises
+        stress), stacked with a shared x axis: a gait or a motion at a glance. ``floor``: the height [m] of a
+        line to draw (e.g. the ground); ``xlim``/``ylim`` [mm] (default: the body's extent per panel).
+        Rank 0 draws."""
+        if self.comm.rank != 0:
+            return path
+        if self.vertices.shape[1] != 2:
+            raise ValueError("filmstrip draws 2D bodies; use plot() for 3D")
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        from matplotlib.collections import PolyCollection
+
+        from ..io import atomic_path
+
+        steps = [int(k) for k in steps]
+        cells = self._rank0_cells_vtk()
+        fig, axes = plt.subplots(len(steps), 1, figsize=(7, 1.4 * len(steps)), sharex=True, squeeze=False)
+        for ax, k in zip(axes[:, 0], steps):
+            x = (self.vertices + self._u[k]) * 1e3
+            ax.add_collection(PolyCollection(x[cells], array=np.asarray(self._vm[k]) / 1e3, cmap="viridis",
+                                             edgecolors="none"))
+            if floor is not None:
+                ax.axhline(floor * 1e3, color="k", lw=0.8)
+            ax.set_xlim(xlim or (x[:, 0].min() - 5, x[:, 0].max() + 5))
+            ax.set_ylim(ylim or (x[:, 1].min() - 2, x[:, 1].max() + 2))
+            ax.set_aspect("equal")
+            ax.set_ylabel(f"{self._times[k]:.3g} s", fontsize=8)
+        axes[-1, 0].set_xlabel(xlabel)
+        fig.tight_layout()
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=120)
+        plt.close(fig)
+        return path
+
     def save(self, path, regions=None, cavities=()):
         """Write the trajectory as a snapshot file (see ``docs/snapshot-format.md``); rank 0 writes, every
         rank must call. Returns the path."""
