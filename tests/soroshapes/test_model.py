@@ -237,3 +237,56 @@ def test_a_simulation_continued_from_t0_equals_one_run():
     assert np.allclose(second.x[-1], whole.x[-1], rtol=1e-8, atol=1e-10)
     model.set_state(0.5, np.array([0.3, -0.2]))
     assert model.t == 0.5 and np.allclose(model["osc"].x, [0.3, -0.2])
+
+
+# --------------------------------------------------------------------------------------------------------
+# block-sparse Jacobian
+# --------------------------------------------------------------------------------------------------------
+def oscillator_chain(K, c=0.2, declare=True, feedthrough=False):
+    """K damped unit oscillators, each driven by the previous one's position (named couplings) and the
+    first by a sine of time (a callable declared to read nothing)."""
+    A, B = np.array([[0.0, 1.0], [-1.0, -c]]), np.array([[0.0], [1.0]])
+    mdl = Model()
+    for i in range(K):
+        mdl.add(StateSpace(lambda x, u, t: A @ x + B @ u, 2, 1, jacobian=lambda x, u, t: (A, B),
+                           output=lambda x, u, t: x[:1], feedthrough=feedthrough), f"osc{i}",
+                x0=[0.1 * (i % 3), 0.0])
+    for i in range(1, K):
+        mdl.connect(f"osc{i - 1}", f"osc{i}")
+    mdl.connect(lambda m: [np.sin(m.t)], "osc0", reads=() if declare else None)
+    return mdl, A, B
+
+
+def test_block_sparse_jacobian_equals_the_dense_one_and_the_exact_one():
+    K = 30
+    mdl, A, B = oscillator_chain(K)
+    x = np.random.default_rng(0).normal(size=2 * K)
+    J = mdl.jacobian(0.3, x)
+    S = mdl.jacobian(0.3, x, sparse=True)
+    exact = np.kron(np.eye(K), A) + np.kron(np.eye(K, k=-1), B @ np.array([[1.0, 0.0]]))
+    assert np.allclose(J, exact, atol=1e-7) and np.allclose(S.toarray(), J, rtol=0, atol=1e-14)
+    assert S.nnz == np.count_nonzero(exact)
+    # the couplings read osc0..osc{K-2}: the last oscillator's columns are not differenced, and as no system
+    # reads two others, all of them are differenced together: 2 evaluations of W instead of 2 K - 2
+    assert len(mdl._coupling_columns) == 2 * (K - 1) and len(mdl._fd_groups) == 2
+    # an output that may use its inputs passes on what they read: a lower-triangular pattern, no grouping
+    passing, *_ = oscillator_chain(K, feedthrough=True)
+    assert passing.jacobian(0.3, x) == pytest.approx(J, abs=1e-7) and len(passing._fd_groups) == 2 * (K - 1)
+    undeclared, *_ = oscillator_chain(K, declare=False)
+    assert undeclared.jacobian(0.3, x) == pytest.approx(J, abs=1e-7) and undeclared._coupling_columns is None
+
+
+def test_sparse_newton_gives_the_dense_trajectory():
+    mdl, *_ = oscillator_chain(120)            # 240 states: "auto" factorizes sparse
+    sparse = mdl.simulate(2.0, 0.01, "bdf2")
+    dense = mdl.simulate(2.0, 0.01, "bdf2", linear_solver="dense")
+    assert np.allclose(sparse.x, dense.x, rtol=1e-9, atol=1e-11)
+    assert np.abs(sparse.x[:, 2 * 60]).max() > 1e-3      # the drive travelled down the chain
+
+
+def test_reads_must_name_systems():
+    mdl, *_ = oscillator_chain(3)
+    with pytest.raises(ParameterError, match="no system 'oscX'"):
+        mdl.connect(lambda m: [0.0], "osc1", reads=["oscX"])
+    with pytest.raises(ParameterError, match="linear_solver"):
+        mdl.simulate(0.1, 0.01, linear_solver="lu")
