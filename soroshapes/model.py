@@ -101,14 +101,16 @@ def _vec(v, what):
     return np.atleast_1d(np.asarray(v, dtype=float)).reshape(-1)
 
 
-def _fd_columns(fun, x, f0, scale):
-    """Forward-difference Jacobian of ``fun`` at ``x`` (fun(x) = f0), steps sqrt(eps) * max(|x_j|, scale_j)."""
-    J = np.empty((len(f0), len(x)))
-    for j in range(len(x)):
+def _fd_columns(fun, x, f0, scale, cols=None):
+    """Forward-difference Jacobian of ``fun`` at ``x`` (fun(x) = f0), steps sqrt(eps) * max(|x_j|, scale_j),
+    for the columns ``cols`` (default all), in that order."""
+    cols = range(len(x)) if cols is None else cols
+    J = np.empty((len(f0), len(cols)))
+    for k, j in enumerate(cols):
         h = _EPS * max(abs(x[j]), scale[j])
         xp = x.copy()
         xp[j] += h
-        J[:, j] = (fun(xp) - f0) / (xp[j] - x[j])
+        J[:, k] = (fun(xp) - f0) / (xp[j] - x[j])
     return J
 
 
@@ -838,15 +840,11 @@ class Model:
         cols = np.arange(self._N) if self._coupling_columns is None else self._coupling_columns
         dW = None
         if (self._controller is not None or self._links) and len(cols):
-            dW = np.zeros((self._NW, len(cols)))
-            position = {j: k for k, j in enumerate(cols)}
             if self._fd_groups is None:          # every column alone
-                for k, j in enumerate(cols):
-                    h = _EPS * max(abs(x[j]), self._scale[j])
-                    xp = x.copy()
-                    xp[j] += h
-                    dW[:, k] = (self._assemble(t, xp) - w0) / (xp[j] - x[j])
+                dW = _fd_columns(lambda xx: self._assemble(t, xx).copy(), x, w0, self._scale, cols)
             else:                                # grouped columns: each target's rows belong to one of them
+                dW = np.zeros((self._NW, len(cols)))
+                position = {j: k for k, j in enumerate(cols)}
                 for group, owner in self._fd_groups:
                     xp = x.copy()
                     xp[group] += _EPS * np.maximum(np.abs(x[group]), self._scale[group])
@@ -854,7 +852,6 @@ class Model:
                     for tname, j in owner.items():
                         rows = self._blocks[tname].wsl
                         dW[rows, position[j]] = dw[rows] / (xp[j] - x[j])
-            self._stats_fd = len(cols) if self._fd_groups is None else len(self._fd_groups)
         self._assemble(t, x)
         if sparse:
             import scipy.sparse as sp
