@@ -128,6 +128,9 @@ def main(out: Path, quick: bool = False) -> dict:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from sorofem.io import save_figure
+
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(10, 4))
     ax.plot(log_tip[:, 0] / mm, log_tip[:, 2] / mm, lw=1, label="tip (board sensors)")
     for (name, x, z, g), r in zip(seq, reached):
@@ -142,11 +145,7 @@ def main(out: Path, quick: bool = False) -> dict:
         bx.plot(log_t, log_p[:, c] / kPa, lw=1, label=["s1 low", "s1 up", "s2 low", "s2 up", "gripper"][c])
     bx.set(xlabel="t [s]", ylabel="measured pressure [kPa]")
     bx.legend(fontsize=7)
-    fig.tight_layout()
-    from sorofem.io import atomic_path
-    with atomic_path(out / "pick_place.png") as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
-    plt.close(fig)
+    save_figure(fig, out / "pick_place.png")
 
     return {
         "waypoints": [name for name, *_ in seq],

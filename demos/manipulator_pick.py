@@ -132,7 +132,7 @@ def main(out: Path, quick: bool = False) -> dict:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from sorofem.io import atomic_path
+    from sorofem.io import save_figure
 
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.4))
     ax.axhline(0, color="0.3", lw=2)
@@ -151,10 +151,7 @@ def main(out: Path, quick: bool = False) -> dict:
     bx.set(xlabel="t [s]")
     bx.legend(fontsize=7)
     bx.grid(alpha=0.3)
-    fig.tight_layout()
-    with atomic_path(out / "manipulator_pick.png") as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
-    plt.close(fig)
+    save_figure(fig, out / "manipulator_pick.png")
 
     return {
         "lift_mm": round(lift / mm, 3),

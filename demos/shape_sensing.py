@@ -99,7 +99,7 @@ def main(out: Path, quick: bool = False) -> dict:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from sorofem.io import atomic_path
+    from sorofem.io import save_figure
 
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4))
     ax.plot(t, ref, "k--", lw=1, label="reference")
@@ -110,10 +110,7 @@ def main(out: Path, quick: bool = False) -> dict:
     bx.imshow(frame.image[..., ::-1])
     bx.set_title("last synthetic frame (640 x 480)")
     bx.axis("off")
-    fig.tight_layout()
-    with atomic_path(out / "shape_sensing.png") as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
-    plt.close(fig)
+    save_figure(fig, out / "shape_sensing.png")
 
     return {
         "reference_deg": refs, "end_error_deg": [round(v, 4) for v in end_err],

@@ -132,7 +132,7 @@ def main(out: Path, quick: bool = False) -> dict:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from sorofem.io import atomic_path
+    from sorofem.io import save_figure
 
     fig = plt.figure(figsize=(11, 4.2))
     ax = fig.add_subplot(1, 2, 1, projection="3d")
@@ -151,10 +151,7 @@ def main(out: Path, quick: bool = False) -> dict:
     bx.set(xlabel="t [s]")
     bx.legend(fontsize=8)
     bx.grid(alpha=0.3)
-    fig.tight_layout()
-    with atomic_path(out / "suzumori_gripper.png") as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
-    plt.close(fig)
+    save_figure(fig, out / "suzumori_gripper.png")
 
     grasp = (tr.t > T_GRASP) & (tr.t < T_SCREW)
     return {

@@ -126,7 +126,7 @@ def main(out: Path, quick: bool = False) -> dict:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from sorofem.io import atomic_path
+    from sorofem.io import save_figure
 
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.6))
     xs, zs = np.meshgrid(np.linspace(-0.1, 0.3, 300), np.linspace(-0.42, 0.02, 300))
@@ -145,10 +145,7 @@ def main(out: Path, quick: bool = False) -> dict:
     bx.set(xlabel="t [s]")
     bx.legend(fontsize=8)
     bx.grid(alpha=0.3)
-    fig.tight_layout()
-    with atomic_path(out / "wavy_wall.png") as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
-    plt.close(fig)
+    save_figure(fig, out / "wavy_wall.png")
 
     return {
         "tracking_error_mm": round(float(np.sqrt(np.mean(along[sweep] ** 2))) / mm, 3),

@@ -11,7 +11,7 @@ import os
 import tempfile
 from pathlib import Path
 
-__all__ = ["atomic_path", "write_json", "on_root"]
+__all__ = ["atomic_path", "write_json", "save_figure", "on_root"]
 
 
 @contextlib.contextmanager
@@ -80,6 +80,17 @@ def write_json(path, data):
     with atomic_path(path) as tmp:
         tmp.write_text(text + "\n")
     return Path(path)
+
+
+def save_figure(fig, path, dpi=110):
+    """Lay out a matplotlib figure, write it as PNG to ``path`` atomically and close it; returns the path."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=dpi, format="png")
+    plt.close(fig)
+    return path
 
 
 def on_root(comm, fn):
