@@ -29,7 +29,7 @@ test: bootstrap
 	@rm -f out/test/*.xml
 	@$(PY) -m pytest --collect-only -q -p no:cacheprovider -m "not bench" $(PYTEST_OPTS) > out/test/collect.log 2>&1 \
 	  || { tail -40 out/test/collect.log; \
-	       echo "make test: collection failed under pytest $$($(PY) -m pytest --version 2>&1 | tail -1): nothing was run (out/test/collect.log)"; \
+	       echo "make test: collection failed ($$($(PY) -m pytest --version 2>&1 | tail -1)): nothing was run (out/test/collect.log)"; \
 	       exit 2; }
 	@export PYTHONFAULTHANDLER=1 PETSC_OPTIONS="-no_signal_handler $${PETSC_OPTIONS:-}"; status=0; \
 	timeout --kill-after=30 2400 $(PY) -m pytest -m "not bench and not mpi" --junitxml=out/test/serial.xml \
