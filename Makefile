@@ -22,8 +22,9 @@ doctor: bootstrap
 # serial suite (everything but `bench` and `mpi`), the MPI tests on two ranks, and one summary line.
 # Time limits turn a hung test (e.g. an MPI rank waiting for a peer that failed) into a failure.
 # PYTHONFAULTHANDLER: a native crash (segfault, abort) prints the Python stack of every thread, children included;
-# PETSc's own signal handler would replace faulthandler's when DOLFINx loads (and print no Python stack), so
-# -no_signal_handler keeps faulthandler's.
+# PETSc's own signal handlers would replace faulthandler's when DOLFINx loads (and print no Python stack):
+# sorofem starts PETSc without them (sorofem._petsc), and PETSC_OPTIONS does the same for a test that imports
+# DOLFINx before sorofem.
 test: bootstrap
 	@mkdir -p out/test
 	@rm -f out/test/*.xml
