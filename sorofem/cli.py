@@ -12,11 +12,14 @@
     snapshots (:func:`soroshapes.dvs.trade_files`): a table of tip and shape errors and time per solve, a
     PNG, and the cheapest model within the tolerance (a fraction of the length, default 0.03). Without files
     it runs the PneuNet of ``demos/dvs_pneunet.py`` (``--quick`` for a short run).
-``soro sweep CONFIG.toml [--out DIR] [--group-size K] [--retry-failed] [--dry-run]``
+``soro sweep CONFIG.toml [--out DIR] [--group-size K] [--retry-failed] [--force-rerun] [--dry-run]``
     Run a batch of FEM cases described by a TOML file (format: :mod:`sorofem.sweep`), one snapshot file and
     one status file per case plus ``manifest.json`` in ``DIR`` (default ``out/sweeps/<config name>/``).
     Resumable: run it again after an interruption and only the missing cases run; ``--retry-failed`` runs
-    the failed ones again. Under ``mpirun -n N`` cases run side by side on groups of ``K`` ranks.
+    the failed ones again. A resume checks the provenance of the results (builder source, ``[solve]``,
+    ``[fixed]``, package version) and each snapshot's digest: other settings are refused unless
+    ``--force-rerun`` reruns those cases; a damaged snapshot reruns its case. A second sweep in the same
+    directory is refused (lock file). Under ``mpirun -n N`` cases run side by side on groups of ``K`` ranks.
     ``--dry-run`` prints the case table (with each case's status in ``DIR``) and runs nothing. Exit status
     0 when every case is done, 1 when some failed, 2 for an invalid configuration.
 
@@ -232,7 +235,7 @@ def _world_rank():
     return 0
 
 
-def run_sweep(config, out=None, group_size=1, retry_failed=False, dry_run=False, stream=None):
+def run_sweep(config, out=None, group_size=1, retry_failed=False, dry_run=False, stream=None, force_rerun=False):
     """``soro sweep``: run (or with ``dry_run`` list) the cases of a sweep configuration; return the exit status.
 
     0 when every case is done, 1 when a case failed (or is still pending), 2 when the configuration is
@@ -263,7 +266,8 @@ def run_sweep(config, out=None, group_size=1, retry_failed=False, dry_run=False,
 
     t0 = time.perf_counter()
     try:
-        manifest = sweep.run(out, group_size=group_size, retry_failed=retry_failed, progress=progress)
+        manifest = sweep.run(out, group_size=group_size, retry_failed=retry_failed, progress=progress,
+                             force_rerun=force_rerun)
     except SoroError as e:
         if rank0:
             print(f"soro sweep: {e}", file=sys.stderr)
@@ -276,6 +280,8 @@ def run_sweep(config, out=None, group_size=1, retry_failed=False, dry_run=False,
         if failed:
             more = " ..." if len(failed) > 10 else ""
             line += f"; failed: {', '.join(failed[:10])}{more} (--retry-failed reruns them)"
+        if counts["pending"]:
+            line += "; run the same command again for the pending cases"
         print(line, file=stream, flush=True)
     return 0 if counts["failed"] == 0 and counts["pending"] == 0 else 1
 
@@ -339,6 +345,8 @@ def main(argv=None):
     p.add_argument("--group-size", type=int, default=1, metavar="K",
                    help="MPI ranks per case under mpirun (default: 1)")
     p.add_argument("--retry-failed", action="store_true", help="run the cases that failed before again")
+    p.add_argument("--force-rerun", action="store_true",
+                   help="run again the cases made by another builder source, [solve], [fixed] or package version")
     p.add_argument("--dry-run", action="store_true", help="print the case table and exit")
     args = parser.parse_args(argv)
 
@@ -361,7 +369,7 @@ def main(argv=None):
     if args.command == "sweep":
         try:
             return run_sweep(args.config, out=args.out, group_size=args.group_size, retry_failed=args.retry_failed,
-                             dry_run=args.dry_run)
+                             dry_run=args.dry_run, force_rerun=args.force_rerun)
         except KeyboardInterrupt:
             print("interrupted: run the same command again to resume", file=sys.stderr)
             return 130
