@@ -62,7 +62,18 @@ lists); ``comm`` is the MPI communicator the case runs on: build the mesh on it
 supports and loads added (numbers are ramped by ``solve`` from 0 to their value at ``t_end = 1``), or
 ``(fem, solve_kwargs)``, whose keyword arguments override ``[solve]`` for this case. The sweep calls
 ``fem.solve(**solve)`` and saves the trajectory; ``[solve]`` accepts the arguments of :meth:`Fem.solve`
-listed in :data:`SOLVE_KEYS`.
+listed in :data:`SOLVE_KEYS`, of the types in :data:`SOLVE_TYPES` (checked when the configuration is loaded:
+``steps = "four"``, ``steps = 2.5`` or ``predictor = 1`` are refused, naming the key).
+
+The builder may declare the types of its parameters, so that a configuration is checked when it is loaded,
+not case by case (a bool is not a number, an integer is not a float: ``pressure = [true, false]`` and
+``chambers = 2.7`` are refused instead of running as 1 Pa / 0 Pa and 2 chambers; a name the builder does not
+declare, e.g. a typo, is refused too)::
+
+    build.parameters = {"pressure": float, "material": str, "chambers": int, "size": float}
+
+(types: ``float`` = any number, ``int``, ``bool``, ``str``, ``list``). Without a declaration the values of
+each parameter must at least be of one kind (no ``[1.0, true]``).
 
 The optional summary::
 
@@ -80,18 +91,41 @@ Output directory
                          steps (load steps after the initial state), ranks, snapshot, summary, attempts,
                          error and traceback (failures); and the sweep's configuration and counts
     OUT/case_0000.h5     the snapshot file of case 0; its metadata["case"] holds the id and parameters
-    OUT/case_0000.json   the status of case 0 (the same record as in the manifest)
+    OUT/case_0000.json   the status of case 0 (the same record as in the manifest, plus its provenance;
+                         "sha256" is the digest of the snapshot file)
+    OUT/.sweep.lock      while a run is going on
 
-Every file is written atomically (a temporary file renamed into place), so a killed run leaves either
-the complete file or none. The status files are the truth; the manifest is assembled from them by one
-rank at the start of a run (showing what a resume will do) and at its end.
+Every file is written atomically (a temporary file flushed to disk, renamed into place, and the directory
+flushed), so a killed run or a power loss leaves either the complete file or none. The status files are the
+truth; the manifest is assembled from them by one rank at the start of a run (showing what a resume will do)
+and at its end.
+
+Provenance and checksums. Every status record (and the manifest, and each snapshot's metadata) holds the
+*provenance* of the results (:func:`provenance_changes` compares two): SHA-256 digests of the builder's (and
+summary's) source file and of every file it imports from the configuration's folder (found from its
+``import`` statements, recursively), of ``[solve]`` and ``[fixed]``, and the package version. A done case's
+status also holds the SHA-256 digest of its snapshot file, whose datasets carry HDF5 ``fletcher32``
+checksums (``docs/snapshot-format.md``).
+A disk that fills up while a snapshot is written fails that case with a ``DataError`` naming the file and
+the free space (nothing is left under the snapshot's name).
 
 Running
 -------
-* **Resume**: a case is skipped when its status is ``done`` and its snapshot exists; everything else that
-  is missing runs. A case's status file records its parameters: a directory holding cases of another
-  configuration is refused (use another output directory). Failed cases are kept as failed unless
-  ``retry_failed=True`` (``--retry-failed``) runs them again.
+* **Resume**: a case is skipped when its status is ``done`` and its snapshot exists and matches the digest
+  in its status (a truncated or damaged snapshot runs again); everything else that is missing runs. A case's
+  status file records its parameters: a directory holding cases of another configuration is refused (use
+  another output directory). Results of another provenance (the builder's source, ``[solve]``, ``[fixed]``
+  or the package version changed) are refused with a message naming what changed, before anything is
+  written; ``force_rerun=True`` (``--force-rerun``) runs those cases again instead. Failed cases are kept as
+  failed unless ``retry_failed=True`` (``--retry-failed``) runs them again.
+* **One sweep per directory**: a run holds ``OUT/.sweep.lock`` (process id and host) from start to end; a
+  second sweep in the same directory is refused. The lock of a process that no longer runs (killed) is
+  taken over.
+* **JIT cache**: a form compilation killed or interrupted leaves a lock in the DOLFINx JIT cache that makes
+  every later compile of that form time out (:mod:`sorofem.jitcache`). A run records the owner of the locks
+  it creates, removes its own unfinished ones on an interrupt and the stale ones (owner gone, or of unknown
+  owner and unchanged for 10 min) at start. A case that still meets a JIT timeout is recorded ``pending``,
+  not ``failed``: the next run does it.
 * **Failures**: any exception in the builder, the solve or the summary (a ``ConvergenceError``, a
   ``ValueError`` ...) marks the case ``failed`` with its message and the last frames of its traceback;
   the other cases go on. ``KeyboardInterrupt`` stops the run (run it again to resume).
@@ -230,7 +264,7 @@ def _check_kinds(key, values, source):
                                 "are all of one type (true/false are not 1/0)")
 
 
-def _check_declared(cases, declared, builder_spec, source):
+def _check_declared(cases, declared, builder_spec, source, fixed=()):
     """Check every case value against the types the builder declares (``build.parameters``)."""
     if declared is None:
         return
@@ -239,10 +273,11 @@ def _check_declared(cases, declared, builder_spec, source):
                                       f"{', '.join(t.__name__ for t in PARAMETER_TYPES)}, got {declared!r}")
     for params in cases:
         for k, v in params.items():
+            key = f"fixed.{k}" if k in fixed else f"parameters.{k}"
             if k not in declared:
-                raise _err(source, k, f"the builder {builder_spec} takes no parameter {k!r}; it declares "
-                                      f"{', '.join(declared)}")
-            _check_type(v, PARAMETER_TYPES[declared[k]], k, source)
+                raise _err(source, key, f"the builder {builder_spec} takes no parameter {k!r}; it declares "
+                                        f"{', '.join(declared)}")
+            _check_type(v, PARAMETER_TYPES[declared[k]], key, source)
 
 
 def _is_material_key(name):
@@ -458,10 +493,12 @@ def _local_imports(path, base_dir):
             names += [f"{node.module}.{a.name}" for a in node.names]
     found = []
     for name in names:
-        rel = Path(*name.split("."))
-        for candidate in (base_dir / rel.with_suffix(".py"), base_dir / rel / "__init__.py"):
-            if candidate.is_file():
-                found.append(candidate.resolve())
+        parts = name.split(".")
+        for n in range(1, len(parts) + 1):  # importing a.b.c runs a/__init__.py and a/b/__init__.py too
+            rel = Path(*parts[:n])
+            for candidate in (base_dir / rel.with_suffix(".py"), base_dir / rel / "__init__.py"):
+                if candidate.is_file() and candidate.resolve() not in found:
+                    found.append(candidate.resolve())
     return found
 
 
@@ -624,7 +661,7 @@ class Sweep:
         self.builder = _resolve(builder, base_dir, "builder", src)
         self.summary_spec = _describe(summary) if summary is not None else None
         self.summary = _resolve(summary, base_dir, "summary", src) if summary is not None else None
-        _check_declared(self.cases, getattr(self.builder, "parameters", None), self.builder_spec, src)
+        _check_declared(self.cases, getattr(self.builder, "parameters", None), self.builder_spec, src, fixed)
         self.base_dir = Path(base_dir) if base_dir is not None else None
         self.provenance = _provenance(self.builder, self.summary, self.base_dir, solve, fixed)
 
