@@ -153,6 +153,11 @@ def remove_stale(directory=None, threshold=STALE_AFTER_S, now=None):
 
     The next compile of each module starts afresh (FFCx recreates the ``.c`` file and compiles it)."""
     removed = []
+    directory = Path(directory) if directory is not None else cache_dir()
+    for owner in directory.glob("*.c.owner") if directory.is_dir() else ():
+        if owner.with_name(owner.name[:-len(".owner")] + ".cached").exists():
+            with contextlib.suppress(FileNotFoundError):
+                owner.unlink()  # the compile finished: its owner record is no longer needed
     for lock in scan(directory, threshold, now):
         if lock.stale:
             _remove(lock.path)

@@ -17,8 +17,12 @@ This is the seam between the FEM layer (:mod:`sorofem.fem` writes) and the reduc
 ``/steps/reaction/<name>`` (n_steps, gdim) float64 [N]
 ``/steps/cell_field/<name>`` (n_steps, n_cells) float64, per-cell values (e.g. ``von_mises`` [Pa])
 
-Files are written atomically: :class:`SnapshotWriter` fills a temporary file next to the destination and
-renames it into place when closed without error, so a reader never sees half a case.
+Every dataset carries an HDF5 ``fletcher32`` checksum (per chunk; series are chunked one step per chunk).
+Files are written atomically: :class:`SnapshotWriter` fills a temporary file next to the destination, flushes
+it to disk and renames it into place when closed without error, so a reader never sees half a case; a full
+disk is a :class:`DataError` naming the file and the free space. :class:`Snapshots` validates what it reads
+(structure, shapes, index ranges, finiteness, checksums) and names the file, the dataset and the step of
+any problem.
 
 Examples
 --------

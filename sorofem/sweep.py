@@ -902,8 +902,11 @@ class Sweep:
         world = (comm or MPI.COMM_WORLD).Dup()
         out = Path(out)
         locked = []
+        # on every rank: the first import of DOLFINx initializes PETSc, which is collective
+        jit_cache = jitcache.cache_dir()
         try:
-            return self._run(out, world, group_size, retry_failed, progress, MPI, on_root, force_rerun, locked)
+            return self._run(out, world, group_size, retry_failed, progress, MPI, on_root, force_rerun, locked,
+                             jit_cache)
         except BaseException:
             jitcache.release_owned()  # an interrupted compile leaves no lock behind
             raise
@@ -912,7 +915,7 @@ class Sweep:
                 path.unlink(missing_ok=True)
             world.Free()
 
-    def _run(self, out, world, group_size, retry_failed, progress, MPI, on_root, force_rerun, locked):
+    def _run(self, out, world, group_size, retry_failed, progress, MPI, on_root, force_rerun, locked, jit_cache):
         if isinstance(group_size, bool) or not isinstance(group_size, (int, np.integer)) or group_size < 1:
             raise ParameterError(f"group_size must be a positive integer, got {group_size!r}")
         if group_size > world.size:
@@ -925,7 +928,7 @@ class Sweep:
 
             out.mkdir(parents=True, exist_ok=True)
             locked.append(self._lock(out))
-            jitcache.remove_stale()   # left by a killed compile: every case needing the form would time out
+            jitcache.remove_stale(jit_cache)   # left by a killed compile: every case needing the form times out
             self._clean(out)
             statuses = self._statuses(out, force_rerun)
             todo = []
