@@ -20,7 +20,7 @@ from pathlib import Path
 from .errors import DataError
 
 __all__ = ["atomic_path", "write_json", "save_figure", "on_root", "file_digest", "fsync_path", "is_disk_full",
-           "disk_full_error"]
+           "disk_full_error", "process_alive"]
 
 _FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
@@ -56,6 +56,24 @@ def disk_full_error(path, exc=None):
     detail = f" ({type(exc).__name__}: {str(exc).splitlines()[0][:200] if str(exc) else ''})" if exc else ""
     return DataError(f"no space left writing {path}: {free}{detail}. Free some space (or write to another "
                      "disk) and run again; nothing was left under that name")
+
+
+def process_alive(pid):
+    """Whether process ``pid`` runs on this host (a zombie, dead but not yet reaped, does not run); used to tell
+    the lock file of a live process from one a killed process left."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    except (OverflowError, ValueError):
+        return False
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rpartition(")")[2].split()[0] != "Z"
+    except (OSError, IndexError):
+        return True  # no /proc (not Linux): the signal test is all we have
 
 
 def fsync_path(path):

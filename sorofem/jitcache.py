@@ -76,15 +76,9 @@ class JitLock:
 
 
 def _alive(pid):
-    if pid == os.getpid():
-        return True
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
+    from .io import process_alive
+
+    return pid == os.getpid() or process_alive(pid)
 
 
 def _owner(c_file):

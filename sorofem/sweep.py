@@ -175,7 +175,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ParameterError
-from .io import write_json
+from .io import process_alive, write_json
 
 __all__ = ["Sweep", "grid", "latin_hypercube", "SOLVE_KEYS", "SOLVE_TYPES", "PARAMETER_TYPES", "MODES",
            "format_record", "provenance_changes"]
@@ -836,7 +836,7 @@ class Sweep:
                     pid, host = int(other["pid"]), str(other["host"])
                 except (OSError, ValueError, KeyError, TypeError):
                     pid = host = None
-                if pid is not None and host == me["host"] and pid != os.getpid() and not _alive(pid):
+                if pid is not None and host == me["host"] and pid != os.getpid() and not process_alive(pid):
                     log.warning("removing the lock of a sweep that is gone (process %d): %s", pid, path)
                     path.unlink(missing_ok=True)
                     continue
@@ -1075,17 +1075,6 @@ class Sweep:
                                  f"{built.mesh.comm.size} rank(s), not on the case's ({group.size}): pass the "
                                  "comm it receives to the mesh, Mesh.from_sdf(shape, size=..., comm=comm)")
         return built, kwargs
-
-
-def _alive(pid):
-    """Whether process ``pid`` runs on this host."""
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 def _ids(ids):

@@ -16,7 +16,8 @@ SORO = [sys.executable, "-m", "sorofem.cli"]
 def test_doctor_passes_and_prints_every_version(subprocess_env):
     res = subprocess.run([*SORO, "doctor"], capture_output=True, text=True, env=subprocess_env, timeout=300)
     assert res.returncode == 0, res.stdout + res.stderr
-    for label in ("DOLFINx", "PETSc", "SLEPc", "MPI library", "numba", "gmsh", "OpenCV", "form JIT", "mpirun -n 2"):
+    for label in ("DOLFINx", "PETSc", "SLEPc", "MPI library", "numba", "gmsh", "OpenCV", "JIT cache", "form JIT",
+                  "mpirun -n 2"):
         line = next((ln for ln in res.stdout.splitlines() if ln.strip().startswith(label)), None)
         assert line is not None, f"{label} missing from doctor output"
         assert "MISSING" not in line and "failed" not in line, line
@@ -34,6 +35,22 @@ def test_doctor_without_dolfinx_fails_with_the_fix(tmp_path, subprocess_env):
     assert "DOLFINx" in res.stdout and "MISSING" in res.stdout
     assert "apt-get install python3-dolfinx" in res.stdout
     assert "scripts/bootstrap.sh" in res.stdout
+
+
+def test_doctor_names_a_stale_jit_lock_and_the_fix(tmp_path, subprocess_env):
+    """A compile killed in a JIT cache (its lock without owner process): doctor exits 1 and says what to remove."""
+    cache = tmp_path / "fenics"
+    cache.mkdir()
+    (cache / "libffcx_forms_dead.c").write_text("")
+    (cache / "libffcx_forms_dead.c.owner").write_text('{"pid": 999999999, "host": "%s"}' % __import__("socket")
+                                                       .gethostname())
+    env = {**subprocess_env, "XDG_CACHE_HOME": str(tmp_path)}
+    res = subprocess.run([*SORO, "doctor"], capture_output=True, text=True, env=env, timeout=300)
+    assert res.returncode == 1, res.stdout
+    line = next(ln for ln in res.stdout.splitlines() if ln.strip().startswith("JIT cache"))
+    assert f"{cache}: 0 compiled module(s), 0 compiling, 1 stale" in line
+    assert "1 stale JIT lock(s) of killed compiles (owner process 999999999 is gone)" in res.stdout
+    assert f"rm {cache / 'libffcx_forms_dead.c'}" in res.stdout
 
 
 def test_demo_list_and_unknown_demo(capsys):

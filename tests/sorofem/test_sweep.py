@@ -1,5 +1,6 @@
 """Parameter sweeps (sorofem.sweep, `soro sweep`): sampling, configuration errors, snapshots and manifest,
 failure isolation, resume after a killed run, and MPI groups giving the serial results."""
+import contextlib
 import inspect
 import json
 import math
@@ -609,6 +610,23 @@ def test_jit_locks_stale_and_live(tmp_path):
         live.wait()
 
 
+def _descendants(pid):
+    """Process ids of every descendant of ``pid`` (from /proc)."""
+    children = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rpartition(")")[2].split()
+        except OSError:
+            continue
+        children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    out, todo = [], [pid]
+    while todo:
+        for child in children.get(todo.pop(), []):
+            out.append(child)
+            todo.append(child)
+    return out
+
+
 def _first_compile_killed(cmd, env, cache, sig, cwd):
     """Start ``cmd`` in its own process group with an empty JIT cache; send ``sig`` to the group (SIGKILL) or the
     process (SIGINT) as soon as a form compile has started (its lock and owner record exist); return the exit
@@ -626,8 +644,16 @@ def _first_compile_killed(cmd, env, cache, sig, cwd):
                          None)
             time.sleep(0.02)
         assert owner is not None, "no compile started: " + (proc.communicate()[1] if proc.poll() is not None else "")
-        if sig == signal.SIGKILL:
+        if sig == signal.SIGKILL:   # the whole job: mpirun puts its ranks in process groups of their own
+            family = _descendants(proc.pid)
             os.killpg(proc.pid, signal.SIGKILL)
+            for pid in family:
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(pid, signal.SIGKILL)
+            from sorofem.io import process_alive
+            gone = time.monotonic() + 60
+            while any(process_alive(pid) for pid in family) and time.monotonic() < gone:
+                time.sleep(0.05)
         else:
             proc.send_signal(sig)
         _, err = proc.communicate(timeout=300)
