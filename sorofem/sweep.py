@@ -664,6 +664,7 @@ class Sweep:
         _check_declared(self.cases, getattr(self.builder, "parameters", None), self.builder_spec, src, fixed)
         self.base_dir = Path(base_dir) if base_dir is not None else None
         self.provenance = _provenance(self.builder, self.summary, self.base_dir, solve, fixed)
+        self._digests = {}  # snapshot digests by (path, size, mtime): each file is read once per change
 
     # ------------------------------------------------------------------------------------------ loading
     @classmethod
@@ -790,10 +791,9 @@ class Sweep:
 
         st = snapshot.stat()
         key = (str(snapshot), st.st_size, st.st_mtime_ns)
-        cache = self.__dict__.setdefault("_digests", {})
-        if key not in cache:
-            cache[key] = file_digest(snapshot)
-        if expected is None or cache[key] != expected:
+        if key not in self._digests:
+            self._digests[key] = file_digest(snapshot)
+        if expected is None or self._digests[key] != expected:
             log.warning("%s does not match the digest in its status file (%s); the case runs again", snapshot,
                         "none recorded" if expected is None else "changed, truncated or damaged")
             return False
