@@ -41,8 +41,8 @@ import numpy as np
 from sorofem.errors import DataError, ParameterError
 
 __all__ = ["Backbone", "StrainData", "recover_strains", "dvs_basis", "Identified", "PolynomialForce", "identify",
-           "compare", "trade", "cheapest", "within", "trade_table", "trade_text", "trade_figure", "trade_report", "trade_files",
-           "SELECTION_KEYS", "TIME_BAND", "polar_rotation", "mean_rotation"]
+           "compare", "trade", "cheapest", "within", "trade_table", "trade_text", "trade_figure", "trade_report",
+           "trade_files", "SELECTION_KEYS", "TIME_BAND", "polar_rotation", "mean_rotation"]
 
 
 # ------------------------------------------------------------------------------------------------------------
