@@ -20,8 +20,8 @@ A :class:`~soroshapes.shapes.Shapes` beam enters with the state :math:`x = (q, \
 
 .. math:: M(q)\ddot q = -C(q,\dot q)\dot q - D\dot q - Kq + f(q, \dot q, t, u),
 
-with :math:`M, C` from ``Shapes.dynamics`` and :math:`f` (gravity, inputs, point loads, contact, user forces)
-from the beam's documented private ``_kin``/``_external`` pair.
+evaluated by ``Shapes.forward_dynamics`` (:math:`M, C` and :math:`f`: gravity, inputs, point loads, contact,
+user forces, from one kinematic pass).
 
 Integration (``Model.simulate``)
 --------------------------------
@@ -401,10 +401,7 @@ class _ShapesBlock(_Block):
     def rhs(self, x, w, t):
         shp, n = self.system, self.nq
         q, qd = x[:n], x[n:]
-        M, C, _ = shp.dynamics(q, qd)
-        shp._kin(q, qd)                                   # _external works on the current kinematics
-        f = shp._external(q, qd, t, w)
-        qdd = np.linalg.solve(M, f - C @ qd - shp.damping * (shp.K @ qd) - shp.K @ q)
+        qdd = shp.forward_dynamics(q, qd, t, w)
         return np.concatenate([qd, qdd])
 
     def jac(self, x, w, t):

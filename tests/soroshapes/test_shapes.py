@@ -227,7 +227,7 @@ def test_contact_forces_follow_the_penalty_and_regularized_coulomb_laws():
     qd = np.array([3.0, 0.0])                  # the rod sweeps sideways (+y) over the floor it presses into
     F = shp.contact_forces(np.zeros(2), qd)
     vy = (shp.jacobian(np.zeros(2), at="all")[:, 3:] @ qd)[:, 1]   # node velocities (straight: body = spatial)
-    fn = k * depth * shp._w
+    fn = k * depth * shp.weights
     assert np.allclose(F[:, 2], fn, rtol=1e-9)
     assert np.all(vy[1:] > 0)
     assert np.allclose(F[:, 1], -mu * fn * vy / np.sqrt(vy**2 + eps**2), rtol=1e-9, atol=1e-15)
