@@ -1,12 +1,19 @@
 r"""The Cosserat beam as a frozen description and a workspace (Pinocchio's ``Model``/``Data`` split).
 
 * :class:`BeamModel`: everything that describes the rod and never changes after construction: the DOF mask,
-  the Magnus order, the length [m], the base pose, the discretization (segment lengths ``h`` [m], node arc
-  lengths ``sigma`` [m]), the modal matrix and the reference strain at the Gauss points, the nodal quadrature
-  weights ``weights`` [m], the sectional inertia per unit length ``Md`` and the stiffness matrix ``K``. Its arrays
-  are read-only.
+  the Magnus order, the length [m], the base pose, the discretization (node arc lengths ``sigma`` [m]), the
+  quadrature (``points``, ``weights``), the modal matrix and the reference strain at the Magnus Gauss points,
+  the sectional inertia per unit length ``Md`` and the stiffness matrix ``K``. Its arrays are read-only.
 * :class:`BeamData`: every scratch array the kernels of :mod:`soroshapes._beam` write (frames, Jacobians,
-  twists and their rates at the nodes, the 6 x 6 temporaries, M, C, f_g). ``model.make_data()`` makes one; two
+  twists and their rates at the quadrature points, the 6 x 6 temporaries, M, C, f_g).
+
+Quadrature. The mass, Coriolis and gravity integrals :math:`\int_0^L (\cdot)\,d\sigma` are summed at
+``points``: with ``quadrature="lobatto"`` (the default) every segment is cut at its midpoint and the
+three-point Gauss-Lobatto rule (Simpson: weights :math:`h/6, 4h/6, h/6`) is used, exact for cubics, so the
+error falls as :math:`h^4` like the order-4 Magnus kinematics (the kernels integrate the frames through the
+midpoints: ``stride`` = 2 chain pieces per segment); ``quadrature="nodes"`` sums at the nodes with the
+trapezoidal rule (:math:`h^2`; one chain piece per segment, half the work). Contact acts at the nodes with the
+trapezoidal weights ``node_weights``. ``model.make_data()`` makes one; two
   workspaces on one model are independent (one per thread, or one per query that must not disturb another).
 * Load terms: :class:`Gravity`, :class:`PointLoad`, :class:`Chamber`, :class:`Tendon`, :class:`Actuator`,
   :class:`Contact`, :class:`UserForce`, each giving its generalized force at the kinematics held in a workspace;
@@ -60,11 +67,14 @@ class BeamModel:
     order : 2 or 4, the Magnus order.
     length : float [m].
     base : (4, 4) pose of the clamped end.
-    sigma : (N+1,) node arc lengths [m]; ``h`` (N,) segment lengths [m].
-    B : (N, ng, n) modal matrix at the ``ng`` Gauss points of each segment, stored by columns (coordinate k
-        drives strain ``rows[k]`` only); ``X0`` (N, ng, 6) the reference strain there.
-    weights : (N+1,) nodal quadrature weights [m] of the mass, gravity and contact integrals.
-    Md : (N+1, 6) sectional inertia per unit length :math:`\rho(J_p, I_y, I_z, A, A, A)` at the nodes.
+    sigma : (N+1,) node arc lengths [m].
+    points : (P+1,) arc lengths [m] of the chain of frames the kernels integrate (the nodes are every
+        ``stride``-th: ``points[::stride] == sigma``); ``h`` (P,) its piece lengths [m].
+    B : (P, ng, n) modal matrix at the ``ng`` Magnus Gauss points of each piece, stored by columns
+        (coordinate k drives strain ``rows[k]`` only); ``X0`` (P, ng, 6) the reference strain there.
+    weights : (P+1,) quadrature weights [m] of the mass, Coriolis and gravity integrals at ``points``.
+    node_weights : (N+1,) trapezoidal weights [m] of the contact forces at the nodes.
+    Md : (P+1, 6) sectional inertia per unit length :math:`\rho(J_p, I_y, I_z, A, A, A)` at ``points``.
     K : (n, n) stiffness matrix.
     """
 
@@ -73,16 +83,19 @@ class BeamModel:
     length: float
     base: np.ndarray
     sigma: np.ndarray
+    points: np.ndarray
+    stride: int
     h: np.ndarray
     B: np.ndarray
     rows: np.ndarray
     X0: np.ndarray
     weights: np.ndarray
+    node_weights: np.ndarray
     Md: np.ndarray
     K: np.ndarray
 
     def __post_init__(self):
-        for name in ("base", "sigma", "h", "B", "X0", "weights", "Md", "K"):
+        for name in ("base", "sigma", "points", "h", "B", "X0", "weights", "node_weights", "Md", "K"):
             object.__setattr__(self, name, _frozen(getattr(self, name)))
         object.__setattr__(self, "rows", _frozen(self.rows, np.int64))
 
@@ -95,6 +108,10 @@ class BeamModel:
     def nodes(self):
         """Number of nodes (segment ends), N+1."""
         return self.sigma.shape[0]
+
+    def at_nodes(self, a):
+        """The node rows of an array over ``points`` (a view)."""
+        return a[::self.stride]
 
     def make_data(self):
         """A fresh workspace (:class:`BeamData`) for this model."""
@@ -122,7 +139,7 @@ class BeamData:
                  "contact_forces")
 
     def __init__(self, model):
-        N, n = model.nodes, model.n
+        N, n = model.points.shape[0], model.n
         self.G = np.zeros((N, 4, 4))
         self.J = np.zeros((N, 6, n))
         self.Jd = np.zeros((N, 6, n))
@@ -132,7 +149,7 @@ class BeamData:
         self.Op, self.dOp, self.AJ = np.zeros((6, n)), np.zeros((6, n)), np.zeros((6, n))
         self.W = np.zeros((8, 6))
         self.M, self.C, self.Cv, self.fg = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n)), np.zeros(n)
-        self.contact_forces = np.zeros((N, 3))
+        self.contact_forces = np.zeros((model.nodes, 3))
 
     def __getstate__(self):
         return {k: getattr(self, k) for k in self.__slots__}
@@ -206,7 +223,7 @@ def _guard(data, q, qd, rate):
 
 
 def kinematics(model, data, q, qd=None, rate=False):
-    r"""Frames, body Jacobians and twists at the nodes for ``q`` (and rates ``qd``; with ``rate`` the Jacobian
+    r"""Frames, body Jacobians and twists at ``model.points`` for ``q`` (and rates ``qd``; with ``rate`` the Jacobian
     rates :math:`\dot J`) into ``data``; returns the validated (q, qd)."""
     from . import _beam
     q = check_state(model, q)
@@ -307,7 +324,7 @@ class PointLoad:
         return np.concatenate([self.moment_at(t), self.force_at(t)])
 
     def force(self, model, data, q, qd, t):
-        i = self.node
+        i = self.node * model.stride
         W = self.wrench(t)
         if self.frame == "spatial":
             R = data.G[i, :3, :3]
@@ -330,7 +347,7 @@ class Chamber:
 
 @dataclass(frozen=True)
 class Tendon:
-    r"""A tendon at offset ``d`` = (0, y, z) [m] with quadrature weights ``weights`` (N, ng) [m] at the Gauss points
+    r"""A tendon at offset ``d`` = (0, y, z) [m] with quadrature weights ``weights`` (P, ng) [m] at the Gauss points
     (zero outside its span): generalized force per newton of tension at the current configuration."""
 
     name: str
@@ -387,7 +404,7 @@ class Contact:
     inputs = 0
 
     def force(self, model, data, q, qd, t):
-        G, r = data.G, self.radius
+        G, eta, J, r = model.at_nodes(data.G), model.at_nodes(data.eta), model.at_nodes(data.J), self.radius
         P = G[:, :3, 3]
         f = np.zeros(model.n)
         d = self.obstacle(P)
@@ -399,14 +416,14 @@ class Contact:
         k, c, mu, eps = self.stiffness, self.damping, self.friction, self.regularization
         for j, i in enumerate(hit):
             R = G[i, :3, :3]
-            v = R @ data.eta[i, 3:]
+            v = R @ eta[i, 3:]
             vn = v @ nrm[j]
             fn = max(0.0, k * (r - d[i]) - c * vn)
             vt = v - vn * nrm[j]
             F = fn * nrm[j] - mu * fn * vt / np.sqrt(vt @ vt + eps * eps)
-            F *= model.weights[i]
+            F *= model.node_weights[i]
             data.contact_forces[i] += F
-            f += data.J[i, 3:].T @ (R.T @ F)
+            f += J[i, 3:].T @ (R.T @ F)
         return f
 
 

@@ -155,6 +155,10 @@ class Shapes:
     contact_radius : float [m], optional
         Radius of the tube that touches obstacles (default: the largest distance from the centroid to the
         section's boundary along its axes, i.e. the bounding half-width).
+    quadrature : "lobatto" or "nodes"
+        How the mass, Coriolis and gravity integrals are summed (:mod:`soroshapes.beam`): three-point
+        Gauss-Lobatto (Simpson) in every segment, error :math:`O(h^4)` (default), or the trapezoidal rule at
+        the nodes, :math:`O(h^2)` at half the kinematic work.
 
     Examples
     --------
@@ -171,7 +175,7 @@ class Shapes:
     """
 
     def __init__(self, basis, dofs, length, section, material=None, *, base=None, xi0=None, segments=20,
-                 order=4, damping=None, E=None, G=None, contact_radius=None):
+                 order=4, damping=None, E=None, G=None, contact_radius=None, quadrature="lobatto"):
         self.length = float(length)
         if not (np.isfinite(self.length) and self.length > 0):
             raise ParameterError(f"length must be a positive number of metres, got {length!r}")
@@ -190,6 +194,10 @@ class Shapes:
         if segments < 1:
             raise ParameterError(f"segments must be >= 1, got {segments}")
         self._segments = segments
+        if quadrature not in ("lobatto", "nodes"):
+            raise ParameterError(f"quadrature must be 'lobatto' (Simpson in every segment, error ~h^4) or 'nodes' "
+                                 f"(trapezoidal at the nodes, ~h^2, half the work), got {quadrature!r}")
+        self.quadrature = quadrature
         self.base = _as_pose(base)
         self.E, self.G, self.density, zeta = _material_moduli(material, E, G)
         self.material = material
@@ -222,8 +230,8 @@ class Shapes:
 
     @property
     def weights(self):
-        """Nodal quadrature weights [m] of the distributed mass, gravity and contact forces, (N+1,)."""
-        return self.model.weights
+        """Trapezoidal weights [m] of the nodes, (N+1,): a node's share of a distributed (contact) force."""
+        return self.model.node_weights
 
     @property
     def loads(self):
@@ -312,7 +320,8 @@ class Shapes:
         return np.array(sorted(br))
 
     def _discretize(self, segments):
-        """The :class:`BeamModel`: nodes on the basis breaks, Gauss points, weights, stiffness."""
+        """The :class:`BeamModel`: nodes on the basis breaks; the chain of frames through the segment midpoints
+        (``lobatto``) or the nodes only; Magnus Gauss points, quadrature weights, stiffness."""
         from . import _beam
         br = self._breaks()
         pieces = np.diff(br)
@@ -321,21 +330,33 @@ class Shapes:
                                           for i in range(len(pieces))])
         nodes[-1] = 1.0
         sigma = nodes * self.length
-        h = np.diff(sigma)
+        hs = np.diff(sigma)
+        node_w = np.zeros(len(sigma))
+        node_w[:-1] += hs / 2
+        node_w[1:] += hs / 2
+        if self.quadrature == "lobatto":           # Simpson: h/6 at the ends, 4h/6 at the midpoint
+            stride = 2
+            points = np.empty(2 * len(hs) + 1)
+            points[0::2] = sigma
+            points[1::2] = sigma[:-1] + hs / 2
+            w = np.zeros(len(points))
+            w[0:-1:2] += hs / 6
+            w[2::2] += hs / 6
+            w[1::2] = 4 * hs / 6
+        else:
+            stride, points, w = 1, sigma, node_w
+        h = np.diff(points)
         gp = (0.5,) if self.order == 2 else _beam.GAUSS2
-        pts = sigma[:-1, None] + h[:, None] * np.array(gp)[None, :]
-        # a piecewise basis is evaluated inside each segment (Gauss points never sit on a break)
+        pts = points[:-1, None] + h[:, None] * np.array(gp)[None, :]
+        # a piecewise basis is evaluated inside each piece (Gauss points never sit on a break)
         th = self.theta(pts.ravel()).reshape(len(h), len(gp), 6, self.n)
         rows = np.repeat(np.arange(6), self.dofs).astype(np.int64)
         B = th[:, :, rows, np.arange(self.n)]                     # column k lives in row rows[k]
         X0 = self._xi0(pts.ravel()).reshape(len(h), len(gp), 6)
-        w = np.zeros(len(sigma))
-        w[:-1] += h / 2
-        w[1:] += h / 2
-        Md = np.tile(self._Mdiag, (len(sigma), 1))
-        return BeamModel(dofs=self.dofs, order=self.order, length=self.length, base=self.base, sigma=sigma, h=h,
-                         B=B, rows=rows, X0=X0, weights=w, Md=Md, K=self._stiffness())
-
+        Md = np.tile(self._Mdiag, (len(points), 1))
+        return BeamModel(dofs=self.dofs, order=self.order, length=self.length, base=self.base, sigma=sigma,
+                         points=points, stride=stride, h=h, B=B, rows=rows, X0=X0, weights=w, node_weights=node_w,
+                         Md=Md, K=self._stiffness())
 
     def _quad(self, f, a=0.0, b=None):
         """Integrate ``f(sigma) -> (m, ...)`` over [a, b] by Gauss-Legendre on every basis piece, with
@@ -437,7 +458,7 @@ class Shapes:
         a, b = self._span(span)
         gp = (0.5,) if self.order == 2 else _beam.GAUSS2
         h = self.model.h
-        pts = self.sigma[:-1, None] + h[:, None] * np.array(gp)[None, :]
+        pts = self.model.points[:-1, None] + h[:, None] * np.array(gp)[None, :]
         wts = np.repeat(h[:, None] / len(gp), len(gp), axis=1)
         mask = (pts >= a - 1e-12) & (pts <= b + 1e-12)
         self._loads.append(_bm.Tendon(self._input_name(name, "tendon"), np.array([0.0, off[0], off[1]]), wts * mask))
@@ -507,18 +528,24 @@ class Shapes:
     # ------------------------------------------------------------------------------------------------
     def state(self, q, qd=None, *, rate=False, data=None):
         """One kinematic pass at (q, qd) into a workspace, returned (:class:`soroshapes.beam.BeamData`: frames
-        ``G``, body Jacobians ``J``, twists ``eta`` at the nodes, and ``Jd`` with ``rate``)."""
+        ``G``, body Jacobians ``J``, twists ``eta`` at ``model.points``, and ``Jd`` with ``rate``)."""
         data = self.data if data is None else data
         _bm.kinematics(self.model, data, q, qd, rate)
         return data
 
+    def node_kinematics(self, q, qd=None, *, data=None):
+        """(G, eta, J) at the nodes :attr:`sigma` for state (q, qd): frames (N+1, 4, 4), body twists (N+1, 6)
+        [rad/s, m/s], body Jacobians (N+1, 6, n); views into the workspace (copy them to keep them)."""
+        d, at = self.state(q, qd, data=data), self.model.at_nodes
+        return at(d.G), at(d.eta), at(d.J)
+
     def forward_kinematics(self, q, *, data=None):
         """Frames g(sigma_i) at the nodes :attr:`sigma`: array (N+1, 4, 4); positions are ``[:, :3, 3]`` [m]."""
-        return self.state(q, data=data).G.copy()
+        return self.model.at_nodes(self.state(q, data=data).G).copy()
 
     def positions(self, q, *, data=None):
         """Backbone positions at the nodes, (N+1, 3) [m]."""
-        return self.state(q, data=data).G[:, :3, 3].copy()
+        return self.model.at_nodes(self.state(q, data=data).G)[:, :3, 3].copy()
 
     def beam(self, q):
         """This rod at coordinates ``q`` as a beam for :mod:`soroshapes.render`: ``{"frames", "radius"}``."""
@@ -536,8 +563,8 @@ class Shapes:
             raise ParameterError("frame must be 'body' or 'spatial'")
         d = self.state(q, data=data)
         if at == "all":
-            return d.J.copy()
-        i = self.node(at)
+            return self.model.at_nodes(d.J).copy()
+        i = self.node(at) * self.model.stride
         if frame == "body":
             return d.J[i].copy()
         from .lie import Ad
@@ -546,7 +573,7 @@ class Shapes:
     def jacobian_rate(self, q, qd, at=None, *, data=None):
         r""":math:`\dot J(q, \dot q)` (body) at node ``at`` (default tip), or all nodes with ``at="all"``."""
         d = self.state(q, qd, rate=True, data=data)
-        return d.Jd.copy() if at == "all" else d.Jd[self.node(at)].copy()
+        return self.model.at_nodes(d.Jd).copy() if at == "all" else d.Jd[self.node(at) * self.model.stride].copy()
 
     # ------------------------------------------------------------------------------------------------
     # dynamics terms
@@ -590,7 +617,12 @@ class Shapes:
         r"""Accelerations :math:`\ddot q = M^{-1}(f - C\dot q - D\dot q - Kq)` at state (q, qd), time t [s] and
         inputs ``u`` (all loads included), from one kinematic pass."""
         M, lhs = self._accel_terms(q, qd, t, u, data)
-        return np.linalg.solve(M, -lhs)
+        try:
+            return np.linalg.solve(M, -lhs)
+        except np.linalg.LinAlgError:
+            raise StateRangeError(f"the mass matrix is numerically singular at max |q| = {np.max(np.abs(q)):.3g}: "
+                                  "the state is far outside the beam's range (a diverged iterate); use a smaller "
+                                  "step") from None
 
     def generalized_force(self, q, qd=None, t=0.0, u=None, *, data=None):
         """Generalized force [N or N m per coordinate] (n,) of all loads (gravity, inputs ``u``, point loads,
@@ -806,7 +838,7 @@ class Shapes:
             for k, t in enumerate(tm):
                 fext[k] = _bm.input_force(model, data, self._loads, q, self._inputs_at(u, t))
         point_loads = [ld for ld in self._loads if isinstance(ld, _bm.PointLoad)]
-        pl_nodes = np.array([ld.node for ld in point_loads], dtype=np.int64)
+        pl_nodes = np.array([ld.node * model.stride for ld in point_loads], dtype=np.int64)
         pl_spatial = np.array([ld.frame == "spatial" for ld in point_loads], dtype=np.bool_)
         pl_W = np.zeros((nsteps, len(point_loads), 6))
         for j, ld in enumerate(point_loads):
@@ -977,7 +1009,7 @@ class Shapes:
         wrot = self.length if rotation_weight is None else float(rotation_weight)
         if subtask is not None and subtask != "elastic" and not callable(subtask):
             raise ParameterError("subtask must be 'elastic', a callable grad(q) -> (n,), or None")
-        nodes = np.array([i for i, _, _ in tg], dtype=np.int64)
+        nodes = np.array([i * self.model.stride for i, _, _ in tg], dtype=np.int64)
         kinds = np.array([0 if k == "position" else 1 for _, k, _ in tg], dtype=np.int64)
         goals = np.zeros((len(tg), 4, 4))
         for j, (_, kind, v) in enumerate(tg):

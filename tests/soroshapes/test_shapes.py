@@ -242,7 +242,11 @@ def test_contact_at_speed_does_not_tunnel_and_does_not_gain_energy():
     lowest = min(shp.positions(q)[:, 2].min() for q in tr.q)
     assert lowest - R < -0.02                       # it hit the floor
     assert -0.02 - (lowest - R) < 0.5 * R           # penetration stays below half the radius
-    assert tr.total.max() <= tr.total[0] * (1 + 1e-9)
+    # The midpoint rule conserves the energy of quadratic potentials exactly; the penalty potential has a kink
+    # where contact starts, which costs an O(dt) error per impact of either sign (measured 0.19 % here, 0.36 % at
+    # 40 segments, 0.2 % with nodal quadrature at 40 segments). A contact force that injected energy (a
+    # wrong-signed damping, a force lagging the motion) gains far more than this bound.
+    assert tr.total.max() <= tr.total[0] * (1 + 5e-3)
 
 
 # --------------------------------------------------------------------------------------------------------
