@@ -123,3 +123,40 @@ def test_no_module_reads_the_beam_cores_private_arrays():
                     if not (owner.endswith("self") or owner.endswith("self._model")):   # own/same-module objects
                         hits.append(f"{path.relative_to(ROOT)}:{k}: {line.strip()}")
     assert not hits, "\n".join(hits)
+
+
+# --------------------------------------------------------------------------------------------------------
+# accuracy of the default discretization (20 segments, Magnus order 4, Gauss-Lobatto quadrature)
+# --------------------------------------------------------------------------------------------------------
+def slender(quadrature="lobatto", modes=8, **kw):
+    """A slender rod (L/R = 200): rotary inertia shifts mode 3 from Euler-Bernoulli by about
+    (beta_3 r_g)^2 / 2 = 1.9e-4 (r_g = R/2), well inside the 1e-3 tolerance."""
+    return Shapes(Basis.chebyshev(modes), (0, 0, modes, 0, 0, 0), length=L, section=sdf.Circle(0.001),
+                  material=MAT, damping=0.0, quadrature=quadrature, **kw)
+
+
+def test_default_discretization_gives_euler_bernoulli_frequencies_within_0p1_percent():
+    import sys
+    sys.path.insert(0, str(ROOT / "tests"))
+    from analytic import cantilever_frequencies
+    ref = np.array(cantilever_frequencies(L, MAT.E, np.pi * 0.001**4 / 4, MAT.density, np.pi * 0.001**2))
+    err = np.abs(slender().natural_frequencies(3) / ref - 1)
+    assert err.max() < 1e-3, err                     # measured 1.5e-5, 1.0e-4, 2.4e-4
+    # the trapezoidal rule at the nodes (the previous default) misses by O(h^2): the test tells them apart
+    assert np.abs(slender("nodes").natural_frequencies(3) / ref - 1).max() > 2e-3
+
+
+def test_default_discretization_gives_the_self_weight_elastica_tip_within_1e_4_length():
+    """A soft rod (E = 0.1 MPa, R = 5 mm, L = 0.2 m) drooping under its own weight to dx = -0.86 L,
+    dy = -0.94 L; reference: the inextensible elastica BVP (tests/analytic.py). Shear and stretch are not in the
+    model (dofs: one bending), as in the reference; 8 modes make the modal truncation ~1e-5 L."""
+    import sys
+    sys.path.insert(0, str(ROOT / "tests"))
+    from analytic import elastica_gravity_tip
+    Rr, E = 0.005, 1e5
+    mat = materials.NeoHookean(E=E, nu=0.45, density=1000.0)
+    shp = Shapes(Basis.chebyshev(8), (0, 8, 0, 0, 0, 0), length=L, section=sdf.Circle(Rr), material=mat,
+                 damping=0.0).add_gravity((0, 0, -9.81))
+    dx, dy = elastica_gravity_tip(L, E * np.pi * Rr**4 / 4, 1000.0 * np.pi * Rr**2 * 9.81)
+    tip = shp.positions(shp.statics(steps=4))[-1]
+    assert abs(tip[0] - L - dx) < 1e-4 * L and abs(tip[2] - dy) < 1e-4 * L, (tip[0] - L - dx, tip[2] - dy)
