@@ -634,6 +634,32 @@ def _lu_solve(LU, piv, b):
 
 
 @njit(cache=True)
+def forward_dynamics(q, qd, f_in, K, D, pl_nodes, pl_W, pl_spatial, order, h, B, rows, xi0, g0, w, Md, ag, G, J, Jd,
+                     eta, etad, S, E, V, Op, AJ, W, M, C, fg, R, piv, qdd):
+    r"""Accelerations :math:`\ddot q = M^{-1}(f_{in} - (C\dot q - f_g - \sum_p J_p^T W_p) - D\dot q - Kq)` in one
+    compiled call: one :func:`kinematics_vec` pass, :math:`M` (:func:`mass_coriolis_gravity` without C), the bias
+    from :func:`generalized_inertial_force` at zero acceleration, an LU solve. ``f_in`` (n,) the generalized
+    force of the inputs; ``R``, ``piv`` work vectors; result in ``qdd``. Returns False if M is singular."""
+    n = q.shape[0]
+    kinematics_vec(q, qd, order, h, B, rows, xi0, g0, G, J, eta, etad, S, E, V, Op, AJ, W)
+    mass_coriolis_gravity(J, Jd, eta, G, w, Md, ag, M, C, fg, False, S, V, AJ)
+    for k in range(n):
+        qdd[k] = 0.0
+    generalized_inertial_force(J, eta, etad, G, w, Md, qdd, ag, pl_nodes, pl_W, pl_spatial, R)
+    for k in range(n):
+        s = f_in[k] - R[k]
+        for l in range(n):
+            s -= D[k, l] * qd[l] + K[k, l] * q[l]
+        qdd[k] = s
+        for l in range(n):
+            C[k, l] = M[k, l]
+    if not _lu(C, piv):
+        return False
+    _lu_solve(C, piv, qdd)
+    return True
+
+
+@njit(cache=True)
 def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_spatial, K, D, order, h, B, rows,
                        xi0, g0, w, Md, ag, tol, max_it, out_t, out_q, out_qd, out_e, out_tip, its,
                        G, J, Jd, eta, etad, S, E, V, Op, dOp, AJ, W):

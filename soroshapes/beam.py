@@ -7,13 +7,15 @@ r"""The Cosserat beam as a frozen description and a workspace (Pinocchio's ``Mod
 * :class:`BeamData`: every scratch array the kernels of :mod:`soroshapes._beam` write (frames, Jacobians,
   twists and their rates at the quadrature points, the 6 x 6 temporaries, M, C, f_g).
 
-Quadrature. The mass, Coriolis and gravity integrals :math:`\int_0^L (\cdot)\,d\sigma` are summed at
-``points``: with ``quadrature="lobatto"`` (the default) every segment is cut at its midpoint and the
-three-point Gauss-Lobatto rule (Simpson: weights :math:`h/6, 4h/6, h/6`) is used, exact for cubics, so the
-error falls as :math:`h^4` like the order-4 Magnus kinematics (the kernels integrate the frames through the
-midpoints: ``stride`` = 2 chain pieces per segment); ``quadrature="nodes"`` sums at the nodes with the
-trapezoidal rule (:math:`h^2`; one chain piece per segment, half the work). Contact acts at the nodes with the
-trapezoidal weights ``node_weights``. ``model.make_data()`` makes one; two
+Quadrature. The mass, Coriolis and gravity integrals :math:`\int_0^L (\cdot)\,d\sigma` are weighted sums over
+``points``. ``quadrature="gregory"`` (the default) sums at the nodes with Gregory's end corrections of the
+trapezoidal rule on every basis piece (weights :math:`(3/8, 7/6, 23/24, 1, \dots, 1, 23/24, 7/6, 3/8)\,h`; Simpson's
+rules on pieces of 2-4 segments): exact for cubics, so the error falls as :math:`h^4` like the order-4 Magnus
+kinematics, at no extra work. ``"lobatto"`` cuts every segment at its midpoint and uses the three-point
+Gauss-Lobatto rule (Simpson, :math:`h/6, 4h/6, h/6`): also :math:`h^4`, a smaller constant, twice the kinematic
+work (the kernels integrate the frames through the midpoints: ``stride`` = 2 chain pieces per segment).
+``"trapezoid"`` is the plain trapezoidal rule at the nodes (:math:`h^2`; the discretization before issue 18).
+Contact acts at the nodes with the trapezoidal weights ``node_weights``. ``model.make_data()`` makes one; two
   workspaces on one model are independent (one per thread, or one per query that must not disturb another).
 * Load terms: :class:`Gravity`, :class:`PointLoad`, :class:`Chamber`, :class:`Tendon`, :class:`Actuator`,
   :class:`Contact`, :class:`UserForce`, each giving its generalized force at the kinematics held in a workspace;
@@ -41,7 +43,7 @@ from sorofem.errors import DataError, ParameterError
 
 __all__ = ["BeamModel", "BeamData", "StateRangeError", "BeamTrajectory", "IKResult", "Gravity", "PointLoad", "Chamber", "Tendon",
            "Actuator", "Contact", "UserForce", "check_state", "kinematics", "dynamics", "coriolis_jacobian",
-           "inverse_dynamics", "energy", "external_force", "input_map"]
+           "inverse_dynamics", "forward_dynamics", "energy", "external_force", "input_map"]
 
 _NO_NODES, _NO_WRENCH, _NO_FLAGS = np.zeros(0, dtype=np.int64), np.zeros((0, 6)), np.zeros(0, dtype=np.bool_)
 
@@ -136,7 +138,7 @@ class BeamData:
     calls (the next call overwrites them)."""
 
     __slots__ = ("G", "J", "Jd", "eta", "etad", "S", "E", "V", "Op", "dOp", "AJ", "W", "M", "C", "Cv", "fg",
-                 "contact_forces")
+                 "R", "piv", "qdd", "contact_forces")
 
     def __init__(self, model):
         N, n = model.points.shape[0], model.n
@@ -149,6 +151,7 @@ class BeamData:
         self.Op, self.dOp, self.AJ = np.zeros((6, n)), np.zeros((6, n)), np.zeros((6, n))
         self.W = np.zeros((8, 6))
         self.M, self.C, self.Cv, self.fg = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n)), np.zeros(n)
+        self.R, self.piv, self.qdd = np.zeros(n), np.zeros(n, dtype=np.int64), np.zeros(n)
         self.contact_forces = np.zeros((model.nodes, 3))
 
     def __getstate__(self):
@@ -276,6 +279,30 @@ def inverse_dynamics(model, data, q, qd, qdd, gravity=None):
                                      np.zeros(3) if gravity is None else gravity, _NO_NODES, _NO_WRENCH,
                                      _NO_FLAGS, tau)
     return tau
+
+
+def forward_dynamics(model, data, q, qd, f_in, D, gravity, point_loads=(), t=0.0):
+    r"""Accelerations :math:`\ddot q = M^{-1}(f_{in} + f_g + \sum_p J_p^T W_p - C\dot q - D\dot q - Kq)` (n,)
+    in one compiled call (:func:`soroshapes._beam.forward_dynamics`): ``f_in`` (n,) the inputs' generalized
+    force, ``D`` (n, n) the damping matrix, ``gravity`` (3,) [m/s^2], ``point_loads`` :class:`PointLoad` terms
+    evaluated at time ``t`` [s]. Configuration-dependent loads (contact, tendons, user forces) are not
+    included: :func:`external_force` covers them. Returns ``data.qdd``."""
+    from . import _beam
+    q, qd = check_state(model, q), check_state(model, qd, "qd")
+    npl = len(point_loads)
+    nodes = np.array([ld.node * model.stride for ld in point_loads], dtype=np.int64) if npl else _NO_NODES
+    W = np.array([ld.wrench(t) for ld in point_loads]) if npl else _NO_WRENCH
+    spatial = np.array([ld.frame == "spatial" for ld in point_loads], dtype=np.bool_) if npl else _NO_FLAGS
+    ok = _beam.forward_dynamics(q, qd, f_in, model.K, D, nodes, W, spatial, model.order, model.h, model.B,
+                                model.rows, model.X0, model.base, model.weights, model.Md, gravity, data.G, data.J,
+                                data.Jd, data.eta, data.etad, data.S, data.E, data.V, data.Op, data.AJ, data.W,
+                                data.M, data.C, data.fg, data.R, data.piv, data.qdd)
+    _guard(data, q, qd, False)
+    if not (ok and math.isfinite(data.qdd.sum())):
+        data.reset()
+        raise StateRangeError(f"the mass matrix is numerically singular at max |q| = {np.max(np.abs(q)):.3g}: the "
+                              "state is far outside the beam's range (a diverged iterate); use a smaller step")
+    return data.qdd
 
 
 def energy(model, data, q, qd=None, gravity=None):
