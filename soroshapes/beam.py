@@ -41,9 +41,10 @@ import numpy as np
 
 from sorofem.errors import DataError, ParameterError
 
-__all__ = ["BeamModel", "BeamData", "StateRangeError", "BeamTrajectory", "IKResult", "Gravity", "PointLoad", "Chamber", "Tendon",
-           "Actuator", "Contact", "UserForce", "check_state", "kinematics", "dynamics", "coriolis_jacobian",
-           "inverse_dynamics", "forward_dynamics", "energy", "external_force", "input_map"]
+__all__ = ["BeamModel", "BeamData", "StateRangeError", "BeamTrajectory", "IKResult", "Gravity", "PointLoad",
+           "Chamber", "Tendon", "Actuator", "Contact", "UserForce", "check_state", "kinematics", "dynamics",
+           "coriolis_jacobian", "inverse_dynamics", "forward_dynamics", "accelerations", "energy", "external_force",
+           "input_map", "inputs_at", "statics", "simulate", "inverse_kinematics"]
 
 _NO_NODES, _NO_WRENCH, _NO_FLAGS = np.zeros(0, dtype=np.int64), np.zeros((0, 6)), np.zeros(0, dtype=np.bool_)
 
@@ -509,3 +510,363 @@ def external_force(model, data, loads, q, qd, t, u, scale=1.0, owner=None):
     if has_inputs and u is not None:
         f += input_force(model, data, loads, q, u)
     return scale * f + contact
+
+
+def inputs_at(loads, u, t):
+    """The input values at time ``t`` [s] (``u``: None = zeros, an array, or a callable of t), validated."""
+    terms = input_terms(loads)
+    m = len(terms)
+    if u is None:
+        return np.zeros(m)
+    v = u(t) if callable(u) else u
+    v = np.asarray(v, dtype=float).reshape(-1)
+    if v.shape != (m,) or not np.all(np.isfinite(v)):
+        raise ParameterError(f"u must give {m} finite inputs ({', '.join(ld.name for ld in terms)}), got {v.shape}")
+    return v
+
+
+def gravity_of(loads):
+    """The gravity acceleration [m/s^2] of ``loads`` (zeros without a :class:`Gravity` term)."""
+    for ld in loads:
+        if isinstance(ld, Gravity):
+            return np.asarray(ld.acceleration, dtype=float)
+    return np.zeros(3)
+
+
+def compiled_loads(loads):
+    """True when every term runs inside the compiled kernels (gravity, chambers, actuators, point loads)."""
+    return not any(isinstance(ld, (Contact, UserForce, Tendon)) for ld in loads)
+
+
+# ------------------------------------------------------------------------------------------------------------
+# statics
+# ------------------------------------------------------------------------------------------------------------
+def statics(model, data, loads, u=None, q0=None, *, steps=1, tol=1e-9, max_iterations=40, min_step=1e-4, t=0.0,
+            owner=None):
+    r"""Static equilibrium :math:`K q = f_g(q) + G(q)u + f_{ext}(q)` by Newton's method with load stepping
+    (see :meth:`soroshapes.shapes.Shapes.statics`). Returns (q, Newton iterations per accepted increment)."""
+    from .numerics import fd_columns
+    q = check_state(model, q0)
+    uv = inputs_at(loads, u, t)
+    K, n = model.K, model.n
+
+    def residual(x, scale):
+        try:
+            x, xd = kinematics(model, data, x)
+            return K @ x - external_force(model, data, loads, x, xd, t, uv, scale, owner)
+        except StateRangeError:              # an iterate left the finite range: the line search backs off
+            return np.full(n, np.nan)
+
+    def newton(q, scale):
+        r = residual(q, scale)
+        for it in range(1, max_iterations + 1):
+            Kt = fd_columns(lambda x: residual(x, scale), q, r, np.ones(n))
+            try:
+                dq = -np.linalg.solve(Kt, r)
+            except np.linalg.LinAlgError:
+                return None, it
+            ref = np.linalg.norm(r)
+            step = 1.0
+            while True:
+                qn = q + step * dq
+                rn = residual(qn, scale)
+                if np.all(np.isfinite(rn)) and np.linalg.norm(rn) <= (1 - 1e-4 * step) * ref or step < 1e-3:
+                    break
+                step *= 0.5
+            if not np.all(np.isfinite(rn)):
+                return None, it
+            q, r = qn, rn
+            scale_ref = np.linalg.norm(K @ q) + 1e-12 * np.linalg.norm(np.diag(K))
+            if np.linalg.norm(r) <= tol * scale_ref and np.linalg.norm(step * dq) <= 1e-8 * (1 + np.linalg.norm(q)):
+                return q, it
+        return None, max_iterations
+
+    lam, dlam = 0.0, 1.0 / max(1, int(steps))
+    iterations = []
+    while lam < 1.0 - 1e-14:
+        target = min(1.0, lam + dlam)
+        qn, its = newton(q.copy(), target)
+        if qn is None:
+            dlam *= 0.5
+            if dlam < min_step:
+                from sorofem.errors import ConvergenceError
+                raise ConvergenceError(f"statics: Newton failed at load level {target:.4g} (reached {lam:.4g}) "
+                                       "with the minimum increment; use more steps, a better q0, or check "
+                                       "that the loads are reachable")
+            continue
+        q, lam = qn, target
+        iterations.append(its)
+        if its <= 4:
+            dlam = min(2 * dlam, 1.0)
+    return q, iterations
+
+
+# ------------------------------------------------------------------------------------------------------------
+# dynamics
+# ------------------------------------------------------------------------------------------------------------
+def _accel_terms(model, data, loads, q, qd, t, uv, tau, owner):
+    """(M, C qd + D qd + K q - f) at (q, qd, t): the left-hand side without the inertia term."""
+    M, C, _ = dynamics(model, data, q, qd, gravity_of(loads), True)
+    q, qd = np.asarray(q, dtype=float).reshape(-1), np.asarray(qd, dtype=float).reshape(-1)
+    f = external_force(model, data, loads, q, qd, t, uv, 1.0, owner)
+    return M.copy(), C @ qd + tau * (model.K @ qd) + model.K @ q - f
+
+
+def accelerations(model, data, loads, q, qd, t=0.0, u=None, tau=0.0, owner=None):
+    r"""Accelerations :math:`\ddot q = M^{-1}(f - C\dot q - D\dot q - Kq)` with all ``loads`` at state (q, qd),
+    time t [s], inputs ``u``, damping :math:`D = \tau K` (``tau`` [s]); one compiled call when the loads allow
+    (:func:`forward_dynamics`), else the assembled matrices."""
+    uv = inputs_at(loads, u, t)
+    if compiled_loads(loads):
+        f_in = input_force(model, data, loads, None, uv) if len(uv) else np.zeros(model.n)
+        points = [ld for ld in loads if isinstance(ld, PointLoad)]
+        return forward_dynamics(model, data, q, qd, f_in, tau * model.K, gravity_of(loads), points, t).copy()
+    M, lhs = _accel_terms(model, data, loads, q, qd, t, uv, tau, owner)
+    try:
+        return np.linalg.solve(M, -lhs)
+    except np.linalg.LinAlgError:
+        data.reset()
+        raise StateRangeError(f"the mass matrix is numerically singular at max |q| = {np.max(np.abs(q)):.3g}: the "
+                              "state is far outside the beam's range (a diverged iterate); use a smaller "
+                              "step") from None
+
+
+def simulate(model, data, loads, t_end, dt, q0=None, qd0=None, u=None, *, tau=0.0, method="implicit", tol=1e-8,
+             max_iterations=20, min_dt=None, record_every=1, owner=None):
+    r"""Time integration of the beam's equations of motion (see :meth:`soroshapes.shapes.Shapes.simulate`);
+    ``tau`` [s]: Kelvin-Voigt damping :math:`D = \tau K`. Returns a :class:`BeamTrajectory`."""
+    import time
+    if method not in ("implicit", "explicit"):
+        raise ParameterError("method must be 'implicit' or 'explicit'")
+    t_end, dt = float(t_end), float(dt)
+    if not (t_end > 0 and dt > 0 and np.isfinite(t_end) and np.isfinite(dt)):
+        raise ParameterError(f"t_end and dt must be positive [s], got {t_end!r}, {dt!r}")
+    record_every = int(record_every)
+    if record_every < 1:
+        raise ParameterError("record_every must be >= 1")
+    nsteps = int(np.ceil(t_end / dt - 1e-9))
+    dt = t_end / nsteps
+    min_dt = dt / 1024 if min_dt is None else float(min_dt)
+    q = check_state(model, q0).copy()
+    qd = check_state(model, qd0, "qd0").copy()
+    inputs_at(loads, u, 0.0)                      # validate u before the loop
+    t0 = time.perf_counter()
+    rec = {"t": [], "q": [], "qd": [], "kin": [], "pot": [], "tip": []}
+    its_all = []
+    start = 0
+    args = (model, data, loads, u, tau, tol, max_iterations, record_every, rec, its_all)
+    if method == "implicit" and compiled_loads(loads):
+        start, q, qd = _simulate_compiled(q, qd, dt, nsteps, *args)
+    if start < nsteps:
+        _simulate_python(q, qd, start, dt, nsteps, method, min_dt, owner, *args)
+    wall = time.perf_counter() - t0
+    return BeamTrajectory(np.array(rec["t"]), np.array(rec["q"]), np.array(rec["qd"]), np.array(rec["kin"]),
+                          np.array(rec["pot"]), np.array(rec["tip"]),
+                          {"steps": nsteps, "dt": dt, "newton_iterations": np.array(its_all), "wall_time": wall,
+                           "method": method, "compiled_steps": start})
+
+
+def _simulate_compiled(q, qd, dt, nsteps, model, data, loads, u, tau, tol, max_iterations, record_every, rec,
+                       its_all):
+    """The compiled loop (:func:`soroshapes._beam.integrate_midpoint`); returns (steps done, q, qd) and appends
+    its records."""
+    from . import _beam
+    n = model.n
+    tm = (np.arange(nsteps) + 0.5) * dt
+    fext = np.zeros((nsteps, n))
+    if input_terms(loads):           # chambers and actuators: forces independent of the configuration
+        for k, t in enumerate(tm):
+            fext[k] = input_force(model, data, loads, q, inputs_at(loads, u, t))
+    point_loads = [ld for ld in loads if isinstance(ld, PointLoad)]
+    pl_nodes = np.array([ld.node * model.stride for ld in point_loads], dtype=np.int64)
+    pl_spatial = np.array([ld.frame == "spatial" for ld in point_loads], dtype=np.bool_)
+    pl_W = np.zeros((nsteps, len(point_loads), 6))
+    for j, ld in enumerate(point_loads):
+        for k, t in enumerate(tm):
+            pl_W[k, j] = ld.wrench(t)
+    nrec = nsteps // record_every + 1 + (nsteps % record_every != 0)
+    out_t, out_q, out_qd = np.zeros(nrec), np.zeros((nrec, n)), np.zeros((nrec, n))
+    out_e, out_tip, its = np.zeros((nrec, 2)), np.zeros((nrec, 3)), np.zeros(nsteps, dtype=np.int64)
+    done = _beam.integrate_midpoint(
+        q, qd, dt, nsteps, record_every, fext, pl_nodes, pl_W, pl_spatial, model.K, tau * model.K,
+        model.order, model.h, model.B, model.rows, model.X0, model.base, model.weights, model.Md,
+        gravity_of(loads), float(tol), int(max_iterations), out_t, out_q, out_qd, out_e, out_tip, its,
+        data.G, data.J, data.Jd, data.eta, data.etad, data.S, data.E, data.V, data.Op, data.dOp, data.AJ, data.W)
+    m = done // record_every + 1 + (done == nsteps and nsteps % record_every != 0)
+    if done < nsteps:
+        m = (done - 1) // record_every + 1 if done > 0 else 1
+    rec["t"] += list(out_t[:m])
+    rec["q"] += list(out_q[:m])
+    rec["qd"] += list(out_qd[:m])
+    rec["kin"] += list(out_e[:m, 0])
+    rec["pot"] += list(out_e[:m, 1])
+    rec["tip"] += list(out_tip[:m])
+    its_all += list(its[:done])
+    return done, q, qd
+
+
+def _simulate_python(q, qd, start, dt, nsteps, method, min_dt, owner, model, data, loads, u, tau, tol, max_iterations,
+                     record_every, rec, its_all):
+    """Step by step in Python (contact, tendons, user forces; or after the compiled loop gave up), halving a step
+    that fails down to ``min_dt``."""
+    from sorofem.errors import ConvergenceError
+    g = gravity_of(loads)
+
+    def record(t):
+        e = energy(model, data, q, qd, g)
+        rec["t"].append(t)
+        rec["q"].append(q.copy())
+        rec["qd"].append(qd.copy())
+        rec["kin"].append(e["kinetic"])
+        rec["pot"].append(e["elastic"] + e["gravity"])
+        rec["tip"].append(data.G[-1, :3, 3].copy())
+    step_fn = _midpoint_step if method == "implicit" else _rk4_step
+    t_end = nsteps * dt
+    t, k = start * dt, start
+    if start == 0:
+        record(t)
+    while k < nsteps:
+        h, t_next = dt, (k + 1) * dt
+        while t < t_next - 1e-12 * dt:          # sub-steps when a step must be cut
+            hh = min(h, t_next - t)
+            try:
+                step = step_fn(model, data, loads, q, qd, t, hh, u, tau, tol, max_iterations, owner)
+            except StateRangeError:              # an iterate left the finite range: a failed step, cut it
+                step = None
+            if step is None:
+                h *= 0.5
+                if h < min_dt:
+                    raise ConvergenceError(f"simulate: the step at t = {t:.6g} s did not converge down to dt = "
+                                           f"{min_dt:.3g} s ({method}); use a smaller dt, the implicit method, "
+                                           "or check the loads")
+                continue
+            q[:], qd[:], its = step
+            its_all.append(its)
+            t += hh
+        t, k = t_next, k + 1
+        if k % record_every == 0 or k == nsteps:
+            record(min(t, t_end))
+
+
+def _midpoint_step(model, data, loads, q, qd, t, h, u, tau, tol, max_iterations, owner):
+    """One implicit-midpoint step: Newton iterations on v_m with the matrix 2M/h + dCv/dv + D + h/2 K; when they
+    contract slowly (large steps with large rotations), the matrix is replaced by the finite-difference Jacobian
+    of the residual. Returns (q, qd, iterations) or None."""
+    from .numerics import fd_columns
+    K = model.K
+    uv = inputs_at(loads, u, t + 0.5 * h)
+
+    def residual(vm):
+        qm = q + 0.5 * h * vm
+        M, lhs = _accel_terms(model, data, loads, qm, vm, t + 0.5 * h, uv, tau, owner)
+        return M @ (2.0 * (vm - qd) / h) + lhs, M, qm
+    vm = qd.copy()
+    R, M, qm = residual(vm)
+    S = 2.0 * M / h + coriolis_jacobian(model, data, qm, vm) + tau * K + 0.5 * h * K
+    prev = np.inf
+    for it in range(1, max_iterations + 1):
+        if not np.all(np.isfinite(R)):
+            return None
+        nr = np.linalg.norm(R)
+        if it > 3 and nr > 0.25 * prev:
+            S = fd_columns(lambda v: residual(v)[0], vm, R, np.ones(model.n))
+        prev = nr
+        dv = np.linalg.solve(S, -R)
+        vm = vm + dv
+        R, M, qm = residual(vm)
+        ref = np.linalg.norm(K @ qm) + np.linalg.norm(M @ vm) / h
+        if np.linalg.norm(dv) <= tol * np.linalg.norm(vm) + 1e-12 or np.linalg.norm(R) <= 1e-3 * tol * ref:
+            return q + h * vm, 2.0 * vm - qd, it
+    return None
+
+
+def _rk4_step(model, data, loads, q, qd, t, h, u, tau, tol, max_iterations, owner):
+    """One classical RK4 step; None when it blows up."""
+    def f(x, v, tt):
+        return v, accelerations(model, data, loads, x, v, tt, u, tau, owner)
+    k1 = f(q, qd, t)
+    k2 = f(q + 0.5 * h * k1[0], qd + 0.5 * h * k1[1], t + 0.5 * h)
+    k3 = f(q + 0.5 * h * k2[0], qd + 0.5 * h * k2[1], t + 0.5 * h)
+    k4 = f(q + h * k3[0], qd + h * k3[1], t + h)
+    qn = q + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
+    vn = qd + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
+    if not (np.all(np.isfinite(qn)) and np.all(np.isfinite(vn))) or np.linalg.norm(qn) > 1e6 * (
+            1 + np.linalg.norm(q)):
+        return None
+    return qn, vn, 0
+
+
+# ------------------------------------------------------------------------------------------------------------
+# inverse kinematics
+# ------------------------------------------------------------------------------------------------------------
+def inverse_kinematics(model, data, targets, q0=None, *, tol=1e-8, max_iterations=200, damping=1e-6,
+                       rotation_weight=None, subtask=None, subtask_gain=0.1):
+    r"""Damped least-squares inverse kinematics (see :meth:`soroshapes.shapes.Shapes.inverse_kinematics`);
+    ``targets``: a list of ``(node index, "position" or "pose", (3,) or (4, 4) target)``. Returns an
+    :class:`IKResult`."""
+    from sorofem.errors import ConvergenceError
+
+    from . import _beam
+    q = check_state(model, q0).copy()
+    wrot = model.length if rotation_weight is None else float(rotation_weight)
+    if subtask is not None and subtask != "elastic" and not callable(subtask):
+        raise ParameterError("subtask must be 'elastic', a callable grad(q) -> (n,), or None")
+    nodes = np.array([i * model.stride for i, _, _ in targets], dtype=np.int64)
+    kinds = np.array([0 if k == "position" else 1 for _, k, _ in targets], dtype=np.int64)
+    goals = np.zeros((len(targets), 4, 4))
+    for j, (_, kind, v) in enumerate(targets):
+        if kind == "position":
+            goals[j] = np.eye(4)
+            goals[j, :3, 3] = v
+        else:
+            goals[j] = v
+    args = (nodes, kinds, goals, wrot, float(tol), int(max_iterations), float(damping), 1e6 * model.length)
+    d = data
+    kin = (model.order, model.h, model.B, model.rows, model.X0, model.base, d.G, d.J, d.Jd, d.eta, d.S, d.E, d.V,
+           d.Op, d.dOp, d.AJ)
+    if not callable(subtask):
+        err, it, converged = _beam.ik_solve(q, *args, model.K, subtask_gain if subtask else 0.0, *kin)
+    else:
+        err, it, converged = _ik_python(model, data, q, args, subtask, subtask_gain)
+    if not (math.isfinite(err) and np.all(np.isfinite(q))):
+        d.reset()
+        raise ConvergenceError("inverse_kinematics: the iterations left the finite range; give a closer q0 or a "
+                               "reachable target")
+    return IKResult(q=q, error=float(err), iterations=int(it), converged=bool(converged))
+
+
+def _ik_python(model, data, q, args, grad, gain):
+    """:func:`soroshapes._beam.ik_solve` with a Python subtask gradient ``grad(q)`` (same algorithm)."""
+    from . import _beam
+    nodes, kinds, goals, wrot, tol, max_it, lam, lam_max = args
+    m = int(sum(3 if k == 0 else 6 for k in kinds))
+    e, A = np.empty(m), np.empty((m, model.n))
+
+    def error(x):
+        kinematics(model, data, x)
+        return _beam._ik_error(nodes, kinds, goals, wrot, data.G, data.J, e, A), e.copy(), A.copy()
+    err, ek, Ak = error(q)
+    it = 0
+    best, since_best = err, 0
+    while err >= tol and it < max_it and since_best < 10:
+        it += 1
+        AAt = Ak @ Ak.T + lam * lam * np.eye(m)
+        dq = Ak.T @ np.linalg.solve(AAt, ek)
+        stalled = np.linalg.norm(dq) < 1e-12 * (1 + np.linalg.norm(q))
+        g = np.asarray(grad(q), dtype=float).reshape(model.n)
+        gn = -(g - Ak.T @ np.linalg.solve(AAt, Ak @ g))
+        if np.linalg.norm(gn) > 0:
+            dq += gain * max(np.linalg.norm(dq), tol) * gn / np.linalg.norm(gn)
+        errn, en, An = error(q + dq)
+        if errn <= err + tol:
+            q[:], err, ek, Ak = q + dq, errn, en, An
+            lam = max(0.5 * lam, 1e-12)
+            if stalled:
+                break
+            best, since_best = (err, 0) if err < best * (1 - 1e-9) else (best, since_best + 1)
+        else:
+            lam *= 4.0
+            if lam > lam_max:
+                break
+    kinematics(model, data, q)
+    return err, it, err < tol

@@ -91,27 +91,15 @@ import numpy as np
 
 from sorofem.errors import ConvergenceError, DataError, ParameterError, SoroError
 
+from .numerics import FD_STEP, fd_columns
+
 __all__ = ["StateSpace", "Fluidic", "Model", "ModelTrajectory", "SystemTrajectory"]
 
 log = logging.getLogger(__name__)
-_EPS = np.sqrt(np.finfo(float).eps)
 
 
 def _vec(v, what):
     return np.atleast_1d(np.asarray(v, dtype=float)).reshape(-1)
-
-
-def _fd_columns(fun, x, f0, scale, cols=None):
-    """Forward-difference Jacobian of ``fun`` at ``x`` (fun(x) = f0), steps sqrt(eps) * max(|x_j|, scale_j),
-    for the columns ``cols`` (default all), in that order."""
-    cols = range(len(x)) if cols is None else cols
-    J = np.empty((len(f0), len(cols)))
-    for k, j in enumerate(cols):
-        h = _EPS * max(abs(x[j]), scale[j])
-        xp = x.copy()
-        xp[j] += h
-        J[:, k] = (fun(xp) - f0) / (xp[j] - x[j])
-    return J
 
 
 # ------------------------------------------------------------------------------------------------------------
@@ -180,8 +168,8 @@ class StateSpace:
                                                                                                            self.m)
             return A, B
         f0 = self.rhs(x, u, t)
-        A = _fd_columns(lambda xx: self.rhs(xx, u, t), x, f0, self.scale)
-        B = _fd_columns(lambda uu: self.rhs(x, uu, t), u, f0, np.ones(self.m)) if self.m else np.zeros((self.n, 0))
+        A = fd_columns(lambda xx: self.rhs(xx, u, t), x, f0, self.scale)
+        B = fd_columns(lambda uu: self.rhs(x, uu, t), u, f0, np.ones(self.m)) if self.m else np.zeros((self.n, 0))
         return A, B
 
     def output(self, x, u, t):
@@ -373,8 +361,8 @@ class _FluidicBlock(_Block):
 
     def jac(self, x, w, t):
         f0 = self.rhs(x, w, t)
-        A = _fd_columns(lambda xx: self.rhs(xx, w, t), x, f0, self._scale)
-        B = _fd_columns(lambda ww: self.rhs(x, ww, t), w, f0, np.array([self._uscale, abs(w[1])]))
+        A = fd_columns(lambda xx: self.rhs(xx, w, t), x, f0, self._scale)
+        B = fd_columns(lambda ww: self.rhs(x, ww, t), w, f0, np.array([self._uscale, abs(w[1])]))
         return A, B
 
     def output(self, x, w, t):
@@ -406,8 +394,8 @@ class _ShapesBlock(_Block):
 
     def jac(self, x, w, t):
         f0 = self.rhs(x, w, t)
-        A = _fd_columns(lambda xx: self.rhs(xx, w, t), x, f0, np.ones(self.n))
-        B = (_fd_columns(lambda ww: self.rhs(x, ww, t), w, f0, np.maximum(np.abs(w), 1.0)) if self.m
+        A = fd_columns(lambda xx: self.rhs(xx, w, t), x, f0, np.ones(self.n))
+        B = (fd_columns(lambda ww: self.rhs(x, ww, t), w, f0, np.maximum(np.abs(w), 1.0)) if self.m
              else np.zeros((self.n, 0)))
         return A, B
 
@@ -838,13 +826,13 @@ class Model:
         dW = None
         if (self._controller is not None or self._links) and len(cols):
             if self._fd_groups is None:          # every column alone
-                dW = _fd_columns(lambda xx: self._assemble(t, xx).copy(), x, w0, self._scale, cols)
+                dW = fd_columns(lambda xx: self._assemble(t, xx).copy(), x, w0, self._scale, cols)
             else:                                # grouped columns: each target's rows belong to one of them
                 dW = np.zeros((self._NW, len(cols)))
                 position = {j: k for k, j in enumerate(cols)}
                 for group, owner in self._fd_groups:
                     xp = x.copy()
-                    xp[group] += _EPS * np.maximum(np.abs(x[group]), self._scale[group])
+                    xp[group] += FD_STEP * np.maximum(np.abs(x[group]), self._scale[group])
                     dw = self._assemble(t, xp) - w0
                     for tname, j in owner.items():
                         rows = self._blocks[tname].wsl

@@ -27,17 +27,15 @@ Units: SI throughout (m, kg, s, N, Pa); :math:`q` carries the unit of its strain
 """
 from __future__ import annotations
 
-import math
-import time
 from dataclasses import dataclass
 
 import numpy as np
 
-from sorofem.errors import ConvergenceError, ParameterError
+from sorofem.errors import ParameterError
 
 from . import beam as _bm
 from .basis import Basis
-from .beam import BeamModel, BeamTrajectory, IKResult, StateRangeError
+from .beam import BeamModel, BeamTrajectory, IKResult
 
 __all__ = ["Shapes", "BeamTrajectory", "IKResult", "STRAINS"]
 
@@ -425,10 +423,7 @@ class Shapes:
     @property
     def gravity(self):
         """The gravity acceleration [m/s^2] (3,) (zeros without gravity)."""
-        for ld in self._loads:
-            if isinstance(ld, _bm.Gravity):
-                return ld.acceleration
-        return np.zeros(3)
+        return _bm.gravity_of(self._loads)
 
     def node(self, at):
         """Index of the node at arc length ``at`` [m] (None: the tip) in :attr:`sigma`; a ParameterError if ``at``
@@ -641,28 +636,18 @@ class Shapes:
 
     def forward_dynamics(self, q, qd, t=0.0, u=None, *, data=None):
         r"""Accelerations :math:`\ddot q = M^{-1}(f - C\dot q - D\dot q - Kq)` at state (q, qd), time t [s] and
-        inputs ``u`` (all loads included), from one kinematic pass."""
-        data = self.data if data is None else data
-        if self._fast_eligible():        # gravity, inputs, point loads: one compiled call
-            u = self._inputs_at(u, t)
-            f_in = _bm.input_force(self.model, data, self._loads, None, u) if len(u) else np.zeros(self.n)
-            points = [ld for ld in self._loads if isinstance(ld, _bm.PointLoad)]
-            return _bm.forward_dynamics(self.model, data, q, qd, f_in, self.damping_matrix, np.asarray(self.gravity),
-                                        points, t).copy()
-        M, lhs = self._accel_terms(q, qd, t, u, data)
-        try:
-            return np.linalg.solve(M, -lhs)
-        except np.linalg.LinAlgError:
-            raise StateRangeError(f"the mass matrix is numerically singular at max |q| = {np.max(np.abs(q)):.3g}: "
-                                  "the state is far outside the beam's range (a diverged iterate); use a smaller "
-                                  "step") from None
+        inputs ``u`` (all loads included), from one kinematic pass (one compiled call unless contact, tendons or
+        user forces are present: :func:`soroshapes.beam.accelerations`)."""
+        return _bm.accelerations(self.model, self.data if data is None else data, self._loads, q, qd, t, u,
+                                 self.damping, self)
 
     def generalized_force(self, q, qd=None, t=0.0, u=None, *, data=None):
         """Generalized force [N or N m per coordinate] (n,) of all loads (gravity, inputs ``u``, point loads,
         contact, user forces) at state (q, qd) and time t [s]."""
         data = self.data if data is None else data
         q, qd = _bm.kinematics(self.model, data, q, qd)
-        return _bm.external_force(self.model, data, self._loads, q, qd, t, self._inputs_at(u, t), owner=self)
+        uv = _bm.inputs_at(self._loads, u, t)
+        return _bm.external_force(self.model, data, self._loads, q, qd, t, uv, owner=self)
 
     @property
     def damping_matrix(self):
@@ -684,19 +669,6 @@ class Shapes:
         q = _bm.check_state(self.model, q)
         return _bm.input_map(self.model, self.data, self._loads, q, u)
 
-    def _inputs_at(self, u, t):
-        m = len(self.inputs)
-        if u is None:
-            return np.zeros(m)
-        v = u(t) if callable(u) else u
-        v = np.asarray(v, dtype=float).reshape(-1)
-        if v.shape != (m,) or not np.all(np.isfinite(v)):
-            raise ParameterError(f"u must give {m} finite inputs ({', '.join(self.inputs)}), got {v.shape}")
-        return v
-
-    def _external(self, data, q, qd, t, u, scale=1.0):
-        return _bm.external_force(self.model, data, self._loads, q, qd, t, self._inputs_at(u, t), scale, owner=self)
-
     def contact_forces(self, q, qd=None, *, data=None):
         """Contact forces [N] on the nodes at state (q, qd): (N+1, 3) spatial forces (each node's share of the
         distributed force: per-length force times its quadrature weight), zero where there is no contact."""
@@ -716,20 +688,6 @@ class Shapes:
     # ------------------------------------------------------------------------------------------------
     # solvers
     # ------------------------------------------------------------------------------------------------
-    def _residual_static(self, q, u, scale, t=0.0):
-        q, qd = _bm.kinematics(self.model, self.data, q)
-        return self.K @ q - self._external(self.data, q, qd, t, u, scale)
-
-    def _fd_tangent(self, fun, q, r0):
-        n = self.n
-        Kt = np.empty((n, n))
-        for k in range(n):
-            e = 1e-7 * max(1.0, abs(q[k]))
-            dq = q.copy()
-            dq[k] += e
-            Kt[:, k] = (fun(dq) - r0) / e
-        return Kt
-
     def statics(self, u=None, q0=None, *, steps=1, tol=1e-9, max_iterations=40, min_step=1e-4, t=0.0):
         r"""Static equilibrium :math:`K q = f_g(q) + G(q)u + f_{ext}(q)` by Newton's method with load stepping.
 
@@ -741,66 +699,13 @@ class Shapes:
 
         Returns the coordinates q (n,).
         """
-        q = _bm.check_state(self.model, q0)
-        lam, dlam = 0.0, 1.0 / max(1, int(steps))
-        self.newton_iterations = []
-        while lam < 1.0 - 1e-14:
-            target = min(1.0, lam + dlam)
-            qn, its = self._newton_static(q, u, target, tol, max_iterations, t)
-            if qn is None:
-                dlam *= 0.5
-                if dlam < min_step:
-                    raise ConvergenceError(f"statics: Newton failed at load level {target:.4g} (reached {lam:.4g}) "
-                                           "with the minimum increment; use more steps, a better q0, or check "
-                                           "that the loads are reachable")
-                continue
-            q, lam = qn, target
-            self.newton_iterations.append(its)
-            if its <= 4:
-                dlam = min(2 * dlam, 1.0)
+        q, self.newton_iterations = _bm.statics(self.model, self.data, self._loads, u, q0, steps=steps, tol=tol,
+                                                max_iterations=max_iterations, min_step=min_step, t=t, owner=self)
         return q
-
-    def _newton_static(self, q, u, scale, tol, max_iterations, t):
-        def fun(x):
-            try:
-                return self._residual_static(x, u, scale, t)
-            except StateRangeError:              # an iterate left the finite range: the line search backs off
-                return np.full(self.n, np.nan)
-        q = q.copy()
-        r = fun(q)
-        for it in range(1, max_iterations + 1):
-            Kt = self._fd_tangent(fun, q, r)
-            try:
-                dq = -np.linalg.solve(Kt, r)
-            except np.linalg.LinAlgError:
-                return None, it
-            ref = np.linalg.norm(r)
-            step = 1.0
-            while True:
-                qn = q + step * dq
-                rn = fun(qn)
-                if np.all(np.isfinite(rn)) and np.linalg.norm(rn) <= (1 - 1e-4 * step) * ref or step < 1e-3:
-                    break
-                step *= 0.5
-            if not np.all(np.isfinite(rn)):
-                return None, it
-            q, r = qn, rn
-            scale_ref = np.linalg.norm(self.K @ q) + 1e-12 * np.linalg.norm(np.diag(self.K))
-            if np.linalg.norm(r) <= tol * scale_ref and np.linalg.norm(step * dq) <= 1e-8 * (1 + np.linalg.norm(q)):
-                return q, it
-        return None, max_iterations
 
     # ------------------------------------------------------------------------------------------------
     # dynamics
     # ------------------------------------------------------------------------------------------------
-    def _accel_terms(self, q, qd, t, u, data=None):
-        """(M, C qd + D qd + K q - f): the left-hand side without the inertia term, at (q, qd, t)."""
-        data = self.data if data is None else data
-        M, C, _ = _bm.dynamics(self.model, data, q, qd, self.gravity, True)
-        q, qd = np.asarray(q, dtype=float).reshape(-1), np.asarray(qd, dtype=float).reshape(-1)
-        f = self._external(data, q, qd, t, u)
-        return M.copy(), C @ qd + self.damping * (self.K @ qd) + self.K @ q - f
-
     def explicit_step_limit(self, q=None):
         """Stability limit [s] of explicit time stepping, :math:`2/\\omega_{max}` (central difference), from
         the largest natural frequency of the linearization about ``q``."""
@@ -829,161 +734,9 @@ class Shapes:
         The step is ``t_end / ceil(t_end / dt)`` (at most ``dt``). ``u``: inputs, an array or a callable of
         t [s]. Returns a :class:`BeamTrajectory` recorded every ``record_every`` steps (and at the end).
         """
-        if method not in ("implicit", "explicit"):
-            raise ParameterError("method must be 'implicit' or 'explicit'")
-        t_end, dt = float(t_end), float(dt)
-        if not (t_end > 0 and dt > 0 and np.isfinite(t_end) and np.isfinite(dt)):
-            raise ParameterError(f"t_end and dt must be positive [s], got {t_end!r}, {dt!r}")
-        record_every = int(record_every)
-        if record_every < 1:
-            raise ParameterError("record_every must be >= 1")
-        nsteps = int(np.ceil(t_end / dt - 1e-9))
-        dt = t_end / nsteps
-        min_dt = dt / 1024 if min_dt is None else float(min_dt)
-        q = _bm.check_state(self.model, q0).copy()
-        qd = _bm.check_state(self.model, qd0, "qd0").copy()
-        self._inputs_at(u, 0.0)                      # validate u before the loop
-        t0 = time.perf_counter()
-        rec = {"t": [], "q": [], "qd": [], "kin": [], "pot": [], "tip": []}
-        its_all = []
-        start = 0
-        if method == "implicit" and self._fast_eligible():
-            start, q, qd = self._simulate_fast(q, qd, dt, nsteps, u, tol, max_iterations, record_every, rec, its_all)
-        if start < nsteps:
-            self._simulate_python(q, qd, start, dt, nsteps, u, method, tol, max_iterations, min_dt, record_every,
-                                  rec, its_all)
-        wall = time.perf_counter() - t0
-        return BeamTrajectory(np.array(rec["t"]), np.array(rec["q"]), np.array(rec["qd"]), np.array(rec["kin"]),
-                              np.array(rec["pot"]), np.array(rec["tip"]),
-                              {"steps": nsteps, "dt": dt, "newton_iterations": np.array(its_all), "wall_time": wall,
-                               "method": method, "compiled_steps": start})
-
-    def _fast_eligible(self):
-        return not any(isinstance(ld, (_bm.Contact, _bm.UserForce, _bm.Tendon)) for ld in self._loads)
-
-    def _simulate_fast(self, q, qd, dt, nsteps, u, tol, max_iterations, record_every, rec, its_all):
-        """The compiled loop; returns (steps done, q, qd) and appends its records."""
-        from . import _beam
-        n, model, data = self.n, self.model, self.data
-        tm = (np.arange(nsteps) + 0.5) * dt
-        fext = np.zeros((nsteps, n))
-        if self.inputs:                  # chambers and actuators: forces independent of the configuration
-            for k, t in enumerate(tm):
-                fext[k] = _bm.input_force(model, data, self._loads, q, self._inputs_at(u, t))
-        point_loads = [ld for ld in self._loads if isinstance(ld, _bm.PointLoad)]
-        pl_nodes = np.array([ld.node * model.stride for ld in point_loads], dtype=np.int64)
-        pl_spatial = np.array([ld.frame == "spatial" for ld in point_loads], dtype=np.bool_)
-        pl_W = np.zeros((nsteps, len(point_loads), 6))
-        for j, ld in enumerate(point_loads):
-            for k, t in enumerate(tm):
-                pl_W[k, j] = ld.wrench(t)
-        nrec = nsteps // record_every + 1 + (nsteps % record_every != 0)
-        out_t, out_q, out_qd = np.zeros(nrec), np.zeros((nrec, n)), np.zeros((nrec, n))
-        out_e, out_tip, its = np.zeros((nrec, 2)), np.zeros((nrec, 3)), np.zeros(nsteps, dtype=np.int64)
-        done = _beam.integrate_midpoint(
-            q, qd, dt, nsteps, record_every, fext, pl_nodes, pl_W, pl_spatial, model.K, self.damping_matrix,
-            model.order, model.h, model.B, model.rows, model.X0, model.base, model.weights, model.Md,
-            np.array(self.gravity), float(tol), int(max_iterations), out_t, out_q, out_qd, out_e, out_tip, its,
-            data.G, data.J, data.Jd, data.eta, data.etad, data.S, data.E, data.V, data.Op, data.dOp, data.AJ,
-            data.W)
-        m = done // record_every + 1 + (done == nsteps and nsteps % record_every != 0)
-        if done < nsteps:
-            m = (done - 1) // record_every + 1 if done > 0 else 1
-        rec["t"] += list(out_t[:m])
-        rec["q"] += list(out_q[:m])
-        rec["qd"] += list(out_qd[:m])
-        rec["kin"] += list(out_e[:m, 0])
-        rec["pot"] += list(out_e[:m, 1])
-        rec["tip"] += list(out_tip[:m])
-        its_all += list(its[:done])
-        if done < nsteps and not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd))):
-            data.reset()
-            raise ConvergenceError(f"simulate: the state became non-finite at t = {done * dt:.6g} s; use a smaller "
-                                   "dt or check the loads")
-        return done, q, qd
-
-    def _simulate_python(self, q, qd, start, dt, nsteps, u, method, tol, max_iterations, min_dt, record_every, rec,
-                         its_all):
-        def record(t):
-            e = self.energy(q, qd)
-            rec["t"].append(t)
-            rec["q"].append(q.copy())
-            rec["qd"].append(qd.copy())
-            rec["kin"].append(e["kinetic"])
-            rec["pot"].append(e["elastic"] + e["gravity"])
-            rec["tip"].append(self.data.G[-1, :3, 3].copy())
-        t_end = nsteps * dt
-        t, k = start * dt, start
-        if start == 0:
-            record(t)
-        while k < nsteps:
-            h, t_next = dt, (k + 1) * dt
-            while t < t_next - 1e-12 * dt:          # sub-steps when a step must be cut
-                hh = min(h, t_next - t)
-                try:
-                    if method == "implicit":
-                        step = self._midpoint_step(q, qd, t, hh, u, tol, max_iterations)
-                    else:
-                        step = self._rk4_step(q, qd, t, hh, u)
-                except StateRangeError:              # an iterate left the finite range: a failed step, cut it
-                    step = None
-                if step is None:
-                    h *= 0.5
-                    if h < min_dt:
-                        raise ConvergenceError(f"simulate: the step at t = {t:.6g} s did not converge down to dt = "
-                                               f"{min_dt:.3g} s ({method}); use a smaller dt, the implicit method, "
-                                               "or check the loads")
-                    continue
-                q[:], qd[:], its = step
-                its_all.append(its)
-                t += hh
-            t, k = t_next, k + 1
-            if k % record_every == 0 or k == nsteps:
-                record(min(t, t_end))
-
-    def _midpoint_step(self, q, qd, t, h, u, tol, max_iterations):
-        """One implicit-midpoint step: Newton iterations on v_m with the matrix 2M/h + dCv/dv + D + h/2 K; when they
-        contract slowly (large steps with large rotations), the matrix is replaced by the finite-difference
-        Jacobian of the residual. Returns (q, qd, iterations) or None."""
-        Dm = self.damping * self.K
-
-        def residual(vm):
-            qm = q + 0.5 * h * vm
-            M, lhs = self._accel_terms(qm, vm, t + 0.5 * h, u)
-            return M @ (2.0 * (vm - qd) / h) + lhs, M, qm
-        vm = qd.copy()
-        R, M, qm = residual(vm)
-        S = 2.0 * M / h + self.coriolis_jacobian(qm, vm) + Dm + 0.5 * h * self.K
-        prev = np.inf
-        for it in range(1, max_iterations + 1):
-            if not np.all(np.isfinite(R)):
-                return None
-            nr = np.linalg.norm(R)
-            if it > 3 and nr > 0.25 * prev:
-                S = self._fd_tangent(lambda v: residual(v)[0], vm, R)
-            prev = nr
-            dv = np.linalg.solve(S, -R)
-            vm = vm + dv
-            R, M, qm = residual(vm)
-            ref = np.linalg.norm(self.K @ qm) + np.linalg.norm(M @ vm) / h
-            if np.linalg.norm(dv) <= tol * np.linalg.norm(vm) + 1e-12 or np.linalg.norm(R) <= 1e-3 * tol * ref:
-                return q + h * vm, 2.0 * vm - qd, it
-        return None
-
-    def _rk4_step(self, q, qd, t, h, u):
-        def f(x, v, tt):
-            M, lhs = self._accel_terms(x, v, tt, u)
-            return v, np.linalg.solve(M, -lhs)
-        k1 = f(q, qd, t)
-        k2 = f(q + 0.5 * h * k1[0], qd + 0.5 * h * k1[1], t + 0.5 * h)
-        k3 = f(q + 0.5 * h * k2[0], qd + 0.5 * h * k2[1], t + 0.5 * h)
-        k4 = f(q + h * k3[0], qd + h * k3[1], t + h)
-        qn = q + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
-        vn = qd + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
-        if not (np.all(np.isfinite(qn)) and np.all(np.isfinite(vn))) or np.linalg.norm(qn) > 1e6 * (
-                1 + np.linalg.norm(q)):
-            return None
-        return qn, vn, 0
+        return _bm.simulate(self.model, self.data, self._loads, t_end, dt, q0, qd0, u, tau=self.damping,
+                            method=method, tol=tol, max_iterations=max_iterations, min_dt=min_dt,
+                            record_every=record_every, owner=self)
 
     # ------------------------------------------------------------------------------------------------
     # inverse kinematics
@@ -1037,67 +790,6 @@ class Shapes:
         -------
         IKResult with ``q``, ``error`` (final |e| [m]), ``iterations``, ``converged``.
         """
-        tg = self._targets(targets)
-        q = _bm.check_state(self.model, q0).copy()
-        wrot = self.length if rotation_weight is None else float(rotation_weight)
-        if subtask is not None and subtask != "elastic" and not callable(subtask):
-            raise ParameterError("subtask must be 'elastic', a callable grad(q) -> (n,), or None")
-        nodes = np.array([i * self.model.stride for i, _, _ in tg], dtype=np.int64)
-        kinds = np.array([0 if k == "position" else 1 for _, k, _ in tg], dtype=np.int64)
-        goals = np.zeros((len(tg), 4, 4))
-        for j, (_, kind, v) in enumerate(tg):
-            if kind == "position":
-                goals[j] = np.eye(4)
-                goals[j, :3, 3] = v
-            else:
-                goals[j] = v
-        args = (nodes, kinds, goals, wrot, float(tol), int(max_iterations), float(damping), 1e6 * self.length)
-        from . import _beam
-        md, d = self.model, self.data
-        kin = (md.order, md.h, md.B, md.rows, md.X0, md.base, d.G, d.J, d.Jd, d.eta, d.S, d.E, d.V, d.Op, d.dOp,
-               d.AJ)
-        if not callable(subtask):
-            err, it, converged = _beam.ik_solve(q, *args, md.K, subtask_gain if subtask else 0.0, *kin)
-            if not (math.isfinite(err) and np.all(np.isfinite(q))):
-                d.reset()
-                raise ConvergenceError("inverse_kinematics: the iterations left the finite range; give a closer q0 "
-                                       "or a reachable target")
-        else:
-            err, it, converged = self._ik_python(q, args, subtask, subtask_gain)
-        return IKResult(q=q, error=float(err), iterations=int(it), converged=bool(converged))
-
-    def _ik_python(self, q, args, grad, gain):
-        """:func:`soroshapes._beam.ik_solve` with a Python subtask gradient ``grad(q)`` (same algorithm)."""
-        nodes, kinds, goals, wrot, tol, max_it, lam, lam_max = args
-        m = int(sum(3 if k == 0 else 6 for k in kinds))
-        e, A = np.empty(m), np.empty((m, self.n))
-
-        def error(x):
-            from . import _beam
-            d = self.state(x)
-            return _beam._ik_error(nodes, kinds, goals, wrot, d.G, d.J, e, A), e.copy(), A.copy()
-        err, ek, Ak = error(q)
-        it = 0
-        best, since_best = err, 0
-        while err >= tol and it < max_it and since_best < 10:
-            it += 1
-            AAt = Ak @ Ak.T + lam * lam * np.eye(m)
-            dq = Ak.T @ np.linalg.solve(AAt, ek)
-            stalled = np.linalg.norm(dq) < 1e-12 * (1 + np.linalg.norm(q))
-            g = np.asarray(grad(q), dtype=float).reshape(self.n)
-            gn = -(g - Ak.T @ np.linalg.solve(AAt, Ak @ g))
-            if np.linalg.norm(gn) > 0:
-                dq += gain * max(np.linalg.norm(dq), tol) * gn / np.linalg.norm(gn)
-            errn, en, An = error(q + dq)
-            if errn <= err + tol:
-                q[:], err, ek, Ak = q + dq, errn, en, An
-                lam = max(0.5 * lam, 1e-12)
-                if stalled:
-                    break
-                best, since_best = (err, 0) if err < best * (1 - 1e-9) else (best, since_best + 1)
-            else:
-                lam *= 4.0
-                if lam > lam_max:
-                    break
-        self.state(q)
-        return err, it, err < tol
+        return _bm.inverse_kinematics(self.model, self.data, self._targets(targets), q0, tol=tol,
+                                      max_iterations=max_iterations, damping=damping,
+                                      rotation_weight=rotation_weight, subtask=subtask, subtask_gain=subtask_gain)
