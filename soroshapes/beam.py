@@ -96,21 +96,16 @@ class BeamModel:
     node_weights: np.ndarray
     Md: np.ndarray
     K: np.ndarray
+    #: number of generalized coordinates and of nodes (segment ends, N+1); derived
+    n: int = field(init=False)
+    nodes: int = field(init=False)
 
     def __post_init__(self):
         for name in ("base", "sigma", "points", "h", "B", "X0", "weights", "node_weights", "Md", "K"):
             object.__setattr__(self, name, _frozen(getattr(self, name)))
         object.__setattr__(self, "rows", _frozen(self.rows, np.int64))
-
-    @property
-    def n(self):
-        """Number of generalized coordinates."""
-        return self.B.shape[2]
-
-    @property
-    def nodes(self):
-        """Number of nodes (segment ends), N+1."""
-        return self.sigma.shape[0]
+        object.__setattr__(self, "n", int(self.B.shape[2]))
+        object.__setattr__(self, "nodes", int(self.sigma.shape[0]))
 
     def at_nodes(self, a):
         """The node rows of an array over ``points`` (a view)."""

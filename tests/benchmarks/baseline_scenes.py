@@ -1,7 +1,8 @@
 """Scenes timed side by side in two code trees (run by bench_baseline.py as ``python baseline_scenes.py SCENE
 OUT.json`` with the tree to measure first on ``sys.path``); only the public API that both trees share is used.
 
-Each scene prints nothing and writes ``{"wall_s", "simulated_s", "figures"}`` (``figures``: arrays or numbers
+An optional fourth argument sets the beam quadrature of this tree (``trapezoid``: the baseline's discretization,
+so that the two trees compute the same model). Each scene prints nothing and writes ``{"wall_s", "simulated_s", "figures"}`` (``figures``: arrays or numbers
 to compare between the trees) to OUT.json. Demos are loaded from the ``demos/`` folder of the measured tree.
 """
 import importlib.util
@@ -89,7 +90,21 @@ SCENES = {"rod15": rod15, "soft_hand": soft_hand, "suzumori_gripper": _quick_dem
           "wavy_wall": _quick_demo("wavy_wall"), "manipulator_pick": _quick_demo("manipulator_pick"),
           "cold_start": cold_start}
 
+def _quadrature(name):
+    """Make ``name`` the default quadrature of every Shapes built in this process (this tree only: the baseline
+    has the trapezoidal rule and no such keyword)."""
+    import soroshapes.shapes as shapes
+    init = shapes.Shapes.__init__
+
+    def patched(self, *args, **kw):
+        kw.setdefault("quadrature", name)
+        init(self, *args, **kw)
+    shapes.Shapes.__init__ = patched
+
+
 if __name__ == "__main__":
     scene, out, tree = sys.argv[1], Path(sys.argv[2]), sys.argv[3]
+    if len(sys.argv) > 4:
+        _quadrature(sys.argv[4])
     result = SCENES[scene](tree)
     out.write_text(json.dumps(result))
