@@ -670,7 +670,7 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
     :math:`a = 2(v_m - \dot q_n)/h`, :math:`q_m = q_n + \tfrac h2 v_m`), with the LU factors of
     :math:`S = 2M/h + \partial(Cv)/\partial v + D + \tfrac h2 K` (:func:`coriolis_velocity_jacobian`)
     refreshed when a step needed more than ``REFRESH_ITS`` iterations (and every ``REFRESH_STEPS`` steps); the
-    predictor extrapolates the previous step's acceleration. External forces: gravity ``ag``, generalized forces ``fext`` (nsteps, n) and point wrenches ``pl_W`` (nsteps, p, 6), both at the step
+    predictor extrapolates the mean acceleration of the last two steps linearly. External forces: gravity ``ag``, generalized forces ``fext`` (nsteps, n) and point wrenches ``pl_W`` (nsteps, p, 6), both at the step
     midpoints. Converged when :math:`|\Delta v| \le` ``tol`` :math:`|v_m| + 10^{-12}`.
 
     Records t, q, qd, (kinetic, potential) and the tip position every ``rec_every`` steps (row 0 the start)
@@ -689,6 +689,7 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
     Cv = np.empty((n, n))
     fg = np.empty(n)
     acc_prev = np.zeros(n)
+    acc_prev2 = np.zeros(n)
     since = 1000
     last_its = 100
     rec = 0
@@ -717,7 +718,10 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
         if step == nsteps:
             return nsteps
         for k in range(n):
-            vm[k] = qd[k] + 0.5 * dt * acc_prev[k]
+            if step >= 2:       # the mean acceleration over the step, extrapolated linearly from the last two
+                vm[k] = qd[k] + 0.5 * dt * (2.0 * acc_prev[k] - acc_prev2[k])
+            else:
+                vm[k] = qd[k] + 0.5 * dt * acc_prev[k]
         if last_its > REFRESH_ITS or since >= REFRESH_STEPS:
             for k in range(n):
                 qm[k] = q[k] + 0.5 * dt * vm[k]
@@ -762,6 +766,7 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
         for k in range(n):
             qn = qd[k]
             qd[k] = 2.0 * vm[k] - qd[k]
+            acc_prev2[k] = acc_prev[k]
             acc_prev[k] = (qd[k] - qn) / dt
             q[k] += dt * vm[k]
     return nsteps
