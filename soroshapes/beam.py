@@ -44,7 +44,7 @@ from sorofem.errors import DataError, ParameterError
 __all__ = ["BeamModel", "BeamData", "StateRangeError", "BeamTrajectory", "IKResult", "Gravity", "PointLoad",
            "Chamber", "Tendon", "Actuator", "Contact", "UserForce", "check_state", "kinematics", "dynamics",
            "coriolis_jacobian", "inverse_dynamics", "forward_dynamics", "accelerations", "energy", "external_force",
-           "input_map", "inputs_at", "statics", "simulate", "inverse_kinematics"]
+           "input_map", "inputs_at", "LoadPlan", "statics", "simulate", "inverse_kinematics"]
 
 _NO_NODES, _NO_WRENCH, _NO_FLAGS = np.zeros(0, dtype=np.int64), np.zeros((0, 6)), np.zeros(0, dtype=np.bool_)
 
@@ -208,6 +208,15 @@ def check_state(model, q, what="q"):
     return q
 
 
+def _out_of_range(data, q, qd):
+    """Reset the workspace and return the error for a state whose frames or mass matrix left floating point."""
+    data.reset()
+    return StateRangeError(f"the state (max |q| = {np.max(np.abs(q)):.3g}, max |qd| = {np.max(np.abs(qd)):.3g}) "
+                           "makes the frames overflow or the mass matrix singular (strain times segment length "
+                           "beyond floating point, or a diverged iterate); give a physically meaningful state "
+                           "(|strain| of order 1/length) or a smaller step")
+
+
 def _guard(data, q, qd, rate):
     """Raise (after resetting the workspace) when the pass produced non-finite values. Non-finite values
     propagate along the chain, so the tip's frame, Jacobian and twist tell."""
@@ -215,10 +224,7 @@ def _guard(data, q, qd, rate):
     if rate:
         s += data.Jd[-1].sum()
     if not math.isfinite(s):
-        data.reset()
-        raise StateRangeError(f"the state (max |q| = {np.max(np.abs(q)):.3g}, max |qd| = {np.max(np.abs(qd)):.3g}) "
-                        "makes the frames overflow (strain times segment length beyond floating point); give "
-                        "a physically meaningful state (|strain| of order 1/length)")
+        raise _out_of_range(data, q, qd)
 
 
 def kinematics(model, data, q, qd=None, rate=False):
@@ -277,27 +283,25 @@ def inverse_dynamics(model, data, q, qd, qdd, gravity=None):
     return tau
 
 
-def forward_dynamics(model, data, q, qd, f_in, D, gravity, point_loads=(), t=0.0):
+def forward_dynamics(model, data, q, qd, f_in, D, gravity, point_loads=(), t=0.0, plan=None):
     r"""Accelerations :math:`\ddot q = M^{-1}(f_{in} + f_g + \sum_p J_p^T W_p - C\dot q - D\dot q - Kq)` (n,)
     in one compiled call (:func:`soroshapes._beam.forward_dynamics`): ``f_in`` (n,) the inputs' generalized
     force, ``D`` (n, n) the damping matrix, ``gravity`` (3,) [m/s^2], ``point_loads`` :class:`PointLoad` terms
-    evaluated at time ``t`` [s]. Configuration-dependent loads (contact, tendons, user forces) are not
-    included: :func:`external_force` covers them. Returns ``data.qdd``."""
+    evaluated at time ``t`` [s] (``plan``: a :class:`LoadPlan` holding their nodes and frames). Configuration-
+    dependent loads (contact, tendons, user forces) are not included: :func:`external_force` covers them. Returns
+    ``data.qdd``; a non-finite result (a state out of range) resets the workspace and raises."""
     from . import _beam
     q, qd = check_state(model, q), check_state(model, qd, "qd")
-    npl = len(point_loads)
-    nodes = np.array([ld.node * model.stride for ld in point_loads], dtype=np.int64) if npl else _NO_NODES
-    W = np.array([ld.wrench(t) for ld in point_loads]) if npl else _NO_WRENCH
-    spatial = np.array([ld.frame == "spatial" for ld in point_loads], dtype=np.bool_) if npl else _NO_FLAGS
+    if plan is None:
+        plan = LoadPlan.of(model, point_loads)
+    W = np.array([ld.wrench(t) for ld in plan.point_loads]) if plan.point_loads else _NO_WRENCH
+    nodes, spatial = plan.nodes, plan.spatial
     ok = _beam.forward_dynamics(q, qd, f_in, model.K, D, nodes, W, spatial, model.order, model.h, model.B,
                                 model.rows, model.X0, model.base, model.weights, model.Md, gravity, data.G, data.J,
                                 data.Jd, data.eta, data.etad, data.S, data.E, data.V, data.Op, data.AJ, data.W,
                                 data.M, data.C, data.fg, data.R, data.piv, data.qdd)
-    _guard(data, q, qd, False)
-    if not (ok and math.isfinite(data.qdd.sum())):
-        data.reset()
-        raise StateRangeError(f"the mass matrix is numerically singular at max |q| = {np.max(np.abs(q)):.3g}: the "
-                              "state is far outside the beam's range (a diverged iterate); use a smaller step")
+    if not (ok and math.isfinite(data.qdd.sum())):          # a non-finite frame makes M and qdd non-finite
+        raise _out_of_range(data, q, qd)
     return data.qdd
 
 
@@ -607,23 +611,56 @@ def _accel_terms(model, data, loads, q, qd, t, uv, tau, owner):
     return M.copy(), C @ qd + tau * (model.K @ qd) + model.K @ q - f
 
 
-def accelerations(model, data, loads, q, qd, t=0.0, u=None, tau=0.0, owner=None):
+@dataclass(frozen=True, eq=False)
+class LoadPlan:
+    """What the compiled kernels need from a list of loads, gathered once (rebuild it when the loads or the
+    damping change): whether every term runs compiled, the gravity [m/s^2], the damping matrix ``D``, the
+    constant input matrix (n, m) when every input is linear and configuration independent (else None), and the
+    point loads with their workspace rows and frames."""
+
+    compiled: bool
+    gravity: np.ndarray
+    D: np.ndarray
+    input_matrix: object
+    point_loads: tuple
+    nodes: np.ndarray
+    spatial: np.ndarray
+
+    @classmethod
+    def of(cls, model, loads, tau=0.0):
+        """The plan of ``loads`` on ``model`` with Kelvin-Voigt damping ``tau`` [s]."""
+        points = tuple(ld for ld in loads if isinstance(ld, PointLoad))
+        terms = input_terms(loads)
+        linear = all(isinstance(ld, Chamber) or (isinstance(ld, Actuator) and isinstance(
+            getattr(ld.fn, "column", None), np.ndarray)) for ld in terms)
+        G = None
+        if linear:
+            G = np.zeros((model.n, len(terms)))
+            for j, ld in enumerate(terms):
+                G[:, j] = ld.column if isinstance(ld, Chamber) else ld.fn.column
+        nodes = np.array([ld.node * model.stride for ld in points], dtype=np.int64) if points else _NO_NODES
+        spatial = np.array([ld.frame == "spatial" for ld in points], dtype=np.bool_) if points else _NO_FLAGS
+        return cls(compiled_loads(loads), gravity_of(loads), tau * model.K, G, points, nodes, spatial)
+
+
+def accelerations(model, data, loads, q, qd, t=0.0, u=None, tau=0.0, owner=None, plan=None):
     r"""Accelerations :math:`\ddot q = M^{-1}(f - C\dot q - D\dot q - Kq)` with all ``loads`` at state (q, qd),
     time t [s], inputs ``u``, damping :math:`D = \tau K` (``tau`` [s]); one compiled call when the loads allow
-    (:func:`forward_dynamics`), else the assembled matrices."""
+    (:func:`forward_dynamics`), else the assembled matrices. ``plan``: the loads' :class:`LoadPlan` (made here
+    when not given)."""
     uv = inputs_at(loads, u, t)
-    if compiled_loads(loads):
-        f_in = input_force(model, data, loads, None, uv) if len(uv) else np.zeros(model.n)
-        points = [ld for ld in loads if isinstance(ld, PointLoad)]
-        return forward_dynamics(model, data, q, qd, f_in, tau * model.K, gravity_of(loads), points, t).copy()
+    plan = LoadPlan.of(model, loads, tau) if plan is None else plan
+    if plan.compiled:
+        if plan.input_matrix is not None:
+            f_in = plan.input_matrix @ uv
+        else:
+            f_in = input_force(model, data, loads, None, uv) if len(uv) else np.zeros(model.n)
+        return forward_dynamics(model, data, q, qd, f_in, plan.D, plan.gravity, plan.point_loads, t, plan).copy()
     M, lhs = _accel_terms(model, data, loads, q, qd, t, uv, tau, owner)
     try:
         return np.linalg.solve(M, -lhs)
     except np.linalg.LinAlgError:
-        data.reset()
-        raise StateRangeError(f"the mass matrix is numerically singular at max |q| = {np.max(np.abs(q)):.3g}: the "
-                              "state is far outside the beam's range (a diverged iterate); use a smaller "
-                              "step") from None
+        raise _out_of_range(data, np.asarray(q, dtype=float), np.asarray(qd, dtype=float)) from None
 
 
 def simulate(model, data, loads, t_end, dt, q0=None, qd0=None, u=None, *, tau=0.0, method="implicit", tol=1e-8,

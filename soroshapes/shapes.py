@@ -229,11 +229,33 @@ class Shapes:
         self.model = self._discretize(segments)
         self.data = self.model.make_data()
         self._loads = []         # soroshapes.beam load terms, in the order they were added
+        self._plan = None        # their LoadPlan, made on first use
         if damping is None:
             damping = 2.0 * zeta / self.natural_frequencies(1)[0] / (2 * np.pi) if zeta > 0 else 0.0
         if not (np.isfinite(damping) and damping >= 0):
             raise ParameterError(f"damping must be a time constant >= 0 [s], got {damping!r}")
         self.damping = float(damping)
+
+    @property
+    def damping(self):
+        """Kelvin-Voigt time constant :math:`\tau` [s] of :math:`D = \tau K`."""
+        return self._damping
+
+    @damping.setter
+    def damping(self, tau):
+        tau = float(tau)
+        if not (np.isfinite(tau) and tau >= 0):
+            raise ParameterError(f"damping must be a time constant >= 0 [s], got {tau!r}")
+        self._damping, self._plan = tau, None
+
+    def _add_load(self, term):
+        self._loads.append(term)
+        self._plan = None
+
+    def _load_plan(self):
+        if self._plan is None:
+            self._plan = _bm.LoadPlan.of(self.model, self._loads, self.damping)
+        return self._plan
 
     def make_data(self):
         """A new workspace for this beam (queries with ``data=`` leave the default one untouched)."""
@@ -417,7 +439,8 @@ class Shapes:
             raise ParameterError("gravity must be a 3-vector [m/s^2]")
         g = g.copy()
         g.flags.writeable = False
-        self._loads = [ld for ld in self._loads if not isinstance(ld, _bm.Gravity)] + [_bm.Gravity(g)]
+        self._loads = [ld for ld in self._loads if not isinstance(ld, _bm.Gravity)]
+        self._add_load(_bm.Gravity(g))
         return self
 
     @property
@@ -445,7 +468,7 @@ class Shapes:
             if v.shape != (3,) or not np.all(np.isfinite(v)):
                 raise ParameterError(f"{what} must be a finite 3-vector or a callable of t")
             return _Constant(v)
-        self._loads.append(_bm.PointLoad(self.node(at), signal(force, "force"), signal(moment, "moment"), frame))
+        self._add_load(_bm.PointLoad(self.node(at), signal(force, "force"), signal(moment, "moment"), frame))
         return self
 
     def _input_name(self, name, kind):
@@ -464,7 +487,7 @@ class Shapes:
         a, b = self._span(span)
         W = area * np.array([0.0, off[1], -off[0], 1.0, 0.0, 0.0])
         col = self._quad(lambda s: np.einsum("mri,r->mi", self.theta(s), W), a, b)
-        self._loads.append(_bm.Chamber(self._input_name(name, "chamber"), col))
+        self._add_load(_bm.Chamber(self._input_name(name, "chamber"), col))
         return self
 
     def add_tendon(self, offset, span=None, name=None):
@@ -482,7 +505,7 @@ class Shapes:
         pts = self.model.points[:-1, None] + h[:, None] * np.array(gp)[None, :]
         wts = np.repeat(h[:, None] / len(gp), len(gp), axis=1)
         mask = (pts >= a - 1e-12) & (pts <= b + 1e-12)
-        self._loads.append(_bm.Tendon(self._input_name(name, "tendon"), np.array([0.0, off[0], off[1]]), wts * mask))
+        self._add_load(_bm.Tendon(self._input_name(name, "tendon"), np.array([0.0, off[0], off[1]]), wts * mask))
         return self
 
 
@@ -506,7 +529,7 @@ class Shapes:
             if col.shape != (self.n,) or not np.all(np.isfinite(col)):
                 raise ParameterError(f"an actuator column must have {self.n} finite entries")
             fn = _Linear(col)
-        self._loads.append(_bm.Actuator(self._input_name(name, "actuator"), fn))
+        self._add_load(_bm.Actuator(self._input_name(name, "actuator"), fn))
         return self
 
     def add_contact(self, obstacle, stiffness=None, damping=0.0, friction=0.0, regularization=1e-3):
@@ -527,7 +550,7 @@ class Shapes:
                 raise ParameterError(f"contact {name} must be >= 0, got {v!r}")
         if k <= 0 or regularization <= 0:
             raise ParameterError("contact stiffness and regularization must be positive")
-        self._loads.append(_bm.Contact(obstacle, k, float(damping), float(friction), float(regularization),
+        self._add_load(_bm.Contact(obstacle, k, float(damping), float(friction), float(regularization),
                                        self.contact_radius))
         return self
 
@@ -535,7 +558,7 @@ class Shapes:
         """A user generalized force ``f(shapes, q, qd, t) -> (n,)`` [N or N m per coordinate]."""
         if not callable(f):
             raise ParameterError("add_force needs a callable f(shapes, q, qd, t) -> (n,) array")
-        self._loads.append(_bm.UserForce(f))
+        self._add_load(_bm.UserForce(f))
         return self
 
     @property
@@ -639,7 +662,7 @@ class Shapes:
         inputs ``u`` (all loads included), from one kinematic pass (one compiled call unless contact, tendons or
         user forces are present: :func:`soroshapes.beam.accelerations`)."""
         return _bm.accelerations(self.model, self.data if data is None else data, self._loads, q, qd, t, u,
-                                 self.damping, self)
+                                 self.damping, self, self._load_plan())
 
     def generalized_force(self, q, qd=None, t=0.0, u=None, *, data=None):
         """Generalized force [N or N m per coordinate] (n,) of all loads (gravity, inputs ``u``, point loads,
