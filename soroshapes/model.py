@@ -616,6 +616,19 @@ class Model:
         return list(self._blocks)
 
     @property
+    def evaluation_paths(self):
+        """How each system, the couplings and the controller are evaluated at every stage of a step: a dict of
+        ``"compiled"`` (numba, no Python in the loop: beams with gravity, inputs and point loads only) or
+        ``"python..."`` (Fluidic, StateSpace and rigid-body right-hand sides, beams with contact, tendons or user
+        forces, and every callable coupling and controller). Also in a trajectory's ``stats``."""
+        paths = {name: getattr(b.system, "evaluation_path", "python") for name, b in self._blocks.items()}
+        if self._links:
+            paths["couplings"] = "python"
+        if self._controller is not None:
+            paths["controller"] = "python"
+        return paths
+
+    @property
     def n(self):
         """Total number of states."""
         return sum(b.n for b in self._blocks.values())
@@ -1089,6 +1102,7 @@ class Model:
                                        "s; loosen rtol/atol or check the model for discontinuities")
 
     def _trajectory(self, t, X, W):
+        self._stats["evaluation_paths"] = self.evaluation_paths
         systems, U = {}, []
         for b in self._blocks.values():
             x, w = X[:, b.sl], W[:, b.wsl]

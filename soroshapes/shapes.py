@@ -257,6 +257,15 @@ class Shapes:
             self._plan = _bm.LoadPlan.of(self.model, self._loads, self.damping)
         return self._plan
 
+    @property
+    def evaluation_path(self):
+        """How :meth:`forward_dynamics` (and so a :class:`~soroshapes.model.Model` block) evaluates this beam:
+        ``"compiled"`` (one numba call: gravity, inputs, point loads) or ``"python: ..."`` naming the load terms
+        that need Python (contact, tendons, user forces; several times slower)."""
+        slow = sorted({type(ld).__name__ for ld in self._loads if isinstance(ld, (_bm.Contact, _bm.Tendon,
+                                                                                    _bm.UserForce))})
+        return "compiled" if not slow else "python: " + ", ".join(slow)
+
     def make_data(self):
         """A new workspace for this beam (queries with ``data=`` leave the default one untouched)."""
         return self.model.make_data()

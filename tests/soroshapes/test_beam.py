@@ -186,3 +186,16 @@ def test_compiled_forward_dynamics_equals_the_assembled_one():
         shp.forward_dynamics(q, v, 0.7, u)
     q[0] = 0.0
     assert np.all(np.isfinite(shp.forward_dynamics(q, v, 0.7, u)))
+
+
+def test_the_model_says_which_path_each_block_takes():
+    from soroshapes import Fluidic, Model
+    fast = rod().add_chamber(1e-5, (0.0, 0.002), name="chamber")
+    slow = rod().add_contact(sdf.Plane((0, 0, -0.05), (0, 0, 1))).add_force(lambda s, q, qd, t: np.zeros(7))
+    assert fast.evaluation_path == "compiled"
+    assert slow.evaluation_path == "python: Contact, UserForce"
+    mdl = Model().add(fast, "fast").add(slow, "slow").add(Fluidic(None, V0=1e-6), "p")
+    mdl.connect(lambda m: 1e-6, "p", port="volume").connect("p", "fast")
+    tr = mdl.simulate(2e-3, 1e-3)
+    assert tr.stats["evaluation_paths"] == {"fast": "compiled", "slow": "python: Contact, UserForce",
+                                            "p": "python", "couplings": "python"}
