@@ -84,6 +84,7 @@ A closed isothermal reservoir squeezed to half its volume doubles its absolute p
 from __future__ import annotations
 
 import logging
+import math
 import time as _time
 from dataclasses import dataclass, field
 
@@ -96,6 +97,11 @@ from .numerics import FD_STEP, fd_columns
 __all__ = ["StateSpace", "Fluidic", "Model", "ModelTrajectory", "SystemTrajectory"]
 
 log = logging.getLogger(__name__)
+
+
+def _finite(v):
+    """All entries finite (the sum first: one pass, and finite sums are the rule)."""
+    return math.isfinite(np.add.reduce(v, axis=None)) or bool(np.all(np.isfinite(v)))
 
 
 def _vec(v, what):
@@ -662,6 +668,11 @@ class Model:
         self._N, self._NW = i, j
         coupled = {(id(t), k) for _, t, ii in self._links if ii != "volume" for k in ii}
         self._free = [(b, k) for b in self._blocks.values() for k in range(b.m) if (id(b), k) not in coupled]
+        self._free_at = {}                   # system name -> positions of its free inputs among the free inputs
+        for p, (b, _) in enumerate(self._free):
+            self._free_at.setdefault(b.name, []).append(p)
+        self._free_at = {name: np.array(pos, dtype=int) for name, pos in self._free_at.items()}
+        self._free_rows = np.array([b.wsl.start + k for b, k in self._free], dtype=int)
         self._vol_link = {id(t): s for s, t, ii in self._links if ii == "volume"}
         for b in self._blocks.values():
             if b.kind == "fluidic" and b.system.volume is None and id(b) not in self._vol_link:
@@ -734,7 +745,7 @@ class Model:
         if isinstance(v, dict):
             out = np.zeros(nfree)
             for name, val in v.items():
-                pos = [p for p, (b, _) in enumerate(self._free) if b.name == name]
+                pos = self._free_at.get(name, ())
                 if name not in self._blocks:
                     raise ParameterError(f"controller returned inputs for unknown system {name!r}; systems: "
                                          f"{', '.join(self._blocks)}")
@@ -753,7 +764,7 @@ class Model:
                 raise ParameterError(f"controller returned {out.size} inputs, the model has {nfree} free inputs: "
                                      + "; ".join(f"system {n!r}: {v}" for n, v in per.items())
                                      + " (or return a dict {system name: inputs})")
-        if not np.all(np.isfinite(out)):
+        if not _finite(out):
             bad = {self._free[p][0].name for p in np.nonzero(~np.isfinite(out))[0]}
             raise DataError(f"controller returned non-finite inputs for system(s) {sorted(bad)} at t = {self.t:.6g} s")
         return out
@@ -780,9 +791,9 @@ class Model:
                     raise DataError(f"the volume of Fluidic {b.name!r} is {V!r} at t = {t:.6g} s; it must be a "
                                     "positive scalar [m^3]")
                 w[b.wsl.start + 1] = V
-        for p, val in enumerate(self._controller_values()):
-            b, k = self._free[p]
-            w[b.wsl.start + k] = val
+        u = self._controller_values()           # called even without free inputs: it may check and raise
+        if len(u):
+            w[self._free_rows] = u
         for src, b, idx in self._links:
             if idx == "volume":
                 continue
@@ -794,7 +805,7 @@ class Model:
             if val.shape != (len(idx),):
                 raise ParameterError(f"coupling into system {b.name!r}: the {what} has {val.size} entries, but "
                                      f"{len(idx)} inputs {[b.input_names[k] for k in idx]} are connected")
-            if not np.all(np.isfinite(val)):
+            if not _finite(val):
                 raise DataError(f"coupling into system {b.name!r}: the {what} is not finite at t = {t:.6g} s")
             w[b.wsl.start + np.asarray(idx)] = val
         return w
@@ -807,7 +818,7 @@ class Model:
                 v = b.rhs(x[b.sl], w[b.wsl], t)
             except SoroError as err:
                 raise type(err)(f"system {b.name!r} at t = {t:.6g} s: {err}") from err
-            if v.shape != (b.n,) or not np.all(np.isfinite(v)):
+            if v.shape != (b.n,) or not _finite(v):
                 raise DataError(f"system {b.name!r} gave a non-finite or mis-sized derivative {v.shape} at "
                                 f"t = {t:.6g} s (expected {b.n} finite values)")
             out[b.sl] = v
