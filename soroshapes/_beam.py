@@ -671,7 +671,8 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
     :math:`S = 2M/h + \partial(Cv)/\partial v + D + \tfrac h2 K` (:func:`coriolis_velocity_jacobian`)
     refreshed when a step needed more than ``REFRESH_ITS`` iterations (and every ``REFRESH_STEPS`` steps); the
     predictor extrapolates the mean acceleration of the last two steps linearly. External forces: gravity ``ag``, generalized forces ``fext`` (nsteps, n) and point wrenches ``pl_W`` (nsteps, p, 6), both at the step
-    midpoints. Converged when :math:`|\Delta v| \le` ``tol`` :math:`|v_m| + 10^{-12}`.
+    midpoints. A step whose iterations fail with a matrix older than the step is retried once with a fresh
+    matrix. Converged when :math:`|\Delta v| \le` ``tol`` :math:`|v_m| + 10^{-12}`.
 
     Records t, q, qd, (kinetic, potential) and the tip position every ``rec_every`` steps (row 0 the start)
     into the ``out_*`` arrays; returns the number of steps done (< nsteps when a step failed to converge: the
@@ -717,50 +718,56 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
             rec += 1
         if step == nsteps:
             return nsteps
-        for k in range(n):
-            if step >= 2:       # the mean acceleration over the step, extrapolated linearly from the last two
-                vm[k] = qd[k] + 0.5 * dt * (2.0 * acc_prev[k] - acc_prev2[k])
-            else:
-                vm[k] = qd[k] + 0.5 * dt * acc_prev[k]
-        if last_its > REFRESH_ITS or since >= REFRESH_STEPS:
-            for k in range(n):
-                qm[k] = q[k] + 0.5 * dt * vm[k]
-            kinematics(qm, vm, True, order, h, B, rows, xi0, g0, G, J, Jd, eta, S, E, V, Op, dOp, AJ)
-            mass_coriolis_gravity(J, Jd, eta, G, w, Md, ag, M, C, fg, True, S, V, AJ)
-            coriolis_velocity_jacobian(J, Jd, eta, w, Md, C, Cv, S, AJ)
-            for k in range(n):
-                for l in range(n):
-                    Sm[k, l] = 2.0 * M[k, l] / dt + Cv[k, l] + D[k, l] + 0.5 * dt * K[k, l]
-            if not _lu(Sm, piv):
-                return step
-            since = 0
-        since += 1
         ok = False
-        for it in range(1, max_it + 1):
+        spent = 0
+        for attempt in range(2):        # a step that fails with an old matrix is retried with a fresh one
             for k in range(n):
-                qm[k] = q[k] + 0.5 * dt * vm[k]
-                a[k] = 2.0 * (vm[k] - qd[k]) / dt
-            kinematics_vec(qm, vm, order, h, B, rows, xi0, g0, G, J, eta, etad, S, E, V, Op, AJ, W)
-            generalized_inertial_force(J, eta, etad, G, w, Md, a, ag, pl_nodes, pl_W[step], pl_spatial, R)
-            for k in range(n):
-                s = R[k] - fext[step, k]
-                for l in range(n):
-                    s += D[k, l] * vm[l] + K[k, l] * qm[l]
-                R[k] = -s
-            _lu_solve(Sm, piv, R)
-            dv = 0.0
-            nv = 0.0
-            for k in range(n):
-                vm[k] += R[k]
-                dv += R[k] * R[k]
-                nv += vm[k] * vm[k]
-            if not np.isfinite(dv):
-                return step
-            if np.sqrt(dv) <= tol * np.sqrt(nv) + 1e-12:
-                ok = True
-                its[step] = it
-                last_its = it
+                if step >= 2:       # the mean acceleration over the step, extrapolated linearly from the last two
+                    vm[k] = qd[k] + 0.5 * dt * (2.0 * acc_prev[k] - acc_prev2[k])
+                else:
+                    vm[k] = qd[k] + 0.5 * dt * acc_prev[k]
+            fresh = last_its > REFRESH_ITS or since >= REFRESH_STEPS or attempt == 1
+            if fresh:
+                for k in range(n):
+                    qm[k] = q[k] + 0.5 * dt * vm[k]
+                kinematics(qm, vm, True, order, h, B, rows, xi0, g0, G, J, Jd, eta, S, E, V, Op, dOp, AJ)
+                mass_coriolis_gravity(J, Jd, eta, G, w, Md, ag, M, C, fg, True, S, V, AJ)
+                coriolis_velocity_jacobian(J, Jd, eta, w, Md, C, Cv, S, AJ)
+                for k in range(n):
+                    for l in range(n):
+                        Sm[k, l] = 2.0 * M[k, l] / dt + Cv[k, l] + D[k, l] + 0.5 * dt * K[k, l]
+                if not _lu(Sm, piv):
+                    return step
+                since = 0
+            since += 1
+            for it in range(1, max_it + 1):
+                for k in range(n):
+                    qm[k] = q[k] + 0.5 * dt * vm[k]
+                    a[k] = 2.0 * (vm[k] - qd[k]) / dt
+                kinematics_vec(qm, vm, order, h, B, rows, xi0, g0, G, J, eta, etad, S, E, V, Op, AJ, W)
+                generalized_inertial_force(J, eta, etad, G, w, Md, a, ag, pl_nodes, pl_W[step], pl_spatial, R)
+                for k in range(n):
+                    s = R[k] - fext[step, k]
+                    for l in range(n):
+                        s += D[k, l] * vm[l] + K[k, l] * qm[l]
+                    R[k] = -s
+                _lu_solve(Sm, piv, R)
+                dv = 0.0
+                nv = 0.0
+                for k in range(n):
+                    vm[k] += R[k]
+                    dv += R[k] * R[k]
+                    nv += vm[k] * vm[k]
+                if not np.isfinite(dv):
+                    break
+                if np.sqrt(dv) <= tol * np.sqrt(nv) + 1e-12:
+                    ok = True
+                    its[step] = spent + it
+                    last_its = it
+                    break
+            if ok or fresh:
                 break
+            spent = it
         if not ok:
             return step
         for k in range(n):
