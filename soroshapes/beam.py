@@ -21,7 +21,9 @@ Contact acts at the nodes with the trapezoidal weights ``node_weights``. ``model
   :class:`Contact`, :class:`UserForce`, each giving its generalized force at the kinematics held in a workspace;
   :func:`external_force` sums a list of them.
 * Algorithms are functions of ``(model, data, ...)``: :func:`kinematics`, :func:`dynamics`,
-  :func:`coriolis_jacobian`, :func:`inverse_dynamics`, :func:`energy`.
+  :func:`coriolis_jacobian`, :func:`inverse_dynamics`, :func:`forward_dynamics` (one compiled call),
+  :func:`energy`; and of ``(model, data, loads, ...)``: :func:`accelerations`, :func:`statics`,
+  :func:`simulate`, :func:`inverse_kinematics`.
 
 :class:`~soroshapes.shapes.Shapes` builds a model, keeps its list of loads and one default workspace, and its
 methods are thin wrappers over these functions.
