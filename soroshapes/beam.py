@@ -607,10 +607,11 @@ def statics(model, data, loads, u=None, q0=None, *, steps=1, tol=1e-9, max_itera
 # ------------------------------------------------------------------------------------------------------------
 def _accel_terms(model, data, loads, q, qd, t, uv, tau, owner):
     """(M, C qd + D qd + K q - f) at (q, qd, t): the left-hand side without the inertia term."""
-    M, C, _ = dynamics(model, data, q, qd, gravity_of(loads), True)
+    M, C, fg = dynamics(model, data, q, qd, gravity_of(loads), True)
+    M, C, fg = M.copy(), C.copy(), fg.copy()           # the gravity force of this pass serves the Gravity term
     q, qd = np.asarray(q, dtype=float).reshape(-1), np.asarray(qd, dtype=float).reshape(-1)
-    f = external_force(model, data, loads, q, qd, t, uv, 1.0, owner)
-    return M.copy(), C @ qd + tau * (model.K @ qd) + model.K @ q - f
+    f = external_force(model, data, [ld for ld in loads if not isinstance(ld, Gravity)], q, qd, t, uv, 1.0, owner)
+    return M, C @ qd + tau * (model.K @ qd) + model.K @ q - f - fg
 
 
 @dataclass(frozen=True, eq=False)
