@@ -97,6 +97,7 @@ from .numerics import FD_STEP, fd_columns
 __all__ = ["StateSpace", "Fluidic", "Model", "ModelTrajectory", "SystemTrajectory"]
 
 log = logging.getLogger(__name__)
+_NO_POSITIONS = np.zeros(0, dtype=int)
 
 
 def _finite(v):
@@ -745,7 +746,7 @@ class Model:
         if isinstance(v, dict):
             out = np.zeros(nfree)
             for name, val in v.items():
-                pos = self._free_at.get(name, ())
+                pos = self._free_at.get(name, _NO_POSITIONS)
                 if name not in self._blocks:
                     raise ParameterError(f"controller returned inputs for unknown system {name!r}; systems: "
                                          f"{', '.join(self._blocks)}")
