@@ -106,7 +106,8 @@ def main(out: Path, quick: bool = False) -> dict:
 
     log_t, log_tip, log_p = [], [], []
     reached = []
-    with Board.simulated(channels=5, beam=shp, board_rate=200.0) as brd:
+    # keepalive: the session survives any pause before brd.loop starts (which then feeds the watchdog itself)
+    with Board.simulated(channels=5, beam=shp, board_rate=200.0, keepalive=True) as brd:
         k_end = [int(round((i + 1) * hold * 100)) for i in range(len(seq))]
         it = 0
         for t in brd.loop(duration=hold * len(seq), rate=100.0):

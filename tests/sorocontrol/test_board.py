@@ -679,6 +679,7 @@ def test_simulated_plant_follows_the_closed_form_step_response():
 
 def test_simulated_board_reaches_the_setpoint():
     with Board.simulated(channels=2, time_constant=0.02) as brd:
+        time.sleep(1.0)        # set-up work longer than the watchdog: the keepalive holds the session
         brd.set_pressure([30e3, -30e3])
         wait_until(lambda: brd.read().time > brd.state.time * 0 + 0.4 and np.allclose(
             brd.state.measured, [30e3, -30e3], rtol=0.01))
