@@ -354,7 +354,7 @@ class BoardServer:
 
     def _login_failed(self, addr):
         count = self._failures.pop(addr, (0, 0.0))[0] + 1
-        wait = min(self.backoff[0] * 2 ** (count - 1), self.backoff[1])
+        wait = min(self.backoff[0] * 2.0 ** min(count - 1, 64), self.backoff[1])
         self._failures[addr] = (count, self._clock() + wait)
         while len(self._failures) > 4096:
             self._failures.popitem(last=False)
@@ -368,10 +368,15 @@ class BoardServer:
             while not self._stop.is_set():
                 self._accept_alive = time.monotonic()
                 for key, _ in sel.select(timeout=0.05):
-                    if key.data is None:
-                        self._accept(sel, pending)
-                    else:
-                        self._login_step(sel, pending, key.fileobj)
+                    try:
+                        if key.data is None:
+                            self._accept(sel, pending)
+                        else:
+                            self._login_step(sel, pending, key.fileobj)
+                    except Exception as e:  # noqa: BLE001 - the accept loop must survive any peer
+                        self._event(f"internal error in the accept loop: {type(e).__name__}: {e}")
+                        if key.data is not None:
+                            self._forget(sel, pending, key.fileobj, P.ErrorCode.INTERNAL, "internal error")
                 now = self._clock()
                 for conn in [c for c, pd in pending.items() if now > pd.deadline]:
                     self.counters["expired"] += 1

@@ -188,6 +188,13 @@ def test_failed_logins_back_off_per_address(stepped):
         assert srv.counters["auth_failures"] == checked == k   # refused attempts check no secret
         srv.clock.advance(wait * 0.02)
     assert srv.counters["backoff_refusals"] == 16
+    for k in range(9, 2000):           # a long attack: the wait stays at its cap (no overflow of 2**k)
+        srv.clock.advance(10.0)
+        with pytest.raises(ProtocolError, match="wrong shared secret"):
+            Board.connect(url(srv), secret=WRONG)
+    with pytest.raises(ProtocolError, match="retry in 10.0 s"):
+        Board.connect(url(srv), secret=WRONG)
+    srv.clock.advance(10.0)
     with Board.connect(url(srv), secret=SECRET, keepalive=False) as brd:
         brd.read()
     with pytest.raises(ProtocolError, match="wrong shared secret"):
