@@ -203,6 +203,26 @@ def test_failed_logins_back_off_per_address(stepped):
         Board.connect(url(srv), secret=WRONG)
 
 
+def test_each_pending_login_has_its_own_deadline_not_the_watchdog(stepped):
+    """A connection has auth_timeout (2 s of board time) to log in, however long the watchdog (0.3 s): AUTH
+    after 1.5 s is accepted; after 2.1 s the board has answered ERROR auth and closed."""
+    srv = stepped
+    late = socket.create_connection(srv.address, timeout=DEADLINE)
+    hello = P.unpack_hello(P.read_frame(late)[1])
+    slow = socket.create_connection(srv.address, timeout=DEADLINE)
+    hello_slow = P.unpack_hello(P.read_frame(slow)[1])
+    srv.clock.advance(1.5)
+    nc = P.new_nonce()
+    slow.sendall(P.encode(P.MessageType.AUTH, P.pack_auth(nc, P.client_proof(SECRET, hello_slow.nonce, nc))))
+    assert P.read_frame(slow)[0] == P.MessageType.READY
+    srv.clock.advance(0.6)
+    mtype, payload = P.read_frame(late)          # the accept loop expires it within its 50 ms poll
+    assert mtype == P.MessageType.ERROR and "no AUTH within 2.0 s" in P.unpack_error(payload)[1]
+    assert srv.counters["expired"] == 1 and hello.nonce != hello_slow.nonce
+    late.close()
+    slow.close()
+
+
 def test_client_checks_the_board_knows_the_secret():
     """A fake board that answers READY without knowing the secret is detected (mutual authentication)."""
     lst = socket.create_server(("127.0.0.1", 0))
