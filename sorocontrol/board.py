@@ -208,7 +208,7 @@ class Board:
             raise ProtocolError(f"expected HELLO from the board, got {mtype.name}")
         hello = P.unpack_hello(payload)
         client_nonce = P.new_nonce()
-        self._sock.sendall(P.encode(P.MessageType.AUTH, P.pack_auth(
+        P.send_frame(self._sock, P.encode(P.MessageType.AUTH, P.pack_auth(
             client_nonce, P.client_proof(secret, hello.nonce, client_nonce))))
         mtype, payload = self._receive()
         if mtype != P.MessageType.READY:
@@ -243,7 +243,7 @@ class Board:
             if self._closed:
                 raise ProtocolError("the board connection is closed")
             try:
-                self._sock.sendall(self._session.seal(mtype, payload))
+                P.send_frame(self._sock, self._session.seal(mtype, payload))
             except OSError as e:
                 raise ProtocolError(f"lost the board: {e}") from e
             rtype, rpayload = self._receive()
@@ -314,7 +314,7 @@ class Board:
         try:
             self.vent()
             with self._io:
-                self._sock.sendall(self._session.seal(P.MessageType.BYE))
+                P.send_frame(self._sock, self._session.seal(P.MessageType.BYE))
             while self._sock.recv(4096):    # until the board closes: then it is free for the next client
                 pass
         except (ProtocolError, OSError) as e:

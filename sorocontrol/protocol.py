@@ -40,6 +40,7 @@ import hashlib
 import hmac
 import math
 import os
+import socket
 import string
 import struct
 import zlib
@@ -51,7 +52,8 @@ from sorofem.errors import ProtocolError
 
 __all__ = ["PROTOCOL_VERSION", "MAGIC", "MAX_PAYLOAD", "MAX_CHANNELS", "HEADER", "MAC_SIZE", "MIN_SECRET_BITS",
            "MessageType", "Flag", "ErrorCode", "Hello", "State", "Session", "encode", "decode", "read_frame",
-           "FrameReader", "client_proof", "server_proof", "secret_bytes", "secret_bits", "read_secret_file",
+           "FrameReader", "send_frame", "client_proof", "server_proof", "secret_bytes", "secret_bits",
+           "read_secret_file",
            "error_code", "new_nonce", "pack_hello", "unpack_hello", "pack_pressures", "unpack_pressures", "pack_state",
            "unpack_state", "pack_error", "unpack_error"]
 
@@ -225,6 +227,15 @@ def _recv_exact(sock, n):
     return b"".join(chunks)
 
 
+_NOSIGNAL = getattr(socket, "MSG_NOSIGNAL", 0)
+
+
+def send_frame(sock, frame):
+    """Send ``frame`` (bytes) on ``sock``. A peer that has gone raises OSError (EPIPE) and never SIGPIPE,
+    which a host library may have set to abort the process (PETSc's signal handlers do)."""
+    sock.sendall(frame, _NOSIGNAL)
+
+
 def read_frame(sock):
     """Block until one frame arrives on ``sock``; ``(type, payload)``. ProtocolError on a defect,
     ConnectionError when the peer closes, ``socket.timeout`` on the socket's timeout."""
@@ -285,7 +296,8 @@ def read_secret_file(path):
         with open(path, "rb") as f:
             data = f.read()
     except FileNotFoundError:
-        raise ProtocolError(f"secret file {path} does not exist: make one with `{MAKE_SECRET.replace('FILE', str(path))}` "
+        make = MAKE_SECRET.replace("FILE", str(path))
+        raise ProtocolError(f"secret file {path} does not exist: make one with `{make}` "
                             f"and `chmod 600 {path}`") from None
     except OSError as e:
         raise ProtocolError(f"cannot read the secret file {path}: {e.strerror}; the board's user must be able "

@@ -418,7 +418,7 @@ class BoardServer:
         try:
             conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             nonce = P.new_nonce()
-            conn.sendall(P.encode(P.MessageType.HELLO, P.pack_hello(self._hello(nonce))))
+            P.send_frame(conn, P.encode(P.MessageType.HELLO, P.pack_hello(self._hello(nonce))))
             conn.setblocking(False)
         except OSError:
             conn.close()
@@ -478,7 +478,7 @@ class BoardServer:
         try:
             conn.setblocking(True)
             conn.settimeout(1.0)
-            conn.sendall(P.encode(P.MessageType.READY, P.server_proof(self.secret, pd.nonce, client_nonce)))
+            P.send_frame(conn, P.encode(P.MessageType.READY, P.server_proof(self.secret, pd.nonce, client_nonce)))
         except OSError as e:
             self._release(conn, who, f"client {who} lost at login: {e}")
             return
@@ -517,7 +517,8 @@ class BoardServer:
     def _send_error(conn, code, message, session=None):
         frame = P.pack_error(code, message)
         try:
-            conn.sendall(session.seal(P.MessageType.ERROR, frame) if session else P.encode(P.MessageType.ERROR, frame))
+            P.send_frame(conn, session.seal(P.MessageType.ERROR, frame) if session
+                         else P.encode(P.MessageType.ERROR, frame))
         except OSError:
             pass
 
@@ -568,7 +569,7 @@ class BoardServer:
                     if mtype == P.MessageType.BYE:
                         why = f"client {who} said bye"
                         return
-                    conn.sendall(session.seal(P.MessageType.STATE, self._command(conn, mtype, body, who)))
+                    P.send_frame(conn, session.seal(P.MessageType.STATE, self._command(conn, mtype, body, who)))
                 try:
                     data = conn.recv(65536)
                 except socket.timeout:
