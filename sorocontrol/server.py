@@ -248,21 +248,32 @@ class BoardServer:
         del self.events[:-200]
         log.warning("board: %s", text)
 
-    def _vent(self, why, conn=None):
-        """All channels to 0 Pa at once and the driver's vent; with ``conn``, only if it is still the client."""
+    def _vent(self, why, conn=None, release=None):
+        """All channels to 0 Pa at once and the driver's vent, in one critical section with the state, so
+        that nobody sees the slot free and the DAC still pressurized. With ``conn``: only if it is still the
+        client (else :class:`_NotClient`). With ``release``: that connection loses the slot in the same
+        section (no vent if it did not hold it); returns whether it held it."""
         with self._driver_lock:
             with self._lock:
                 if conn is not None and self._client is not conn:
                     raise _NotClient
-                self.requested[:] = 0.0
-                self.applied[:] = 0.0
-                self.flags |= P.Flag.VENTED
-                self.flags &= ~(P.Flag.RATE_LIMITED | P.Flag.CLAMPED)
-            try:
-                self.driver.vent()
-            except Exception as e:  # noqa: BLE001 - a vent must not raise; say it loudly
-                log.error("driver vent failed: %s", e)
+                if release is not None:
+                    if self._client is not release:
+                        return False
+                    self._client = None
+                self._zero_locked()
+                try:
+                    self.driver.vent()
+                except Exception as e:  # noqa: BLE001 - a vent must not raise; say it loudly
+                    log.error("driver vent failed: %s", e)
         self._event(f"vented ({why})")
+        return True
+
+    def _zero_locked(self):
+        self.requested[:] = 0.0
+        self.applied[:] = 0.0
+        self.flags |= P.Flag.VENTED
+        self.flags &= ~(P.Flag.RATE_LIMITED | P.Flag.CLAMPED)
 
     _last_tick_real = 0.0
 
@@ -278,13 +289,17 @@ class BoardServer:
                 if self._client is not None and t - self._last_valid > self.watchdog:
                     dropped, silence = (self._client, self._client_peer), t - self._last_valid
                     self._client = None
+                driver_error = None
                 if self._client is None or self._fault:       # nobody may hold pressure
                     forced = bool(np.any(self.requested != 0) or np.any(self.applied != 0))
                     self.requested[:] = 0.0
                     self.applied[:] = 0.0
-                    if forced or dropped:
-                        self.flags |= P.Flag.VENTED
-                        self.flags &= ~(P.Flag.RATE_LIMITED | P.Flag.CLAMPED)
+                    if forced or dropped:                     # vent before anyone sees the slot free
+                        self._zero_locked()
+                        try:
+                            self.driver.vent()
+                        except Exception as e:  # noqa: BLE001 - any driver failure vents the board
+                            driver_error = f"driver error: {type(e).__name__}: {e}"
                 else:
                     step = self.rate * dt
                     self.applied += np.clip(self.requested - self.applied, -step, step)
@@ -292,10 +307,8 @@ class BoardServer:
                 self.flags = np.where(slewing, self.flags | P.Flag.RATE_LIMITED, self.flags & ~P.Flag.RATE_LIMITED)
                 applied = self.applied.copy()
             try:
-                if forced or dropped:
-                    self.driver.vent()
-                measured, sensors, faults = self.driver.apply(applied, t)
-                driver_error = None
+                if driver_error is None:
+                    measured, sensors, faults = self.driver.apply(applied, t)
             except Exception as e:  # noqa: BLE001 - any driver failure vents the board
                 driver_error = f"driver error: {type(e).__name__}: {e}"
         if dropped is not None:
@@ -503,14 +516,7 @@ class BoardServer:
 
     def _release(self, conn, who, why):
         """End the connection ``conn``; vent if it still held the slot."""
-        with self._lock:
-            mine = self._client is conn
-            if mine:
-                self._client = None
-        if mine:
-            if why:
-                self._event(why)
-            self._vent(f"client {who} disconnected")
+        self._vent(why or f"client {who} disconnected", release=conn)
         self._close(conn)
 
     @staticmethod

@@ -204,3 +204,43 @@ def test_bench_cost_of_the_session_mac(record):
     assert client.received == board.sent == 3 * n and board.received == client.sent == 3 * n
     record(round_trip_frames_plain_us=round(t_plain * 1e6, 2), round_trip_frames_sealed_us=round(t_sealed * 1e6, 2),
            ratio=round(t_sealed / t_plain, 2))
+
+
+def test_bench_watchdog_race_in_real_time(record):
+    """The race of issue 16 on the real board loop (400 Hz, its own thread): a client logs in, stays silent
+    until just before the watchdog (20 ms here) and then sends a SET of 40 kPa, so that the SET and the drop
+    meet. After each drop the DAC is sampled for 10 ms while no client is logged in: never pressurized (0 of
+    N). Before the drop and the vent were one critical section, 1 of 300 samples caught the DAC still at
+    40 kPa with the slot already free (for the microseconds until the vent's write)."""
+    n, watchdog = 1000, 0.02
+    left, late = 0, 0
+    rng = np.random.default_rng(0)
+    with BoardServer(MockDriver(1), SECRET, port=0, watchdog=watchdog, rate=1e9) as srv:
+        for i in range(n):
+            sock = socket.create_connection(srv.address, timeout=5.0)
+            hello = P.unpack_hello(P.read_frame(sock)[1])
+            nc = P.new_nonce()
+            P.send_frame(sock, P.encode(P.MessageType.AUTH, P.pack_auth(nc, P.client_proof(SECRET, hello.nonce, nc))))
+            assert P.read_frame(sock)[0] == P.MessageType.READY
+            session = P.Session(SECRET, hello.nonce, nc, "client")
+            t_login = time.perf_counter()
+            time.sleep(max(watchdog - 0.004 + rng.uniform(0, 0.006) - (time.perf_counter() - t_login), 0))
+            late_before = srv.counters["late_commands"]
+            try:
+                P.send_frame(sock, session.seal(P.MessageType.SET, P.pack_pressures(1, [40e3])))
+            except OSError:
+                pass
+            while srv.client is not None:
+                time.sleep(0.0005)
+            t_end = time.perf_counter() + 0.01
+            while time.perf_counter() < t_end:          # 4 board ticks without a client
+                if srv.driver.value[0] != 0.0 and srv.client is None:
+                    left += 1
+                    break
+                time.sleep(0.0005)
+            late += srv.counters["late_commands"] > late_before
+            sock.close()
+            while srv.client is not None:
+                time.sleep(0.0005)
+    assert left == 0
+    record(drops=n, left_pressurized=left, set_refused_after_the_drop=late)
