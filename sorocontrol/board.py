@@ -28,7 +28,7 @@ default). Two ways to keep the session:
 (sleep until ~0.3 ms before, then spin), so delays do not accumulate; iterations whose release time has
 already passed by a whole period are skipped and counted as missed. After the loop, :attr:`Board.loop_stats`
 has the achieved rate, the period jitter :math:`|T_k - 1/f|` (median, 99th percentile, maximum) and the
-number of missed deadlines.
+number of missed deadlines (iterations + missed = duration x rate).
 """
 import logging
 import math
@@ -385,7 +385,7 @@ class Board:
                 k += 1
                 late = time.perf_counter() - (t0 + k * period)
                 if late > period:     # skip the deadlines already gone: no burst to catch up
-                    skip = int(late // period)
+                    skip = min(int(late // period), count - k)
                     missed += skip
                     k += skip
         finally:
