@@ -105,7 +105,8 @@ def main(out: Path, quick: bool = False) -> dict:
     plan_s = time.perf_counter() - t0
 
     log_t, log_tip, log_p = [], [], []
-    with Board.simulated(channels=5, beam=shp, board_rate=200.0) as brd:
+    # keepalive: the session survives any pause before brd.loop starts (which then feeds the watchdog itself)
+    with Board.simulated(channels=5, beam=shp, board_rate=200.0, keepalive=True) as brd:
         for t in brd.loop(duration=hold * len(seq), rate=100.0):
             i = min(int(t // hold), len(seq) - 1)
             (a, _), grip = plans[i], seq[i][3]

@@ -78,7 +78,9 @@ def main(out: Path, quick: bool = False) -> dict:
     est = ShapeEstimator(shp, shp.sigma[NODES], cam, plane=((0.0, 0.0, 0.0), (0.0, 1.0, 0.0)),
                          prior="equilibrium")
     log, integral = [], 0.0
-    with Board.simulated(channels=1, beam=shp, p_min=0.0, p_max=P_MAX, board_rate=200.0) as brd:
+    # keepalive: the warm-up below (JIT compilation) may outlast the board's 0.5 s watchdog on a busy machine;
+    # a background thread holds the session until brd.loop starts, which then feeds the watchdog itself
+    with Board.simulated(channels=1, beam=shp, p_min=0.0, p_max=P_MAX, board_rate=200.0, keepalive=True) as brd:
         state = brd.read()
         for _ in range(3):   # warm-up: compile the estimator's kernels and lock on the markers before the loop
             est.update(video.render(shp.positions(state.sensors[3:])[NODES], 0.0), u=[state.measured[0]])

@@ -6,14 +6,16 @@ Runs without DOLFINx. Submodules: :mod:`~sorocontrol.protocol` (the wire format,
 client :class:`Board` and its real-time loop), :mod:`~sorocontrol.camera` (camera models and sources: OpenCV,
 RealSense, a synthetic camera that renders markers on a beam), :mod:`~sorocontrol.vision` (colour-marker
 detection, ArUco calibration of the world frame, pixels to 3D) and :mod:`~sorocontrol.estimation` (shape
-estimation: markers to beam coordinates by IK with the quasi-static prior). They load on first attribute
+estimation: markers to beam coordinates by IK with the quasi-static prior); ``python -m sorocontrol.vent``
+(:mod:`~sorocontrol.vent`) vents a real board's DACs from outside the server. They load on first attribute
 access.
 """
 from sorofem._lazy import lazy_attributes
 
-_SUBMODULES = ("protocol", "server", "drivers", "board", "camera", "vision", "estimation")
+_SUBMODULES = ("protocol", "server", "drivers", "board", "camera", "vision", "estimation", "vent")
 _CLASSES = {"Board": "board", "LoopStats": "board", "BoardServer": "server", "MockDriver": "drivers",
-            "SimulatedPlant": "drivers", "I2CDriver": "drivers",
+            "SimulatedPlant": "drivers", "I2CDriver": "drivers", "BoardProfile": "drivers",
+            "ChannelCalibration": "drivers",
             "CameraModel": "camera", "SyntheticCamera": "camera", "OpenCVCamera": "camera",
             "RealSenseCamera": "camera", "ArucoTarget": "camera", "Frame": "camera",
             "MarkerDetector": "vision", "HsvRange": "vision", "calibrate_world": "vision",

@@ -13,16 +13,28 @@ child process and connects to it. Every command is answered by the board's :clas
 (requested, applied and measured pressures [Pa], per-channel flags: clamped, rate-limited, vented, sensor
 fault). Leaving the ``with`` block, normally or by an exception, vents the board and closes the connection.
 
+After the login every frame is authenticated (a MAC under a session key and a sequence number, see
+:mod:`sorocontrol.protocol`). The board vents when it hears nothing valid for its watchdog time (0.5 s by
+default). Two ways to keep the session:
+
+* ``keepalive=True`` (the default): a background thread sends a heartbeat whenever the connection has been
+  quiet for a quarter of the watchdog time, so a person can pause at a Python prompt. The board still vents
+  when the client process dies, hangs as a whole (SIGSTOP) or loses its network: the heartbeats stop.
+  Inside :meth:`Board.loop` the thread stands aside (strict mode for the loop's duration).
+* ``keepalive=False`` (strict, for control code): only commands and :meth:`Board.loop`'s heartbeats feed the
+  watchdog, so a control loop that stalls is vented.
+
 :meth:`Board.loop` paces a control loop without drift: iteration k is released at :math:`t_0 + k/f`
 (sleep until ~0.3 ms before, then spin), so delays do not accumulate; iterations whose release time has
 already passed by a whole period are skipped and counted as missed. After the loop, :attr:`Board.loop_stats`
 has the achieved rate, the period jitter :math:`|T_k - 1/f|` (median, 99th percentile, maximum) and the
-number of missed deadlines.
+number of missed deadlines (iterations + missed = duration x rate).
 """
 import logging
 import math
 import os
 import socket
+import threading
 import time
 from dataclasses import dataclass
 from urllib.parse import urlparse
@@ -74,78 +86,120 @@ class Board:
         The last state received.
     """
 
-    def __init__(self, sock, secret, process=None, timeout=1.0):
+    def __init__(self, sock, secret, process=None, timeout=1.0, keepalive=True):
         self._sock = sock
         self._process = process
         self._seq = 0
         self._closed = False
+        self._session = None
+        self._io = threading.Lock()          # one command (frame out, answer in) at a time
+        self._last_io = time.monotonic()
+        self._keepalive = None
+        self._ka_stop = threading.Event()
+        self._ka_paused = False
         self.loop_stats = None
         self.state = None
         self._sock.settimeout(timeout)
         try:
-            self._login(secret)
+            self._login(P.secret_bytes(secret))
         except BaseException:
             self._shutdown_process()
             sock.close()
             raise
+        if keepalive:
+            self._keepalive = threading.Thread(target=self._keepalive_run, daemon=True, name="soro-board-keepalive")
+            self._keepalive.start()
 
     # ---- constructors -------------------------------------------------------------------------------
     @classmethod
-    def connect(cls, url="tcp://127.0.0.1:8888", secret=None, timeout=1.0):
-        """Connect and log in to the board at ``url`` (``tcp://host:port``) with the shared ``secret``
-        (bytes or str; default the environment variable ``SORO_BOARD_SECRET``)."""
+    def connect(cls, url="tcp://127.0.0.1:8888", secret=None, *, secret_file=None, timeout=1.0, keepalive=True):
+        """Connect and log in to the board at ``url`` (``tcp://host:port``).
+
+        Parameters
+        ----------
+        secret : bytes or str, optional
+            The shared secret (whitespace at both ends is ignored, as on the board); default the file
+            ``secret_file``, else the environment variable ``SORO_BOARD_SECRET``.
+        secret_file : path, optional
+            A file holding the secret (the same file as the board's ``--secret-file``).
+        timeout : float [s]
+            How long to wait for each answer of the board.
+        keepalive : bool
+            Heartbeats from a background thread when the connection is quiet (see the module docstring);
+            False for strict control code.
+        """
         parsed = urlparse(url)
         if parsed.scheme != "tcp" or not parsed.hostname or not parsed.port:
             raise ParameterError(f"board url must look like tcp://host:port, got {url!r}")
-        secret = secret if secret is not None else os.environ.get("SORO_BOARD_SECRET")
-        if not secret:
-            raise ParameterError("no shared secret: pass Board.connect(url, secret=...) or set SORO_BOARD_SECRET")
+        try:
+            if secret is None and secret_file is not None:
+                secret = P.read_secret_file(secret_file)
+            secret = secret if secret is not None else os.environ.get("SORO_BOARD_SECRET")
+            if secret is None:
+                raise ProtocolError("no shared secret: pass Board.connect(url, secret=... or secret_file=...) or "
+                                    "set SORO_BOARD_SECRET")
+            secret = P.secret_bytes(secret)
+        except ProtocolError as e:
+            raise ParameterError(str(e)) from None
         try:
             sock = socket.create_connection((parsed.hostname, parsed.port), timeout=timeout)
         except OSError as e:
             raise ProtocolError(f"cannot reach the board at {url}: {e}; is the server running "
                                 "(python -m sorocontrol.server, or the soro-board service on the Pi)?") from e
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        return cls(sock, secret, timeout=timeout)
+        return cls(sock, secret, timeout=timeout, keepalive=keepalive)
 
     @classmethod
     def simulated(cls, channels=4, *, p_min=-100e3, p_max=100e3, rate=1e6, watchdog=0.5, board_rate=400.0,
-                  volume=20e-6, time_constant=0.03, max_flow=2e-3, beam=None, timeout=5.0):
+                  volume=20e-6, time_constant=0.03, max_flow=2e-3, beam=None, timeout=5.0, keepalive=True):
         """Start a simulated board (:class:`~sorocontrol.drivers.SimulatedPlant` behind a
         :class:`~sorocontrol.server.BoardServer`, same limits and watchdog as a real one) in a child process
-        (``python -m sorocontrol.server --driver simulated``) on loopback and connect to it; closing the board stops the process. ``beam``: a
-        :class:`soroshapes.Shapes` with one chamber input per channel, simulated as the robot (its tip
-        position and coordinates are the state's ``sensors``)."""
-        import pickle
+        (``python -m sorocontrol.server --driver simulated --plant-from-parent``) on loopback and connect to
+        it; closing the board stops the process. ``beam``: a :class:`soroshapes.Shapes` with one chamber input
+        per channel, simulated as the robot (its tip position and coordinates are the state's ``sensors``).
+
+        The plant goes to the child over its stdin pipe (no file), and the child watches that pipe: when
+        this process ends, whatever way (SIGKILL included), the simulated board vents and exits."""
         import subprocess
         import sys
         import tempfile
 
-        secret = os.urandom(16).hex()
+        from .server import send_plant
+
+        secret = os.urandom(32).hex()
         plant = dict(volume=volume, time_constant=time_constant, max_flow=max_flow, beam=beam)
-        with tempfile.NamedTemporaryFile("wb", suffix=".pkl", prefix="soro-plant-", delete=False) as f:
-            pickle.dump(plant, f)
         cmd = [sys.executable, "-m", "sorocontrol.server", "--driver", "simulated", "--channels", str(channels),
                "--port", "0", "--p-min", repr(p_min), "--p-max", repr(p_max), "--rate", repr(rate),
-               "--watchdog", repr(watchdog), "--board-rate", repr(board_rate), "--plant", f.name]
+               "--watchdog", repr(watchdog), "--board-rate", repr(board_rate), "--plant-from-parent"]
         env = dict(os.environ, SORO_BOARD_SECRET=secret)   # not on the command line (visible to ps)
-        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, text=True)
+        errors = tempfile.TemporaryFile("w+")               # the server's log: read if it fails to start
+        proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=errors, env=env)
         try:
-            line = proc.stdout.readline()      # "listening HOST PORT" once ready
+            send_plant(proc.stdin, plant)
+            line = proc.stdout.readline().decode()      # "listening HOST PORT" once ready
             if not line.startswith("listening"):
                 proc.wait(10)
-                raise ParameterError(f"the simulated board did not start: {proc.stderr.read().strip()}")
+                errors.seek(0)
+                raise ParameterError(f"the simulated board did not start: {errors.read().strip()[-2000:]}")
             port = int(line.split()[2])
             sock = socket.create_connection(("127.0.0.1", port), timeout=timeout)
         except BaseException:
             if proc.poll() is None:
                 proc.kill()
+                proc.wait()
+            for stream in (proc.stdin, proc.stdout):
+                stream.close()
             raise
         finally:
-            os.unlink(f.name)
+            errors.close()
         proc.stdout.close()
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        return cls(sock, secret, process=proc, timeout=timeout)
+        return cls(sock, secret, process=proc, timeout=timeout, keepalive=keepalive)
+
+    @property
+    def server_process(self):
+        """The :class:`subprocess.Popen` of a simulated board's server (None for a board reached by url)."""
+        return self._process
 
     # ---- protocol -----------------------------------------------------------------------------------
     def _login(self, secret):
@@ -154,7 +208,7 @@ class Board:
             raise ProtocolError(f"expected HELLO from the board, got {mtype.name}")
         hello = P.unpack_hello(payload)
         client_nonce = P.new_nonce()
-        self._sock.sendall(P.encode(P.MessageType.AUTH, P.pack_auth(
+        P.send_frame(self._sock, P.encode(P.MessageType.AUTH, P.pack_auth(
             client_nonce, P.client_proof(secret, hello.nonce, client_nonce))))
         mtype, payload = self._receive()
         if mtype != P.MessageType.READY:
@@ -162,6 +216,7 @@ class Board:
         if not P.hmac.compare_digest(payload, P.server_proof(secret, hello.nonce, client_nonce)):
             raise ProtocolError("the board could not prove it knows the secret: wrong board or a "
                                 "man-in-the-middle")
+        self._session = P.Session(secret, hello.nonce, client_nonce, "client")
         self.hello = hello
         self.channels = hello.channels
         self.p_min, self.p_max, self.rate, self.watchdog = hello.p_min, hello.p_max, hello.rate, hello.watchdog
@@ -173,6 +228,10 @@ class Board:
             raise ProtocolError("the board did not answer within the timeout") from None
         except ConnectionError as e:
             raise ProtocolError(f"the board closed the connection ({e})") from None
+        except OSError as e:
+            raise ProtocolError(f"lost the board: {e}") from None
+        if self._session is not None:
+            payload = self._session.open(mtype, payload)
         if mtype == P.MessageType.ERROR:
             code, message = P.unpack_error(payload)
             name = P.ErrorCode(code).name if code in P.ErrorCode._value2member_map_ else str(code)
@@ -180,22 +239,43 @@ class Board:
         return mtype, payload
 
     def _command(self, mtype, payload):
-        if self._closed:
-            raise ProtocolError("the board connection is closed")
-        try:
-            self._sock.sendall(P.encode(mtype, payload))
-        except OSError as e:
-            raise ProtocolError(f"lost the board: {e}") from e
-        rtype, rpayload = self._receive()
-        if rtype != P.MessageType.STATE:
-            raise ProtocolError(f"expected STATE from the board, got {rtype.name}")
-        self.state = P.unpack_state(rpayload)
-        self._sent = True
-        return self.state
+        with self._io:
+            if self._closed:
+                raise ProtocolError("the board connection is closed")
+            try:
+                P.send_frame(self._sock, self._session.seal(mtype, payload))
+            except OSError as e:
+                raise ProtocolError(f"lost the board: {e}") from e
+            rtype, rpayload = self._receive()
+            if rtype != P.MessageType.STATE:
+                raise ProtocolError(f"expected STATE from the board, got {rtype.name}")
+            self.state = P.unpack_state(rpayload)
+            self._last_io = time.monotonic()
+            self._sent = True
+            return self.state
 
     def _next(self):
-        self._seq = (self._seq + 1) & 0xFFFFFFFF
-        return self._seq
+        with self._io:
+            self._seq = (self._seq + 1) & 0xFFFFFFFF
+            return self._seq
+
+    def _keepalive_run(self):
+        period = self.watchdog / 4
+        while not self._ka_stop.wait(period / 4):
+            if self._ka_paused or self._closed or time.monotonic() - self._last_io < period:
+                continue
+            try:
+                self.heartbeat()
+            except ProtocolError as e:
+                if not self._closed:
+                    log.warning("keepalive: %s; the next command will fail", e)
+                return
+
+    def _stop_keepalive(self):
+        self._ka_stop.set()
+        th, self._keepalive = self._keepalive, None
+        if th is not None and th is not threading.current_thread():
+            th.join()
 
     # ---- commands -----------------------------------------------------------------------------------
     def set_pressure(self, pressures):
@@ -230,9 +310,11 @@ class Board:
         """Vent, say goodbye and close (idempotent); stops a simulated board's process."""
         if self._closed:
             return
+        self._stop_keepalive()
         try:
             self.vent()
-            self._sock.sendall(P.encode(P.MessageType.BYE))
+            with self._io:
+                P.send_frame(self._sock, self._session.seal(P.MessageType.BYE))
             while self._sock.recv(4096):    # until the board closes: then it is free for the next client
                 pass
         except (ProtocolError, OSError) as e:
@@ -245,6 +327,12 @@ class Board:
     def _shutdown_process(self):
         proc, self._process = self._process, None
         if proc is not None:
+            if proc.stdin is not None:
+                proc.stdin.close()      # the server sees its parent's pipe close: it vents and exits
+            try:
+                proc.wait(2.0)
+            except Exception:  # noqa: BLE001 - TimeoutExpired: ask it with a signal
+                pass
             proc.terminate()
             try:
                 proc.wait(5.0)
@@ -266,8 +354,9 @@ class Board:
         """Yield the loop time t [s] at ``rate`` [Hz] for ``duration`` [s], paced without drift.
 
         When an iteration sends no command, the loop sends a heartbeat so that a slow-but-alive controller
-        is not vented (a hung one still is: the loop cannot send while the body runs). ``spin`` [s]: busy-wait
-        window before each release, for sub-millisecond jitter. Figures in :attr:`loop_stats` afterwards.
+        is not vented (a hung one still is: the loop cannot send while the body runs, and the keepalive
+        thread stands aside while the loop runs). ``spin`` [s]: busy-wait window before each release, for
+        sub-millisecond jitter. Figures in :attr:`loop_stats` afterwards.
         """
         duration, rate = float(duration), float(rate)
         if not (duration > 0 and rate > 0 and math.isfinite(duration) and math.isfinite(rate)):
@@ -277,6 +366,7 @@ class Board:
         releases, missed = [], 0
         t0 = time.perf_counter()
         k = 0
+        self._ka_paused = True
         try:
             while k < count:
                 deadline = t0 + k * period
@@ -295,10 +385,11 @@ class Board:
                 k += 1
                 late = time.perf_counter() - (t0 + k * period)
                 if late > period:     # skip the deadlines already gone: no burst to catch up
-                    skip = int(late // period)
+                    skip = min(int(late // period), count - k)
                     missed += skip
                     k += skip
         finally:
+            self._ka_paused = False
             self.loop_stats = self._stats(releases, missed, period, rate)
 
     @staticmethod

@@ -8,7 +8,9 @@ The server calls ``apply`` at its loop rate and never lets an exception of a dri
 and reports it.
 
 * :class:`I2CDriver`: the board of the Sorotoki paper: Festo VEAB proportional regulators set by MCP4725
-  12-bit DACs and read back through ADS1015 ADCs, on a Raspberry Pi's I²C bus (``smbus2``).
+  12-bit DACs and read back through ADS1015 ADCs, on a Raspberry Pi's I²C bus (``smbus2``). Its wiring and
+  the calibration of each regulator come from a :class:`BoardProfile` file (``hardware/README.md``), never
+  from the safety limits: vent writes the DAC code of 0 kPa gauge of that calibration.
 * :class:`MockDriver`: reads back exactly what was set (protocol and safety tests).
 * :class:`SimulatedPlant`: each channel is a regulated isothermal air reservoir, the
   :class:`soroshapes.Fluidic` model (PI regulator with valve saturation,
@@ -17,6 +19,8 @@ and reports it.
   and coordinates are reported as sensors.
 """
 import logging
+import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -24,14 +28,23 @@ from sorofem.errors import DependencyError, ParameterError
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Driver", "MockDriver", "SimulatedPlant", "I2CDriver"]
+__all__ = ["Driver", "MockDriver", "SimulatedPlant", "I2CDriver", "ChannelCalibration", "BoardProfile"]
 
 
 class Driver:
-    """Base class: ``channels`` outputs, :meth:`apply` each board tick, :meth:`vent`, :meth:`close`."""
+    """Base class: ``channels`` outputs, :meth:`apply` each board tick, :meth:`vent`, :meth:`close`.
+
+    ``p_range`` is the pair of per-channel arrays (lowest, highest) [Pa] of the pressures the outputs can be
+    set to (a regulator's calibrated signal range; unbounded for the mock and the simulated plant); the
+    server refuses limits outside it.
+    """
 
     channels = 0
     sensor_names: tuple = ()
+
+    @property
+    def p_range(self):
+        return np.full(self.channels, -np.inf), np.full(self.channels, np.inf)
 
     def apply(self, setpoints, t):
         raise NotImplementedError
@@ -161,56 +174,162 @@ class SimulatedPlant(Driver):
         return np.concatenate([self.beam.positions(self.q)[-1], self.q])
 
 
+DAC_FULL_SCALE = 4095      # MCP4725: 12-bit codes
+
+
+@dataclass(frozen=True)
+class ChannelCalibration:
+    r"""The wiring and calibration of one regulator channel.
+
+    Attributes
+    ----------
+    dac : int
+        I²C address of the channel's MCP4725 DAC.
+    adc : (int, int)
+        I²C address of the ADS1015 and its single-ended input (0-3) that reads the regulator's sensor output.
+    signal_range : (float, float) [Pa]
+        Gauge pressure the regulator delivers at DAC code 0 and at full scale (4095): a VEAB with a 0-10 V
+        set-point input behind the board's amplifier spans (-100 kPa, 100 kPa). A property of the regulator
+        and its wiring, *not* a safety limit.
+    sensor_gain : float [Pa/V], sensor_offset : float [V]
+        Read-back :math:`p = (V - V_0) G` of the regulator's pressure output (VEAB: 20 kPa/V, 5 V at 0 kPa).
+    divider : float
+        Voltage divider ratio in front of the ADC (Sorotoki's board: 3).
+    name : str
+    """
+    dac: int
+    adc: tuple
+    signal_range: tuple = (-100e3, 100e3)
+    sensor_gain: float = 20e3
+    sensor_offset: float = 5.0
+    divider: float = 3.0
+    name: str = ""
+
+    def __post_init__(self):
+        lo, hi = (float(v) for v in self.signal_range)
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo <= 0.0 <= hi and lo < hi):
+            raise ParameterError(f"channel {self.name or hex(self.dac)}: signal_range {self.signal_range} must be "
+                                 "finite, increasing and contain 0 Pa (the vent pressure must be writable)")
+        if not (self.sensor_gain != 0 and math.isfinite(self.sensor_gain) and self.divider > 0):
+            raise ParameterError(f"channel {self.name or hex(self.dac)}: sensor_gain must be finite and non-zero, "
+                                 "divider positive")
+
+    def code(self, p):
+        r"""The DAC code for gauge pressure ``p`` [Pa]: :math:`x = 4095 (p - p_0)/(p_1 - p_0)` rounded toward
+        0 kPa (down for :math:`p > 0`, up for :math:`p < 0`, to the nearest code for :math:`p = 0`), so a
+        written code never asks for more pressure or vacuum than ``p``; clipped to 0..4095."""
+        lo, hi = self.signal_range
+        x = DAC_FULL_SCALE * (float(p) - lo) / (hi - lo)
+        c = math.floor(x) if p > 0 else math.ceil(x) if p < 0 else round(x)
+        return int(min(max(c, 0), DAC_FULL_SCALE))
+
+    def pressure(self, code):
+        """Gauge pressure [Pa] the regulator delivers at DAC ``code``."""
+        lo, hi = self.signal_range
+        return lo + (hi - lo) * code / DAC_FULL_SCALE
+
+    @property
+    def vent_code(self):
+        """The DAC code of 0 kPa gauge."""
+        return self.code(0.0)
+
+
+@dataclass(frozen=True)
+class BoardProfile:
+    """A board's wiring and calibration: one :class:`ChannelCalibration` per channel and the I²C ``bus``.
+
+    Read from a TOML file with :meth:`load` (format in ``hardware/README.md``, example
+    ``hardware/profiles/veab-2ch.toml``)."""
+    channels: tuple
+    bus: int = 1
+    name: str = ""
+
+    FORMAT = "soro-board-profile"
+    VERSION = 1
+    _KEYS = {"dac", "adc", "signal_range", "sensor_gain", "sensor_offset", "divider", "name"}
+
+    @classmethod
+    def load(cls, path):
+        """Read the profile file ``path``; ParameterError naming the file and the key at fault."""
+        import tomllib
+
+        try:
+            with open(path, "rb") as f:
+                doc = tomllib.load(f)
+        except FileNotFoundError:
+            raise ParameterError(f"board profile {path} does not exist (example: hardware/profiles/veab-2ch.toml)") \
+                from None
+        except tomllib.TOMLDecodeError as e:
+            raise ParameterError(f"board profile {path} is not valid TOML: {e}") from None
+        return cls.from_dict(doc, source=str(path))
+
+    @classmethod
+    def from_dict(cls, doc, source="board profile"):
+        """The profile of a parsed TOML document ``doc`` (dict)."""
+        if doc.get("format") != cls.FORMAT or doc.get("version") != cls.VERSION:
+            raise ParameterError(f"{source}: expected format = \"{cls.FORMAT}\" and version = {cls.VERSION} at the top")
+        chans = doc.get("channels")
+        if not isinstance(chans, list) or not chans:
+            raise ParameterError(f"{source}: no [[channels]] tables (one per regulator channel)")
+        out = []
+        for i, ch in enumerate(chans):
+            unknown = set(ch) - cls._KEYS
+            missing = {"dac", "adc", "signal_range"} - set(ch)
+            if unknown or missing:
+                raise ParameterError(f"{source}: channel {i}: unknown keys {sorted(unknown)}, missing keys "
+                                     f"{sorted(missing)} (known: {sorted(cls._KEYS)})")
+            try:
+                adc = (int(ch["adc"][0]), int(ch["adc"][1]))
+                sr = (float(ch["signal_range"][0]), float(ch["signal_range"][1]))
+            except (TypeError, IndexError, ValueError):
+                raise ParameterError(f"{source}: channel {i}: adc = [address, input] and signal_range = "
+                                     "[p_at_code_0, p_at_full_scale] (Pa)") from None
+            if len(ch["adc"]) != 2 or len(ch["signal_range"]) != 2 or not 0 <= adc[1] <= 3:
+                raise ParameterError(f"{source}: channel {i}: adc = [address, input 0-3], signal_range = [lo, hi]")
+            kw = {k: float(ch[k]) for k in ("sensor_gain", "sensor_offset", "divider") if k in ch}
+            out.append(ChannelCalibration(int(ch["dac"]), adc, sr, name=str(ch.get("name", f"channel {i}")), **kw))
+        _channels(len(out))
+        return cls(tuple(out), bus=int(doc.get("i2c_bus", 1)), name=str(doc.get("name", source)))
+
+
 class I2CDriver(Driver):
     """Festo VEAB regulators through MCP4725 DACs, read back through ADS1015 ADCs (Sorotoki's board).
 
     Parameters
     ----------
-    dacs : sequence of (bus address) ints
-        One MCP4725 per channel (default 0x60, 0x61 on bus 1 and the same on bus 0 for 4 channels; a board
-        with a TCA9548A multiplexer passes ``select`` to switch to each channel's branch).
-    adcs : sequence of (address, input) pairs
-        The ADS1015 and its single-ended input (0-3) reading each channel.
-    p_range : (float, float) [Pa]
-        Regulator range (VEAB: -100 kPa ... 100 kPa): the DAC's normalized value is
-        :math:`(p - p_{min})/(p_{max} - p_{min})`, so 0.5 is 0 kPa.
-    adc_gain : float [Pa/V], adc_offset : float [V]
-        Read-back calibration :math:`p = (V - V_0) G`; Sorotoki's wiring (x3 divider, 0-10 V sensor output)
-        gives :math:`V_0 = 5` V after undoing the divider and :math:`G = 20` kPa/V.
-    divider : float
-        Voltage divider ratio in front of the ADC.
-    bus : int
-        I²C bus number (``/dev/i2c-1`` on a Raspberry Pi).
+    profile : BoardProfile or path
+        The wiring and calibration (:class:`BoardProfile`, or the path of its TOML file).
     select : callable(channel), optional
-        Called before talking to a channel's devices (multiplexer switching).
+        Called before talking to a channel's devices (multiplexer switching, e.g. a TCA9548A).
     """
 
     ADS1015_CONFIG = 0x01
     ADS1015_CONVERSION = 0x00
+    MCP4725_WRITE_DAC_AND_EEPROM = 0x60
 
-    def __init__(self, dacs, adcs, p_range=(-100e3, 100e3), adc_gain=20e3, adc_offset=5.0, divider=3.0,
-                 bus=1, select=None):
+    def __init__(self, profile, select=None):
+        if not isinstance(profile, BoardProfile):
+            profile = BoardProfile.load(profile)
         try:
             import smbus2
         except ImportError as e:
             raise DependencyError("the I2C driver needs smbus2 on the board: `pip install smbus2` (or "
                                   "`pip install soro[board]`); use MockDriver/SimulatedPlant elsewhere") from e
-        if len(dacs) != len(adcs):
-            raise ParameterError(f"{len(dacs)} DACs and {len(adcs)} ADC inputs: one of each per channel")
-        self.channels = _channels(len(dacs))
-        self.dacs, self.adcs = [int(a) for a in dacs], [(int(a), int(i)) for a, i in adcs]
-        self.p_min, self.p_max = map(float, p_range)
-        if not self.p_min < self.p_max:
-            raise ParameterError(f"p_range must be increasing, got {p_range}")
-        self.gain, self.offset, self.divider = float(adc_gain), float(adc_offset), float(divider)
+        self.profile = profile
+        self.calibration = profile.channels
+        self.channels = _channels(len(profile.channels))
         self.select = select
-        self.bus = smbus2.SMBus(bus)
+        self.bus = smbus2.SMBus(profile.bus)
         self.last = np.zeros(self.channels)
 
-    def _write_dac(self, address, value):
-        code = int(round(min(max(value, 0.0), 1.0) * 4095))
+    @property
+    def p_range(self):
+        return (np.array([c.signal_range[0] for c in self.calibration], float),
+                np.array([c.signal_range[1] for c in self.calibration], float))
+
+    def _write_dac(self, ch, code):
         # MCP4725 fast write: two bytes, upper 4 bits of the code (power-down bits 00) then the lower 8
-        self.bus.write_byte_data(address, (code >> 8) & 0x0F, code & 0xFF)
+        self.bus.write_byte_data(self.calibration[ch].dac, (code >> 8) & 0x0F, code & 0xFF)
 
     def _read_adc(self, address, channel):
         # single-shot, single-ended input `channel`, +-6.144 V range, 1600 SPS
@@ -224,20 +343,43 @@ class I2CDriver(Driver):
         raw = ((hi << 8) | lo) >> 4
         if raw & 0x800:
             raw -= 1 << 12
-        return raw * 6.144 / 2048 * self.divider   # volts at the sensor
+        return raw * 6.144 / 2048      # volts at the ADC input
 
     def apply(self, setpoints, t):
         faults = np.zeros(self.channels, bool)
-        for ch in range(self.channels):
+        for ch, cal in enumerate(self.calibration):
             if self.select is not None:
                 self.select(ch)
-            self._write_dac(self.dacs[ch], (setpoints[ch] - self.p_min) / (self.p_max - self.p_min))
+            self._write_dac(ch, cal.code(setpoints[ch]))
             try:
-                self.last[ch] = (self._read_adc(*self.adcs[ch]) - self.offset) * self.gain
+                volts = self._read_adc(*cal.adc) * cal.divider
+                self.last[ch] = (volts - cal.sensor_offset) * cal.sensor_gain
             except OSError as e:
                 faults[ch] = True
                 log.warning("channel %d: ADC read failed (%s); keeping the last reading", ch, e)
         return self.last.copy(), np.zeros(0), faults
+
+    def vent(self):
+        """Write every channel's 0 kPa code (no read-back: the fastest path, used by the vent command)."""
+        errors = []
+        for ch, cal in enumerate(self.calibration):
+            try:
+                if self.select is not None:
+                    self.select(ch)
+                self._write_dac(ch, cal.vent_code)
+            except OSError as e:         # go on with the other channels, then say which failed
+                errors.append(f"channel {ch} (DAC {cal.dac:#x}): {e}")
+        if errors:
+            raise OSError("vent failed on " + "; ".join(errors))
+
+    def store_power_on_vent(self):
+        """Write each channel's 0 kPa code into its MCP4725's EEPROM, which the DAC outputs at power-up (so a
+        board that boots, or a Pi that resets, starts vented). Once at installation: the EEPROM wears."""
+        for ch, cal in enumerate(self.calibration):
+            if self.select is not None:
+                self.select(ch)
+            c = cal.vent_code
+            self.bus.write_i2c_block_data(cal.dac, self.MCP4725_WRITE_DAC_AND_EEPROM, [c >> 4, (c & 0x0F) << 4])
 
     def close(self):
         try:

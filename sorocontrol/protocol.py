@@ -1,4 +1,5 @@
-"""The board's wire protocol: versioned, checksummed binary frames over TCP, with challenge-response login.
+r"""The board's wire protocol: versioned, checksummed binary frames over TCP, a challenge-response login, and
+a message authentication code on every frame after it.
 
 The specification, for implementers of other clients, is ``docs/board-protocol.md``; this module is its
 reference implementation, shared by the board server (:mod:`sorocontrol.server`) and the host client
@@ -8,7 +9,7 @@ Frame (all integers little-endian)::
 
     offset  size  field
     0       2     magic b"SB"
-    2       1     protocol version (PROTOCOL_VERSION = 1)
+    2       1     protocol version (PROTOCOL_VERSION = 2)
     3       1     message type (MessageType)
     4       4     payload length L, uint32, at most MAX_PAYLOAD
     8       L     payload (layout per type, below)
@@ -26,13 +27,21 @@ Session::
     client -> SET / READ / HEARTBEAT / VENT, each answered by a STATE frame (or ERROR)
     client -> BYE     (server vents and closes)
 
-The secret never crosses the wire; a replayed AUTH fails because Ns is fresh per connection. Pressures are
-gauge pressures in pascal (float64). See the spec for the payload layouts.
+After READY every frame, both ways, is *sealed* (:class:`Session`): its payload is
+``uint64 sequence | body | HMAC-SHA256(K_dir, header | sequence | body)`` with the session key
+:math:`K = \mathrm{HMAC}(secret, \texttt{"soro-session"} | N_s | N_c)` and one direction key
+:math:`K_{dir} = \mathrm{HMAC}(K, \texttt{"client->board"})` or ``"board->client"``. The sequence number
+starts at 1 in each direction and grows by exactly 1 per frame, so a forged, replayed, reordered or dropped
+frame is an error (the board vents and drops the connection). The secret never crosses the wire; a replayed
+AUTH fails because Ns is fresh per connection. Pressures are gauge pressures in pascal (float64).
 """
 import enum
 import hashlib
 import hmac
+import math
 import os
+import socket
+import string
 import struct
 import zlib
 from dataclasses import dataclass, field
@@ -41,18 +50,23 @@ import numpy as np
 
 from sorofem.errors import ProtocolError
 
-__all__ = ["PROTOCOL_VERSION", "MAGIC", "MAX_PAYLOAD", "MAX_CHANNELS", "HEADER", "MessageType", "Flag",
-           "Hello", "State", "encode", "decode", "read_frame", "FrameReader", "client_proof", "server_proof",
-           "new_nonce", "pack_hello", "unpack_hello", "pack_pressures", "unpack_pressures", "pack_state",
+__all__ = ["PROTOCOL_VERSION", "MAGIC", "MAX_PAYLOAD", "MAX_CHANNELS", "HEADER", "MAC_SIZE", "MIN_SECRET_BITS",
+           "MessageType", "Flag", "ErrorCode", "Hello", "State", "Session", "encode", "decode", "read_frame",
+           "FrameReader", "send_frame", "client_proof", "server_proof", "secret_bytes", "secret_bits",
+           "read_secret_file",
+           "error_code", "new_nonce", "pack_hello", "unpack_hello", "pack_pressures", "unpack_pressures", "pack_state",
            "unpack_state", "pack_error", "unpack_error"]
 
-PROTOCOL_VERSION = 1
+PROTOCOL_VERSION = 2
 MAGIC = b"SB"
 MAX_PAYLOAD = 4096      # bytes; the largest legal payload (HELLO with 64 channels) is < 1.2 kB
 MAX_CHANNELS = 64
 NONCE_SIZE = 32
 HEADER = struct.Struct("<2sBBI")        # magic, version, type, payload length
 CRC = struct.Struct("<I")
+MAC_SIZE = 32           # bytes of HMAC-SHA256 tag on a sealed frame
+MIN_SECRET_BITS = 128   # a shared secret must carry at least 16 bytes of entropy (estimated, see secret_bits)
+MAKE_SECRET = "head -c 32 /dev/urandom | base64 > FILE"
 
 
 class MessageType(enum.IntEnum):
@@ -85,6 +99,21 @@ class ErrorCode(enum.IntEnum):
     UNEXPECTED = 5
     SIZE = 6
     INTERNAL = 7
+    INTEGRITY = 8       # a sealed frame with a bad MAC or an out-of-order sequence number
+
+
+def error_code(exc):
+    """The :class:`ErrorCode` that answers the ProtocolError ``exc`` (by what its message names)."""
+    text = str(exc)
+    if "protocol version" in text:
+        return ErrorCode.VERSION
+    if "MAX_PAYLOAD" in text:
+        return ErrorCode.SIZE
+    if text.startswith(("unexpected", "expected AUTH")):
+        return ErrorCode.UNEXPECTED
+    if "MAC" in text or "sequence number" in text:
+        return ErrorCode.INTEGRITY
+    return ErrorCode.MALFORMED
 
 
 @dataclass(frozen=True)
@@ -198,6 +227,15 @@ def _recv_exact(sock, n):
     return b"".join(chunks)
 
 
+_NOSIGNAL = getattr(socket, "MSG_NOSIGNAL", 0)
+
+
+def send_frame(sock, frame):
+    """Send ``frame`` (bytes) on ``sock``. A peer that has gone raises OSError (EPIPE) and never SIGPIPE,
+    which a host library may have set to abort the process (PETSc's signal handlers do)."""
+    sock.sendall(frame, _NOSIGNAL)
+
+
 def read_frame(sock):
     """Block until one frame arrives on ``sock``; ``(type, payload)``. ProtocolError on a defect,
     ConnectionError when the peer closes, ``socket.timeout`` on the socket's timeout."""
@@ -206,29 +244,130 @@ def read_frame(sock):
     return decode(head + _recv_exact(sock, length + CRC.size))
 
 
-# ---- login --------------------------------------------------------------------------------------------
+# ---- secrets and login ----------------------------------------------------------------------------
 
 def new_nonce():
     return os.urandom(NONCE_SIZE)
 
 
-def _secret(secret):
+_ALPHABETS = [(set(string.digits), 10), (set(string.hexdigits.lower()), 16), (set(string.hexdigits.upper()), 16),
+              (set(string.ascii_lowercase), 26), (set(string.ascii_lowercase + string.digits), 36),
+              (set(string.ascii_letters), 52), (set(string.ascii_letters + string.digits), 62),
+              (set(string.ascii_letters + string.digits + "+/=-_"), 64),
+              (set(string.printable) - set("\t\n\r\x0b\x0c"), 95)]
+
+
+def secret_bits(secret):
+    r"""An estimate (an upper bound) of the entropy [bit] of a normalized ``secret`` (bytes): its length times
+    :math:`\log_2` of the smallest usual alphabet that holds all its characters (digits 10, hex 16, lower case
+    26, ..., base64 64, printable ASCII 95, any byte 256); 0 when it has fewer than 8 distinct bytes (a
+    repeated pattern). ``head -c 32 /dev/urandom | base64`` gives 264."""
+    if len(set(secret)) < min(8, len(secret)) or len(set(secret)) < 2:
+        return 0.0
+    chars = set(chr(b) for b in secret)
+    size = next((n for alphabet, n in _ALPHABETS if chars <= alphabet), 256)
+    return len(secret) * math.log2(size)
+
+
+def secret_bytes(secret, source="the shared secret"):
+    """The shared secret as the protocol uses it: UTF-8 bytes of ``secret`` (bytes or str) with leading and
+    trailing whitespace removed (one rule for the board and the client, so a newline at the end of a secret
+    file never matters). ProtocolError when it is empty or carries fewer than :data:`MIN_SECRET_BITS` bits
+    (estimated by :func:`secret_bits`), with the command that makes a good one."""
+    if secret is None:
+        secret = b""
     if isinstance(secret, str):
         secret = secret.encode()
+    secret = bytes(secret).strip()
     if not secret:
-        raise ProtocolError("empty shared secret: set one on the board (--secret-file) and pass the same to "
-                            "Board.connect(url, secret=...)")
-    return bytes(secret)
+        raise ProtocolError(f"{source} is empty: make one with `{MAKE_SECRET}` (mode 600), give it to the board "
+                            "(--secret-file FILE) and the same to Board.connect(url, secret_file=FILE)")
+    bits = secret_bits(secret)
+    if bits < MIN_SECRET_BITS:
+        raise ProtocolError(f"{source} is too weak: about {bits:.0f} bits of entropy, at least {MIN_SECRET_BITS} "
+                            f"(16 random bytes) are needed; make one with `{MAKE_SECRET}`")
+    return secret
+
+
+def read_secret_file(path):
+    """:func:`secret_bytes` of the content of the file ``path``; ProtocolError naming the file when it is
+    missing, unreadable, empty or too weak."""
+    try:
+        with open(path, "rb") as f:
+            data = f.read()
+    except FileNotFoundError:
+        make = MAKE_SECRET.replace("FILE", str(path))
+        raise ProtocolError(f"secret file {path} does not exist: make one with `{make}` "
+                            f"and `chmod 600 {path}`") from None
+    except OSError as e:
+        raise ProtocolError(f"cannot read the secret file {path}: {e.strerror}; the board's user must be able "
+                            "to read it (chown it to that user, mode 600)") from None
+    return secret_bytes(data, source=f"the secret in {path}")
+
+
+def _mac(key, data):
+    return hmac.new(key, data, hashlib.sha256).digest()
 
 
 def client_proof(secret, server_nonce, client_nonce):
     """HMAC-SHA256(secret, b"soro-client" | Ns | Nc): what the client sends to prove it knows the secret."""
-    return hmac.new(_secret(secret), b"soro-client" + server_nonce + client_nonce, hashlib.sha256).digest()
+    return _mac(secret_bytes(secret), b"soro-client" + server_nonce + client_nonce)
 
 
 def server_proof(secret, server_nonce, client_nonce):
     """HMAC-SHA256(secret, b"soro-server" | Nc | Ns): the board's proof back to the client."""
-    return hmac.new(_secret(secret), b"soro-server" + client_nonce + server_nonce, hashlib.sha256).digest()
+    return _mac(secret_bytes(secret), b"soro-server" + client_nonce + server_nonce)
+
+
+_SEQ64 = struct.Struct("<Q")
+
+
+class Session:
+    """Seals and opens the frames of one logged-in connection (see the module docstring).
+
+    Parameters
+    ----------
+    secret : bytes or str
+        The shared secret.
+    server_nonce, client_nonce : bytes
+        The nonces of the handshake (HELLO's Ns, AUTH's Nc).
+    role : {"client", "board"}
+        Which end this is: it sends with its own direction key and opens with the other.
+    """
+
+    def __init__(self, secret, server_nonce, client_nonce, role):
+        if role not in ("client", "board"):
+            raise ValueError(f"role must be 'client' or 'board', got {role!r}")
+        key = _mac(secret_bytes(secret), b"soro-session" + bytes(server_nonce) + bytes(client_nonce))
+        up, down = _mac(key, b"client->board"), _mac(key, b"board->client")
+        self._send_key, self._recv_key = (up, down) if role == "client" else (down, up)
+        self.sent = 0           # sequence number of the last frame sealed
+        self.received = 0       # sequence number of the last frame opened
+
+    def seal(self, mtype, body=b""):
+        """The frame (bytes) of type ``mtype`` carrying ``body``, with the next sequence number and its MAC."""
+        self.sent += 1
+        inner = _SEQ64.pack(self.sent) + bytes(body)
+        head = HEADER.pack(MAGIC, PROTOCOL_VERSION, int(MessageType(mtype)), len(inner) + MAC_SIZE)
+        return encode(mtype, inner + _mac(self._send_key, head + inner))
+
+    def open(self, mtype, payload):
+        """The body of a sealed frame ``(mtype, payload)`` (as :func:`decode` returns it). ProtocolError when
+        the MAC does not match (forged or altered on the path) or the sequence number is not the next one
+        (replayed, reordered or dropped frame)."""
+        if len(payload) < _SEQ64.size + MAC_SIZE:
+            raise ProtocolError(f"{MessageType(mtype).name} frame of {len(payload)} payload bytes has no MAC: "
+                                "after login every frame is sealed")
+        inner, tag = payload[:-MAC_SIZE], payload[-MAC_SIZE:]
+        head = HEADER.pack(MAGIC, PROTOCOL_VERSION, int(mtype), len(payload))
+        if not hmac.compare_digest(tag, _mac(self._recv_key, head + inner)):
+            raise ProtocolError(f"bad MAC on a {MessageType(mtype).name} frame: forged or altered on the path")
+        (seq,) = _SEQ64.unpack_from(inner)
+        if seq != self.received + 1:
+            raise ProtocolError(f"sequence number {seq} on a {MessageType(mtype).name} frame, expected "
+                                f"{self.received + 1}: a replayed, reordered or dropped frame")
+        self.received = seq
+        return inner[_SEQ64.size:]
 
 
 def pack_auth(client_nonce, proof):

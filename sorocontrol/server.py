@@ -1,29 +1,45 @@
 r"""The board server: runs on the Raspberry Pi (or, simulated, on the host), enforces the safety rules.
 
-One thread runs the board loop at ``board_rate`` [Hz]: the applied set-point of each channel slews toward
-the requested one at most at the channel's rate limit, :math:`p_a \leftarrow p_a + \mathrm{clip}(p_r - p_a,
--r\,\Delta t, r\,\Delta t)`, and is sent to the driver, which returns the measured pressures. Another thread
-accepts connections; one client at a time controls the board (a second is refused with ``ERROR BUSY``).
+One thread runs the board loop at ``board_rate`` [Hz] (:meth:`BoardServer.tick`): the applied set-point of
+each channel slews toward the requested one at most at the channel's rate limit, :math:`p_a \leftarrow p_a +
+\mathrm{clip}(p_r - p_a, -r\,\Delta t, r\,\Delta t)`, and is sent to the driver, which returns the measured
+pressures. Another thread accepts connections and runs their logins; the connection that logs in first takes
+the control slot and is served by its own thread.
 
 Safety rules (all enforced here, whatever the client does):
 
-* set-points outside ``[p_min, p_max]`` are clamped (flag ``CLAMPED`` in the answer), non-finite ones are an
-  error;
+* no client logged in (or a fault) ⇒ the requested and applied pressures are 0 Pa on every channel, enforced
+  by the board loop at every tick; a command from a connection that is no longer the client is refused;
+* set-points outside ``[p_min, p_max]`` are clamped (flag ``CLAMPED``), non-finite ones are an error;
 * the slew rate limit above (flag ``RATE_LIMITED`` while slewing);
-* the watchdog: when the controlling client sends no valid frame within ``watchdog`` seconds, every channel
-  is vented to 0 Pa (flag ``VENTED``) and the connection is dropped;
-* venting on a client's disconnect, on any protocol error, on a driver exception and on shutdown
-  (``stop()``, SIGTERM, SIGINT).
+* the measured pressure of every channel is checked against ``[p_min - tolerance, p_max + tolerance]`` at
+  each tick: a channel outside for ``excursion_time`` vents the board and refuses commands until the next
+  login, with an event that names the channel (a regulator fault or a wrong calibration in the profile);
+* the watchdog: when the client sends no valid frame within ``watchdog`` seconds, the client is dropped and
+  every channel vented (flag ``VENTED``);
+* venting on a client's disconnect, on any protocol error (including a frame with a bad MAC or an old
+  sequence number), on a driver exception and on shutdown (``stop()``, SIGTERM, SIGINT);
+* connections that have not logged in never hold the control slot: at most ``max_pending`` wait, each for
+  ``auth_timeout`` seconds (the oldest is dropped when a new one comes and they are all taken); failed logins
+  back off per source address (``backoff``: the first wait, doubling up to the second).
 
-Run it with ``python -m sorocontrol.server`` (``--help``; on the Pi with ``--driver i2c``, see
+Outside this process (``hardware/README.md``): the systemd unit's ``ExecStopPost`` runs
+``python -m sorocontrol.vent`` when the server stops or dies, and the server pets systemd's watchdog
+(``WatchdogSec``, ``sd_notify``) from the board loop, so a hung server is killed, vented and restarted.
+
+Run it with ``python -m sorocontrol.server`` (``--help``; on the Pi with ``--driver i2c --profile FILE``, see
 ``hardware/README.md``) or from Python with :class:`BoardServer`.
 """
 import argparse
+import collections
+import importlib
 import logging
 import math
 import os
+import selectors
 import signal
 import socket
+import struct
 import sys
 import threading
 import time
@@ -40,18 +56,32 @@ log = logging.getLogger(__name__)
 __all__ = ["BoardServer", "main"]
 
 
+class _NotClient(Exception):
+    """A command arrived from a connection that no longer holds the control slot."""
+
+
+class _Pending:
+    """A connection that has not logged in yet."""
+    __slots__ = ("peer", "nonce", "deadline", "reader")
+
+    def __init__(self, peer, nonce, deadline):
+        self.peer, self.nonce, self.deadline, self.reader = peer, nonce, deadline, P.FrameReader()
+
+
 class BoardServer:
-    """A board: a driver behind the protocol, with limits, rate limits and a watchdog.
+    """A board: a driver behind the protocol, with limits, rate limits, read-back checks and a watchdog.
 
     Parameters
     ----------
     driver : sorocontrol.drivers.Driver
     secret : bytes or str
-        Shared secret for the challenge-response login.
+        Shared secret for the login and the session keys (at least 16 bytes of entropy, see
+        :func:`sorocontrol.protocol.secret_bytes`).
     host, port : str, int
         Where to listen (port 0 picks a free one: see :attr:`address`). Default loopback:8888.
     p_min, p_max : float or array [Pa]
-        Per-channel pressure limits (default -100 kPa / 100 kPa, the VEAB range).
+        Per-channel safety limits (default -100 kPa / 100 kPa). They must lie inside the driver's
+        calibrated range (:attr:`Driver.p_range`) and contain 0 Pa.
     rate : float or array [Pa/s]
         Per-channel slew-rate limit of the applied set-point (default 1 MPa/s: 100 kPa in 0.1 s).
     watchdog : float [s]
@@ -59,51 +89,101 @@ class BoardServer:
     board_rate : float [Hz]
         Board loop rate (default 400 Hz, Sorotoki's Pi loop).
     auth_timeout : float [s]
-        Time a new connection has to log in.
+        Time each new connection has to log in (default 2 s).
+    tolerance : float or array [Pa], optional
+        How far a measured pressure may leave ``[p_min, p_max]`` (regulator overshoot, sensor noise) before
+        the board vents; default 20 % of ``p_max - p_min`` plus 5 kPa.
+    excursion_time : float [s]
+        How long a channel must stay outside before it counts (default 20 ms, at least one tick).
+    max_pending : int
+        Connections that may wait to log in at once (default 16).
+    backoff : (float, float) [s]
+        After the k-th consecutive failed login from an address, its next attempt is refused for
+        ``min(backoff[0] * 2**(k-1), backoff[1])`` (default 0.1 s ... 10 s).
+    clock : callable, optional
+        Monotonic time source [s] (default :func:`time.monotonic`); tests inject one and call :meth:`tick`.
     """
 
     def __init__(self, driver, secret, host="127.0.0.1", port=8888, p_min=-100e3, p_max=100e3, rate=1e6,
-                 watchdog=0.5, board_rate=400.0, auth_timeout=2.0):
+                 watchdog=0.5, board_rate=400.0, auth_timeout=2.0, tolerance=None, excursion_time=0.02,
+                 max_pending=16, backoff=(0.1, 10.0), clock=None):
         if not isinstance(driver, Driver):
             raise ParameterError("driver must be a sorocontrol.drivers.Driver (I2CDriver, MockDriver or "
                                  "SimulatedPlant)")
         self.driver = driver
         n = self.channels = driver.channels
-        self.secret = P._secret(secret)
+        try:
+            self.secret = P.secret_bytes(secret)
+        except ProtocolError as e:
+            raise ParameterError(str(e)) from None
         self.p_min, self.p_max, self.rate = (np.broadcast_to(np.asarray(v, float), (n,)).copy()
                                              for v in (p_min, p_max, rate))
         if not (np.all(np.isfinite(self.p_min)) and np.all(np.isfinite(self.p_max))
                 and np.all(self.p_min <= 0) and np.all(self.p_max >= 0)):
             raise ParameterError("pressure limits must be finite with p_min <= 0 <= p_max [Pa] (0 Pa, the "
                                  "vent pressure, must be allowed)")
+        lo, hi = driver.p_range
+        outside = np.flatnonzero((self.p_min < lo) | (self.p_max > hi))
+        if outside.size:
+            c = outside[0]
+            raise ParameterError(f"the limits of channel {c} [{self.p_min[c] / 1e3:g}, {self.p_max[c] / 1e3:g}] kPa "
+                                 f"leave the regulator's calibrated range [{lo[c] / 1e3:g}, {hi[c] / 1e3:g}] kPa "
+                                 "(board profile): narrow the limits or fix the profile")
         if not np.all(self.rate > 0):
             raise ParameterError("rate limits must be positive [Pa/s]")
-        for what, v in (("watchdog", watchdog), ("board_rate", board_rate), ("auth_timeout", auth_timeout)):
+        if tolerance is None:
+            tolerance = 0.2 * (self.p_max - self.p_min) + 5e3
+        self.tolerance = np.broadcast_to(np.asarray(tolerance, float), (n,)).copy()
+        if not np.all(self.tolerance >= 0):
+            raise ParameterError("tolerance must be >= 0 [Pa]")
+        for what, v in (("watchdog", watchdog), ("board_rate", board_rate), ("auth_timeout", auth_timeout),
+                        ("excursion_time", excursion_time), ("backoff[0]", backoff[0]),
+                        ("backoff[1]", backoff[1])):
             if not (math.isfinite(v) and v > 0):
                 raise ParameterError(f"{what} must be positive, got {v!r}")
+        if int(max_pending) < 1:
+            raise ParameterError(f"max_pending must be at least 1, got {max_pending!r}")
         self.watchdog, self.board_rate, self.auth_timeout = float(watchdog), float(board_rate), float(auth_timeout)
+        self.max_pending, self.backoff = int(max_pending), (float(backoff[0]), float(backoff[1]))
+        self._excursion_ticks = max(1, int(math.ceil(excursion_time * self.board_rate - 1e-9)))
+        self._clock = clock or time.monotonic
+        self._t0 = self._clock()
         self.requested = np.zeros(n)
         self.applied = np.zeros(n)
         self.flags = np.zeros(n, np.int64)
-        measured, sensors, faults = driver.apply(np.zeros(n), 0.0)   # a first reading: states are never empty
-        self.measured, self.sensors, self.faults = (np.asarray(a, float) for a in (measured, sensors, faults))
-        self.faults = self.faults.astype(bool)
         self.events = []                   # (board time, text) of vents, refusals and errors, newest last
-        self._lock = threading.Lock()
+        self.counters = collections.Counter()   # logins, auth_failures, backoff_refusals, evicted, expired, ...
+        self._lock = threading.Lock()          # the state below and the control slot
+        self._driver_lock = threading.Lock()   # the driver (taken before _lock when both are needed)
         self._stop = threading.Event()
-        self._client = None                # the controlling connection's socket
-        self._fault = None                 # a driver failure: commands are refused until the next login
+        self._client = None                # the logged-in connection's socket
+        self._client_peer = None
+        self._fault = None                 # a driver or read-back failure: commands refused until the next login
+        self._out_ticks = np.zeros(n, int)
+        self._tripped = False
         self._last_valid = 0.0
-        self._t0 = time.monotonic()
+        self._failures = collections.OrderedDict()   # address -> (consecutive failures, refused until)
+        self._accept_alive = time.monotonic()
+        measured, sensors, faults = driver.apply(np.zeros(n), 0.0)   # a first reading: states are never empty
+        self.measured, self.sensors = np.asarray(measured, float), np.asarray(sensors, float)
+        self.faults = np.asarray(faults, bool)
+        if not host:
+            raise ParameterError("no address to listen on: give --host (on the Pi: the lab-network address of "
+                                 "the board, SORO_BOARD_HOST in /etc/soro-board/board.env)")
         self._sock = socket.create_server((host, int(port)), reuse_port=False)
-        self._sock.settimeout(0.1)
+        self._sock.setblocking(False)
         self.address = self._sock.getsockname()[:2]
+        if self.address[0] in ("0.0.0.0", "::"):
+            log.warning("listening on every interface (%s): any host that reaches the Pi can try to log in; "
+                        "prefer the lab-network address", self.address[0])
         self._threads = []
 
     # ---- life cycle ---------------------------------------------------------------------------------
-    def start(self):
-        """Start the board loop and the accept loop in background threads; returns ``self``."""
-        for target in (self._board_loop, self._accept_loop):
+    def start(self, loop=True):
+        """Start the accept loop and (``loop``, default) the board loop in background threads; returns
+        ``self``. Without ``loop`` the caller runs the board by calling :meth:`tick`."""
+        targets = (self._board_loop, self._accept_loop) if loop else (self._accept_loop,)
+        for target in targets:
             th = threading.Thread(target=target, daemon=True, name=f"soro-board-{target.__name__}")
             th.start()
             self._threads.append(th)
@@ -127,8 +207,8 @@ class BoardServer:
         for th in self._threads:
             th.join(timeout=2.0)
         self._threads = []
+        self._drop_client("shutdown")
         self._vent("shutdown")
-        self._drop_client()
         self._sock.close()
         try:
             self.driver.close()
@@ -143,7 +223,24 @@ class BoardServer:
 
     def now(self):
         """Board time [s] since the server was created."""
-        return time.monotonic() - self._t0
+        return self._clock() - self._t0
+
+    @property
+    def client(self):
+        """``"host:port"`` of the logged-in client, or None."""
+        with self._lock:
+            return self._client_peer if self._client is not None else None
+
+    @property
+    def fault(self):
+        """Why commands are refused until the next login (a driver or read-back failure), or None."""
+        return self._fault
+
+    def healthy(self, within=1.0):
+        """True when the board loop ticked and the accept loop ran within ``within`` seconds (real time):
+        what the systemd watchdog is petted on."""
+        t = time.monotonic()
+        return t - self._last_tick_real < within and t - self._accept_alive < within
 
     # ---- board loop ---------------------------------------------------------------------------------
     def _event(self, text):
@@ -151,51 +248,111 @@ class BoardServer:
         del self.events[:-200]
         log.warning("board: %s", text)
 
-    def _vent(self, why):
-        with self._lock:
-            self.requested[:] = 0.0
-            self.applied[:] = 0.0
-            self.flags |= P.Flag.VENTED
-            self.flags &= ~(P.Flag.RATE_LIMITED | P.Flag.CLAMPED)
-        try:
-            self.driver.vent()
-        except Exception as e:  # noqa: BLE001 - a vent must not raise; say it loudly
-            log.error("driver vent failed: %s", e)
+    def _vent(self, why, conn=None, release=None):
+        """All channels to 0 Pa at once and the driver's vent, in one critical section with the state, so
+        that nobody sees the slot free and the DAC still pressurized. With ``conn``: only if it is still the
+        client (else :class:`_NotClient`). With ``release``: that connection loses the slot in the same
+        section (no vent if it did not hold it); returns whether it held it."""
+        with self._driver_lock:
+            with self._lock:
+                if conn is not None and self._client is not conn:
+                    raise _NotClient
+                if release is not None:
+                    if self._client is not release:
+                        return False
+                    self._client = None
+                self._zero_locked()
+                try:
+                    self.driver.vent()
+                except Exception as e:  # noqa: BLE001 - a vent must not raise; say it loudly
+                    log.error("driver vent failed: %s", e)
         self._event(f"vented ({why})")
+        return True
+
+    def _zero_locked(self):
+        self.requested[:] = 0.0
+        self.applied[:] = 0.0
+        self.flags |= P.Flag.VENTED
+        self.flags &= ~(P.Flag.RATE_LIMITED | P.Flag.CLAMPED)
+
+    _last_tick_real = 0.0
+
+    def tick(self):
+        """One iteration of the board loop at the clock's time: watchdog, the no-client rule, slewing, the
+        driver, the read-back check. The board loop thread calls it at ``board_rate``."""
+        t = self.now()
+        self._last_tick_real = time.monotonic()
+        dt = 1.0 / self.board_rate
+        dropped, forced = None, False
+        with self._driver_lock:
+            with self._lock:
+                if self._client is not None and t - self._last_valid > self.watchdog:
+                    dropped, silence = (self._client, self._client_peer), t - self._last_valid
+                    self._client = None
+                driver_error = None
+                if self._client is None or self._fault:       # nobody may hold pressure
+                    forced = bool(np.any(self.requested != 0) or np.any(self.applied != 0))
+                    self.requested[:] = 0.0
+                    self.applied[:] = 0.0
+                    if forced or dropped:                     # vent before anyone sees the slot free
+                        self._zero_locked()
+                        try:
+                            self.driver.vent()
+                        except Exception as e:  # noqa: BLE001 - any driver failure vents the board
+                            driver_error = f"driver error: {type(e).__name__}: {e}"
+                else:
+                    step = self.rate * dt
+                    self.applied += np.clip(self.requested - self.applied, -step, step)
+                slewing = np.abs(self.requested - self.applied) > 1e-9 * np.maximum(1.0, np.abs(self.requested))
+                self.flags = np.where(slewing, self.flags | P.Flag.RATE_LIMITED, self.flags & ~P.Flag.RATE_LIMITED)
+                applied = self.applied.copy()
+            try:
+                if driver_error is None:
+                    measured, sensors, faults = self.driver.apply(applied, t)
+            except Exception as e:  # noqa: BLE001 - any driver failure vents the board
+                driver_error = f"driver error: {type(e).__name__}: {e}"
+        if dropped is not None:
+            self._event(f"watchdog: no valid command from {dropped[1]} for {silence:.3f} s (timeout "
+                        f"{self.watchdog} s): dropped")
+            self._close(dropped[0])
+            self._event("vented (watchdog)")
+        elif forced:
+            self._event("vented (no client logged in: every channel held at 0 Pa)")
+        if driver_error is not None:
+            if self._fault != driver_error:
+                self._fault = driver_error
+                self._event(driver_error)
+                self._vent("driver error")
+            return
+        measured, faults = np.asarray(measured, float), np.asarray(faults, bool)
+        with self._lock:
+            self.measured, self.sensors, self.faults = measured, np.asarray(sensors, float), faults
+            self.flags = np.where(faults, self.flags | P.Flag.SENSOR_FAULT, self.flags & ~P.Flag.SENSOR_FAULT)
+        self._check_readback(measured, faults)
+
+    def _check_readback(self, measured, faults):
+        out = ~faults & ((measured < self.p_min - self.tolerance) | (measured > self.p_max + self.tolerance))
+        self._out_ticks = np.where(out, self._out_ticks + 1, 0)
+        tripped = np.flatnonzero(self._out_ticks >= self._excursion_ticks)
+        if not tripped.size:
+            self._tripped = False
+            return
+        c = tripped[0]
+        why = (f"channel {c} measures {measured[c] / 1e3:.1f} kPa, outside its limits [{self.p_min[c] / 1e3:g}, "
+               f"{self.p_max[c] / 1e3:g}] kPa (tolerance {self.tolerance[c] / 1e3:g} kPa) with "
+               f"{self.requested[c] / 1e3:g} kPa requested: check the regulator, its supply and the calibration "
+               "in the board profile")
+        self._fault = why
+        if not self._tripped:
+            self._tripped = True
+            self._event(why)
+            self._vent(f"read-back outside the limits on channel(s) {tripped.tolist()}")
 
     def _board_loop(self):
         dt = 1.0 / self.board_rate
         next_t = time.monotonic()
         while not self._stop.is_set():
-            t = self.now()
-            with self._lock:
-                step = self.rate * dt
-                delta = np.clip(self.requested - self.applied, -step, step)
-                self.applied += delta
-                slewing = np.abs(self.requested - self.applied) > 1e-9 * np.maximum(1.0, np.abs(self.requested))
-                self.flags = np.where(slewing, self.flags | P.Flag.RATE_LIMITED, self.flags & ~P.Flag.RATE_LIMITED)
-                applied = self.applied.copy()
-                silent = self._client is not None and t - self._last_valid > self.watchdog
-            if silent:
-                self._event(f"watchdog: no valid command for {t - self._last_valid:.3f} s "
-                            f"(timeout {self.watchdog} s)")
-                self._drop_client()
-                self._vent("watchdog")
-                continue
-            try:
-                measured, sensors, faults = self.driver.apply(applied, t)
-            except Exception as e:  # noqa: BLE001 - any driver failure vents the board
-                self._fault = f"driver error: {type(e).__name__}: {e}"
-                self._event(self._fault)
-                self._vent("driver error")
-                time.sleep(dt)
-                continue
-            with self._lock:
-                self.measured = np.asarray(measured, float)
-                self.sensors = np.asarray(sensors, float)
-                self.faults = np.asarray(faults, bool)
-                self.flags = np.where(self.faults, self.flags | P.Flag.SENSOR_FAULT,
-                                      self.flags & ~P.Flag.SENSOR_FAULT)
+            self.tick()
             next_t += dt
             delay = next_t - time.monotonic()
             if delay > 0:
@@ -203,42 +360,171 @@ class BoardServer:
             else:
                 next_t = time.monotonic()   # overrun: do not try to catch up with a burst
 
-    # ---- connections --------------------------------------------------------------------------------
-    def _accept_loop(self):
-        while not self._stop.is_set():
-            try:
-                conn, peer = self._sock.accept()
-            except (socket.timeout, OSError):
-                continue
-            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            with self._lock:
-                busy = self._client is not None
-                if not busy:
-                    self._client = conn
-                    self._last_valid = self.now()
-            if busy:
-                self._event(f"refused {peer[0]}:{peer[1]}: another client controls the board")
-                self._send_error(conn, P.ErrorCode.BUSY, "another client controls the board; one at a time")
-                conn.close()
-                continue
-            th = threading.Thread(target=self._serve_client, args=(conn, peer), daemon=True,
-                                  name="soro-board-client")
-            th.start()
+    # ---- connections and logins ---------------------------------------------------------------------
+    def _backoff_left(self, addr):
+        entry = self._failures.get(addr)
+        return 0.0 if entry is None else max(entry[1] - self._clock(), 0.0)
 
-    def _drop_client(self):
+    def _login_failed(self, addr):
+        count = self._failures.pop(addr, (0, 0.0))[0] + 1
+        wait = min(self.backoff[0] * 2.0 ** min(count - 1, 64), self.backoff[1])
+        self._failures[addr] = (count, self._clock() + wait)
+        while len(self._failures) > 4096:
+            self._failures.popitem(last=False)
+        return count, wait
+
+    def _accept_loop(self):
+        sel = selectors.DefaultSelector()
+        sel.register(self._sock, selectors.EVENT_READ, None)
+        pending = collections.OrderedDict()     # socket -> _Pending, oldest first
+        try:
+            while not self._stop.is_set():
+                self._accept_alive = time.monotonic()
+                for key, _ in sel.select(timeout=0.05):
+                    try:
+                        if key.data is None:
+                            self._accept(sel, pending)
+                        else:
+                            self._login_step(sel, pending, key.fileobj)
+                    except Exception as e:  # noqa: BLE001 - the accept loop must survive any peer
+                        self._event(f"internal error in the accept loop: {type(e).__name__}: {e}")
+                        if key.data is not None:
+                            self._forget(sel, pending, key.fileobj, P.ErrorCode.INTERNAL, "internal error")
+                now = self._clock()
+                for conn in [c for c, pd in pending.items() if now > pd.deadline]:
+                    self.counters["expired"] += 1
+                    log.info("login of %s:%d timed out", *pending[conn].peer[:2])
+                    self._forget(sel, pending, conn, P.ErrorCode.AUTH,
+                                 f"no AUTH within {self.auth_timeout} s of HELLO")
+        finally:
+            for conn in list(pending):
+                self._forget(sel, pending, conn)
+            sel.close()
+
+    def _forget(self, sel, pending, conn, code=None, message=""):
+        pending.pop(conn, None)
+        try:
+            sel.unregister(conn)
+        except (KeyError, ValueError):
+            pass
+        if code is not None:
+            self._send_error(conn, code, message)
+        conn.close()
+
+    def _accept(self, sel, pending):
+        try:
+            conn, peer = self._sock.accept()
+        except (BlockingIOError, OSError):
+            return
+        wait = self._backoff_left(peer[0])
+        if wait > 0:
+            self.counters["backoff_refusals"] += 1
+            self._send_error(conn, P.ErrorCode.AUTH, f"too many failed logins from {peer[0]}: retry in {wait:.1f} s")
+            conn.close()
+            return
+        if len(pending) >= self.max_pending:
+            oldest = next(iter(pending))
+            self.counters["evicted"] += 1
+            log.info("%d connections waiting to log in: dropped the oldest (%s:%d)", len(pending),
+                     *pending[oldest].peer[:2])
+            self._forget(sel, pending, oldest, P.ErrorCode.BUSY, "too many connections waiting to log in")
+        try:
+            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            nonce = P.new_nonce()
+            P.send_frame(conn, P.encode(P.MessageType.HELLO, P.pack_hello(self._hello(nonce))))
+            conn.setblocking(False)
+        except OSError:
+            conn.close()
+            return
+        pending[conn] = _Pending(peer, nonce, self._clock() + self.auth_timeout)
+        sel.register(conn, selectors.EVENT_READ, True)
+
+    def _login_step(self, sel, pending, conn):
+        pd = pending.get(conn)
+        if pd is None:
+            return
+        who = f"{pd.peer[0]}:{pd.peer[1]}"
+        try:
+            data = conn.recv(4096)
+        except BlockingIOError:
+            return
+        except OSError:
+            data = b""
+        if not data:
+            self._forget(sel, pending, conn)
+            return
+        try:
+            frames = pd.reader.feed(data)
+            if not frames:
+                return
+            mtype, payload = frames[0]
+            if mtype != P.MessageType.AUTH:
+                raise ProtocolError(f"expected AUTH, got {mtype.name}")
+            client_nonce, proof = P.unpack_auth(payload)
+        except ProtocolError as e:
+            self._event(f"protocol error from {who} before login: {e}")
+            self._forget(sel, pending, conn, P.error_code(e), str(e))
+            return
+        if not P.hmac.compare_digest(proof, P.client_proof(self.secret, pd.nonce, client_nonce)):
+            count, wait = self._login_failed(pd.peer[0])
+            self.counters["auth_failures"] += 1
+            self._event(f"refused {who}: authentication failed ({count} in a row from {pd.peer[0]}; its next "
+                        f"attempt is refused for {wait:.1f} s)")
+            self._forget(sel, pending, conn, P.ErrorCode.AUTH, "authentication failed: wrong shared secret")
+            return
+        pending.pop(conn)
+        sel.unregister(conn)
+        self._failures.pop(pd.peer[0], None)
+        with self._lock:
+            busy = self._client is not None
+            if not busy:
+                self._client, self._client_peer = conn, who
+                self._last_valid = self.now()
+                self._fault = None
+        if busy:
+            self._event(f"refused {who}: another client controls the board")
+            self._send_error(conn, P.ErrorCode.BUSY, "another client controls the board; one at a time")
+            conn.close()
+            return
+        self.counters["logins"] += 1
+        session = P.Session(self.secret, pd.nonce, client_nonce, "board")
+        try:
+            conn.setblocking(True)
+            conn.settimeout(1.0)
+            P.send_frame(conn, P.encode(P.MessageType.READY, P.server_proof(self.secret, pd.nonce, client_nonce)))
+        except OSError as e:
+            self._release(conn, who, f"client {who} lost at login: {e}")
+            return
+        log.info("client %s logged in", who)
+        threading.Thread(target=self._serve_client, args=(conn, who, session, pd.reader), daemon=True,
+                         name="soro-board-client").start()
+
+    @staticmethod
+    def _close(conn):
+        try:
+            conn.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
+        conn.close()
+
+    def _drop_client(self, why):
         with self._lock:
             conn, self._client = self._client, None
         if conn is not None:
-            try:
-                conn.shutdown(socket.SHUT_RDWR)
-            except OSError:
-                pass
-            conn.close()
+            self._event(f"client dropped ({why})")
+            self._close(conn)
+
+    def _release(self, conn, who, why):
+        """End the connection ``conn``; vent if it still held the slot."""
+        self._vent(why or f"client {who} disconnected", release=conn)
+        self._close(conn)
 
     @staticmethod
-    def _send_error(conn, code, message):
+    def _send_error(conn, code, message, session=None):
+        frame = P.pack_error(code, message)
         try:
-            conn.sendall(P.encode(P.MessageType.ERROR, P.pack_error(code, message)))
+            P.send_frame(conn, session.seal(P.MessageType.ERROR, frame) if session
+                         else P.encode(P.MessageType.ERROR, frame))
         except OSError:
             pass
 
@@ -247,152 +533,242 @@ class BoardServer:
                        self.rate, nonce)
 
     def _state(self, sequence):
-        with self._lock:
-            s = P.State(self.now(), sequence, self.requested.copy(), self.applied.copy(), self.measured.copy(),
-                        self.flags.copy(), self.sensors.copy())
-        return P.encode(P.MessageType.STATE, P.pack_state(s))
+        return P.pack_state(P.State(self.now(), sequence, self.requested.copy(), self.applied.copy(),
+                                    self.measured.copy(), self.flags.copy(), self.sensors.copy()))
 
-    def _login(self, conn):
-        nonce = P.new_nonce()
-        conn.sendall(P.encode(P.MessageType.HELLO, P.pack_hello(self._hello(nonce))))
-        conn.settimeout(self.auth_timeout)
-        mtype, payload = P.read_frame(conn)
-        if mtype != P.MessageType.AUTH:
-            raise ProtocolError(f"expected AUTH, got {mtype.name}")
-        client_nonce, proof = P.unpack_auth(payload)
-        if not P.hmac.compare_digest(proof, P.client_proof(self.secret, nonce, client_nonce)):
-            raise PermissionError("bad secret")
-        conn.sendall(P.encode(P.MessageType.READY, P.server_proof(self.secret, nonce, client_nonce)))
-
-    def _handle(self, mtype, payload, who):
-        """Carry out one command frame; returns the STATE frame that answers it."""
-        if self._fault:
-            raise ProtocolError(f"board fault, vented: {self._fault}; reconnect to clear it once fixed")
+    def _command(self, conn, mtype, body, who):
+        """Carry out one command of the client ``conn``; returns the STATE payload that answers it. Refused
+        (:class:`_NotClient`) when ``conn`` no longer holds the slot: checked under the lock that the board
+        loop takes to drop a client, so a command never lands after the vent that ended its session."""
         if mtype == P.MessageType.SET:
-            seq, values = P.unpack_pressures(payload, self.channels)
+            seq, values = P.unpack_pressures(body, self.channels)
             if not np.all(np.isfinite(values)):
                 raise ProtocolError(f"non-finite set-point on channel(s) "
                                     f"{np.flatnonzero(~np.isfinite(values)).tolist()}")
-            clamped = np.clip(values, self.p_min, self.p_max)
-            with self._lock:
+        elif mtype in (P.MessageType.READ, P.MessageType.HEARTBEAT, P.MessageType.VENT):
+            seq = P.unpack_sequence(body)
+        else:
+            raise ProtocolError(f"unexpected {mtype.name} from a client")
+        if mtype == P.MessageType.VENT:
+            self._vent(f"requested by {who}", conn=conn)
+        with self._lock:
+            if self._client is not conn:
+                raise _NotClient
+            if self._fault:
+                raise ProtocolError(f"board fault, vented: {self._fault}; reconnect to clear it once fixed")
+            if mtype == P.MessageType.SET:
+                clamped = np.clip(values, self.p_min, self.p_max)
                 self.requested = clamped
                 self.flags &= ~(P.Flag.VENTED | P.Flag.CLAMPED)
                 self.flags |= np.where(clamped != values, int(P.Flag.CLAMPED), 0)
-        elif mtype == P.MessageType.VENT:
-            seq = P.unpack_sequence(payload)
-            self._vent(f"requested by {who}")
-        elif mtype in (P.MessageType.READ, P.MessageType.HEARTBEAT):
-            seq = P.unpack_sequence(payload)
-        else:
-            raise ProtocolError(f"unexpected {mtype.name} from a client")
-        self._last_valid = self.now()
-        return self._state(seq)
-
-    def _serve_client(self, conn, peer):
-        who = f"{peer[0]}:{peer[1]}"
-        try:
-            self._login(conn)
-            self._fault = None
             self._last_valid = self.now()
-            log.info("client %s logged in", who)
+            return self._state(seq)
+
+    def _serve_client(self, conn, who, session, reader):
+        why = None
+        try:
             conn.settimeout(0.05)
-            reader = P.FrameReader()
+            data = b""
             while not self._stop.is_set() and self._client is conn:
+                for mtype, payload in reader.feed(data):
+                    body = session.open(mtype, payload)
+                    if mtype == P.MessageType.BYE:
+                        why = f"client {who} said bye"
+                        return
+                    P.send_frame(conn, session.seal(P.MessageType.STATE, self._command(conn, mtype, body, who)))
                 try:
                     data = conn.recv(65536)
                 except socket.timeout:
+                    data = b""
                     continue
                 if not data:
                     raise ConnectionError("closed by the client")
-                for mtype, payload in reader.feed(data):
-                    if mtype == P.MessageType.BYE:
-                        self._event(f"client {who} said bye")
-                        return
-                    conn.sendall(self._handle(mtype, payload, who))
-        except PermissionError:
-            self._event(f"refused {who}: authentication failed")
-            self._send_error(conn, P.ErrorCode.AUTH, "authentication failed: wrong shared secret")
+        except _NotClient:
+            self.counters["late_commands"] += 1
+            self._event(f"refused a command from {who}: it no longer controls the board")
         except ProtocolError as e:
-            self._event(f"protocol error from {who}: {e}")
-            text = str(e)
-            code = (P.ErrorCode.VERSION if "protocol version" in text else P.ErrorCode.SIZE if "MAX_PAYLOAD" in text
-                    else P.ErrorCode.UNEXPECTED if text.startswith(("unexpected", "expected AUTH"))
-                    else P.ErrorCode.MALFORMED)
-            self._send_error(conn, code, text)
+            why = f"protocol error from {who}: {e}"
+            self._send_error(conn, P.error_code(e), str(e), session)
         except (ConnectionError, socket.timeout, OSError) as e:
-            if self._client is conn:
-                self._event(f"client {who} lost: {e}")
+            why = f"client {who} lost: {e}"
         except Exception as e:  # noqa: BLE001 - the server must survive anything a client sends
-            self._event(f"internal error serving {who}: {type(e).__name__}: {e}")
-            self._send_error(conn, P.ErrorCode.INTERNAL, f"{type(e).__name__}: {e}")
+            why = f"internal error serving {who}: {type(e).__name__}: {e}"
+            self._send_error(conn, P.ErrorCode.INTERNAL, f"{type(e).__name__}: {e}", session)
         finally:
-            mine = self._client is conn
-            if mine:
-                self._drop_client()
-                self._vent(f"client {who} disconnected")
-            else:
-                conn.close()
+            self._release(conn, who, why)
 
+
+# ---- command line ---------------------------------------------------------------------------------------
 
 def _read_secret(args):
-    if args.secret_file:
-        with open(args.secret_file, "rb") as f:
-            return f.read().strip()
-    if args.secret:
-        return args.secret
-    if os.environ.get("SORO_BOARD_SECRET"):
-        return os.environ["SORO_BOARD_SECRET"]
+    try:
+        if args.secret_file:
+            return P.read_secret_file(args.secret_file)
+        if args.secret:
+            return P.secret_bytes(args.secret, "--secret")
+        if os.environ.get("SORO_BOARD_SECRET") is not None:
+            return P.secret_bytes(os.environ["SORO_BOARD_SECRET"], "SORO_BOARD_SECRET")
+    except ProtocolError as e:
+        raise SystemExit(f"python -m sorocontrol.server: {e}") from None
     raise SystemExit("give the shared secret with --secret-file PATH (on the Pi: /etc/soro-board/secret, "
-                     "mode 600), the environment variable SORO_BOARD_SECRET, or --secret TEXT (tests only)")
+                     f"mode 600; make one with `{P.MAKE_SECRET}`), the environment variable SORO_BOARD_SECRET, "
+                     "or --secret TEXT (tests only)")
+
+
+def _import_plant(spec):
+    """``module:attribute`` -> SimulatedPlant keyword arguments (a dict, or a callable returning one)."""
+    module, _, attr = spec.partition(":")
+    if not module or not attr:
+        raise SystemExit(f"--plant takes a Python import path MODULE:NAME (a dict of SimulatedPlant keyword "
+                         f"arguments or a function returning one), got {spec!r}")
+    obj = getattr(importlib.import_module(module), attr)
+    kw = obj() if callable(obj) else obj
+    if not isinstance(kw, dict):
+        raise SystemExit(f"--plant {spec} gave {type(kw).__name__}, expected a dict of SimulatedPlant arguments")
+    return kw
+
+
+_LENGTH = struct.Struct("<Q")
+
+
+def send_plant(stream, plant):
+    """Write the SimulatedPlant keyword arguments ``plant`` (dict; may hold a picklable beam) to a child
+    server's stdin (``--plant-from-parent``): a length-prefixed pickle over the private pipe."""
+    import pickle
+
+    data = pickle.dumps(plant, protocol=pickle.HIGHEST_PROTOCOL)
+    stream.write(_LENGTH.pack(len(data)) + data)
+    stream.flush()
+
+
+def _receive_plant(stream):
+    import pickle
+
+    if os.isatty(stream.fileno()) or not _is_pipe(stream.fileno()):
+        raise SystemExit("--plant-from-parent reads the plant from a pipe that the parent process "
+                         "(Board.simulated) holds, never from a file or a terminal")
+    head = stream.read(_LENGTH.size)
+    if len(head) != _LENGTH.size:
+        raise SystemExit("--plant-from-parent: the parent closed the pipe before sending the plant")
+    data = stream.read(_LENGTH.unpack(head)[0])
+    return pickle.loads(data)
+
+
+def _is_pipe(fd):
+    import stat
+    return stat.S_ISFIFO(os.fstat(fd).st_mode)
+
+
+def _watch_parent(stream, stop, parent):
+    """Set ``stop`` when the parent process is gone: its end of our stdin pipe closes (at once, whatever way
+    it ended, SIGKILL included) or we are re-parented (a fork of the parent kept the pipe open)."""
+    sel = selectors.DefaultSelector()
+    sel.register(stream, selectors.EVENT_READ)
+    while not stop.is_set():
+        if sel.select(timeout=0.2):
+            if not os.read(stream.fileno(), 4096):
+                log.warning("board: the parent process closed its pipe: vent and exit")
+                break
+        if os.getppid() != parent:
+            log.warning("board: the parent process %d is gone: vent and exit", parent)
+            break
+    stop.set()
+
+
+def _sd_notify(message):
+    """Send ``message`` to systemd's notification socket (``Type=notify``, ``WatchdogSec=``), if any."""
+    path = os.environ.get("NOTIFY_SOCKET")
+    if not path:
+        return False
+    if path.startswith("@"):
+        path = "\0" + path[1:]
+    try:
+        with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as s:
+            s.connect(path)
+            s.sendall(message.encode())
+        return True
+    except OSError as e:
+        log.error("sd_notify(%r) failed: %s", message, e)
+        return False
+
+
+def _petting(server, stop, period):
+    """Pet systemd's watchdog every ``period`` seconds while the board loop and the accept loop run."""
+    while not stop.wait(period):
+        if server.healthy(within=max(4 * period, 0.5)):
+            _sd_notify("WATCHDOG=1")
 
 
 def main(argv=None):
     """``python -m sorocontrol.server``: run a board. Prints ``listening HOST PORT`` once ready."""
     ap = argparse.ArgumentParser(prog="python -m sorocontrol.server", description=__doc__.split("\n")[0])
     ap.add_argument("--driver", choices=["simulated", "mock", "i2c"], default="simulated")
-    ap.add_argument("--channels", type=int, default=12)
-    ap.add_argument("--host", default="127.0.0.1")
+    ap.add_argument("--profile", help="board profile (TOML: wiring and regulator calibration), --driver i2c")
+    ap.add_argument("--channels", type=int, default=12, help="simulated/mock boards")
+    ap.add_argument("--host", default="127.0.0.1", help="address to listen on (the Pi's lab-network address)")
     ap.add_argument("--port", type=int, default=8888)
     ap.add_argument("--secret-file")
     ap.add_argument("--secret")
-    ap.add_argument("--p-min", type=float, default=-100e3, help="Pa")
-    ap.add_argument("--p-max", type=float, default=100e3, help="Pa")
+    ap.add_argument("--p-min", type=float, default=-100e3, help="safety limit, Pa")
+    ap.add_argument("--p-max", type=float, default=100e3, help="safety limit, Pa")
+    ap.add_argument("--tolerance", type=float, help="read-back margin beyond the limits before venting, Pa")
     ap.add_argument("--rate", type=float, default=1e6, help="slew-rate limit, Pa/s")
     ap.add_argument("--watchdog", type=float, default=0.5, help="s")
     ap.add_argument("--board-rate", type=float, default=400.0, help="Hz")
-    ap.add_argument("--plant", help="pickled dict of SimulatedPlant keyword arguments (Board.simulated)")
-    ap.add_argument("--i2c-bus", type=int, default=1)
-    ap.add_argument("--dacs", default="0x60,0x61", help="MCP4725 addresses, one per channel")
-    ap.add_argument("--adcs", default="0x48:0,0x48:1", help="ADS1015 address:input, one per channel")
+    ap.add_argument("--auth-timeout", type=float, default=2.0, help="time to log in, s")
+    ap.add_argument("--plant", help="simulated board: MODULE:NAME, a dict of SimulatedPlant keyword arguments")
+    ap.add_argument("--plant-from-parent", action="store_true",
+                    help="simulated board started by Board.simulated: read the plant from the stdin pipe, then "
+                         "vent and exit as soon as the parent process is gone")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(message)s")
     # the board loop and the client thread share the GIL: hand it over within 0.2 ms (default 5 ms), so
     # that an answer never waits for a whole plant update
     sys.setswitchinterval(2e-4)
     secret = _read_secret(args)
-    if args.driver == "i2c":
-        from .drivers import I2CDriver
-        dacs = [int(a, 0) for a in args.dacs.split(",")]
-        adcs = [(int(a.split(":")[0], 0), int(a.split(":")[1])) for a in args.adcs.split(",")]
-        driver = I2CDriver(dacs, adcs, p_range=(args.p_min, args.p_max), bus=args.i2c_bus)
-    elif args.driver == "mock":
-        driver = MockDriver(args.channels)
+    stop = threading.Event()
+    if args.plant_from_parent:
+        plant = _receive_plant(sys.stdin.buffer)
+        threading.Thread(target=_watch_parent, args=(sys.stdin.buffer, stop, os.getppid()), daemon=True,
+                         name="soro-board-parent").start()
+    elif args.plant:
+        plant = _import_plant(args.plant)
     else:
         plant = {}
-        if args.plant:
-            import pickle
-            with open(args.plant, "rb") as f:
-                plant = pickle.load(f)
-        driver = SimulatedPlant(args.channels, **plant)
-    server = BoardServer(driver, secret, host=args.host, port=args.port, p_min=args.p_min, p_max=args.p_max,
-                         rate=args.rate, watchdog=args.watchdog, board_rate=args.board_rate)
+    try:
+        if args.driver == "i2c":
+            from .drivers import I2CDriver
+            if not args.profile:
+                raise SystemExit("--driver i2c needs --profile FILE: the board profile with the wiring and the "
+                                 "regulators' calibration (hardware/README.md)")
+            driver = I2CDriver(args.profile)
+        elif args.driver == "mock":
+            driver = MockDriver(args.channels)
+        else:
+            driver = SimulatedPlant(args.channels, **plant)
+        server = BoardServer(driver, secret, host=args.host, port=args.port, p_min=args.p_min, p_max=args.p_max,
+                             rate=args.rate, watchdog=args.watchdog, board_rate=args.board_rate,
+                             auth_timeout=args.auth_timeout, tolerance=args.tolerance)
+    except (ParameterError, ProtocolError) as e:
+        raise SystemExit(f"python -m sorocontrol.server: {e}") from None
 
     def _terminate(signum, frame):
-        server._stop.set()
+        stop.set()
     signal.signal(signal.SIGTERM, _terminate)
     signal.signal(signal.SIGINT, _terminate)
-    print(f"listening {server.address[0]} {server.address[1]}", flush=True)
-    server.serve_forever()
+    server.start()
+    try:
+        print(f"listening {server.address[0]} {server.address[1]}", flush=True)
+        _sd_notify("READY=1")
+        usec = os.environ.get("WATCHDOG_USEC")
+        if usec:
+            threading.Thread(target=_petting, args=(server, stop, int(usec) / 4e6), daemon=True,
+                             name="soro-board-sd-watchdog").start()
+        while not stop.wait(0.2) and not server._stop.is_set():
+            pass
+    finally:
+        _sd_notify("STOPPING=1")
+        server.stop()
     return 0
 
 

@@ -106,3 +106,11 @@ def test_summary_line_names_collection_failures(tmp_path, python, repo, cases, c
                          capture_output=True, text=True)
     assert res.returncode == code and res.stdout.strip() == line
     assert message is None or message in res.stderr
+
+
+def test_one_conftest(repo):
+    """pytest 8 with --doctest-modules imports every conftest.py as a top-level module named `conftest` and
+    refuses a second one (the whole suite then collects nothing): fixtures and hooks go in tests/conftest.py."""
+    found = sorted(str(p.relative_to(repo)) for p in repo.glob("**/conftest.py")
+                   if not ({".venv", "out", ".git"} & set(p.relative_to(repo).parts)))
+    assert found == ["tests/conftest.py"], found

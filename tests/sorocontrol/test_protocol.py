@@ -45,14 +45,71 @@ def test_payload_round_trips():
     assert P.unpack_sequence(P.pack_sequence(9)) == 9
 
 
+SECRET = "4f0c2a9d51e6b7384c2d9a0f6e1b5c73"      # 32 hex digits: 128 bits
+OTHER = "9b1e4c7a2f5d8036e1c4b7a9d2f50c68"
+
+
 def test_login_proofs_depend_on_secret_and_both_nonces():
     ns, nc = P.new_nonce(), P.new_nonce()
-    proof = P.client_proof("s3cret", ns, nc)
-    assert proof == P.client_proof(b"s3cret", ns, nc)
-    assert proof != P.client_proof("other", ns, nc) != P.client_proof("s3cret", P.new_nonce(), nc)
-    assert P.server_proof("s3cret", ns, nc) != proof   # the two directions differ: no reflection
-    with pytest.raises(ProtocolError, match="secret"):
+    proof = P.client_proof(SECRET, ns, nc)
+    assert proof == P.client_proof(SECRET.encode(), ns, nc)
+    assert proof != P.client_proof(OTHER, ns, nc) != P.client_proof(SECRET, P.new_nonce(), nc)
+    assert P.server_proof(SECRET, ns, nc) != proof   # the two directions differ: no reflection
+    with pytest.raises(ProtocolError, match="empty"):
         P.client_proof("", ns, nc)
+
+
+def test_secrets_one_whitespace_rule_and_a_minimum_entropy(tmp_path):
+    """Whitespace at both ends never matters, on either side; secrets under 128 bits are refused with the
+    command that makes a good one; missing and empty files say so."""
+    assert P.secret_bytes(f"  {SECRET}\n") == P.secret_bytes(SECRET.encode()) == SECRET.encode()
+    ns, nc = P.new_nonce(), P.new_nonce()
+    assert P.client_proof(SECRET + "\n", ns, nc) == P.client_proof(" " + SECRET, ns, nc)
+    for weak in ("x", "s3cret", "0123456789abcdef", "ab" * 40, "password1234"):
+        with pytest.raises(ProtocolError, match="too weak.*urandom"):
+            P.secret_bytes(weak)
+    # the estimate: length x log2(alphabet): 32 hex digits = 128 bits, 20 printable = 131, base64 of 32 bytes
+    assert P.secret_bits(SECRET.encode()) == pytest.approx(128.0)
+    assert P.secret_bits(b"Tr0ub4dor&3-horse!?x") == pytest.approx(20 * np.log2(95))
+    assert P.secret_bits(b"ab" * 40) == 0.0
+    f = tmp_path / "secret"
+    with pytest.raises(ProtocolError, match="does not exist.*urandom"):
+        P.read_secret_file(f)
+    f.write_text("\n")
+    with pytest.raises(ProtocolError, match="empty"):
+        P.read_secret_file(f)
+    f.write_text(SECRET + "\n")
+    assert P.read_secret_file(f) == SECRET.encode()
+
+
+def test_session_seals_and_opens_and_refuses_forgery_replay_and_reordering():
+    ns, nc = P.new_nonce(), P.new_nonce()
+    client, board = P.Session(SECRET, ns, nc, "client"), P.Session(SECRET, ns, nc, "board")
+    frames = [client.seal(P.MessageType.SET, P.pack_pressures(k, [k * 1e3, 0.0])) for k in range(1, 4)]
+    assert P.decode(frames[0])[1] != P.decode(frames[1])[1]
+    assert board.open(*P.decode(frames[0])) == P.pack_pressures(1, [1e3, 0.0])
+    with pytest.raises(ProtocolError, match="sequence number 1 .* expected 2"):      # replay
+        board.open(*P.decode(frames[0]))
+    with pytest.raises(ProtocolError, match="sequence number 3 .* expected 2"):      # reordered (or dropped)
+        board.open(*P.decode(frames[2]))
+    body = bytearray(P.decode(frames[1])[1])
+    body[8 + 4 + 7] ^= 0x40                       # the first set-point's exponent: 2 kPa becomes ~1e22 Pa
+    forged = P.encode(P.MessageType.SET, bytes(body))
+    with pytest.raises(ProtocolError, match="bad MAC"):                               # valid CRC, bad MAC
+        board.open(*P.decode(forged))
+    retyped = P.encode(P.MessageType.VENT, P.decode(frames[1])[1])                   # header is authenticated
+    with pytest.raises(ProtocolError, match="bad MAC"):
+        board.open(*P.decode(retyped))
+    assert board.open(*P.decode(frames[1])) == P.pack_pressures(2, [2e3, 0.0])       # the real one still opens
+    reflected = board.seal(P.MessageType.SET, P.pack_pressures(9, [0.0, 0.0]))        # keys differ per direction
+    with pytest.raises(ProtocolError, match="bad MAC"):
+        P.Session(SECRET, ns, nc, "board").open(*P.decode(reflected))
+    with pytest.raises(ProtocolError, match="bad MAC"):                               # other session, same secret
+        P.Session(SECRET, P.new_nonce(), nc, "board").open(*P.decode(frames[2]))
+    with pytest.raises(ProtocolError, match="no MAC"):
+        board.open(P.MessageType.READ, P.pack_sequence(1))
+    assert client.open(*P.decode(reflected)) == P.pack_pressures(9, [0.0, 0.0])     # board -> client works
+    assert client.open(*P.decode(board.seal(P.MessageType.STATE, b"abc"))) == b"abc"
 
 
 @pytest.mark.parametrize("defect,match", [
