@@ -77,7 +77,7 @@ def main(out: Path, quick: bool = False) -> dict:
     video = SyntheticCamera(cam, marker_radius=4 * mm, noise=2.0, rate=rate, seed=1)
     est = ShapeEstimator(shp, shp.sigma[NODES], cam, plane=((0.0, 0.0, 0.0), (0.0, 1.0, 0.0)),
                          prior="equilibrium")
-    log, integral = [], 0.0
+    log, integral, t_prev = [], 0.0, 0.0
     # keepalive: the warm-up below (JIT compilation) may outlast the board's 0.5 s watchdog on a busy machine;
     # a background thread holds the session until brd.loop starts, which then feeds the watchdog itself
     with Board.simulated(channels=1, beam=shp, p_min=0.0, p_max=P_MAX, board_rate=200.0, keepalive=True) as brd:
@@ -95,7 +95,8 @@ def main(out: Path, quick: bool = False) -> dict:
             err = ref - theta_hat
             u = float(np.interp(ref, static, grid)) + ki * integral
             if 0.0 < u < P_MAX:
-                integral += err / rate
+                integral += err * (t - t_prev)     # the elapsed time: a loaded machine skips frames
+            t_prev = t
             state = brd.set_pressure([u])
             log.append((t, ref, angle(shp, q_true), theta_hat, np.linalg.norm(e.tip - shp.positions(q_true)[-1]),
                         e.detect_time, e.solve_time, state.measured[0], int(e.found.sum())))
