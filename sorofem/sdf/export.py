@@ -88,7 +88,10 @@ def to_mesh(shape, resolution=None):
     if not np.any(vol < 0):
         raise GeometryError(f"the shape ({shape.op}) is empty at grid step {h:g} m: no grid point is inside; "
                             "check that intersected shapes overlap, or pass a finer resolution")
-    vol[vol == 0] = 1e-12 * h  # keep the level set off the grid nodes (no degenerate triangles)
+    # keep the level set off the grid nodes: a node on (or within rounding of) the surface makes vertices
+    # that coincide once written in float32, i.e. degenerate triangles and edges shared by four triangles
+    # (faces of boxes aligned with the grid do this); moving the surface by 1e-3 h avoids it
+    vol[np.abs(vol) < 1e-3 * h] = 1e-3 * h
     from skimage.measure import marching_cubes
 
     verts, faces, _, _ = marching_cubes(vol, level=0.0, spacing=(h, h, h), allow_degenerate=False)
