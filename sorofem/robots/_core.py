@@ -169,10 +169,11 @@ def _sample(shapes, step, pad=3):
     axes = [origin[i] + step * np.arange(n[i]) for i in range(3)]
     yz = np.stack(np.meshgrid(axes[1], axes[2], indexing="ij"), axis=-1).reshape(-1, 2)
     out = [np.empty(n) for _ in shapes]
+    fused = [s.compiled() is not None for s in shapes]   # the fused numba kernel: ~20x the numpy path
     for i, x in enumerate(axes[0]):
         pts = np.column_stack([np.full(len(yz), x), yz])
-        for o, s in zip(out, shapes):
-            o[i] = s(pts).reshape(n[1], n[2])
+        for o, s, c in zip(out, shapes, fused):
+            o[i] = s(pts, compiled=c).reshape(n[1], n[2])
     return origin, n, out
 
 
@@ -198,6 +199,8 @@ def chamber_check(part, step=None):
         network's chambers in it), ``volume`` [m^3] (the plugged component's voxel volume).
     """
     from scipy import ndimage
+    if not part.networks:
+        return {}
     h = float(step) if step is not None else part.feature / 4
     ports = part.networks[0].port
     for net in part.networks[1:]:
