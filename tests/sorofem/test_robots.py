@@ -188,3 +188,52 @@ def test_cli_lists_and_exports(tmp_path, capsys):
     assert rep["params"]["length"] == pytest.approx(70) and rep["channels_kPa"]["bend"] == [-10, 100]
     assert cli.main(["robot", "export", "hand", "--param", "wall=9", "--out", str(tmp_path)]) == 2
     assert "'wall' = 9 mm is outside" in capsys.readouterr().err
+
+
+def _beam(twin, dofs=(0, 3, 3, 1, 0, 0)):
+    """The reduced model of a twin, as its docstring says to build it."""
+    from soroshapes import Basis, Shapes
+
+    from sorofem import materials
+    shp = Shapes(Basis.chebyshev(3), dofs, twin.length, twin.section, materials.PRESETS[twin.material](),
+                 base=twin.base)
+    for c in twin.chambers:
+        shp.add_chamber(c.area, c.offset, name=c.name)
+    return shp
+
+
+def _tip(shp, u):
+    return shp.positions(shp.statics(u=u))[-1]
+
+
+def test_twins_bend_the_right_way():
+    """Pressure lengthens a chamber's side: (a) curls towards its base layer (-z); (b) bends away from the
+    inflated network and elongates with both; (d) tilts away from the inflated bellows."""
+    a = robots.design("bending_actuator").twins[0]
+    assert a.chambers[0].offset[1] > 0                       # the chamber above the section's centroid
+    shp = _beam(a)
+    rest = _tip(shp, [0.0])
+    assert rest == pytest.approx([a.base[0, 3] + a.length, 0, a.base[2, 3]], abs=1e-9)
+    tip = _tip(shp, [100 * kPa])
+    assert tip[2] < rest[2] - 1e-3 * a.length and abs(tip[1]) < 1e-9
+    assert _tip(shp, [-10 * kPa])[2] > rest[2]              # vacuum: the other way
+
+    b = robots.design("planar_actuator").twins[0]
+    shp = _beam(b)
+    left, right = (_tip(shp, u) for u in ([50 * kPa, 0.0], [0.0, 50 * kPa]))
+    # (the solid-section beam is far stiffer than the bellows: only the directions are meaningful here)
+    assert left[1] < -1e-3 * b.length and right[1] > 1e-3 * b.length      # "left" is the +y network
+    assert left[1] == pytest.approx(-right[1], rel=1e-3)     # mirror images (section areas from a grid)
+    both = _tip(shp, [50 * kPa, 50 * kPa])
+    assert both[0] > _tip(shp, [0.0, 0.0])[0] and abs(both[1]) < 1e-6 * b.length
+
+    d = robots.design("manipulator").twins[0]
+    shp = _beam(d)
+    top0 = _tip(shp, [0.0, 0.0, 0.0])
+    assert top0 == pytest.approx([0, 0, d.base[2, 3] + d.length], abs=1e-6)
+    for k, c in enumerate(d.chambers):
+        u = [0.0] * 3
+        u[k] = 30 * kPa
+        tilt = _tip(shp, u)[:2] - top0[:2]
+        direction = np.asarray(c.offset) / np.linalg.norm(c.offset)     # body (y, z) = global (x, y)
+        assert tilt @ direction < -0.9 * np.linalg.norm(tilt)

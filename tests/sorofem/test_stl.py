@@ -78,3 +78,19 @@ def test_surface_check_finds_holes_flips_and_shells(tmp_path):
     chk3 = sdf.surface_check(sdf.read_stl(hollow.to_stl(tmp_path / "h.stl", resolution=1 * mm))[0])
     assert chk3["watertight"] and chk3["shells"] == 2
     assert chk3["volume"] == pytest.approx(4 / 3 * math.pi * (8 - 1) * r**3, rel=0.05)
+
+
+def test_one_stl_writer_in_the_code_base():
+    """Every STL the platform writes goes through sdf.write_stl (which takes the unit): no other module packs
+    the 50-byte binary STL record or writes an STL header."""
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[2]
+    writer = root / "sorofem" / "sdf" / "export.py"
+    offenders = []
+    for pkg in ("sorofem", "soroshapes", "sorocontrol", "demos"):
+        for path in (root / pkg).rglob("*.py"):
+            text = path.read_text(encoding="utf-8")
+            if path != writer and ('"<f4", (3, 3)' in text or "binary STL, units" in text
+                                   or 'file_format="stl"' in text or "numpy-stl" in text):
+                offenders.append(str(path.relative_to(root)))
+    assert offenders == []
