@@ -82,13 +82,16 @@ class _Chain:
         cx = gap + tb / 2
         outer = _rbox((tb, width, height + ext), (cx, 0, z0 + (height - ext) / 2), p["fillet"])
         inner = sdf.Box((tb - 2 * w, width - 2 * w, height - 2 * w), (cx, 0, z0 + height / 2))
-        rep = dict(spacing=(pitch, 0, 0), count=(n, 1, 1))
+        # explicit unions (not sdf.repeat): with fillet = 0 the tree is plain boxes and booleans, which
+        # Mesh.from_sdf rebuilds exactly in OpenCASCADE (the FEM twin's mesh)
+        def rep_union(s):
+            return s.union(*[s.translate((k * pitch, 0, 0)) for k in range(1, n)]) if n > 1 else s
         bz = (max(z0, self.zc - ch / 2 - w), self.zc + ch / 2 + w)
         bridge = sdf.Box((self.length + 1 * mm, ch + 2 * w, bz[1] - bz[0]),
                          (self.length / 2 - 0.5 * mm, 0, (bz[0] + bz[1]) / 2))
         x_end = self.length - w - 0.3 * mm
-        self.solid = outer.repeat(**rep) | bridge
-        self.void = inner.repeat(**rep) | sdf.Box((x_end - x_in, ch, ch), ((x_end + x_in) / 2, 0, self.zc))
+        self.solid = rep_union(outer) | bridge
+        self.void = rep_union(inner) | sdf.Box((x_end - x_in, ch, ch), ((x_end + x_in) / 2, 0, self.zc))
         #: a point inside each chamber [m] (local)
         self.chambers = np.array([[cx + k * pitch, 0, z0 + height / 2] for k in range(n)])
         self.inner = (width - 2 * w, height - 2 * w)
