@@ -68,8 +68,9 @@ def parse_params(name, items):
 
 
 def export_part(part, path, units="mm", resolution=None):
-    """Write one printed part as a binary STL; returns the :func:`sorofem.sdf.surface_check` of the file
-    read back (coordinates [m]). ``resolution`` [m] defaults to a third of the part's smallest feature."""
+    """Write one printed part as a binary STL in ``units``; returns its triangles read back from the file,
+    (F, 3, 3) [m] (check them with :func:`sorofem.sdf.surface_check`). ``resolution`` [m] defaults to a third
+    of the part's smallest feature."""
     from ..sdf import read_stl, to_stl
     h = float(resolution) if resolution is not None else part.feature / 3
     to_stl(part.shape, path, resolution=h, units=units)
