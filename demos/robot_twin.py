@@ -13,7 +13,9 @@ Model
 -----
 3D finite strain, the Elastic 80A preset (Neo-Hookean), the mount block's back face (x = 0) clamped, a
 follower pressure ramp 0 .. ``p_max`` on the chamber network's surface (``cavity_0``). The tip angle is the
-rotation of the backbone's last segment about y, positive when the actuator curls towards its base layer.
+rotation about y of the backbone's tangent at the tip (the recovered FEM frame; the beam's tip frame),
+positive when the actuator curls towards its base layer. The beam is identified on the same ramp it is
+compared with (no held-out pressure).
 
 Parameters
 ----------
