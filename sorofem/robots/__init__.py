@@ -20,7 +20,6 @@ with their limits are data too (``Design.channels``) until the board profile fil
 """
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np

@@ -29,7 +29,7 @@ import numpy as np
 
 from .. import sdf
 from ..errors import GeometryError
-from ..units import deg, kPa, mm
+from ..units import kPa, mm
 from ._core import Chamber, Design, Network, Param, Part, Robot, Twin
 
 __all__ = ["BendingActuator", "PlanarActuator", "Hand", "Manipulator", "ROBOTS"]
