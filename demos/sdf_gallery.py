@@ -21,7 +21,7 @@ Shapes
 Parameters
 ----------
 out : pathlib.Path
-    Output directory (STL files in metres, PNG previews with axes in mm).
+    Output directory (STL files in millimetres, the unit named in their header; PNG previews with axes in mm).
 quick : bool
     Coarser grids (STL step 1 mm, sphere 0.5 mm, instead of the default resolution chosen from the
     bounds) so that the demo runs in a few seconds.

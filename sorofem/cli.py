@@ -381,7 +381,23 @@ def main(argv=None):
     p.add_argument("--force-rerun", action="store_true",
                    help="run again the cases made by another builder source, [solve], [fixed] or package version")
     p.add_argument("--dry-run", action="store_true", help="print the case table and exit")
+    p = sub.add_parser("robot", help="the open-hardware robots: list them, export print-ready STL + preview")
+    rsub = p.add_subparsers(dest="robot_command", required=True)
+    q = rsub.add_parser("list", help="list the robots and their parameters (units, defaults, ranges)")
+    q.add_argument("name", nargs="?", help="show only this robot")
+    q = rsub.add_parser("export", help="write one STL per printed part, a preview PNG and NAME.json")
+    q.add_argument("name", help="robot name (soro robot list)")
+    q.add_argument("--out", default="out/robots", help="output directory (default: out/robots)")
+    q.add_argument("--units", default="mm", help="length unit of the STL files: mm (default), m, cm, um, in")
+    q.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                   help="design parameter in its unit (mm for lengths), e.g. --param wall=2.5; repeatable")
+    q.add_argument("--resolution", type=float, default=None,
+                   help="marching-cubes grid step [mm] (default: a third of the smallest feature)")
+    q.add_argument("--no-preview", action="store_true", help="skip the PNG")
     args = parser.parse_args(argv)
+    if args.command == "robot":   # soro robot list | export NAME (sorofem.robots)
+        from .robots._cli import run as run_robot
+        return run_robot(args)
 
     if args.command == "doctor":
         return doctor()

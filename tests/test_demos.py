@@ -242,7 +242,19 @@ def check_manipulator_pick(report, out):
     assert max(report["waypoint_error_mm"]) < 10.0 and (out / report["png"]).stat().st_size > 0
 
 
+def check_robot_twin(report, out):
+    import numpy as np
+    a_fem, a_beam = np.array(report["tip_angle_fem_deg"]), np.array(report["tip_angle_beam_deg"])
+    # 3D FEM of the printed actuator (a): inflation curls it towards its base layer, more with more pressure
+    assert a_fem[0] == pytest.approx(0, abs=1e-9) and np.all(np.diff(a_fem) > 0) and a_fem[-1] > 1.0
+    # the DVS beam made from those snapshots: tip within 5 % of the length (the bound), angles within 15 %
+    assert report["tip_error_top"] < 5.0
+    assert np.all(np.abs(a_beam - a_fem) <= 0.15 * np.abs(a_fem) + 0.05)
+    assert (out / "tip_angle.png").stat().st_size > 0 and (out / "train.h5").is_file()
+
+
 CHECKS = {
+    "robot_twin": check_robot_twin,
     "manipulator_pick": check_manipulator_pick,
     "passive_walker": check_passive_walker,
     "suzumori_gripper": check_suzumori_gripper,

@@ -637,13 +637,14 @@ class Mesh:
         return cls._from_root_arrays(comm, build, side_tol=side_tol, source=str(path))
 
     @classmethod
-    def from_file(cls, path, size=None, order=1, comm=None, side_tol=None):
+    def from_file(cls, path, size=None, order=1, comm=None, side_tol=None, units=None):
         """Read a mesh or a closed surface.
 
         * ``.xdmf`` (written by :meth:`write_xdmf`): the mesh and every stored region, read in parallel.
         * ``.msh``: cells of the highest dimension; named physical groups become regions.
         * ``.stl``, ``.obj``, ``.ply``, ``.off``: a closed triangulated surface, remeshed at ``size`` [m] (default
-          bounding-box diagonal / 20) and filled with tetrahedra.
+          bounding-box diagonal / 20) and filled with tetrahedra. Its coordinates are in ``units`` (``"mm"``,
+          ``"m"``, ...; default: the unit an STL header names, see :func:`sorofem.sdf.write_stl`, else mm).
         * other meshio formats (``.vtu``, ``.mesh``, ...): cells of the highest dimension.
 
         Planar (z = 0) inputs give 2D meshes. Sides and cavities are tagged as for every builder.
@@ -679,6 +680,12 @@ class Mesh:
                 raise MeshError(f"cannot read {str(path)!r} ({type(e).__name__}: {e}); give an STL, OBJ, .msh, "
                                 "XDMF or another meshio format") from e
             pts = np.asarray(m.points, dtype=float)
+            if suffix in (".stl", ".obj", ".ply", ".off"):
+                from ..sdf.export import STL_UNITS, stl_units
+                unit = units or (stl_units(path) if suffix == ".stl" else None) or "mm"
+                if unit not in STL_UNITS:
+                    raise MeshError(f"units must be one of {sorted(STL_UNITS)}, got {unit!r}")
+                pts = pts * STL_UNITS[unit]
             pts = np.column_stack([pts, np.zeros((len(pts), 3 - pts.shape[1]))]) if pts.shape[1] < 3 else pts
             kinds = {c.type: c.data for c in m.cells}
             planar = np.ptp(pts[:, 2]) <= 1e-12 * max(np.ptp(pts), 1e-300) if len(pts) else False

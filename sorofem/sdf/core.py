@@ -520,10 +520,11 @@ class SDF:
         """Volume [m^3] of a 3D solid (exact or numerical, see :meth:`mass_properties`)."""
         return self.mass_properties().volume
 
-    def to_stl(self, path, resolution=None):
-        """Write a binary STL of a 3D solid (marching cubes), see :func:`sorofem.sdf.to_stl`."""
+    def to_stl(self, path, resolution=None, units="mm"):
+        """Write a binary STL of a 3D solid (marching cubes) in ``units`` (default mm), see
+        :func:`sorofem.sdf.to_stl`."""
         from .export import to_stl
-        return to_stl(self, path, resolution=resolution)
+        return to_stl(self, path, resolution=resolution, units=units)
 
     def to_png(self, path, plane="xy", at=0.0, resolution=None, title=None):
         """Write a PNG preview (2D region or a 3D slice), see :func:`sorofem.sdf.to_png`."""

@@ -1,6 +1,14 @@
 """Export: triangle meshes and binary STL of 3D solids (marching cubes), PNG previews of 2D regions and of
-plane slices of 3D solids. scikit-image and matplotlib are imported only when these functions run."""
+plane slices of 3D solids. scikit-image and matplotlib are imported only when these functions run.
+
+STL files carry no unit, and slicers read millimetres. :func:`write_stl` is the one STL writer of the code
+base (every other exporter calls it): it scales the SI coordinates [m] to the requested length unit (default
+``"mm"``, what a printer needs) and names that unit in the 80-byte header (``... units: mm``);
+:func:`read_stl` reads the unit back and returns metres. Both are plain numpy (no ``meshio``/``numpy-stl``:
+the binary format is 50 bytes per triangle and a numpy record type writes it in one call).
+"""
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -8,7 +16,20 @@ import numpy as np
 from ..errors import GeometryError
 from ..io import atomic_path
 
-__all__ = ["to_mesh", "to_stl", "read_stl", "to_png", "DEFAULT_STL_CELLS"]
+__all__ = ["to_mesh", "to_stl", "write_stl", "read_stl", "stl_units", "surface_check", "to_png",
+           "DEFAULT_STL_CELLS", "STL_UNITS"]
+
+#: Length units an STL file can be written in: name -> metres per file unit.
+STL_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6, "in": 0.0254}
+_STL_RECORD = np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+_UNIT_RE = re.compile(rb"units:\s*([A-Za-z]+)")
+
+
+def _unit_scale(units):
+    if units not in STL_UNITS:
+        raise GeometryError(f"units must be one of {sorted(STL_UNITS)} (the length unit of the STL "
+                            f"coordinates; slicers expect 'mm'), got {units!r}")
+    return STL_UNITS[units]
 
 #: Default number of marching-cubes cells over the (padded) bounds.
 DEFAULT_STL_CELLS = 1 << 21
@@ -67,7 +88,10 @@ def to_mesh(shape, resolution=None):
     if not np.any(vol < 0):
         raise GeometryError(f"the shape ({shape.op}) is empty at grid step {h:g} m: no grid point is inside; "
                             "check that intersected shapes overlap, or pass a finer resolution")
-    vol[vol == 0] = 1e-12 * h  # keep the level set off the grid nodes (no degenerate triangles)
+    # keep the level set off the grid nodes: a node on (or within rounding of) the surface makes vertices
+    # that coincide once written in float32, i.e. degenerate triangles and edges shared by four triangles
+    # (faces of boxes aligned with the grid do this); moving the surface by 1e-3 h avoids it
+    vol[np.abs(vol) < 1e-3 * h] = 1e-3 * h
     from skimage.measure import marching_cubes
 
     verts, faces, _, _ = marching_cubes(vol, level=0.0, spacing=(h, h, h), allow_degenerate=False)
@@ -80,7 +104,7 @@ def to_mesh(shape, resolution=None):
     return verts, faces
 
 
-def to_stl(shape, path, resolution=None):
+def to_stl(shape, path, resolution=None, units="mm"):
     """Write a binary STL of a 3D solid (marching cubes, watertight, outward normals), atomically.
 
     Parameters
@@ -88,39 +112,142 @@ def to_stl(shape, path, resolution=None):
     shape : SDF (3D)
     path : str or Path
     resolution : float, optional
-        Grid step [m] (default from the bounds, see :func:`to_mesh`). Coordinates are written in metres.
+        Grid step [m] (default from the bounds, see :func:`to_mesh`).
+    units : str
+        Length unit of the file's coordinates (a key of :data:`STL_UNITS`; default ``"mm"``, what slicers
+        read), named in the header.
 
     Returns
     -------
     Path
     """
+    _unit_scale(units)
     verts, faces = to_mesh(shape, resolution)
-    tri = verts[faces]
+    return write_stl(path, verts, faces, units=units, label="sorofem.sdf")
+
+
+def write_stl(path, vertices, faces, units="mm", label="sorofem"):
+    """Write triangles as a binary STL, atomically: the one STL writer of the code base.
+
+    Parameters
+    ----------
+    path : str or Path
+    vertices : (V, 3) float array [m]
+    faces : (F, 3) int array
+        Vertex indices, counter-clockwise seen from outside (the facet normals are computed from them).
+    units : str
+        Length unit of the written coordinates (a key of :data:`STL_UNITS`, default ``"mm"``); the
+        coordinates are divided by its size in metres and the header ends with ``units: <units>``.
+    label : str
+        Start of the 80-byte header (ASCII, must not begin with ``solid``).
+
+    Returns
+    -------
+    Path
+    """
+    scale = _unit_scale(units)
+    vertices = np.asarray(vertices, dtype=float)
+    faces = np.asarray(faces, dtype=np.int64)
+    if vertices.ndim != 2 or vertices.shape[1] != 3 or faces.ndim != 2 or faces.shape[1] != 3:
+        raise GeometryError(f"write_stl needs vertices (V, 3) and faces (F, 3), got {vertices.shape} and "
+                            f"{faces.shape}")
+    if not np.all(np.isfinite(vertices)):
+        raise GeometryError("write_stl: the vertices hold NaN or inf; fix the geometry before exporting")
+    header = f"{label} binary STL, units: {units}".encode("ascii")
+    if len(header) > 80 or header.lower().startswith(b"solid"):
+        raise GeometryError(f"STL label {label!r} is too long or starts with 'solid' (ASCII STL marker)")
+    tri = vertices[faces] / scale
     nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     ln = np.linalg.norm(nrm, axis=1, keepdims=True)
-    nrm = nrm / np.where(ln > 0, ln, 1.0)
-    rec = np.zeros(len(faces), dtype=[("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
-    rec["n"] = nrm
+    rec = np.zeros(len(faces), dtype=_STL_RECORD)
+    rec["n"] = nrm / np.where(ln > 0, ln, 1.0)
     rec["v"] = tri
-    header = b"sorofem.sdf binary STL, units: m".ljust(80, b" ")
-    with atomic_path(path) as tmp:
+    with atomic_path(path, suffix=".stl") as tmp:
         with open(tmp, "wb") as f:
-            f.write(header)
+            f.write(header.ljust(80, b" "))
             f.write(np.uint32(len(faces)).tobytes())
             f.write(rec.tobytes())
     return Path(path)
 
 
-def read_stl(path):
-    """Read a binary STL -> (triangles (F, 3, 3) float64, normals (F, 3) float64)."""
+def stl_units(path):
+    """The length unit named in an STL file's header (``"mm"``, ``"m"``, ...), or None when it names none."""
+    with open(path, "rb") as f:
+        head = f.read(80)
+    m = _UNIT_RE.search(head)
+    if m is None:
+        return None
+    unit = m.group(1).decode("ascii")
+    return unit if unit in STL_UNITS else None
+
+
+def read_stl(path, units=None):
+    """Read a binary STL -> (triangles (F, 3, 3) float64 [m], normals (F, 3) float64).
+
+    Parameters
+    ----------
+    path : str or Path
+    units : str, optional
+        Length unit of the file's coordinates; default: the unit its header names (see :func:`write_stl`),
+        else ``"mm"`` (what slicers and CAD tools assume for an STL without one).
+    """
     data = Path(path).read_bytes()
     if len(data) < 84:
         raise GeometryError(f"{path} is not a binary STL (too short)")
     n = int(np.frombuffer(data, "<u4", 1, 80)[0])
     if len(data) != 84 + 50 * n:
         raise GeometryError(f"{path}: binary STL header says {n} triangles but the file has {len(data)} bytes")
-    rec = np.frombuffer(data, [("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")], n, 84)
-    return rec["v"].astype(float), rec["n"].astype(float)
+    scale = _unit_scale(units if units is not None else (stl_units(path) or "mm"))
+    rec = np.frombuffer(data, _STL_RECORD, n, 84)
+    return rec["v"].astype(float) * scale, rec["n"].astype(float)
+
+
+def surface_check(triangles, tol=None):
+    """Topology of a triangle soup, the checks a print-ready STL must pass.
+
+    Vertices are merged when they coincide (within ``tol`` [m], default 1e-9 of the bounding-box
+    diagonal); then every undirected edge is counted and the directed edges compared.
+
+    Parameters
+    ----------
+    triangles : (F, 3, 3) float array [m]
+
+    Returns
+    -------
+    dict
+        ``triangles``, ``vertices``; ``boundary_edges`` (used by one triangle) and ``nonmanifold_edges`` (by
+        more than two); ``misoriented_edges`` (a directed edge used twice: two neighbours disagree on the
+        orientation); ``watertight`` (all three are zero); ``shells`` (connected components through shared
+        edges); ``volume`` [m^3] (signed, positive for outward normals); ``lo``, ``hi`` [m] (bounding box).
+    """
+    tri = np.asarray(triangles, dtype=float).reshape(-1, 3, 3)
+    pts = tri.reshape(-1, 3)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    q = float(tol) if tol is not None else 1e-9 * max(float(np.linalg.norm(hi - lo)), 1e-300)
+    keys = np.round((pts - lo) / q).astype(np.int64)
+    _, vid = np.unique(keys, axis=0, return_inverse=True)
+    f = vid.reshape(-1, 3)
+    directed = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    und = np.sort(directed, axis=1)
+    _, eid, counts = np.unique(und, axis=0, return_inverse=True, return_counts=True)
+    _, dcount = np.unique(directed, axis=0, return_counts=True)
+    # shells: connected components of the graph "triangles sharing an edge"
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    nf = len(f)
+    tri_of = np.tile(np.arange(nf), 3)
+    order = np.argsort(eid, kind="stable")
+    e_sorted, t_sorted = eid[order], tri_of[order]
+    same = np.flatnonzero(e_sorted[1:] == e_sorted[:-1])
+    adj = coo_matrix((np.ones(len(same)), (t_sorted[same], t_sorted[same + 1])), shape=(nf, nf))
+    shells = connected_components(adj, directed=False)[0] if nf else 0
+    volume = float(np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6)
+    out = {"triangles": int(nf), "vertices": int(vid.max() + 1) if nf else 0,
+           "boundary_edges": int(np.sum(counts == 1)), "nonmanifold_edges": int(np.sum(counts > 2)),
+           "misoriented_edges": int(np.sum(dcount > 1)), "shells": int(shells), "volume": volume,
+           "lo": lo, "hi": hi}
+    out["watertight"] = out["boundary_edges"] == out["nonmanifold_edges"] == out["misoriented_edges"] == 0
+    return out
 
 
 _PLANES = {"xy": (0, 1, 2), "yz": (1, 2, 0), "xz": (0, 2, 1), "zx": (0, 2, 1), "yx": (0, 1, 2),

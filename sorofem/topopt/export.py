@@ -168,12 +168,12 @@ def design_mesh(problem, x, size=None, pixel=None, tiles=1, threshold=0.5, workd
         shutil.rmtree(tmpdir, ignore_errors=True)
 
 
-def write_stl(problem, x, path, thickness, pixel=None, tiles=1, threshold=0.5):
+def write_stl(problem, x, path, thickness, pixel=None, tiles=1, threshold=0.5, units="mm"):
     """Extrude the smooth iso-line of a 2D design to ``thickness`` [m] and write a binary STL atomically.
 
     Marching cubes on the density raster stacked along z (zero outside), so the side walls follow the
-    iso-line and the surface is closed. Coordinates in metres, origin at the bounding box's lower-left
-    corner, z centred.
+    iso-line and the surface is closed. Origin at the bounding box's lower-left corner, z centred. The file
+    is written by :func:`sorofem.sdf.write_stl` in ``units`` (default ``"mm"``, named in the header).
 
     Returns
     -------
@@ -181,6 +181,8 @@ def write_stl(problem, x, path, thickness, pixel=None, tiles=1, threshold=0.5):
         ``path``, ``triangles``, ``volume`` [m^3] (signed volume of the surface, a check of closure).
     """
     from skimage.measure import marching_cubes
+
+    from ..sdf.export import write_stl as write_triangles
     if not thickness > 0:
         raise ParameterError(f"thickness must be a positive length [m], got {thickness!r}")
     img, _, px = density_image(problem, x, pixel)
@@ -197,15 +199,6 @@ def write_stl(problem, x, path, thickness, pixel=None, tiles=1, threshold=0.5):
     signed = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6
     if signed < 0:
         faces = faces[:, ::-1]
-        tri = verts[faces]
         signed = -signed
-    nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
-    rec = np.zeros(len(faces), dtype=[("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
-    rec["n"], rec["v"] = nrm, tri
-    with atomic_path(path, suffix=".stl") as tmp:
-        with open(tmp, "wb") as f:
-            f.write(b"sorofem.topopt extruded design, units: m".ljust(80, b" "))
-            f.write(np.uint32(len(faces)).tobytes())
-            f.write(rec.tobytes())
+    write_triangles(path, verts, faces, units=units, label="sorofem.topopt extruded design")
     return {"path": Path(path), "triangles": int(len(faces)), "volume": float(signed)}

@@ -306,6 +306,18 @@ def test_exports(tmp_path):
     assert len(data) == 84 + 50 * stl["triangles"]
     # the extruded solid of the same outline, less the chamfer marching cubes cuts along the cap edges
     assert 0.88 * dm.area * 2.0 < stl["volume"] < 1.01 * dm.area * 2.0
+    # written in mm by default (the unit in the header): the raw z extent is 2000 file units, read back 2.0 m
+    from sorofem.sdf import read_stl, stl_units
+    assert stl_units(tmp_path / "d.stl") == "mm"
+    raw = np.frombuffer(data, [("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")], offset=84)["v"]
+    assert np.ptp(raw[..., 2]) == pytest.approx(2000.0, rel=1e-3)   # marching cubes: caps within 0.1 %
+    tri, _ = read_stl(tmp_path / "d.stl")
+    assert np.allclose(tri, raw.astype(float) * 1e-3, rtol=1e-12, atol=0)
+    assert np.ptp(tri[..., 2]) == pytest.approx(2.0, rel=1e-3)
+    assert np.ptp(tri[..., 0]) == pytest.approx(30.0, rel=0.02)
+    write_stl(prob, res.x, tmp_path / "m.stl", thickness=2.0, units="m")
+    assert stl_units(tmp_path / "m.stl") == "m"
+    assert np.ptp(read_stl(tmp_path / "m.stl")[0][..., 2]) == pytest.approx(2.0, rel=1e-3)
 
 
 def test_invalid_problems_raise():

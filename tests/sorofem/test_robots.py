@@ -1,0 +1,239 @@
+"""sorofem.robots: the seed's four robots as print-ready parts.
+
+Every exported STL is read back (its scale from the header and from the raw numbers), checked watertight
+(every edge shared by two triangles, consistent orientation, positive volume, one shell per part) and its
+bounding box compared with the intended size; each pneumatic network is flood-filled on a voxel grid.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from sorofem import robots, sdf
+from sorofem.errors import GeometryError
+from sorofem.units import kPa, mm
+
+NAMES = ["bending_actuator", "planar_actuator", "hand", "manipulator"]
+_REC = [("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")]
+
+
+def _nominal(d):
+    """The overall size [m] a design is meant to have: the seed's where it states one (the hand), else the
+    size the parameters define (the seed gives only workspaces for (b) and (d) and no size for (a))."""
+    p = d.params
+    if d.size is not None:
+        return np.array(d.size)
+    if d.robot == "bending_actuator":
+        return np.array([p["length"], p["width"], p["height"]])
+    if d.robot == "planar_actuator":
+        return np.array([p["length"], 2 * p["width"] + p["separation"], p["height"]])
+    plate = 2 * (p["radius"] + p["bellow"] / 2 * math.sqrt(2) + 6 * mm)
+    rf = p["object_diameter"] / 2 + 2 * mm + 14 * mm + 3 * mm                # gripper hub radius
+    return np.array([max(plate, 2 * rf), max(plate, 2 * rf),
+                     p["plate"] + p["length"] + p["top"] + p["hub"] + p["gripper_length"]])
+
+
+def test_registry_and_list():
+    assert robots.names() == NAMES
+    with pytest.raises(GeometryError, match="no robot 'octopus'"):
+        robots.get("octopus")
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_exported_stl_is_print_ready(tmp_path, name):
+    d = robots.design(name)
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for part in d.parts:
+        path = tmp_path / f"{part.name}.stl"
+        tri = robots.export_part(part, path, resolution=1.0 * mm)
+        # the file is in millimetres: header and raw numbers (what a slicer reads) agree with the read-back
+        assert sdf.stl_units(path) == "mm"
+        raw = np.frombuffer(path.read_bytes(), _REC, offset=84)["v"].astype(float)
+        assert np.allclose(raw * 1e-3, tri, rtol=0, atol=1e-12)
+        chk = sdf.surface_check(tri)
+        assert chk["watertight"], (part.name, chk)
+        assert chk["shells"] == 1, f"{part.name}: {chk['shells']} shells (loose pieces or sealed voids)"
+        assert chk["volume"] > 0
+        # the solid's volume: the STL against the SDF's own (grid-free) estimate, marching cubes at 1 mm
+        # chamfers convex edges, so a few percent
+        ref = sdf.mass_properties(part.shape, resolution=0.5 * mm).volume
+        assert chk["volume"] == pytest.approx(ref, rel=0.05)
+        lo, hi = np.minimum(lo, chk["lo"]), np.maximum(hi, chk["hi"])
+    size = hi - lo
+    assert np.all(np.abs(size / _nominal(d) - 1) < 0.10), (size / mm, _nominal(d) / mm)
+
+
+def test_hand_matches_the_seed_size():
+    d = robots.design("hand")
+    assert d.size == (190 * mm, 100 * mm, 40 * mm)
+    assert [p.name for p in d.parts] == ["palm", "index", "middle", "ring", "little", "thumb"]
+    assert d.part("palm").material == "PLA" and d.part("index").material == "Elastic80A"
+    lengths = {t.name: t.length + d.params["block"] for t in d.twins}
+    assert lengths["index"] == pytest.approx(90 * mm) and lengths["thumb"] == pytest.approx(80 * mm)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_each_network_is_closed_except_its_port(name):
+    d = robots.design(name)
+    nets = [n for p in d.parts for n in p.networks]
+    assert sorted(n.name for n in nets) == sorted(d.channels)
+    for part in d.parts:
+        for net_name, r in robots.chamber_check(part).items():
+            assert r["connected"] and r["closed"] and r["inlet_open"] and r["separate"], (part.name, net_name, r)
+            assert r["volume"] > 1e-6   # > 1 cm^3 of chambers
+
+
+def test_flood_fill_finds_a_leak():
+    """Negative control: a 1 mm pinhole through the top wall of one bellows opens the network."""
+    d = robots.design("bending_actuator")
+    part = d.part("actuator")
+    c = np.array(part.networks[0].chambers[3])
+    hole = sdf.Cylinder(0.5 * mm, 30 * mm, (c[0], c[1], c[2] + 15 * mm))
+    leaky = robots.Part(part.name, part.shape - hole, part.material, part.networks, part.feature)
+    r = robots.chamber_check(leaky)["bend"]
+    assert r["connected"] and not r["closed"]
+    # and a wall between two networks: the planar actuator's networks stay apart
+    r2 = robots.chamber_check(robots.design("planar_actuator").parts[0])
+    assert r2["left"]["separate"] and r2["right"]["separate"]
+
+
+def test_channels_carry_the_seed_pressure_ranges():
+    ranges = {n: robots.design(n).channels for n in NAMES}
+    assert ranges["bending_actuator"] == {"bend": (-10 * kPa, 100 * kPa)}
+    assert ranges["planar_actuator"] == {"left": (-10 * kPa, 50 * kPa), "right": (-10 * kPa, 50 * kPa)}
+    assert set(ranges["hand"]) == {"thumb", "index", "middle", "ring", "little"}
+    assert all(v == (-10 * kPa, 60 * kPa) for v in ranges["hand"].values())
+    man = ranges["manipulator"]
+    assert man["gripper"] == (-30 * kPa, 60 * kPa)
+    assert [man[f"bellows{k}"] for k in (1, 2, 3)] == [(-10 * kPa, 30 * kPa)] * 3
+
+
+def test_parameters_are_checked_with_their_names():
+    with pytest.raises(GeometryError, match=r"'wall' = 0.5 mm is outside its valid range \[1.5, 4\] mm"):
+        robots.design("bending_actuator", wall=0.5 * mm)
+    with pytest.raises(GeometryError, match="'n_bellows' is a count"):
+        robots.design("bending_actuator", n_bellows=4.5)
+    with pytest.raises(GeometryError, match="no parameter"):
+        robots.design("hand", fingers=6)
+    with pytest.raises(GeometryError, match="'wall' must be a number"):
+        robots.design("manipulator", wall="thick")
+    with pytest.raises(GeometryError, match="palm_width"):   # fingers and thumb do not fit across the palm
+        robots.design("hand", finger_width=24 * mm, palm_width=90 * mm)
+    with pytest.raises(GeometryError, match="pitch"):        # 20 bellows in 50 mm: no room for the walls
+        robots.design("bending_actuator", length=50 * mm, n_bellows=20)
+    assert robots.parse_params("hand", ["wall=2.5", "n_bellows=6"]) == {"wall": 2.5 * mm, "n_bellows": 6.0}
+    with pytest.raises(GeometryError, match="NAME=VALUE"):
+        robots.parse_params("hand", ["wall"])
+
+
+def test_gripper_holds_the_object_and_the_axis_is_hollow():
+    d = robots.design("manipulator")
+    grip, body = d.part("gripper"), d.part("manipulator")
+    z0 = d.params["plate"] + d.params["length"] + d.params["top"] + d.params["hub"]
+    rng = np.random.default_rng(0)
+    r = 20 * mm * np.sqrt(rng.random(4000))
+    a = 2 * np.pi * rng.random(4000)
+    z = z0 + 1 * mm + d.params["gripper_length"] * rng.random(4000)
+    assert np.all(grip.shape(np.column_stack([r * np.cos(a), r * np.sin(a), z])) > 0)   # a 40 mm object fits
+    zs = np.linspace(-1 * mm, z0 - d.params["hub"] + 1 * mm, 400)
+    axis = np.column_stack([0 * zs, 0 * zs, zs])
+    assert np.all(body.shape(axis) > 0.4 * d.params["hollow"] / 2)        # hollow axis, ends open
+    # the gripper's port sits on the axis, under the hollow bore
+    assert np.all(grip.networks[0].port(axis[-3:]) < 0)
+
+
+def test_hand_parts_do_not_overlap():
+    d = robots.design("hand")
+    lo, hi = np.array([60, -52, -2]) * mm, np.array([192, 52, 42]) * mm
+    g = np.stack(np.meshgrid(*[np.linspace(lo[i], hi[i], 70) for i in range(3)], indexing="ij"), -1)
+    pts = g.reshape(-1, 3)
+    inside = np.array([p.shape(pts) < -0.05 * mm for p in d.parts])
+    assert inside.sum(axis=0).max() == 1
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_twin_sections_are_slices_of_the_printed_body(name):
+    """The reduced model's section is the solid's cross-section through a bellows (same parameters)."""
+    d = robots.design(name)
+    tw = d.twins[0]
+    part = d.parts[0] if name != "hand" else d.part("index")
+    net = part.networks[0]
+    c = np.array(net.chambers[len(net.chambers) // 2])       # a chamber in the middle of the chain
+    R, o = tw.base[:3, :3], tw.base[:3, 3]
+    s = (c - o) @ R[:, 0]                                       # arc length of that bellows' mid-plane
+    rng = np.random.default_rng(1)
+    yz = (rng.random((3000, 2)) - 0.5) * 2 * np.ptp(np.array(tw.section.bounds), axis=0).max()
+    p3 = o + s * R[:, 0] + yz[:, :1] * R[:, 1] + yz[:, 1:] * R[:, 2]
+    d2, d3 = tw.section(yz), part.shape(p3)
+    far = (np.abs(d2) > 0.3 * mm) & (np.abs(d3) > 0.3 * mm)   # away from fillets and the grid-free boundary
+    assert np.mean(np.sign(d2[far]) == np.sign(d3[far])) > 0.99
+    props = sdf.section_properties(tw.section)
+    assert np.allclose(props.centroid, 0, atol=0.05 * mm)       # centred on its centroid
+    for ch in tw.chambers:
+        assert ch.area > 0 and ch.channel in d.channels
+
+
+def test_cli_lists_and_exports(tmp_path, capsys):
+    from sorofem import cli
+    assert cli.main(["robot", "list"]) == 0
+    out = capsys.readouterr().out
+    assert all(n in out for n in NAMES) and "wall" in out and "[1.5, 4]" in out
+    rc = cli.main(["robot", "export", "bending_actuator", "--out", str(tmp_path), "--param", "n_bellows=5",
+                   "--param", "length=70", "--resolution", "1", "--no-preview"])
+    assert rc == 0
+    tri, _ = sdf.read_stl(tmp_path / "bending_actuator_actuator.stl")
+    assert np.ptp(tri[..., 0]) == pytest.approx(70 * mm, rel=0.01)
+    import json
+    rep = json.loads((tmp_path / "bending_actuator.json").read_text())
+    assert rep["params"]["length"] == pytest.approx(70) and rep["channels_kPa"]["bend"] == [-10, 100]
+    assert cli.main(["robot", "export", "hand", "--param", "wall=9", "--out", str(tmp_path)]) == 2
+    assert "'wall' = 9 mm is outside" in capsys.readouterr().err
+
+
+def _beam(twin, dofs=(0, 3, 3, 1, 0, 0)):
+    """The reduced model of a twin, as its docstring says to build it."""
+    from soroshapes import Basis, Shapes
+
+    from sorofem import materials
+    shp = Shapes(Basis.chebyshev(3), dofs, twin.length, twin.section, materials.PRESETS[twin.material](),
+                 base=twin.base)
+    for c in twin.chambers:
+        shp.add_chamber(c.area, c.offset, name=c.name)
+    return shp
+
+
+def _tip(shp, u):
+    return shp.positions(shp.statics(u=u))[-1]
+
+
+def test_twins_bend_the_right_way():
+    """Pressure lengthens a chamber's side: (a) curls towards its base layer (-z); (b) bends away from the
+    inflated network and elongates with both; (d) tilts away from the inflated bellows."""
+    a = robots.design("bending_actuator").twins[0]
+    assert a.chambers[0].offset[1] > 0                       # the chamber above the section's centroid
+    shp = _beam(a)
+    rest = _tip(shp, [0.0])
+    assert rest == pytest.approx([a.base[0, 3] + a.length, 0, a.base[2, 3]], abs=1e-9)
+    tip = _tip(shp, [100 * kPa])
+    assert tip[2] < rest[2] - 1e-3 * a.length and abs(tip[1]) < 1e-9
+    assert _tip(shp, [-10 * kPa])[2] > rest[2]              # vacuum: the other way
+
+    b = robots.design("planar_actuator").twins[0]
+    shp = _beam(b)
+    left, right = (_tip(shp, u) for u in ([50 * kPa, 0.0], [0.0, 50 * kPa]))
+    # (the solid-section beam is far stiffer than the bellows: only the directions are meaningful here)
+    assert left[1] < -1e-3 * b.length and right[1] > 1e-3 * b.length      # "left" is the +y network
+    assert left[1] == pytest.approx(-right[1], rel=1e-3)     # mirror images (section areas from a grid)
+    both = _tip(shp, [50 * kPa, 50 * kPa])
+    assert both[0] > _tip(shp, [0.0, 0.0])[0] and abs(both[1]) < 1e-6 * b.length
+
+    d = robots.design("manipulator").twins[0]
+    shp = _beam(d)
+    top0 = _tip(shp, [0.0, 0.0, 0.0])
+    assert top0 == pytest.approx([0, 0, d.base[2, 3] + d.length], abs=1e-6)
+    for k, c in enumerate(d.chambers):
+        u = [0.0] * 3
+        u[k] = 30 * kPa
+        tilt = _tip(shp, u)[:2] - top0[:2]
+        direction = np.asarray(c.offset) / np.linalg.norm(c.offset)     # body (y, z) = global (x, y)
+        assert tilt @ direction < -0.9 * np.linalg.norm(tilt)
