@@ -77,3 +77,23 @@ def test_bootstrap_refuses_non_debian(repo, tmp_path):
     assert res.returncode == 1
     assert "needs Debian" in res.stderr and "container" in res.stderr
     assert not (tmp_path / "v").exists(), "nothing may be created on a refused system"
+
+
+@pytest.mark.parametrize("codename, says", [
+    ("bookworm", "Debian 12 (bookworm): DOLFINx 0.5.2, supported"),
+    ("trixie", "Debian 13 (trixie): DOLFINx 0.9, supported"),
+    ("forky", "NOT a supported release (Debian 12 and\n  13 are)"),
+])
+def test_bootstrap_names_the_release_and_whether_it_is_supported(repo, tmp_path, codename, says):
+    """On Debian 12 and 13 the bootstrap says which DOLFINx it installs; on anything else with apt-get it says
+    that it goes on with the same package names and that the result is untested."""
+    venv = Path(sys.prefix)
+    if not (venv / ".bootstrap-stamp").exists():
+        pytest.skip("not running from the bootstrapped venv")
+    (tmp_path / "etc").mkdir()
+    (tmp_path / "etc/debian_version").write_text("13.0\n")
+    (tmp_path / "etc/os-release").write_text(f'PRETTY_NAME="Debian test"\nVERSION_CODENAME={codename}\n')
+    res = subprocess.run(["bash", str(repo / "scripts/bootstrap.sh")], capture_output=True, text=True,
+                         env={**os.environ, "SORO_BOOTSTRAP_ROOT": str(tmp_path), "SORO_VENV": str(venv)})
+    assert res.returncode == 0, res.stderr
+    assert says in res.stdout and "up to date" in res.stdout, res.stdout

@@ -21,17 +21,17 @@ __all__ = ["exterior_facets", "facet_geometry", "sides", "cavities", "select", "
 
 def exterior_facets(mesh):
     """Local indices of the exterior (boundary) facets of ``mesh``."""
-    import dolfinx.cpp.mesh as cmesh
+    import dolfinx.mesh
 
     tdim = mesh.topology.dim
     mesh.topology.create_connectivity(tdim - 1, tdim)
-    return np.asarray(cmesh.exterior_facet_indices(mesh.topology), dtype=np.int32)
+    return np.asarray(dolfinx.mesh.exterior_facet_indices(mesh.topology), dtype=np.int32)
 
 
 def _entity_vertex_coords(mesh, dim, entities):
-    import dolfinx.cpp.mesh as cmesh
+    from .._dolfinx import entities_to_geometry
 
-    nodes = cmesh.entities_to_geometry(mesh._mesh, dim, np.asarray(entities, dtype=np.int32), False)
+    nodes = entities_to_geometry(mesh, dim, entities)
     gdim = mesh.geometry.dim
     return mesh.geometry.x[:, :gdim][nodes]  # (n, nv, gdim)
 
@@ -204,18 +204,18 @@ def quality(mesh):
     import basix
     from mpi4py import MPI
 
+    from .. import _dolfinx
+
     comm = mesh.comm
     tdim, gdim = mesh.topology.dim, mesh.geometry.dim
     name = mesh.topology.cell_type.name
     ncell = mesh.topology.index_map(tdim).size_local
     nvert = mesh.topology.index_map(0).size_local
-    dofmap = mesh.geometry.dofmap
-    ndofs = dofmap.links(0).size if ncell else 0
-    geo = np.asarray(dofmap.array, dtype=np.int64)
-    geo = geo.reshape(-1, ndofs)[:ncell] if ncell else np.zeros((0, 1), dtype=np.int64)
+    geo = np.asarray(_dolfinx.geometry_dofs(mesh, ncell), dtype=np.int64) if ncell else \
+        np.zeros((0, 1), dtype=np.int64)
+    ndofs = geo.shape[1] if ncell else 0
     x = mesh.geometry.x[:, :gdim]
-    degree = mesh.geometry.cmap.degree if hasattr(mesh.geometry.cmap, "degree") else \
-        mesh.ufl_domain().ufl_coordinate_element().degree()
+    degree = _dolfinx.geometry_degree(mesh)
     bcell = _basix_cell(name)
     nv = {"triangle": 3, "quadrilateral": 4, "tetrahedron": 4, "hexahedron": 8}[name]
     V = x[geo[:, :nv]] if ncell else np.zeros((0, nv, gdim))
