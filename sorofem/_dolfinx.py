@@ -16,7 +16,7 @@ import functools
 import numpy as np
 
 __all__ = ["SUPPORTED", "version", "support_status", "create_mesh", "gmsh_node_order", "gmsh_facet_node_order",
-           "geometry_degree", "geometry_dofs", "cell_dofs", "entities_to_geometry", "function_space",
+           "geometry_degree", "geometry_dofs", "cell_dofs", "entity_vertex_nodes", "function_space",
            "taylor_hood_space", "interpolation_points", "petsc_vec", "set_bc", "apply_lifting",
            "create_petsc_vector", "orthonormalize", "colliding_cells", "write_meshtags", "set_jit_timeout"]
 
@@ -151,21 +151,34 @@ def cell_dofs(V, num_cells=None):
     return a if num_cells is None else a[:num_cells]
 
 
-def entities_to_geometry(mesh, dim, entities):
-    """Geometry node indices ``(n, nodes per entity)`` of the mesh entities of dimension ``dim``.
+_VERTICES = {"point": 1, "interval": 2, "triangle": 3, "quadrilateral": 4, "tetrahedron": 4, "hexahedron": 8}
 
-    0.5: ``dolfinx.cpp.mesh.entities_to_geometry`` on the C++ mesh; 0.8+: ``dolfinx.mesh.entities_to_geometry``.
+
+def entity_vertex_nodes(mesh, dim, entities):
+    """Geometry node indices of the *vertices* of mesh entities of dimension ``dim``: ``(n, vertices per
+    entity)``, in the entity's reference vertex order.
+
+    0.5 (``dolfinx.cpp.mesh.entities_to_geometry`` on the C++ mesh) returns the vertex nodes only; 0.8+
+    (``dolfinx.mesh.entities_to_geometry``) returns every node of the entity's closure, vertices first, so
+    on curved (order 2) meshes the edge-midpoint nodes follow. Both are cut to the vertices here: a facet's
+    vertex mean is then the same number on every version (the .msh region matching relies on it).
     """
+    import dolfinx.cpp.mesh
+
     entities = np.asarray(entities, dtype=np.int32)
-    mesh.topology.create_connectivity(dim, mesh.topology.dim)  # 0.9 needs it, earlier versions build it
+    tdim = mesh.topology.dim
+    mesh.topology.create_connectivity(dim, tdim)  # 0.9 needs it, earlier versions build it
+    etype = dolfinx.cpp.mesh.cell_entity_type(mesh.topology.cell_type, dim, 0) if dim < tdim else \
+        mesh.topology.cell_type
+    nv = _VERTICES[etype.name]
     if _at_least(8):
         import dolfinx.mesh
 
-        return np.asarray(dolfinx.mesh.entities_to_geometry(mesh, dim, entities, False))
-    import dolfinx.cpp.mesh
-
-    cpp_mesh = getattr(mesh, "_cpp_object", None) or getattr(mesh, "_mesh", mesh)
-    return np.asarray(dolfinx.cpp.mesh.entities_to_geometry(cpp_mesh, dim, entities, False))
+        nodes = dolfinx.mesh.entities_to_geometry(mesh, dim, entities, False)
+    else:
+        cpp_mesh = getattr(mesh, "_cpp_object", None) or getattr(mesh, "_mesh", mesh)
+        nodes = dolfinx.cpp.mesh.entities_to_geometry(cpp_mesh, dim, entities, False)
+    return np.asarray(nodes).reshape(len(entities), -1)[:, :nv]
 
 
 # ------------------------------------------------------------------------------------------- function spaces

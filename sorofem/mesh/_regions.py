@@ -29,9 +29,9 @@ def exterior_facets(mesh):
 
 
 def _entity_vertex_coords(mesh, dim, entities):
-    from .._dolfinx import entities_to_geometry
+    from .._dolfinx import entity_vertex_nodes
 
-    nodes = entities_to_geometry(mesh, dim, entities)
+    nodes = entity_vertex_nodes(mesh, dim, entities)
     gdim = mesh.geometry.dim
     return mesh.geometry.x[:, :gdim][nodes]  # (n, nv, gdim)
 
