@@ -97,3 +97,25 @@ def test_bootstrap_names_the_release_and_whether_it_is_supported(repo, tmp_path,
                          env={**os.environ, "SORO_BOOTSTRAP_ROOT": str(tmp_path), "SORO_VENV": str(venv)})
     assert res.returncode == 0, res.stderr
     assert says in res.stdout and "up to date" in res.stdout, res.stdout
+
+
+def test_trixie_stage_fails_with_a_message_when_the_mirror_is_unreachable(repo, tmp_path):
+    """make test-trixie never skips: when debootstrap cannot reach the mirror the stage fails and says what to
+    check (here a stand-in debootstrap that fails as the real one does without network)."""
+    fake = tmp_path / "bin"
+    fake.mkdir()
+    (fake / "debootstrap").write_text("#!/bin/sh\necho 'E: Failed getting release file $3/dists/trixie/Release'\n"
+                                      "exit 1\n")
+    (fake / "debootstrap").chmod(0o755)
+    cache = tmp_path / "cache"
+    env = {**os.environ, "PATH": f"{fake}:{os.environ['PATH']}", "SORO_TRIXIE_CACHE": str(cache),
+           "SORO_DEBIAN_MIRROR": "http://127.0.0.1:9/debian"}
+    res = subprocess.run(["bash", str(repo / "scripts/test-trixie.sh")], capture_output=True, text=True, env=env,
+                         timeout=120)
+    assert res.returncode != 0
+    if os.geteuid() != 0:  # the stage needs chroot: as a user it stops at once and says so
+        assert "needs root" in res.stderr, res.stderr
+        return
+    assert "debootstrap failed" in res.stderr and "http://127.0.0.1:9/debian" in res.stderr, res.stderr
+    assert "Failed getting release file" in (cache / "debootstrap.log").read_text()
+    assert not (cache / "trixie").exists(), "a failed build must not leave a root that looks usable"
