@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import _dolfinx
 from .._jit import silence_compiler_logs
 from ..errors import GeometryError, MeshError
 from ..io import on_root
@@ -424,8 +425,6 @@ class Mesh:
     @classmethod
     def _from_root_arrays(cls, comm, build, side_tol=None, source=""):
         """Run ``build() -> (x (n, 3), cells, gmsh_type, gdim)`` on rank 0 and distribute the mesh."""
-        from .. import _dolfinx
-
         t0 = time.perf_counter()
         data = on_root(comm, build)
         if comm.rank == 0:
@@ -714,8 +713,6 @@ class Mesh:
         """
         from dolfinx.io import XDMFFile
 
-        from .. import _dolfinx
-
         path = Path(path).with_suffix(".xdmf")
         comm = self.comm
         tmpdir = None
@@ -933,8 +930,6 @@ def _gather(msh):
     Returns on rank 0 ``(x (n, 3), cells, gmsh cell type, {name: (dim, gmsh type, nodes)}, tdim)``.
     """
     import basix
-
-    from .. import _dolfinx
 
     m = msh.dolfinx
     comm = msh.comm

@@ -14,6 +14,7 @@ linear facets. Components are found on rank 0 from the gathered boundary facets 
 """
 import numpy as np
 
+from .. import _dolfinx
 from ..errors import MeshError
 
 __all__ = ["exterior_facets", "facet_geometry", "sides", "cavities", "select", "quality"]
@@ -29,9 +30,7 @@ def exterior_facets(mesh):
 
 
 def _entity_vertex_coords(mesh, dim, entities):
-    from .._dolfinx import entity_vertex_nodes
-
-    nodes = entity_vertex_nodes(mesh, dim, entities)
+    nodes = _dolfinx.entity_vertex_nodes(mesh, dim, entities)
     gdim = mesh.geometry.dim
     return mesh.geometry.x[:, :gdim][nodes]  # (n, nv, gdim)
 
@@ -203,8 +202,6 @@ def quality(mesh):
     """
     import basix
     from mpi4py import MPI
-
-    from .. import _dolfinx
 
     comm = mesh.comm
     tdim, gdim = mesh.topology.dim, mesh.geometry.dim
