@@ -17,12 +17,21 @@ demo: bootstrap
 doctor: bootstrap
 	$(VENV)/bin/soro doctor
 
-# The serial suite (everything but `bench` and `mpi`), then the MPI tests on two ranks, then one summary line.
+# Collection first (under whatever pytest the venv has: Debian 12's 7.2 or Debian 13's 8.x): an import or
+# collection error stops here with pytest's message instead of reading as a count of failed tests. Then the
+# serial suite (everything but `bench` and `mpi`), the MPI tests on two ranks, and one summary line.
 # Time limits turn a hung test (e.g. an MPI rank waiting for a peer that failed) into a failure.
+# PYTHONFAULTHANDLER: a native crash (segfault, abort) prints the Python stack of every thread, children included;
+# PETSc's own signal handler would replace faulthandler's when DOLFINx loads (and print no Python stack), so
+# -no_signal_handler keeps faulthandler's.
 test: bootstrap
 	@mkdir -p out/test
 	@rm -f out/test/*.xml
-	@status=0; \
+	@$(PY) -m pytest --collect-only -q -p no:cacheprovider -m "not bench" $(PYTEST_OPTS) > out/test/collect.log 2>&1 \
+	  || { tail -40 out/test/collect.log; \
+	       echo "make test: collection failed under pytest $$($(PY) -m pytest --version 2>&1 | tail -1): nothing was run (out/test/collect.log)"; \
+	       exit 2; }
+	@export PYTHONFAULTHANDLER=1 PETSC_OPTIONS="-no_signal_handler $${PETSC_OPTIONS:-}"; status=0; \
 	timeout --kill-after=30 2400 $(PY) -m pytest -m "not bench and not mpi" --junitxml=out/test/serial.xml \
 	  $(PYTEST_OPTS) || status=$$?; \
 	$(MPIRUN_ENV) timeout --kill-after=30 900 mpirun -n 2 $(PY) scripts/mpi_pytest.py -m mpi \

@@ -105,10 +105,7 @@ def main(out: Path, quick: bool = False) -> dict:
     plan_s = time.perf_counter() - t0
 
     log_t, log_tip, log_p = [], [], []
-    reached = []
     with Board.simulated(channels=5, beam=shp, board_rate=200.0) as brd:
-        k_end = [int(round((i + 1) * hold * 100)) for i in range(len(seq))]
-        it = 0
         for t in brd.loop(duration=hold * len(seq), rate=100.0):
             i = min(int(t // hold), len(seq) - 1)
             (a, _), grip = plans[i], seq[i][3]
@@ -116,13 +113,11 @@ def main(out: Path, quick: bool = False) -> dict:
             log_t.append(t)
             log_tip.append(s.sensors[:3].copy())
             log_p.append(s.measured.copy())
-            it += 1
-            if it in k_end:
-                reached.append(s.sensors[:3].copy())
         stats = brd.loop_stats
-    log_tip, log_p = np.array(log_tip), np.array(log_p)
-    while len(reached) < len(seq):
-        reached.append(log_tip[-1])
+    log_t, log_tip, log_p = np.array(log_t), np.array(log_tip), np.array(log_p)
+    # each waypoint's tip: the last sample of its hold, found by time (a loaded machine skips loop
+    # iterations, so an iteration count would land in a later hold)
+    reached = [log_tip[np.searchsorted(log_t, (i + 1) * hold, side="left") - 1] for i in range(len(seq))]
     errors = [float(np.hypot(r[0] - x, r[2] - z)) for r, (_, x, z, _) in zip(reached, seq)]
 
     import matplotlib

@@ -118,7 +118,7 @@ def control_stage(out, beam, p_max, quick):
     # integral feedback only, crossing over at ~1 rad/s: well below the beam's lightly damped first mode and
     # the regulator's lag (a proportional term made the loop ring at the first mode)
     ki = 1.0 * (grid[-1] - grid[0]) / (angles[-1] - angles[0])      # Pa/(deg s)
-    log, integral = [], 0.0
+    log, integral, t_prev = [], 0.0, 0.0
     with Board.simulated(channels=1, beam=beam, p_min=0.0, p_max=p_max, board_rate=200.0) as brd:
         state = brd.read()
         for t in brd.loop(duration=hold * len(refs), rate=rate):
@@ -128,7 +128,8 @@ def control_stage(out, beam, p_max, quick):
             ff = float(np.interp(ref, angles, grid))
             u = ff + ki * integral
             if 0.0 < u < p_max:          # integrate only when not saturated (anti-windup)
-                integral += e / rate
+                integral += e * (t - t_prev)     # the elapsed time: a loaded machine skips iterations
+            t_prev = t
             state = brd.set_pressure([u])
             log.append((t, ref, theta, state.requested[0], state.measured[0]))
         stats = brd.loop_stats

@@ -28,7 +28,7 @@ column), and ``T``, ``dT`` are built from closed forms of their 3 x 3 blocks (:f
 Kernels write into work arrays passed by the caller (see :func:`scratch`).
 """
 import numpy as np
-from numba import njit
+from sorofem._numba import njit  # numba.njit with a cache that concurrent processes may share
 
 from .lie import _put_skew, _so3_coeffs, _tse3_coeffs, _tse3_dcoeffs, invSE3, logSE3
 

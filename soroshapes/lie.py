@@ -39,7 +39,7 @@ True
 True
 """
 import numpy as np
-from numba import njit
+from sorofem._numba import njit  # numba.njit with a cache that concurrent processes may share
 
 __all__ = [
     "SMALL_ANGLE",

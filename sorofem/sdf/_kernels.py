@@ -4,11 +4,11 @@ Each function mirrors the vectorized numpy implementation of the same primitive 
 """
 import math
 
-import numba
+from .._numba import njit
 
 __all__ = ["_ellipse", "_polygon", "_polyline", "_cone"]
 
-_jit = numba.njit(cache=True, fastmath=False, error_model="numpy")
+_jit = njit(cache=True, fastmath=False, error_model="numpy")
 
 
 @_jit

@@ -1,0 +1,81 @@
+"""numba's on-disk cache shared by concurrent processes (sorofem._numba).
+
+Two processes compile different signatures of one ``cache=True`` function at the same time. numba's unlocked
+read-modify-write of the cache index lets the index of one process name the data file of the other; a third
+process then runs machine code compiled for other argument types. The interleaving that does it is forced here
+with delays inside numba's index and data writes (a busy machine produces the same order by preemption).
+"""
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+MODULE = textwrap.dedent("""
+    import os, sys, time
+    if os.environ.get("LOCK") == "1":
+        import sorofem._numba  # noqa: F401  (the lock)
+    from numba.core import caching
+    import numpy as np
+    from numba import njit
+
+    delay_index, delay_data = (float(v) for v in os.environ.get("DELAYS", "0,0").split(","))
+    cls = caching.IndexDataCacheFile
+    save_index, save_data = cls._save_index, cls._save_data
+
+    def slow_index(self, overloads):
+        time.sleep(delay_index)
+        save_index(self, overloads)
+
+    def slow_data(self, name, data):
+        time.sleep(delay_data)
+        save_data(self, name, data)
+
+    cls._save_index, cls._save_data = slow_index, slow_data
+
+    @njit(cache=True)
+    def total(a):
+        s = 0.0
+        for x in a.flat:
+            s += x
+        return s
+
+    ONE = np.arange(6.0)                          # 1-D, contiguous: sum 15
+    TWO = np.arange(6.0).reshape(2, 3)[:, ::2]    # 2-D, strided: [[0, 2], [3, 5]], sum 10
+
+    if __name__ == "__main__":
+        if sys.argv[1] == "check":
+            print(total(ONE), total(TWO))
+        else:
+            total(ONE if sys.argv[1] == "one" else TWO)
+""")
+
+
+def _race(tmp_path, python, subprocess_env, lock):
+    """Compile both signatures in two processes, A writing its index first and its data last; return what a
+    third process computes from the cache."""
+    (tmp_path / "racemod.py").write_text(MODULE)
+    env = dict(subprocess_env, LOCK="1" if lock else "0", PYTHONPATH=str(tmp_path))
+    # A: reads the (empty) index at once, writes its index at +0.5 s and its data at +2 s;
+    # B: reads the index within ~0.2 s, writes its index and data at +1 s.
+    a = subprocess.Popen([python, "racemod.py", "one"], cwd=tmp_path, env=dict(env, DELAYS="0.5,1.5"))
+    b = subprocess.Popen([python, "racemod.py", "two"], cwd=tmp_path, env=dict(env, DELAYS="1.0,0.0"))
+    assert a.wait(timeout=300) == 0 and b.wait(timeout=300) == 0
+    res = subprocess.run([python, "racemod.py", "check"], cwd=tmp_path, env=env, capture_output=True, text=True,
+                         timeout=300)
+    return res.returncode, res.stdout.split()
+
+
+@pytest.mark.slow
+def test_concurrent_compiles_of_two_signatures_leave_a_consistent_cache(tmp_path, python, subprocess_env):
+    code, out = _race(tmp_path, python, subprocess_env, lock=True)
+    assert code == 0 and out == ["15.0", "10.0"], (code, out)
+
+
+@pytest.mark.slow
+def test_without_the_lock_the_same_interleaving_corrupts_the_cache(tmp_path, python, subprocess_env):
+    """The control: the harness above does reproduce numba's race (else the first test would prove nothing)."""
+    code, out = _race(tmp_path, python, subprocess_env, lock=False)
+    if code == 0 and out == ["15.0", "10.0"]:
+        pytest.skip("this numba no longer mixes up the cache entries under this interleaving")
+    assert code != 0 or out != ["15.0", "10.0"]
