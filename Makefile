@@ -41,7 +41,7 @@ test: bootstrap
 	exit $$status
 
 # The same suite on Debian 13 (DOLFINx 0.9, Python 3.13, numpy 2): a debootstrap root cached in /var/cache/soro
-# (built once, ~3-10 min; rebuilt when stale), the project installed there by bootstrap.sh, then `make test`.
+# (built once in 2.5-10 min; rebuilt when stale), the project installed there by bootstrap.sh, then `make test`.
 .PHONY: test-trixie
 test-trixie:
 	@bash scripts/test-trixie.sh
