@@ -22,14 +22,15 @@ doctor: bootstrap
 # serial suite (everything but `bench` and `mpi`), the MPI tests on two ranks, and one summary line.
 # Time limits turn a hung test (e.g. an MPI rank waiting for a peer that failed) into a failure.
 # PYTHONFAULTHANDLER: a native crash (segfault, abort) prints the Python stack of every thread, children included;
-# PETSc's own signal handler would replace faulthandler's when DOLFINx loads (and print no Python stack), so
-# -no_signal_handler keeps faulthandler's.
+# PETSc's own signal handlers would replace faulthandler's when DOLFINx loads (and print no Python stack):
+# sorofem starts PETSc without them (sorofem._petsc), and PETSC_OPTIONS does the same for a test that imports
+# DOLFINx before sorofem.
 test: bootstrap
 	@mkdir -p out/test
 	@rm -f out/test/*.xml
 	@$(PY) -m pytest --collect-only -q -p no:cacheprovider -m "not bench" $(PYTEST_OPTS) > out/test/collect.log 2>&1 \
 	  || { tail -40 out/test/collect.log; \
-	       echo "make test: collection failed under pytest $$($(PY) -m pytest --version 2>&1 | tail -1): nothing was run (out/test/collect.log)"; \
+	       echo "make test: collection failed ($$($(PY) -m pytest --version 2>&1 | tail -1)): nothing was run (out/test/collect.log)"; \
 	       exit 2; }
 	@export PYTHONFAULTHANDLER=1 PETSC_OPTIONS="-no_signal_handler $${PETSC_OPTIONS:-}"; status=0; \
 	timeout --kill-after=30 2400 $(PY) -m pytest -m "not bench and not mpi" --junitxml=out/test/serial.xml \

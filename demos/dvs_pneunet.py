@@ -22,6 +22,8 @@ out : pathlib.Path
     ``report.json``.
 quick : bool
     Four chambers and a coarse mesh (a few seconds of FEM) instead of seven chambers.
+tolerance : float
+    Tip error bound of the trade's selection, a fraction of the length (default 0.03; ``soro trade --tolerance``).
 
 Figures
 -------
@@ -95,7 +97,7 @@ def beam_factory(length, pn):
     return make
 
 
-def main(out: Path, quick: bool = False) -> dict:
+def main(out: Path, quick: bool = False, tolerance: float = 0.03) -> dict:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -132,7 +134,7 @@ def main(out: Path, quick: bool = False) -> dict:
     q_free = [shp.statics(u=[float(u)]) for u in train.inputs[inputs[0]]]
     cmp_wrap = compare(add_cylinder(shp), wrap, inputs)
 
-    rows, pick = trade_report(train, test, make, inputs, out, tolerance=0.03, contact=(wrap, add_cylinder))
+    rows, pick = trade_report(train, test, make, inputs, out, tolerance=tolerance, contact=(wrap, add_cylinder))
 
     # figures
     s = train.sigma / length

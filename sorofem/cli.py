@@ -2,7 +2,8 @@
 
 ``soro doctor``
     Print the versions of the numerical stack (DOLFINx, PETSc, SLEPc, MPI, numba, gmsh, OpenCV, ...), check
-    that a UFL form JIT-compiles and assembles, and that ``mpirun -n 2`` works. Exit status 0 when all is
+    the JIT cache (writable; no stale lock of a killed compile, :mod:`sorofem.jitcache`), that a UFL form
+    JIT-compiles and assembles, and that ``mpirun -n 2`` works. Exit status 0 when all is
     well; otherwise 1, with one line per problem that says how to fix it.
 ``soro demo [NAME] [--quick] [--out DIR]``
     Run ``demos/NAME.py`` (default: ``chain``, the end-to-end job) and write its report (PNG figures and
@@ -10,13 +11,18 @@
 ``soro trade [TRAIN.h5 TEST.h5 --backbone X0,Y0[,Z0]:X1,Y1[,Z1] [--input NAME]] [--tolerance T] [--out DIR]``
     The speed-accuracy trade of beam models (DVS, Chebyshev and PCC bases of 1-6 modes) against FEM
     snapshots (:func:`soroshapes.dvs.trade_files`): a table of tip and shape errors and time per solve, a
-    PNG, and the cheapest model within the tolerance (a fraction of the length, default 0.03). Without files
+    PNG, and the cheapest model within the tolerance (a fraction of the length, default 0.03), chosen by one
+    rule (:func:`soroshapes.dvs.cheapest`: the smallest median time per solve among the rows within the
+    tolerance on the test and contact tip errors) that also marks the table's selected row. Without files
     it runs the PneuNet of ``demos/dvs_pneunet.py`` (``--quick`` for a short run).
-``soro sweep CONFIG.toml [--out DIR] [--group-size K] [--retry-failed] [--dry-run]``
+``soro sweep CONFIG.toml [--out DIR] [--group-size K] [--retry-failed] [--force-rerun] [--dry-run]``
     Run a batch of FEM cases described by a TOML file (format: :mod:`sorofem.sweep`), one snapshot file and
     one status file per case plus ``manifest.json`` in ``DIR`` (default ``out/sweeps/<config name>/``).
     Resumable: run it again after an interruption and only the missing cases run; ``--retry-failed`` runs
-    the failed ones again. Under ``mpirun -n N`` cases run side by side on groups of ``K`` ranks.
+    the failed ones again. A resume checks the provenance of the results (builder source, ``[solve]``,
+    ``[fixed]``, package version) and each snapshot's digest: other settings are refused unless
+    ``--force-rerun`` reruns those cases; a damaged snapshot reruns its case. A second sweep in the same
+    directory is refused (lock file). Under ``mpirun -n N`` cases run side by side on groups of ``K`` ranks.
     ``--dry-run`` prints the case table (with each case's status in ``DIR``) and runs nothing. Exit status
     0 when every case is done, 1 when some failed, 2 for an invalid configuration.
 
@@ -149,6 +155,29 @@ def _check_jit():
     return f"ok ({time.perf_counter() - t0:.1f} s)", []
 
 
+def _check_jit_cache(directory=None):
+    """The JIT cache: its directory, module count and locks; a stale lock (killed compile) is a problem."""
+    from . import jitcache
+
+    directory = Path(directory) if directory is not None else jitcache.cache_dir()
+    if not directory.exists():
+        return f"{directory} (empty)", []
+    if not os.access(directory, os.W_OK):
+        return f"{directory} not writable", [f"the JIT cache {directory} is not writable: forms cannot be "
+                                             "compiled. Fix: chown or chmod it, or set XDG_CACHE_HOME"]
+    modules = len(list(directory.glob("*.c.cached")))
+    locks = jitcache.scan(directory)
+    stale = [lock for lock in locks if lock.stale]
+    status = f"{directory}: {modules} compiled module(s), {len(locks) - len(stale)} compiling, {len(stale)} stale"
+    problems = []
+    if stale:
+        files = " ".join(str(lock.path) for lock in stale)
+        problems.append(f"{len(stale)} stale JIT lock(s) of killed compiles ({stale[0].reason}): every run that "
+                        f"needs those forms waits for the JIT timeout and fails. Fix: rm {files} "
+                        "(soro sweep removes them at start)")
+    return status, problems
+
+
 def _check_mpi():
     """Run two ranks that sum their ranks with an allreduce."""
     mpirun = shutil.which("mpirun")
@@ -183,6 +212,9 @@ def doctor(stream=None):
     problems += _check_debian_numpy()
     print(f"  {'BLAS':<{width}}  {_blas()}", file=out)
     have_dolfinx = all(r[1] != "MISSING" for r in rows if r[0] in ("DOLFINx", "mpi4py"))
+    status, p = _check_jit_cache()
+    problems += p
+    print(f"  {'JIT cache':<{width}}  {status}", file=out)
     if have_dolfinx:
         support, p = _check_dolfinx_support()
         problems += p
@@ -209,8 +241,8 @@ def list_demos():
     return sorted(p.stem for p in DEMOS_DIR.glob("*.py") if not p.name.startswith("_"))
 
 
-def run_demo(name=DEFAULT_DEMO, out="out", quick=False):
-    """Run ``demos/<name>.py``'s ``main(out_dir, quick)`` and write ``<out>/<name>/report.json``.
+def run_demo(name=DEFAULT_DEMO, out="out", quick=False, **options):
+    """Run ``demos/<name>.py``'s ``main(out_dir, quick, **options)`` and write ``<out>/<name>/report.json``.
 
     Returns the summary dict the demo returned, completed with its wall time.
     """
@@ -226,7 +258,7 @@ def run_demo(name=DEFAULT_DEMO, out="out", quick=False):
     out_dir = Path(out) / name
     out_dir.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    summary = module.main(out_dir, quick=quick)
+    summary = module.main(out_dir, quick=quick, **options)
     summary = dict(summary or {})
     summary.setdefault("demo", name)
     summary["quick"] = bool(quick)
@@ -243,7 +275,7 @@ def _world_rank():
     return 0
 
 
-def run_sweep(config, out=None, group_size=1, retry_failed=False, dry_run=False, stream=None):
+def run_sweep(config, out=None, group_size=1, retry_failed=False, dry_run=False, stream=None, force_rerun=False):
     """``soro sweep``: run (or with ``dry_run`` list) the cases of a sweep configuration; return the exit status.
 
     0 when every case is done, 1 when a case failed (or is still pending), 2 when the configuration is
@@ -274,7 +306,8 @@ def run_sweep(config, out=None, group_size=1, retry_failed=False, dry_run=False,
 
     t0 = time.perf_counter()
     try:
-        manifest = sweep.run(out, group_size=group_size, retry_failed=retry_failed, progress=progress)
+        manifest = sweep.run(out, group_size=group_size, retry_failed=retry_failed, progress=progress,
+                             force_rerun=force_rerun)
     except SoroError as e:
         if rank0:
             print(f"soro sweep: {e}", file=sys.stderr)
@@ -287,6 +320,8 @@ def run_sweep(config, out=None, group_size=1, retry_failed=False, dry_run=False,
         if failed:
             more = " ..." if len(failed) > 10 else ""
             line += f"; failed: {', '.join(failed[:10])}{more} (--retry-failed reruns them)"
+        if counts["pending"]:
+            line += "; run the same command again for the pending cases"
         print(line, file=stream, flush=True)
     return 0 if counts["failed"] == 0 and counts["pending"] == 0 else 1
 
@@ -297,15 +332,20 @@ def run_trade(train=None, test=None, backbone=None, inputs=None, tolerance=0.03,
     demo when no file is given. Prints the table; returns the exit status (1 if no model meets the
     tolerance, 2 for bad arguments)."""
     stream = stream or sys.stdout
+    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) or not 0 < tolerance < 1:
+        print(f"soro trade: --tolerance is a fraction of the length in (0, 1), e.g. 0.03; got {tolerance}",
+              file=sys.stderr)
+        return 2
     if train is None:
         if test is not None or backbone is not None:
             print("soro trade: give both TRAIN and TEST snapshot files with --backbone, or none", file=sys.stderr)
             return 2
+        from soroshapes.dvs import trade_text
+
         out = Path(out or "out")
-        report = run_demo("dvs_pneunet", out=out, quick=quick)
-        print((out / "dvs_pneunet" / "trade.txt").read_text(), file=stream)
-        pick = next((r for r in sorted(report["trade"], key=lambda r: r["solve_time_s"])
-                     if r["tip_error_test"] <= tolerance), None)
+        report = run_demo("dvs_pneunet", out=out, quick=quick, tolerance=tolerance)
+        text, pick = trade_text(report["trade"], tolerance)   # the one selection rule, as in trade.txt
+        print(text, file=stream)
     else:
         from sorofem.errors import SoroError
         from soroshapes.dvs import Backbone, trade_files
@@ -321,7 +361,6 @@ def run_trade(train=None, test=None, backbone=None, inputs=None, tolerance=0.03,
             return 2
         print(text, file=stream)
     if pick is None:
-        print(f"no model within {100 * tolerance:g} % of the length", file=stream)
         return 1
     print(f"selected: {pick['family']} with {pick['modes']} modes", file=stream)
     return 0
@@ -350,6 +389,8 @@ def main(argv=None):
     p.add_argument("--group-size", type=int, default=1, metavar="K",
                    help="MPI ranks per case under mpirun (default: 1)")
     p.add_argument("--retry-failed", action="store_true", help="run the cases that failed before again")
+    p.add_argument("--force-rerun", action="store_true",
+                   help="run again the cases made by another builder source, [solve], [fixed] or package version")
     p.add_argument("--dry-run", action="store_true", help="print the case table and exit")
     args = parser.parse_args(argv)
 
@@ -372,7 +413,7 @@ def main(argv=None):
     if args.command == "sweep":
         try:
             return run_sweep(args.config, out=args.out, group_size=args.group_size, retry_failed=args.retry_failed,
-                             dry_run=args.dry_run)
+                             dry_run=args.dry_run, force_rerun=args.force_rerun)
         except KeyboardInterrupt:
             print("interrupted: run the same command again to resume", file=sys.stderr)
             return 130

@@ -1,17 +1,104 @@
-"""Small file helpers shared by every layer: atomic writes and JSON reports.
+"""Small file helpers shared by every layer: atomic writes, file digests and JSON reports.
 
 A result file is either complete or absent: writers go to a temporary file in the destination directory
-and ``os.replace`` it into place, which is atomic on POSIX file systems. An exception inside the ``with``
-block removes the temporary file and leaves any previous version of the destination untouched.
+and ``os.replace`` it into place, which is atomic on POSIX file systems. The temporary file is flushed to
+disk (``fsync``) before the rename and the directory after it, so a power loss leaves the old file or the
+new one, never an empty or half-written one under the final name. An exception inside the ``with`` block
+removes the temporary file and leaves any previous version of the destination untouched; a full disk is
+reported as :class:`~sorofem.errors.DataError` naming the path and the free space.
 """
 import contextlib
+import errno
+import hashlib
 import json
 import math
 import os
+import shutil
 import tempfile
 from pathlib import Path
 
-__all__ = ["atomic_path", "write_json", "save_figure", "on_root"]
+from .errors import DataError
+
+__all__ = ["atomic_path", "write_json", "save_figure", "on_root", "file_digest", "fsync_path", "is_disk_full",
+           "disk_full_error", "process_alive"]
+
+_FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
+
+
+def is_disk_full(exc):
+    """Whether ``exc`` (or an exception it was raised from) says the disk or quota is full.
+
+    HDF5 reports a failed write as an ``OSError`` without ``errno`` whose message carries ``errno = 28``, so
+    the message is read too.
+    """
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        if isinstance(exc, OSError) and exc.errno in _FULL:
+            return True
+        text = str(exc)
+        if "No space left on device" in text or "errno = 28" in text or "Disk quota exceeded" in text:
+            return True
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
+def disk_full_error(path, exc=None):
+    """The :class:`DataError` for a write to ``path`` that failed on a full disk: names the path, the file
+    system's free space and what to do."""
+    path = Path(path)
+    where = path.parent if path.parent.exists() else Path(".")
+    try:
+        usage = shutil.disk_usage(where)
+        free = f"{usage.free / 2**20:.1f} MiB free of {usage.total / 2**20:.1f} MiB on {where.resolve()}"
+    except OSError:
+        free = f"the free space on {where} is unknown"
+    detail = f" ({type(exc).__name__}: {str(exc).splitlines()[0][:200] if str(exc) else ''})" if exc else ""
+    return DataError(f"no space left writing {path}: {free}{detail}. Free some space (or write to another "
+                     "disk) and run again; nothing was left under that name")
+
+
+def process_alive(pid):
+    """Whether process ``pid`` runs on this host (a zombie, dead but not yet reaped, does not run); used to tell
+    the lock file of a live process from one a killed process left."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    except (OverflowError, ValueError):
+        return False
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rpartition(")")[2].split()[0] != "Z"
+    except (OSError, IndexError):
+        return True  # no /proc (not Linux): the signal test is all we have
+
+
+def fsync_path(path):
+    """Flush a file or a directory to disk (``os.fsync``); directories are skipped where they cannot be
+    opened (not POSIX)."""
+    flags = os.O_RDONLY | (os.O_DIRECTORY if Path(path).is_dir() and hasattr(os, "O_DIRECTORY") else 0)
+    try:
+        fd = os.open(path, flags)
+    except OSError:
+        if Path(path).is_dir():
+            return
+        raise
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def file_digest(path, algorithm="sha256", chunk=1 << 20):
+    """Hex digest of a file's bytes (``sha256`` by default), read in 1 MiB chunks."""
+    h = hashlib.new(algorithm)
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(chunk), b""):
+            h.update(block)
+    return h.hexdigest()
 
 
 @contextlib.contextmanager
@@ -44,10 +131,14 @@ def atomic_path(path, suffix=None):
     os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; results are ordinary files
     try:
         yield Path(tmp)
+        fsync_path(tmp)                 # the data is on disk before the name points at it
         os.replace(tmp, path)
-    except BaseException:
+        fsync_path(path.parent)         # and the rename itself survives a power loss
+    except BaseException as e:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
+        if isinstance(e, Exception) and not isinstance(e, DataError) and is_disk_full(e):
+            raise disk_full_error(path, e) from e
         raise
 
 

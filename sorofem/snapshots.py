@@ -17,8 +17,12 @@ This is the seam between the FEM layer (:mod:`sorofem.fem` writes) and the reduc
 ``/steps/reaction/<name>`` (n_steps, gdim) float64 [N]
 ``/steps/cell_field/<name>`` (n_steps, n_cells) float64, per-cell values (e.g. ``von_mises`` [Pa])
 
-Files are written atomically: :class:`SnapshotWriter` fills a temporary file next to the destination and
-renames it into place when closed without error, so a reader never sees half a case.
+Every dataset carries an HDF5 ``fletcher32`` checksum (per chunk; series are chunked one step per chunk).
+Files are written atomically: :class:`SnapshotWriter` fills a temporary file next to the destination, flushes
+it to disk and renames it into place when closed without error, so a reader never sees half a case; a full
+disk is a :class:`DataError` naming the file and the free space. :class:`Snapshots` validates what it reads
+(structure, shapes, index ranges, finiteness, checksums) and names the file, the dataset and the step of
+any problem.
 
 Examples
 --------
@@ -32,14 +36,17 @@ Examples
 >>> snap.n_steps, snap.deformation_gradient(1)[0].round(3).tolist()
 (2, [[1.1, 0.0], [0.0, 1.1]])
 """
+import contextlib
 import datetime
+import errno
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
 
 from .errors import DataError
-from .io import atomic_path
+from .io import atomic_path, disk_full_error, is_disk_full
 
 __all__ = ["SnapshotWriter", "Snapshots", "FORMAT", "VERSION", "CELL_TYPES", "cell_deformation_gradients"]
 
@@ -112,28 +119,69 @@ class SnapshotWriter:
         self.n_cells = len(cells)
         self.n_steps = 0
         self._series = {}
+        for name, (kind, _) in regions.items():
+            if kind not in ("facets", "cells"):
+                raise DataError(f"region {name!r}: kind must be 'facets' or 'cells', got {kind!r}")
         h5 = _h5py()
+        self._f = None
         self._atomic = atomic_path(self.path, suffix=".h5")
         self._tmp = self._atomic.__enter__()
-        self._f = h5.File(self._tmp, "w")
-        f = self._f
+        self._room(vertices.nbytes + cells.size * 8 + sum(np.asarray(i).size * 8 for _, i in regions.values()))
+        self._guarded(lambda: self._start(h5, vertices, cells, cell_type, regions, cavities, metadata, time_kind))
+
+    def _start(self, h5, vertices, cells, cell_type, regions, cavities, metadata, time_kind):
+        self._f = f = h5.File(self._tmp, "w")
         f.attrs.update(format=FORMAT, version=VERSION, units="SI",
                        created=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
                        metadata=json.dumps(metadata or {}, default=str))
         m = f.create_group("mesh")
-        m.create_dataset("vertices", data=vertices)
-        m.create_dataset("cells", data=cells.astype(np.int64)).attrs["cell_type"] = cell_type
+        m.create_dataset("vertices", data=vertices, fletcher32=True)
+        m.create_dataset("cells", data=cells.astype(np.int64), fletcher32=True).attrs["cell_type"] = cell_type
         m.attrs["cavities"] = json.dumps(list(cavities))
         g = m.create_group("regions")
         for name, (kind, idx) in regions.items():
-            if kind not in ("facets", "cells"):
-                raise DataError(f"region {name!r}: kind must be 'facets' or 'cells', got {kind!r}")
-            g.create_dataset(name, data=np.asarray(idx, dtype=np.int64)).attrs["kind"] = kind
+            g.create_dataset(name, data=np.asarray(idx, dtype=np.int64), fletcher32=True).attrs["kind"] = kind
         s = f.create_group("steps")
-        s.create_dataset("time", shape=(0,), maxshape=(None,), dtype="f8").attrs["kind"] = time_kind
+        s.create_dataset("time", shape=(0,), maxshape=(None,), dtype="f8", fletcher32=True).attrs["kind"] = time_kind
         s.create_dataset("displacement", shape=(0, self.n_vertices, self.gdim),
                          maxshape=(None, self.n_vertices, self.gdim), chunks=(1, self.n_vertices, self.gdim),
-                         dtype="f8")
+                         dtype="f8", fletcher32=True)
+        f.flush()
+
+    def _room(self, nbytes):
+        """Refuse to start a write that the disk cannot hold (HDF5 buffers writes and reports a full disk
+        only from destructors, as hundreds of ignored exceptions): twice the bytes plus 1 MiB must be free."""
+        need = 2 * int(nbytes) + (1 << 20)
+        try:
+            free = shutil.disk_usage(self._tmp.parent).free
+        except OSError:
+            return
+        if free < need:
+            self._discard()
+            raise disk_full_error(self.path, OSError(errno.ENOSPC, f"{need / 2**20:.1f} MiB needed for the "
+                                                                   "next write"))
+
+    def _guarded(self, fn):
+        """Run an HDF5 write; on failure discard the temporary file (a full disk as the DataError that names
+        the path and the free space)."""
+        try:
+            return fn()
+        except Exception as e:
+            self._discard()
+            if is_disk_full(e):
+                raise disk_full_error(self.path, e) from e
+            raise
+
+    def _discard(self):
+        """Close (ignoring HDF5's errors on a full disk) and remove the temporary file."""
+        f, self._f = self._f, None
+        if f is not None:
+            with contextlib.suppress(Exception):
+                f.close()
+        if self._atomic is not None:
+            atomic, self._atomic = self._atomic, None
+            with contextlib.suppress(DataError):
+                atomic.__exit__(DataError, DataError(f"writing {self.path} was aborted"), None)
 
     def append(self, time, displacement, inputs=None, cavity_volumes=None, reactions=None, energies=None,
                cell_fields=None):
@@ -162,6 +210,13 @@ class SnapshotWriter:
                 if v.shape != shape:
                     raise DataError(f"{group}[{k}] must have shape {shape}, got {v.shape}")
             values[group] = data
+        if self._f is None:
+            raise DataError(f"{self.path}: the writer is closed")
+        self._room(u.nbytes + sum(np.asarray(v).nbytes for d in values.values() for v in d.values()) + 4096)
+        self._guarded(lambda: self._write_step(t, u, values))
+        self.n_steps += 1
+
+    def _write_step(self, t, u, values):
         s = self._f["steps"]
         n = self.n_steps
         s["time"].resize((n + 1,))
@@ -172,25 +227,28 @@ class SnapshotWriter:
             for k, v in data.items():
                 path = f"{group}/{k}"
                 if path not in s:
-                    s.create_dataset(path, shape=(0, *v.shape), maxshape=(None, *v.shape), dtype="f8")
+                    s.create_dataset(path, shape=(0, *v.shape), maxshape=(None, *v.shape), dtype="f8",
+                                     chunks=(1, *v.shape), fletcher32=True)
                 s[path].resize((n + 1, *v.shape))
                 s[path][n] = v
-        self.n_steps += 1
+        self._f.flush()  # a full disk shows here, as an exception, not later from a destructor
 
     def close(self):
         """Finish the file and move it into place."""
         if self._f is not None:
-            self._f.close()
+            self._guarded(self._f.close)
             self._f = None
-            self._atomic.__exit__(None, None, None)
+            atomic, self._atomic = self._atomic, None
+            try:
+                atomic.__exit__(None, None, None)  # fsync, rename, fsync of the directory
+            except Exception as e:
+                if is_disk_full(e):
+                    raise disk_full_error(self.path, e) from e
+                raise
 
     def abort(self):
         """Discard the file (nothing is left at ``path``; a previous file there is kept)."""
-        if self._f is not None:
-            self._f.close()
-            self._f = None
-            aborted = DataError(f"writing {self.path} was aborted")
-            self._atomic.__exit__(DataError, aborted, None)  # removes the temporary file
+        self._discard()
 
     def __enter__(self):
         return self
@@ -206,6 +264,12 @@ class SnapshotWriter:
 class Snapshots:
     """Read a snapshot file into numpy arrays (the whole file is small enough except displacements,
     which are read one step at a time on demand).
+
+    The reader trusts nothing: it checks the structure (required groups, datasets and attributes), every
+    shape against the mesh and the number of steps, index ranges (cells into vertices, regions into
+    vertices or cells), finiteness, and the HDF5 ``fletcher32`` checksums of the datasets (files of
+    version 1 written before checksums were added are read without them). Any problem raises
+    :class:`DataError` naming the file, the dataset and, for per-step data, the step.
 
     Attributes
     ----------
@@ -223,49 +287,190 @@ class Snapshots:
         except OSError as e:
             raise DataError(f"{self.path} is not a readable HDF5 file ({e}); was the case interrupted?") from e
         with f:
-            if f.attrs.get("format") != FORMAT:
-                raise DataError(f"{self.path} is not a {FORMAT} file (format attribute: {f.attrs.get('format')!r})")
-            version = int(f.attrs["version"])
-            if version > VERSION:
-                raise DataError(f"{self.path} has format version {version}; this reader knows up to {VERSION}: "
-                                "update the package")
-            self.version = version
-            self.metadata = json.loads(f.attrs.get("metadata", "{}"))
-            self.vertices = f["mesh/vertices"][...]
-            self.cells = f["mesh/cells"][...]
-            self.cell_type = str(f["mesh/cells"].attrs["cell_type"])
-            self.gdim = self.vertices.shape[1]
-            self.cavities = json.loads(f["mesh"].attrs.get("cavities", "[]"))
-            self.regions = {k: (str(d.attrs["kind"]), d[...]) for k, d in f["mesh/regions"].items()}
-            self.times = f["steps/time"][...]
-            self.time_kind = str(f["steps/time"].attrs["kind"])
+            self._read(f, h5)
 
-            def read(group):  # names may contain "/" (e.g. "pressure/cavity_0"): walk the subgroups
-                out = {}
-                if f"steps/{group}" in f:
-                    f[f"steps/{group}"].visititems(
-                        lambda k, d: out.__setitem__(k, d[...]) if isinstance(d, h5.Dataset) else None)
+    def _fail(self, dataset, problem, step=None):
+        where = f"{dataset}" + (f" at step {step}" if step is not None else "")
+        return DataError(f"{self.path}: {where}: {problem}; the file is damaged or was not written by "
+                         "SnapshotWriter (run its case again)")
+
+    def _dataset(self, f, h5, name, dtype_kind="f"):
+        """The dataset ``name`` (present, a dataset, of the right kind of number)."""
+        d = f.get(name)
+        if d is None:
+            raise self._fail(name, "missing")
+        if not isinstance(d, h5.Dataset):
+            raise self._fail(name, "is a group, not a dataset")
+        if d.dtype.kind not in (("i", "u") if dtype_kind == "i" else ("f", "i", "u")):
+            raise self._fail(name, f"has type {d.dtype}, expected {'integers' if dtype_kind == 'i' else 'numbers'}")
+        return d
+
+    def _values(self, d, name, step=None):
+        """Read a dataset (or one step of it): a failed checksum or read is a DataError naming it."""
+        try:
+            return d[...] if step is None else d[step]
+        except (OSError, RuntimeError, ValueError, TypeError, IndexError, SystemError) as e:
+            problem = "checksum mismatch (fletcher32)" if "fletcher32" in str(e).lower() or "filter" in \
+                str(e).lower() else f"unreadable ({type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''})"
+            raise self._fail(name, problem, step) from e
+
+    def _finite(self, array, name, steps=False):
+        bad = ~np.isfinite(array)
+        if np.any(bad):
+            first = np.argwhere(bad)[0]
+            raise self._fail(name, "holds NaN or infinite values", int(first[0]) if steps else None)
+        return array
+
+    def _attr(self, obj, name, where, kind=str):
+        if name not in obj.attrs:
+            raise self._fail(where, f"attribute {name!r} missing")
+        value = obj.attrs[name]
+        if isinstance(value, bytes):
+            value = value.decode()
+        if kind is str and not isinstance(value, str):
+            raise self._fail(where, f"attribute {name!r} is {value!r}, expected a string")
+        return value
+
+    def _json(self, text, where):
+        try:
+            return json.loads(text)
+        except (TypeError, ValueError) as e:
+            raise self._fail(where, f"not valid JSON ({e})") from e
+
+    def _read(self, f, h5):
+        fmt = f.attrs.get("format")
+        if isinstance(fmt, bytes):
+            fmt = fmt.decode()
+        if fmt != FORMAT:
+            raise DataError(f"{self.path} is not a {FORMAT} file (format attribute: {fmt!r})")
+        version = self._attr(f, "version", "/ (root)", kind=None)
+        if isinstance(version, (bool, np.bool_)) or not isinstance(version, (int, np.integer)) or version < 1:
+            raise self._fail("/ (root)", f"attribute 'version' is {version!r}, expected a positive integer")
+        version = int(version)
+        if version > VERSION:
+            raise DataError(f"{self.path} has format version {version}; this reader knows up to {VERSION}: "
+                            "update the package")
+        self.version = version
+        self.metadata = self._json(f.attrs.get("metadata", "{}"), "/ attribute metadata")
+        if not isinstance(self.metadata, dict):
+            raise self._fail("/ attribute metadata", "must be a JSON object")
+
+        # the mesh
+        dv = self._dataset(f, h5, "mesh/vertices")
+        self.vertices = self._finite(self._values(dv, "mesh/vertices").astype(float), "mesh/vertices")
+        if self.vertices.ndim != 2 or self.vertices.shape[1] not in (2, 3) or not len(self.vertices):
+            raise self._fail("mesh/vertices", f"shape {self.vertices.shape}, expected (n_vertices > 0, 2 or 3)")
+        n_vertices, self.gdim = self.vertices.shape
+        dc = self._dataset(f, h5, "mesh/cells", "i")
+        self.cell_type = self._attr(dc, "cell_type", "mesh/cells")
+        if self.cell_type not in CELL_TYPES:
+            raise self._fail("mesh/cells", f"unknown cell_type {self.cell_type!r}; known: {sorted(CELL_TYPES)}")
+        self.cells = self._values(dc, "mesh/cells").astype(np.int64)
+        k = CELL_TYPES[self.cell_type][1]
+        if self.cells.ndim != 2 or self.cells.shape[1] != k:
+            raise self._fail("mesh/cells", f"shape {self.cells.shape}, expected (n_cells, {k}) for {self.cell_type}")
+        self._in_range(self.cells, n_vertices, "mesh/cells", "vertex")
+        n_cells = len(self.cells)
+        self.cavities = self._json(f["mesh"].attrs.get("cavities", "[]"), "mesh attribute cavities")
+        if not isinstance(self.cavities, list) or not all(isinstance(c, str) for c in self.cavities):
+            raise self._fail("mesh attribute cavities", f"{self.cavities!r} is not a list of names")
+        self.regions = {}
+        regions = f.get("mesh/regions")
+        if regions is not None:
+            if not isinstance(regions, h5.Group):
+                raise self._fail("mesh/regions", "is not a group")
+            for name in regions:
+                where = f"mesh/regions/{name}"
+                d = self._dataset(f, h5, where, "i")
+                kind = self._attr(d, "kind", where)
+                idx = self._values(d, where).astype(np.int64)
+                if kind == "cells":
+                    if idx.ndim != 1:
+                        raise self._fail(where, f"shape {idx.shape}, expected (n,) cell indices")
+                    self._in_range(idx, n_cells, where, "cell")
+                elif kind == "facets":
+                    if idx.ndim != 2:
+                        raise self._fail(where, f"shape {idx.shape}, expected (n, vertices per facet)")
+                    self._in_range(idx, n_vertices, where, "vertex")
+                else:
+                    raise self._fail(where, f"kind {kind!r}, expected 'facets' or 'cells'")
+                self.regions[name] = (kind, idx)
+        missing = [c for c in self.cavities if c not in self.regions]
+        if missing:
+            raise self._fail("mesh attribute cavities", f"cavities {missing} are not among the regions "
+                                                        f"{sorted(self.regions)}")
+
+        # the steps
+        dt = self._dataset(f, h5, "steps/time")
+        self.time_kind = self._attr(dt, "kind", "steps/time")
+        if self.time_kind not in ("time", "load"):
+            raise self._fail("steps/time", f"kind {self.time_kind!r}, expected 'time' or 'load'")
+        self.times = self._finite(self._values(dt, "steps/time").astype(float), "steps/time", steps=True)
+        if self.times.ndim != 1:
+            raise self._fail("steps/time", f"shape {self.times.shape}, expected (n_steps,)")
+        n = len(self.times)
+        du = self._dataset(f, h5, "steps/displacement")
+        if du.shape != (n, n_vertices, self.gdim):
+            raise self._fail("steps/displacement", f"shape {du.shape}, expected (n_steps, n_vertices, gdim) = "
+                                                   f"{(n, n_vertices, self.gdim)} (steps/time has {n} steps)")
+
+        def read(group, tail):  # names may contain "/" (e.g. "pressure/cavity_0"): walk the subgroups
+            out = {}
+            g = f.get(f"steps/{group}")
+            if g is None:
                 return out
-            self.inputs = read("inputs")
-            self.cavity_volumes = read("cavity_volume")
-            self.energies = read("energy")
-            self.reactions = read("reaction")
-            self.cell_fields = read("cell_field")
+            if not isinstance(g, h5.Group):
+                raise self._fail(f"steps/{group}", "is not a group")
+            names = []
+            g.visititems(lambda k, d: names.append(k) if isinstance(d, h5.Dataset) else None)
+            for k in names:
+                where = f"steps/{group}/{k}"
+                d = self._dataset(f, h5, where)
+                if d.shape != (n, *tail):
+                    raise self._fail(where, f"shape {d.shape}, expected {(n, *tail)} (one value per step of "
+                                            "steps/time)")
+                out[k] = self._finite(self._values(d, where).astype(float), where, steps=True)
+            return out
+        self.inputs = read("inputs", ())
+        self.cavity_volumes = read("cavity_volume", ())
+        self.energies = read("energy", ())
+        self.reactions = read("reaction", (self.gdim,))
+        self.cell_fields = read("cell_field", (n_cells,))
+
+    def _in_range(self, idx, n, where, what):
+        if idx.size and (idx.min() < 0 or idx.max() >= n):
+            bad = idx[(idx < 0) | (idx >= n)][0]
+            raise self._fail(where, f"{what} index {int(bad)} out of range [0, {n})")
 
     @property
     def n_steps(self):
         return len(self.times)
 
     def displacement(self, step=None):
-        """Vertex displacements [m]: one step (n_vertices, gdim), or all (n_steps, n_vertices, gdim)."""
-        h5 = _h5py()
-        with h5.File(self.path, "r") as f:
-            d = f["steps/displacement"]
-            if step is None:
-                return d[...]
+        """Vertex displacements [m]: one step (n_vertices, gdim), or all (n_steps, n_vertices, gdim).
+
+        Raises :class:`DataError` naming the file, ``steps/displacement`` and the step for a failed checksum or
+        a non-finite value."""
+        if step is not None:
+            if isinstance(step, bool) or not isinstance(step, (int, np.integer)):
+                raise DataError(f"step must be an integer, got {step!r}")
             if not -self.n_steps <= step < self.n_steps:
                 raise DataError(f"step {step} out of range: the file has {self.n_steps} steps")
-            return d[step]
+            step = int(step) % self.n_steps
+        h5 = _h5py()
+        try:
+            f = h5.File(self.path, "r")
+        except OSError as e:
+            raise DataError(f"{self.path} can no longer be read ({e})") from e
+        with f:
+            d = self._dataset(f, h5, "steps/displacement")
+            if step is not None:
+                return self._finite(self._values(d, "steps/displacement", step).astype(float),
+                                    f"steps/displacement at step {step}")
+            out = np.empty(d.shape)
+            for k in range(d.shape[0]):  # step by step: a damaged chunk is named by its step
+                out[k] = self._values(d, "steps/displacement", k)
+            return self._finite(out, "steps/displacement", steps=True)
 
     def deformation_gradient(self, step):
         """Deformation gradient per cell (n_cells, gdim, gdim) at ``step`` (exact for linear simplices;

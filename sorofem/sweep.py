@@ -62,7 +62,18 @@ lists); ``comm`` is the MPI communicator the case runs on: build the mesh on it
 supports and loads added (numbers are ramped by ``solve`` from 0 to their value at ``t_end = 1``), or
 ``(fem, solve_kwargs)``, whose keyword arguments override ``[solve]`` for this case. The sweep calls
 ``fem.solve(**solve)`` and saves the trajectory; ``[solve]`` accepts the arguments of :meth:`Fem.solve`
-listed in :data:`SOLVE_KEYS`.
+listed in :data:`SOLVE_KEYS`, of the types in :data:`SOLVE_TYPES` (checked when the configuration is loaded:
+``steps = "four"``, ``steps = 2.5`` or ``predictor = 1`` are refused, naming the key).
+
+The builder may declare the types of its parameters, so that a configuration is checked when it is loaded,
+not case by case (a bool is not a number, an integer is not a float: ``pressure = [true, false]`` and
+``chambers = 2.7`` are refused instead of running as 1 Pa / 0 Pa and 2 chambers; a name the builder does not
+declare, e.g. a typo, is refused too)::
+
+    build.parameters = {"pressure": float, "material": str, "chambers": int, "size": float}
+
+(types: ``float`` = any number, ``int``, ``bool``, ``str``, ``list``). Without a declaration the values of
+each parameter must at least be of one kind (no ``[1.0, true]``).
 
 The optional summary::
 
@@ -80,18 +91,41 @@ Output directory
                          steps (load steps after the initial state), ranks, snapshot, summary, attempts,
                          error and traceback (failures); and the sweep's configuration and counts
     OUT/case_0000.h5     the snapshot file of case 0; its metadata["case"] holds the id and parameters
-    OUT/case_0000.json   the status of case 0 (the same record as in the manifest)
+    OUT/case_0000.json   the status of case 0 (the same record as in the manifest, plus its provenance;
+                         "sha256" is the digest of the snapshot file)
+    OUT/.sweep.lock      while a run is going on
 
-Every file is written atomically (a temporary file renamed into place), so a killed run leaves either
-the complete file or none. The status files are the truth; the manifest is assembled from them by one
-rank at the start of a run (showing what a resume will do) and at its end.
+Every file is written atomically (a temporary file flushed to disk, renamed into place, and the directory
+flushed), so a killed run or a power loss leaves either the complete file or none. The status files are the
+truth; the manifest is assembled from them by one rank at the start of a run (showing what a resume will do)
+and at its end.
+
+Provenance and checksums. Every status record (and the manifest, and each snapshot's metadata) holds the
+*provenance* of the results (:func:`provenance_changes` compares two): SHA-256 digests of the builder's (and
+summary's) source file and of every file it imports from the configuration's folder (found from its
+``import`` statements, recursively), of ``[solve]`` and ``[fixed]``, and the package version. A done case's
+status also holds the SHA-256 digest of its snapshot file, whose datasets carry HDF5 ``fletcher32``
+checksums (``docs/snapshot-format.md``).
+A disk that fills up while a snapshot is written fails that case with a ``DataError`` naming the file and
+the free space (nothing is left under the snapshot's name).
 
 Running
 -------
-* **Resume**: a case is skipped when its status is ``done`` and its snapshot exists; everything else that
-  is missing runs. A case's status file records its parameters: a directory holding cases of another
-  configuration is refused (use another output directory). Failed cases are kept as failed unless
-  ``retry_failed=True`` (``--retry-failed``) runs them again.
+* **Resume**: a case is skipped when its status is ``done`` and its snapshot exists and matches the digest
+  in its status (a truncated or damaged snapshot runs again); everything else that is missing runs. A case's
+  status file records its parameters: a directory holding cases of another configuration is refused (use
+  another output directory). Results of another provenance (the builder's source, ``[solve]``, ``[fixed]``
+  or the package version changed) are refused with a message naming what changed, before anything is
+  written; ``force_rerun=True`` (``--force-rerun``) runs those cases again instead. Failed cases are kept as
+  failed unless ``retry_failed=True`` (``--retry-failed``) runs them again.
+* **One sweep per directory**: a run holds ``OUT/.sweep.lock`` (process id and host) from start to end; a
+  second sweep in the same directory is refused. The lock of a process that no longer runs (killed) is
+  taken over.
+* **JIT cache**: a form compilation killed or interrupted leaves a lock in the DOLFINx JIT cache that makes
+  every later compile of that form time out (:mod:`sorofem.jitcache`). A run records the owner of the locks
+  it creates, removes its own unfinished ones on an interrupt and the stale ones (owner gone, or of unknown
+  owner and unchanged for 10 min) at start. A case that still meets a JIT timeout is recorded ``pending``,
+  not ``failed``: the next run does it.
 * **Failures**: any exception in the builder, the solve or the summary (a ``ConvergenceError``, a
   ``ValueError`` ...) marks the case ``failed`` with its message and the last frames of its traceback;
   the other cases go on. ``KeyboardInterrupt`` stops the run (run it again to resume).
@@ -125,11 +159,13 @@ import gc
 import hashlib
 import importlib
 import importlib.util
+import inspect
 import itertools
 import json
 import logging
 import math
 import os
+import socket
 import sys
 import time
 import tomllib
@@ -139,9 +175,10 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ParameterError
-from .io import write_json
+from .io import process_alive, write_json
 
-__all__ = ["Sweep", "grid", "latin_hypercube", "SOLVE_KEYS", "MODES", "format_record"]
+__all__ = ["Sweep", "grid", "latin_hypercube", "SOLVE_KEYS", "SOLVE_TYPES", "PARAMETER_TYPES", "MODES",
+           "format_record", "provenance_changes"]
 
 log = logging.getLogger(__name__)
 
@@ -154,8 +191,15 @@ VERSION = 1
 _TOP_KEYS = ("builder", "summary", "sweep", "parameters", "fixed", "solve")
 _SWEEP_KEYS = ("mode", "samples", "seed")
 #: What the manifest keeps of a case's status record (besides index, id, params and status).
-_RECORD_KEYS = ("wall_time_s", "steps", "ranks", "group", "snapshot", "summary", "attempts", "finished", "error",
-                "traceback", "load_level")
+_RECORD_KEYS = ("wall_time_s", "steps", "ranks", "group", "snapshot", "sha256", "summary", "attempts", "finished",
+                "error", "traceback", "load_level")
+#: The type of each ``[solve]`` setting: "number" (an int or a float, never a bool), "integer", "bool";
+#: all numbers must be positive.
+SOLVE_TYPES = {"t_end": "number", "steps": "integer", "min_step": "number", "max_step": "number",
+               "max_iterations": "integer", "predictor": "bool", "monitor_stability": "bool"}
+#: Parameter types a builder may declare in its ``parameters`` attribute (see the module docstring).
+PARAMETER_TYPES = {float: "number", int: "integer", bool: "bool", str: "string", list: "list"}
+LOCK = ".sweep.lock"
 _TAG = 7301  # MPI tag of the progress records sent to world rank 0 (on a private duplicate of the communicator)
 
 
@@ -180,6 +224,60 @@ def _check_value(v, key, source):
         return [_check_value(x, f"{key}[{i}]", source) for i, x in enumerate(v)]
     raise _err(source, key, f"values must be numbers, strings, booleans or lists of them, got "
                             f"{type(v).__name__} {v!r}")
+
+
+def _type_name(v):
+    if isinstance(v, bool):
+        return "bool"
+    if isinstance(v, int):
+        return "integer"
+    if isinstance(v, float):
+        return "number"
+    return {str: "string", list: "list", tuple: "list"}.get(type(v), type(v).__name__)
+
+
+def _check_type(v, want, key, source):
+    """``v`` is of the type ``want`` ("number", "integer", "bool", "string" or "list"): bools are not numbers,
+    and an integer setting is an integer (``2.7`` or ``2.0`` is refused, not truncated)."""
+    ok = {"number": _is_number(v), "integer": isinstance(v, int) and not isinstance(v, bool),
+          "bool": isinstance(v, bool), "string": isinstance(v, str), "list": isinstance(v, (list, tuple))}[want]
+    if not ok:
+        article = "an" if want[0] in "aeiou" else "a"
+        raise _err(source, key, f"must be {article} {want}, got {_type_name(v)} {v!r}")
+
+
+def _check_solve(solve, source):
+    for k, v in solve.items():
+        if k not in SOLVE_KEYS:
+            raise _err(source, f"solve.{k}", f"not a setting of Fem.solve; use one of {', '.join(SOLVE_KEYS)}")
+        _check_type(v, SOLVE_TYPES[k], f"solve.{k}", source)
+        _check_value(v, f"solve.{k}", source)
+        if SOLVE_TYPES[k] != "bool" and not v > 0:
+            raise _err(source, f"solve.{k}", f"must be positive, got {v!r}")
+
+
+def _check_kinds(key, values, source):
+    """The values of one parameter are of one kind: numbers (ints and floats mix), bools, strings or lists."""
+    kinds = {("number" if _is_number(v) else _type_name(v)) for v in values}
+    if len(kinds) > 1:
+        raise _err(source, key, f"mixes {' and '.join(sorted(kinds))} values {values!r}; a parameter's values "
+                                "are all of one type (true/false are not 1/0)")
+
+
+def _check_declared(cases, declared, builder_spec, source, fixed=()):
+    """Check every case value against the types the builder declares (``build.parameters``)."""
+    if declared is None:
+        return
+    if not isinstance(declared, dict) or not all(t in PARAMETER_TYPES for t in declared.values()):
+        raise _err(source, "builder", f"{builder_spec}.parameters must map names to types among "
+                                      f"{', '.join(t.__name__ for t in PARAMETER_TYPES)}, got {declared!r}")
+    for params in cases:
+        for k, v in params.items():
+            key = f"fixed.{k}" if k in fixed else f"parameters.{k}"
+            if k not in declared:
+                raise _err(source, key, f"the builder {builder_spec} takes no parameter {k!r}; it declares "
+                                        f"{', '.join(declared)}")
+            _check_type(v, PARAMETER_TYPES[declared[k]], key, source)
 
 
 def _is_material_key(name):
@@ -216,6 +314,7 @@ def _grid_values(key, spec, source=""):
                                 "vary belongs in [fixed])")
     if not spec:
         raise _err(source, key, "the list of values is empty")
+    _check_kinds(key, spec, source)
     return [_check_value(v, f"{key}[{i}]", source) for i, v in enumerate(spec)]
 
 
@@ -226,6 +325,7 @@ def _lhs_spec(key, spec, source=""):
             values = spec["choices"]
             if not isinstance(values, list) or not values:
                 raise _err(source, key, f"choices must be a non-empty list, got {values!r}")
+            _check_kinds(key, values, source)
             return ("choices", [_check_value(v, f"{key}.choices[{i}]", source) for i, v in enumerate(values)])
         if set(spec) == {"range"}:
             spec = spec["range"]
@@ -366,6 +466,103 @@ def _fmt(v):
     return json.dumps(v) if not isinstance(v, str) else v
 
 
+# ---------------------------------------------------------------------------------------------- provenance
+def _sha256(data):
+    return hashlib.sha256(data if isinstance(data, bytes) else data.encode()).hexdigest()
+
+
+def _canonical(obj):
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"))
+
+
+def _local_imports(path, base_dir):
+    """Files of ``base_dir`` that the Python file ``path`` imports (``import x``, ``from x import y``,
+    ``from x.y import z``, at any depth of the file), found from its syntax tree."""
+    import ast
+
+    try:
+        tree = ast.parse(Path(path).read_text(), filename=str(path))
+    except (OSError, SyntaxError, ValueError):
+        return []
+    names = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names.append(node.module)
+            names += [f"{node.module}.{a.name}" for a in node.names]
+    found = []
+    for name in names:
+        parts = name.split(".")
+        for n in range(1, len(parts) + 1):  # importing a.b.c runs a/__init__.py and a/b/__init__.py too
+            rel = Path(*parts[:n])
+            for candidate in (base_dir / rel.with_suffix(".py"), base_dir / rel / "__init__.py"):
+                if candidate.is_file() and candidate.resolve() not in found:
+                    found.append(candidate.resolve())
+    return found
+
+
+def _source_files(fn, base_dir):
+    """The source file of ``fn`` and, recursively, the files of ``base_dir`` it imports."""
+    try:
+        first = Path(inspect.getsourcefile(fn)).resolve()
+    except (TypeError, OSError):
+        return []
+    files, todo = [], [first]
+    while todo:
+        f = todo.pop()
+        if f in files or not f.is_file():
+            continue
+        files.append(f)
+        if base_dir is not None:
+            todo += _local_imports(f, base_dir)
+    return files
+
+
+def _provenance(builder, summary, base_dir, solve, fixed):
+    """What a case's results depend on besides its parameters: digests of the builder's (and summary's) source
+    files and of the files they import from the configuration's folder, of ``[solve]`` and ``[fixed]``, and
+    the package version."""
+    from . import __version__
+
+    base = base_dir.resolve() if base_dir is not None else None
+    files = {}
+    for fn in (builder, summary):
+        if fn is None:
+            continue
+        sources = _source_files(fn, base)
+        if not sources:  # a callable without a source file: its code object stands for it
+            code = getattr(fn, "__code__", None)
+            files[f"<{_describe(fn)}>"] = _sha256(code.co_code + repr(code.co_consts).encode()) if code \
+                else _sha256(_describe(fn))
+        for f in sources:
+            name = str(f.relative_to(base)) if base is not None and base in f.parents else str(f)
+            files[name] = _sha256(f.read_bytes())
+    return {"package_version": __version__, "builder_sha256": _sha256(_canonical(files)), "builder_files": files,
+            "solve_sha256": _sha256(_canonical(solve)), "solve": solve,
+            "fixed_sha256": _sha256(_canonical(fixed)), "fixed": fixed}
+
+
+def provenance_changes(old, new):
+    """What differs between two provenance records (lists of phrases; empty if they match)."""
+    if not isinstance(old, dict) or "builder_sha256" not in old:
+        return ["the results were written before provenance was recorded"]
+    changes = []
+    if old.get("builder_sha256") != new["builder_sha256"]:
+        a, b = old.get("builder_files") or {}, new["builder_files"]
+        what = sorted(k for k in set(a) | set(b) if a.get(k) != b.get(k))
+        changes.append(f"the builder's source changed ({', '.join(what) or 'unknown files'})")
+    for key, table in (("solve", "[solve]"), ("fixed", "[fixed]")):
+        if old.get(f"{key}_sha256") != new[f"{key}_sha256"]:
+            a, b = old.get(key) or {}, new[key]
+            diff = [f"{k} {json.dumps(a.get(k))} -> {json.dumps(b.get(k))}"
+                    for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)]
+            changes.append(f"{table} changed ({'; '.join(diff) or 'values'})")
+    if old.get("package_version") != new["package_version"]:
+        changes.append(f"the package version changed ({old.get('package_version')} -> {new['package_version']})")
+    return changes
+
+
 # ---------------------------------------------------------------------------------------------- the sweep
 class Sweep:
     """A parameter sweep: a case builder and the list of cases (parameter dicts) it is run on.
@@ -453,11 +650,10 @@ class Sweep:
         self.samples, self.seed = samples, seed
         self.parameters = {k: parameters[k] for k in parameters}
         self.fixed = fixed
+        if solve is not None and not isinstance(solve, dict):
+            raise _err(src, "solve", f"must be a table of name = value, got {solve!r}")
         solve = dict(solve or {})
-        for k, v in solve.items():
-            if k not in SOLVE_KEYS:
-                raise _err(src, f"solve.{k}", f"not a setting of Fem.solve; use one of {', '.join(SOLVE_KEYS)}")
-            _check_value(v, f"solve.{k}", src)
+        _check_solve(solve, src)
         self.solve = solve
         # params of each case: the fixed values, then the varied ones (normalized through JSON, as stored)
         self.cases = [json.loads(json.dumps({**fixed, **c})) for c in cases]
@@ -465,6 +661,10 @@ class Sweep:
         self.builder = _resolve(builder, base_dir, "builder", src)
         self.summary_spec = _describe(summary) if summary is not None else None
         self.summary = _resolve(summary, base_dir, "summary", src) if summary is not None else None
+        _check_declared(self.cases, getattr(self.builder, "parameters", None), self.builder_spec, src, fixed)
+        self.base_dir = Path(base_dir) if base_dir is not None else None
+        self.provenance = _provenance(self.builder, self.summary, self.base_dir, solve, fixed)
+        self._digests = {}  # snapshot digests by (path, size, mtime): each file is read once per change
 
     # ------------------------------------------------------------------------------------------ loading
     @classmethod
@@ -535,34 +735,69 @@ class Sweep:
         return "\n".join(lines)
 
     # ------------------------------------------------------------------------------------------ state on disk
-    def _statuses(self, out):
-        """Status records found in ``out`` (None where a case has none); refuse another sweep's cases."""
+    def _statuses(self, out, force_rerun=False):
+        """Status records found in ``out`` (None where a case has none or must run again); refuse another
+        sweep's cases and, unless ``force_rerun``, cases made by another builder, ``[solve]``, ``[fixed]`` or
+        package version."""
         found = [None] * len(self.cases)
         width = len(self.case_id(0)) - len("case_")
+        changed = {}
         for f in sorted(out.glob("case_*.json")):
             stem = f.stem[len("case_"):]
             if not stem.isdigit():
                 continue
             try:
                 rec = json.loads(f.read_text())
-            except (OSError, json.JSONDecodeError) as e:
+                if not isinstance(rec, dict):
+                    raise ValueError("not a JSON object")
+            except (OSError, ValueError) as e:
                 log.warning("ignoring unreadable status file %s (%s); the case will run again", f, e)
                 continue
             i = int(stem)
+            changes = provenance_changes(rec.get("provenance"), self.provenance) if i < len(self.cases) else []
+            if changes and len(stem) == width:
+                changed.setdefault("; ".join(changes), []).append(f.stem)
+                continue  # refused below, or (force_rerun) run again
             if i >= len(self.cases) or len(stem) != width or rec.get("params") != self.cases[i]:
                 now = self.cases[i] if i < len(self.cases) else "no such case"
                 raise ParameterError(
                     f"{out} holds the results of another sweep: {f.name} was run with {rec.get('params')}, "
                     f"the configuration now gives {now}. Use another output directory (--out) or remove {out}")
             found[i] = rec
+        if changed and not force_rerun:
+            what = " / ".join(f"{why} for {_ids(ids)}" for why, ids in changed.items())
+            raise ParameterError(
+                f"{out} holds results made with other settings: {what}. Their snapshots would not match the "
+                f"configuration {self.source or ''} now; use a new output directory (--out) or run these cases "
+                "again with --force-rerun")
         return found
 
     def _state(self, out, i, rec):
+        """``pending``, ``done`` or ``failed``: a ``done`` case whose snapshot is missing or does not match the
+        digest in its status is pending (it runs again)."""
         if rec is None:
             return "pending"
-        if rec.get("status") == "done" and not (out / rec.get("snapshot", "")).is_file():
-            return "pending"  # the snapshot was removed: run it again
+        if rec.get("status") == "done":
+            snapshot = out / str(rec.get("snapshot") or "")
+            if not snapshot.is_file():
+                return "pending"  # the snapshot was removed: run it again
+            if not self._digest_ok(snapshot, rec.get("sha256")):
+                return "pending"
         return rec.get("status", "pending")
+
+    def _digest_ok(self, snapshot, expected):
+        """Whether the snapshot's bytes match the digest of its status record (cached per size and mtime)."""
+        from .io import file_digest
+
+        st = snapshot.stat()
+        key = (str(snapshot), st.st_size, st.st_mtime_ns)
+        if key not in self._digests:
+            self._digests[key] = file_digest(snapshot)
+        if expected is None or self._digests[key] != expected:
+            log.warning("%s does not match the digest in its status file (%s); the case runs again", snapshot,
+                        "none recorded" if expected is None else "changed, truncated or damaged")
+            return False
+        return True
 
     def _manifest(self, out, statuses, world_size, group_size, started=None):
         cases, counts = [], {"done": 0, "failed": 0, "pending": 0}
@@ -578,13 +813,42 @@ class Sweep:
             "format": FORMAT, "version": VERSION, "config": self.source, "builder": self.builder_spec,
             "summary": self.summary_spec, "mode": self.mode, "samples": self.samples, "seed": self.seed,
             "parameters": self.parameters, "fixed": self.fixed, "solve": self.solve,
-            "n_cases": len(self.cases), "counts": counts, "world_size": world_size, "group_size": group_size,
+            "provenance": self.provenance, "n_cases": len(self.cases), "counts": counts,
+            "world_size": world_size, "group_size": group_size,
             "updated": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
             "wall_time_s": None if started is None else round(time.perf_counter() - started, 3),
             "cases": cases,
         }
         write_json(out / MANIFEST, manifest)
         return manifest
+
+    @staticmethod
+    def _lock(out):
+        """Take ``out/.sweep.lock`` (exclusive creation); a lock whose process is gone (same host) is stale
+        and taken over. Another live sweep in the same directory is refused."""
+        path = out / LOCK
+        me = {"pid": os.getpid(), "host": socket.gethostname(), "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+        for _ in range(3):
+            try:
+                fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+            except FileExistsError:
+                try:
+                    other = json.loads(path.read_text())
+                    pid, host = int(other["pid"]), str(other["host"])
+                except (OSError, ValueError, KeyError, TypeError):
+                    pid = host = None
+                if pid is not None and host == me["host"] and pid != os.getpid() and not process_alive(pid):
+                    log.warning("removing the lock of a sweep that is gone (process %d): %s", pid, path)
+                    path.unlink(missing_ok=True)
+                    continue
+                owner = f"process {pid} on {host}" if pid is not None else "an unknown process"
+                raise ParameterError(
+                    f"another sweep is running in {out} ({owner}, lock {path}): wait for it to finish or use "
+                    f"another output directory (--out); if no sweep runs there any more, remove {path}")
+            os.write(fd, json.dumps(me).encode())
+            os.close(fd)
+            return path
+        raise ParameterError(f"could not take the lock {path}: remove it if no sweep runs in {out}")
 
     @staticmethod
     def _clean(out):
@@ -605,7 +869,7 @@ class Sweep:
         return True
 
     # ------------------------------------------------------------------------------------------ running
-    def run(self, out, comm=None, group_size=1, retry_failed=False, progress=None):
+    def run(self, out, comm=None, group_size=1, retry_failed=False, progress=None, force_rerun=False):
         """Run every case that is not done yet; return the manifest (a dict, on every rank).
 
         Collective over ``comm`` (default ``MPI.COMM_WORLD``).
@@ -621,18 +885,38 @@ class Sweep:
         progress : callable, optional
             ``progress(record, n_finished, n_to_run)`` on rank 0 of ``comm`` after each finished case
             (default: a log line at INFO level).
+        force_rerun : bool
+            Run again the cases whose results were made by another builder source, ``[solve]``, ``[fixed]``
+            or package version (otherwise such a directory is refused).
+
+        Raises
+        ------
+        ParameterError
+            Another sweep runs in ``out`` (its lock file), or ``out`` holds another sweep's results.
         """
         from mpi4py import MPI
 
+        from . import jitcache
         from .io import on_root
 
+        jitcache.track()
         world = (comm or MPI.COMM_WORLD).Dup()
+        out = Path(out)
+        locked = []
+        # on every rank: the first import of DOLFINx initializes PETSc, which is collective
+        jit_cache = jitcache.cache_dir()
         try:
-            return self._run(Path(out), world, group_size, retry_failed, progress, MPI, on_root)
+            return self._run(out, world, group_size, retry_failed, progress, MPI, on_root, force_rerun, locked,
+                             jit_cache)
+        except BaseException:
+            jitcache.release_owned()  # an interrupted compile leaves no lock behind
+            raise
         finally:
+            for path in locked:
+                path.unlink(missing_ok=True)
             world.Free()
 
-    def _run(self, out, world, group_size, retry_failed, progress, MPI, on_root):
+    def _run(self, out, world, group_size, retry_failed, progress, MPI, on_root, force_rerun, locked, jit_cache):
         if isinstance(group_size, bool) or not isinstance(group_size, (int, np.integer)) or group_size < 1:
             raise ParameterError(f"group_size must be a positive integer, got {group_size!r}")
         if group_size > world.size:
@@ -641,9 +925,13 @@ class Sweep:
         started = time.perf_counter()
 
         def plan():
+            from . import jitcache
+
             out.mkdir(parents=True, exist_ok=True)
+            locked.append(self._lock(out))
+            jitcache.remove_stale(jit_cache)   # left by a killed compile: every case needing the form times out
             self._clean(out)
-            statuses = self._statuses(out)
+            statuses = self._statuses(out, force_rerun)
             todo = []
             for i, rec in enumerate(statuses):
                 state = self._state(out, i, rec)
@@ -711,7 +999,7 @@ class Sweep:
 
         def finish():
             self._clean(out)  # the claims of this run (every group is done)
-            return self._manifest(out, self._statuses(out), world.size, group_size, started)
+            return self._manifest(out, self._statuses(out, force_rerun), world.size, group_size, started)
 
         return world.bcast(on_root(world, finish), root=0)
 
@@ -719,9 +1007,11 @@ class Sweep:
         """Build, solve, save and summarize case ``index`` on ``group``; write its status (group rank 0)."""
         cid = self.case_id(index)
         params = self.cases[index]
+        from . import jitcache
+
         snapshot = out / f"{cid}.h5"
         t0 = time.perf_counter()
-        error = steps = summary = None
+        error = steps = summary = digest = None
         try:
             fem, kwargs = self._build(params, group, MPI)
             traj = fem.solve(**{**self.solve, **kwargs})
@@ -730,20 +1020,30 @@ class Sweep:
                 summary = self.summary(traj, dict(params))
                 if group.rank == 0:
                     summary = _check_summary(summary)
+            traj.metadata["provenance"] = self.provenance
             traj.save(snapshot)
             steps = len(traj) - 1
+            if group.rank == 0:
+                from .io import file_digest
+                digest = file_digest(snapshot)
         except Exception as e:  # noqa: BLE001 - a case's failure is recorded; the sweep goes on
             error = e
         errors = group.allgather(None if error is None else _error_record(error))
         failure = next((e for e in errors if e is not None), None)
+        jit_timeout = any(e is not None and jitcache.is_jit_timeout(e["error"]) for e in errors)
         wall = group.allreduce(time.perf_counter() - t0, op=MPI.MAX)
-        rec = {"index": index, "id": cid, "params": params, "status": "failed" if failure else "done",
+        status = "done" if failure is None else "pending" if jit_timeout else "failed"
+        rec = {"index": index, "id": cid, "params": params, "status": status,
                "wall_time_s": round(wall, 3), "steps": None if failure else steps, "ranks": group.size,
                "group": color, "snapshot": None if failure else snapshot.name,
-               "summary": None if failure else summary,
-               "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "error": None, "traceback": None}
+               "sha256": None if failure else digest, "summary": None if failure else summary,
+               "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "error": None, "traceback": None,
+               "provenance": self.provenance}
         if failure:
             rec.update(failure)
+        if jit_timeout:  # not the case's fault: a compile elsewhere held the form's lock; the next run retries
+            rec["error"] = ("JIT timeout (kept pending, not failed): " + rec["error"] +
+                            " -- run the sweep again; it removes stale JIT locks at start")
         if group.rank == 0:
             previous = out / f"{cid}.json"
             try:
@@ -776,6 +1076,10 @@ class Sweep:
                                  f"{built.mesh.comm.size} rank(s), not on the case's ({group.size}): pass the "
                                  "comm it receives to the mesh, Mesh.from_sdf(shape, size=..., comm=comm)")
         return built, kwargs
+
+
+def _ids(ids):
+    return ", ".join(ids[:5]) + (f" and {len(ids) - 5} more" if len(ids) > 5 else "")
 
 
 def _check_summary(summary):

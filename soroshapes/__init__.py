@@ -2,14 +2,15 @@
 
 Runs without DOLFINx: it uses :mod:`sorofem.sdf` for sections and contact and reads FEM results only as
 snapshot files. Numba kernels compile on first use, not at import: submodules (:mod:`~soroshapes.lie` the
-SO(3)/SE(3) kernels, :mod:`~soroshapes.basis` the modal strain bases, :mod:`~soroshapes.shapes` the Cosserat
-beam model, :mod:`~soroshapes.render` tube rendering, :mod:`~soroshapes.model` networks of beams, fluidic
-reservoirs and state-space systems) and the public classes are loaded on first attribute access, so
+SO(3)/SE(3) kernels, :mod:`~soroshapes.basis` the modal strain bases, :mod:`~soroshapes.beam` the beam's frozen
+description, workspace, load terms and solvers, :mod:`~soroshapes.shapes` the Cosserat beam model,
+:mod:`~soroshapes.numerics` the finite-difference helper, :mod:`~soroshapes.render` tube rendering,
+:mod:`~soroshapes.model` networks of beams, fluidic reservoirs and state-space systems) and the public classes are loaded on first attribute access, so
 ``import soroshapes`` does not import numba.
 """
 from sorofem._lazy import lazy_attributes
 
-_SUBMODULES = ("lie", "basis", "shapes", "render", "dvs", "model", "rigid", "control", "gym")
+_SUBMODULES = ("lie", "basis", "beam", "shapes", "numerics", "render", "dvs", "model", "rigid", "control", "gym")
 _CLASSES = {"Basis": "basis", "Shapes": "shapes", "BeamTrajectory": "shapes", "IKResult": "shapes",
             "Model": "model", "StateSpace": "model", "Fluidic": "model", "RigidBody": "rigid",
             "SpinningBody": "rigid"}

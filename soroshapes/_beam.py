@@ -25,7 +25,7 @@ Every 6 x 6 matrix met here (``ad``, ``Ad`` of a pose's inverse, ``T``, ``dT``) 
 :math:`\begin{bmatrix} P & 0 \\ Q & P \end{bmatrix}`: products use it (27 instead of 36 multiplications per
 column), and ``T``, ``dT`` are built from closed forms of their 3 x 3 blocks (:func:`_tangent_closed`). Column
 ``k`` of :math:`\Theta` has a single nonzero (in strain ``rows[k]``), which the order-2 updates exploit.
-Kernels write into work arrays passed by the caller (see :func:`scratch`).
+Kernels write into work arrays passed by the caller (a :class:`soroshapes.beam.BeamData` workspace).
 """
 import numpy as np
 from sorofem._numba import njit  # numba.njit with a cache that concurrent processes may share
@@ -41,12 +41,6 @@ REFRESH_ITS, REFRESH_STEPS = 5, 50
 
 # indices into the (6, 6, 6) scratch: tangent, its derivative, Ad of the segment's inverse, three temporaries
 _T, _DT, _AI, _TMP, _W1, _W2 = range(6)
-
-
-def scratch(n):
-    """Work arrays of :func:`kinematics` for ``n`` generalized coordinates."""
-    return (np.zeros((6, 6, 6)), np.zeros((4, 4)), np.zeros((8, 6)), np.zeros((6, n)), np.zeros((6, n)),
-            np.zeros((6, n)))
 
 
 @njit(cache=True)
@@ -70,8 +64,12 @@ def _bapply(A, X, Y, alpha, beta):
             top = A[i, 0] * x0 + A[i, 1] * x1 + A[i, 2] * x2
             bot = (A[i + 3, 0] * x0 + A[i + 3, 1] * x1 + A[i + 3, 2] * x2
                    + A[i, 0] * x3 + A[i, 1] * x4 + A[i, 2] * x5)
-            Y[i, c] = alpha * top + beta * Y[i, c]
-            Y[i + 3, c] = alpha * bot + beta * Y[i + 3, c]
+            if beta == 0.0:              # never read Y: a stale non-finite buffer must not leak (0 * NaN)
+                Y[i, c] = alpha * top
+                Y[i + 3, c] = alpha * bot
+            else:
+                Y[i, c] = alpha * top + beta * Y[i, c]
+                Y[i + 3, c] = alpha * bot + beta * Y[i + 3, c]
 
 
 @njit(cache=True)
@@ -81,8 +79,12 @@ def _bvec(A, x, y, alpha, beta):
     for i in range(3):
         top = A[i, 0] * x0 + A[i, 1] * x1 + A[i, 2] * x2
         bot = A[i + 3, 0] * x0 + A[i + 3, 1] * x1 + A[i + 3, 2] * x2 + A[i, 0] * x3 + A[i, 1] * x4 + A[i, 2] * x5
-        y[i] = alpha * top + beta * y[i]
-        y[i + 3] = alpha * bot + beta * y[i + 3]
+        if beta == 0.0:
+            y[i] = alpha * top
+            y[i + 3] = alpha * bot
+        else:
+            y[i] = alpha * top + beta * y[i]
+            y[i + 3] = alpha * bot + beta * y[i + 3]
 
 
 @njit(cache=True)
@@ -185,7 +187,7 @@ def _tangent_closed(Om, T):
 
 @njit(cache=True)
 def _dtangent_closed(Om, dO, dT):
-    """dT = dT(Om)[dO], the derivative of :func:`_tangent_closed` along dO (its coefficients differentiated
+    r"""dT = dT(Om)[dO], the derivative of :func:`_tangent_closed` along dO (its coefficients differentiated
     with :math:`c_k'/\theta` of :func:`soroshapes.lie._tse3_dcoeffs`)."""
     p0, p1, p2, r0, r1, r2 = Om[0], Om[1], Om[2], Om[3], Om[4], Om[5]
     q0, q1, q2, u0, u1, u2 = dO[0], dO[1], dO[2], dO[3], dO[4], dO[5]
@@ -278,7 +280,7 @@ def _col_ad(x, r, v, out, k, alpha):
 
 @njit(cache=True)
 def _segment(s, q, qd, want_dT, want_dOp, order, h, B, rows, xi0, G, S, E, V, Op, dOp, zero):
-    """The Magnus step of segment ``s``: :math:`\Omega`, :math:`\dot\Omega` (``V[4]``, ``V[5]``),
+    r"""The Magnus step of segment ``s``: :math:`\Omega`, :math:`\dot\Omega` (``V[4]``, ``V[5]``),
     :math:`\Omega' = \partial\Omega/\partial q` (``Op``) and, if ``want_dOp``, its rate (``dOp``, order 4;
     zeroed otherwise), :math:`E = \exp\hat\Omega`, the next frame ``G[s+1] = G[s] E``, ``Ad`` of
     :math:`E^{-1}` and the tangent operator (and, if ``want_dT``, its derivative along :math:`\dot\Omega`) in
@@ -336,7 +338,7 @@ def _segment(s, q, qd, want_dT, want_dOp, order, h, B, rows, xi0, G, S, E, V, Op
 
 @njit(cache=True)
 def _propagate(s, order, rows, S, V, Op, eta, J, AJ):
-    """Node s+1 from node s: :math:`\psi = T\dot\Omega` (``V[6]``), :math:`\eta_{s+1} =
+    r"""Node s+1 from node s: :math:`\psi = T\dot\Omega` (``V[6]``), :math:`\eta_{s+1} =
     \mathrm{Ad}_{e^{-\Omega}}\eta_s + \psi`, ``AJ`` = :math:`\mathrm{Ad}_{e^{-\Omega}} J_s` and
     :math:`J_{s+1} = AJ + T\,\Omega'` (sparse columns at order 2), after :func:`_segment`."""
     n = J.shape[2]
@@ -367,7 +369,7 @@ def kinematics(q, qd, want_rate, order, h, B, rows, xi0, g0, G, J, Jd, eta, S, E
     ``h`` (N,) segment lengths [m]; the modal matrix at the Gauss points is stored by columns (it is block
     diagonal: coordinate k drives strain ``rows[k]`` only): ``B`` (N, ng, n) holds
     :math:`\Theta_{rows[k], k}`; ``xi0`` (N, ng, 6) the reference strain there; ``g0`` the base pose;
-    ``S, E, V, Op, dOp, AJ`` work arrays from :func:`scratch` (separate arguments: numba dispatches tuples slowly).
+    ``S, E, V, Op, dOp, AJ`` work arrays of a :class:`soroshapes.beam.BeamData` (separate arguments: numba dispatches tuples slowly).
     """
     n = q.shape[0]
     N = h.shape[0]
@@ -407,7 +409,7 @@ def mass_coriolis_gravity(J, Jd, eta, G, w, Md, ag, M, C, fg, want_c, S, V, Y):
     - \mathrm{ad}_{\eta_i}^T \mathcal M_i) J_i)`,
     :math:`f_g = \sum_i w_i J_i^T \mathcal M_i (0, R_i^T a_g)`, with the sectional inertia per unit length
     :math:`\mathcal M_i = \mathrm{diag}` ``Md[i]`` and the gravity acceleration ``ag`` (spatial, m/s^2).
-    ``S``, ``V``, ``Y`` are work arrays of :func:`scratch` (``S``, ``V`` and one (6, n) array).
+    ``S``, ``V``, ``Y`` are work arrays of a :class:`soroshapes.beam.BeamData` (``S``, ``V`` and one (6, n) array).
     """
     n = M.shape[0]
     M[:, :] = 0.0
@@ -632,6 +634,32 @@ def _lu_solve(LU, piv, b):
 
 
 @njit(cache=True)
+def forward_dynamics(q, qd, f_in, K, D, pl_nodes, pl_W, pl_spatial, order, h, B, rows, xi0, g0, w, Md, ag, G, J, Jd,
+                     eta, etad, S, E, V, Op, AJ, W, M, C, fg, R, piv, qdd):
+    r"""Accelerations :math:`\ddot q = M^{-1}(f_{in} - (C\dot q - f_g - \sum_p J_p^T W_p) - D\dot q - Kq)` in one
+    compiled call: one :func:`kinematics_vec` pass, :math:`M` (:func:`mass_coriolis_gravity` without C), the bias
+    from :func:`generalized_inertial_force` at zero acceleration, an LU solve. ``f_in`` (n,) the generalized
+    force of the inputs; ``R``, ``piv`` work vectors; result in ``qdd``. Returns False if M is singular."""
+    n = q.shape[0]
+    kinematics_vec(q, qd, order, h, B, rows, xi0, g0, G, J, eta, etad, S, E, V, Op, AJ, W)
+    mass_coriolis_gravity(J, Jd, eta, G, w, Md, ag, M, C, fg, False, S, V, AJ)
+    for k in range(n):
+        qdd[k] = 0.0
+    generalized_inertial_force(J, eta, etad, G, w, Md, qdd, ag, pl_nodes, pl_W, pl_spatial, R)
+    for k in range(n):
+        s = f_in[k] - R[k]
+        for l in range(n):
+            s -= D[k, l] * qd[l] + K[k, l] * q[l]
+        qdd[k] = s
+        for l in range(n):
+            C[k, l] = M[k, l]
+    if not _lu(C, piv):
+        return False
+    _lu_solve(C, piv, qdd)
+    return True
+
+
+@njit(cache=True)
 def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_spatial, K, D, order, h, B, rows,
                        xi0, g0, w, Md, ag, tol, max_it, out_t, out_q, out_qd, out_e, out_tip, its,
                        G, J, Jd, eta, etad, S, E, V, Op, dOp, AJ, W):
@@ -642,8 +670,9 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
     :math:`a = 2(v_m - \dot q_n)/h`, :math:`q_m = q_n + \tfrac h2 v_m`), with the LU factors of
     :math:`S = 2M/h + \partial(Cv)/\partial v + D + \tfrac h2 K` (:func:`coriolis_velocity_jacobian`)
     refreshed when a step needed more than ``REFRESH_ITS`` iterations (and every ``REFRESH_STEPS`` steps); the
-    predictor extrapolates the previous step's acceleration. External forces: gravity ``ag``, generalized forces ``fext`` (nsteps, n) and point wrenches ``pl_W`` (nsteps, p, 6), both at the step
-    midpoints. Converged when :math:`|\Delta v| \le` ``tol`` :math:`|v_m| + 10^{-12}`.
+    predictor extrapolates the mean acceleration of the last two steps linearly. External forces: gravity ``ag``, generalized forces ``fext`` (nsteps, n) and point wrenches ``pl_W`` (nsteps, p, 6), both at the step
+    midpoints. A step whose iterations fail with a matrix older than the step is retried once with a fresh
+    matrix. Converged when :math:`|\Delta v| \le` ``tol`` :math:`|v_m| + 10^{-12}`.
 
     Records t, q, qd, (kinetic, potential) and the tip position every ``rec_every`` steps (row 0 the start)
     into the ``out_*`` arrays; returns the number of steps done (< nsteps when a step failed to converge: the
@@ -661,6 +690,7 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
     Cv = np.empty((n, n))
     fg = np.empty(n)
     acc_prev = np.zeros(n)
+    acc_prev2 = np.zeros(n)
     since = 1000
     last_its = 100
     rec = 0
@@ -688,52 +718,62 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
             rec += 1
         if step == nsteps:
             return nsteps
-        for k in range(n):
-            vm[k] = qd[k] + 0.5 * dt * acc_prev[k]
-        if last_its > REFRESH_ITS or since >= REFRESH_STEPS:
-            for k in range(n):
-                qm[k] = q[k] + 0.5 * dt * vm[k]
-            kinematics(qm, vm, True, order, h, B, rows, xi0, g0, G, J, Jd, eta, S, E, V, Op, dOp, AJ)
-            mass_coriolis_gravity(J, Jd, eta, G, w, Md, ag, M, C, fg, True, S, V, AJ)
-            coriolis_velocity_jacobian(J, Jd, eta, w, Md, C, Cv, S, AJ)
-            for k in range(n):
-                for l in range(n):
-                    Sm[k, l] = 2.0 * M[k, l] / dt + Cv[k, l] + D[k, l] + 0.5 * dt * K[k, l]
-            if not _lu(Sm, piv):
-                return step
-            since = 0
-        since += 1
         ok = False
-        for it in range(1, max_it + 1):
+        spent = 0
+        for attempt in range(2):        # a step that fails with an old matrix is retried with a fresh one
             for k in range(n):
-                qm[k] = q[k] + 0.5 * dt * vm[k]
-                a[k] = 2.0 * (vm[k] - qd[k]) / dt
-            kinematics_vec(qm, vm, order, h, B, rows, xi0, g0, G, J, eta, etad, S, E, V, Op, AJ, W)
-            generalized_inertial_force(J, eta, etad, G, w, Md, a, ag, pl_nodes, pl_W[step], pl_spatial, R)
-            for k in range(n):
-                s = R[k] - fext[step, k]
-                for l in range(n):
-                    s += D[k, l] * vm[l] + K[k, l] * qm[l]
-                R[k] = -s
-            _lu_solve(Sm, piv, R)
-            dv = 0.0
-            nv = 0.0
-            for k in range(n):
-                vm[k] += R[k]
-                dv += R[k] * R[k]
-                nv += vm[k] * vm[k]
-            if not np.isfinite(dv):
-                return step
-            if np.sqrt(dv) <= tol * np.sqrt(nv) + 1e-12:
-                ok = True
-                its[step] = it
-                last_its = it
+                if step >= 2:       # the mean acceleration over the step, extrapolated linearly from the last two
+                    vm[k] = qd[k] + 0.5 * dt * (2.0 * acc_prev[k] - acc_prev2[k])
+                else:
+                    vm[k] = qd[k] + 0.5 * dt * acc_prev[k]
+            fresh = last_its > REFRESH_ITS or since >= REFRESH_STEPS or attempt == 1
+            if fresh:
+                for k in range(n):
+                    qm[k] = q[k] + 0.5 * dt * vm[k]
+                kinematics(qm, vm, True, order, h, B, rows, xi0, g0, G, J, Jd, eta, S, E, V, Op, dOp, AJ)
+                mass_coriolis_gravity(J, Jd, eta, G, w, Md, ag, M, C, fg, True, S, V, AJ)
+                coriolis_velocity_jacobian(J, Jd, eta, w, Md, C, Cv, S, AJ)
+                for k in range(n):
+                    for l in range(n):
+                        Sm[k, l] = 2.0 * M[k, l] / dt + Cv[k, l] + D[k, l] + 0.5 * dt * K[k, l]
+                if not _lu(Sm, piv):
+                    return step
+                since = 0
+            since += 1
+            for it in range(1, max_it + 1):
+                for k in range(n):
+                    qm[k] = q[k] + 0.5 * dt * vm[k]
+                    a[k] = 2.0 * (vm[k] - qd[k]) / dt
+                kinematics_vec(qm, vm, order, h, B, rows, xi0, g0, G, J, eta, etad, S, E, V, Op, AJ, W)
+                generalized_inertial_force(J, eta, etad, G, w, Md, a, ag, pl_nodes, pl_W[step], pl_spatial, R)
+                for k in range(n):
+                    s = R[k] - fext[step, k]
+                    for l in range(n):
+                        s += D[k, l] * vm[l] + K[k, l] * qm[l]
+                    R[k] = -s
+                _lu_solve(Sm, piv, R)
+                dv = 0.0
+                nv = 0.0
+                for k in range(n):
+                    vm[k] += R[k]
+                    dv += R[k] * R[k]
+                    nv += vm[k] * vm[k]
+                if not np.isfinite(dv):
+                    break
+                if np.sqrt(dv) <= tol * np.sqrt(nv) + 1e-12:
+                    ok = True
+                    its[step] = spent + it
+                    last_its = it
+                    break
+            if ok or fresh:
                 break
+            spent = it
         if not ok:
             return step
         for k in range(n):
             qn = qd[k]
             qd[k] = 2.0 * vm[k] - qd[k]
+            acc_prev2[k] = acc_prev[k]
             acc_prev[k] = (qd[k] - qn) / dt
             q[k] += dt * vm[k]
     return nsteps

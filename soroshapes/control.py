@@ -123,7 +123,7 @@ def _compensation(shp, q, gravity, elastic):
     tau = np.zeros(shp.n)
     if elastic:
         tau += shp.K @ q
-    if gravity and np.any(shp._gravity):
+    if gravity and np.any(shp.gravity):
         tau -= shp.dynamics(q, np.zeros(shp.n))[2]
     return tau
 
@@ -243,7 +243,7 @@ def feedforward(system, profile, *, space="inputs"):
 def _tip_task(shp, q, qd, at, axes):
     """Tip position p (3,), position Jacobian Jp and its rate, rows ``axes`` (spatial frame)."""
     g = shp.forward_kinematics(q)
-    i = shp._node(at)
+    i = shp.node(at)
     R, p = g[i, :3, :3], g[i, :3, 3]
     Jb = shp.jacobian(q, at=at)                      # body (6, n): rows (omega, v)
     Jbd = shp.jacobian_rate(q, qd, at=at)

@@ -20,8 +20,8 @@ A :class:`~soroshapes.shapes.Shapes` beam enters with the state :math:`x = (q, \
 
 .. math:: M(q)\ddot q = -C(q,\dot q)\dot q - D\dot q - Kq + f(q, \dot q, t, u),
 
-with :math:`M, C` from ``Shapes.dynamics`` and :math:`f` (gravity, inputs, point loads, contact, user forces)
-from the beam's documented private ``_kin``/``_external`` pair.
+evaluated by ``Shapes.forward_dynamics`` (:math:`M, C` and :math:`f`: gravity, inputs, point loads, contact,
+user forces, from one kinematic pass).
 
 Integration (``Model.simulate``)
 --------------------------------
@@ -84,6 +84,7 @@ A closed isothermal reservoir squeezed to half its volume doubles its absolute p
 from __future__ import annotations
 
 import logging
+import math
 import time as _time
 from dataclasses import dataclass, field
 
@@ -91,27 +92,21 @@ import numpy as np
 
 from sorofem.errors import ConvergenceError, DataError, ParameterError, SoroError
 
+from .numerics import FD_STEP, fd_columns
+
 __all__ = ["StateSpace", "Fluidic", "Model", "ModelTrajectory", "SystemTrajectory"]
 
 log = logging.getLogger(__name__)
-_EPS = np.sqrt(np.finfo(float).eps)
+_NO_POSITIONS = np.zeros(0, dtype=int)
+
+
+def _finite(v):
+    """All entries finite (the sum first: one pass, and finite sums are the rule)."""
+    return math.isfinite(np.add.reduce(v, axis=None)) or bool(np.all(np.isfinite(v)))
 
 
 def _vec(v, what):
     return np.atleast_1d(np.asarray(v, dtype=float)).reshape(-1)
-
-
-def _fd_columns(fun, x, f0, scale, cols=None):
-    """Forward-difference Jacobian of ``fun`` at ``x`` (fun(x) = f0), steps sqrt(eps) * max(|x_j|, scale_j),
-    for the columns ``cols`` (default all), in that order."""
-    cols = range(len(x)) if cols is None else cols
-    J = np.empty((len(f0), len(cols)))
-    for k, j in enumerate(cols):
-        h = _EPS * max(abs(x[j]), scale[j])
-        xp = x.copy()
-        xp[j] += h
-        J[:, k] = (fun(xp) - f0) / (xp[j] - x[j])
-    return J
 
 
 # ------------------------------------------------------------------------------------------------------------
@@ -180,8 +175,8 @@ class StateSpace:
                                                                                                            self.m)
             return A, B
         f0 = self.rhs(x, u, t)
-        A = _fd_columns(lambda xx: self.rhs(xx, u, t), x, f0, self.scale)
-        B = _fd_columns(lambda uu: self.rhs(x, uu, t), u, f0, np.ones(self.m)) if self.m else np.zeros((self.n, 0))
+        A = fd_columns(lambda xx: self.rhs(xx, u, t), x, f0, self.scale)
+        B = fd_columns(lambda uu: self.rhs(x, uu, t), u, f0, np.ones(self.m)) if self.m else np.zeros((self.n, 0))
         return A, B
 
     def output(self, x, u, t):
@@ -373,8 +368,8 @@ class _FluidicBlock(_Block):
 
     def jac(self, x, w, t):
         f0 = self.rhs(x, w, t)
-        A = _fd_columns(lambda xx: self.rhs(xx, w, t), x, f0, self._scale)
-        B = _fd_columns(lambda ww: self.rhs(x, ww, t), w, f0, np.array([self._uscale, abs(w[1])]))
+        A = fd_columns(lambda xx: self.rhs(xx, w, t), x, f0, self._scale)
+        B = fd_columns(lambda ww: self.rhs(x, ww, t), w, f0, np.array([self._uscale, abs(w[1])]))
         return A, B
 
     def output(self, x, w, t):
@@ -401,16 +396,13 @@ class _ShapesBlock(_Block):
     def rhs(self, x, w, t):
         shp, n = self.system, self.nq
         q, qd = x[:n], x[n:]
-        M, C, _ = shp.dynamics(q, qd)
-        shp._kin(q, qd)                                   # _external works on the current kinematics
-        f = shp._external(q, qd, t, w)
-        qdd = np.linalg.solve(M, f - C @ qd - shp.damping * (shp.K @ qd) - shp.K @ q)
+        qdd = shp.forward_dynamics(q, qd, t, w)
         return np.concatenate([qd, qdd])
 
     def jac(self, x, w, t):
         f0 = self.rhs(x, w, t)
-        A = _fd_columns(lambda xx: self.rhs(xx, w, t), x, f0, np.ones(self.n))
-        B = (_fd_columns(lambda ww: self.rhs(x, ww, t), w, f0, np.maximum(np.abs(w), 1.0)) if self.m
+        A = fd_columns(lambda xx: self.rhs(xx, w, t), x, f0, np.ones(self.n))
+        B = (fd_columns(lambda ww: self.rhs(x, ww, t), w, f0, np.maximum(np.abs(w), 1.0)) if self.m
              else np.zeros((self.n, 0)))
         return A, B
 
@@ -631,6 +623,19 @@ class Model:
         return list(self._blocks)
 
     @property
+    def evaluation_paths(self):
+        """How each system, the couplings and the controller are evaluated at every stage of a step: a dict of
+        ``"compiled"`` (numba, no Python in the loop: beams with gravity, inputs and point loads only) or
+        ``"python..."`` (Fluidic, StateSpace and rigid-body right-hand sides, beams with contact, tendons or user
+        forces, and every callable coupling and controller). Also in a trajectory's ``stats``."""
+        paths = {name: getattr(b.system, "evaluation_path", "python") for name, b in self._blocks.items()}
+        if self._links:
+            paths["couplings"] = "python"
+        if self._controller is not None:
+            paths["controller"] = "python"
+        return paths
+
+    @property
     def n(self):
         """Total number of states."""
         return sum(b.n for b in self._blocks.values())
@@ -664,6 +669,11 @@ class Model:
         self._N, self._NW = i, j
         coupled = {(id(t), k) for _, t, ii in self._links if ii != "volume" for k in ii}
         self._free = [(b, k) for b in self._blocks.values() for k in range(b.m) if (id(b), k) not in coupled]
+        self._free_at = {}                   # system name -> positions of its free inputs among the free inputs
+        for p, (b, _) in enumerate(self._free):
+            self._free_at.setdefault(b.name, []).append(p)
+        self._free_at = {name: np.array(pos, dtype=int) for name, pos in self._free_at.items()}
+        self._free_rows = np.array([b.wsl.start + k for b, k in self._free], dtype=int)
         self._vol_link = {id(t): s for s, t, ii in self._links if ii == "volume"}
         for b in self._blocks.values():
             if b.kind == "fluidic" and b.system.volume is None and id(b) not in self._vol_link:
@@ -736,7 +746,7 @@ class Model:
         if isinstance(v, dict):
             out = np.zeros(nfree)
             for name, val in v.items():
-                pos = [p for p, (b, _) in enumerate(self._free) if b.name == name]
+                pos = self._free_at.get(name, _NO_POSITIONS)
                 if name not in self._blocks:
                     raise ParameterError(f"controller returned inputs for unknown system {name!r}; systems: "
                                          f"{', '.join(self._blocks)}")
@@ -755,7 +765,7 @@ class Model:
                 raise ParameterError(f"controller returned {out.size} inputs, the model has {nfree} free inputs: "
                                      + "; ".join(f"system {n!r}: {v}" for n, v in per.items())
                                      + " (or return a dict {system name: inputs})")
-        if not np.all(np.isfinite(out)):
+        if not _finite(out):
             bad = {self._free[p][0].name for p in np.nonzero(~np.isfinite(out))[0]}
             raise DataError(f"controller returned non-finite inputs for system(s) {sorted(bad)} at t = {self.t:.6g} s")
         return out
@@ -782,9 +792,9 @@ class Model:
                     raise DataError(f"the volume of Fluidic {b.name!r} is {V!r} at t = {t:.6g} s; it must be a "
                                     "positive scalar [m^3]")
                 w[b.wsl.start + 1] = V
-        for p, val in enumerate(self._controller_values()):
-            b, k = self._free[p]
-            w[b.wsl.start + k] = val
+        u = self._controller_values()           # called even without free inputs: it may check and raise
+        if len(u):
+            w[self._free_rows] = u
         for src, b, idx in self._links:
             if idx == "volume":
                 continue
@@ -796,7 +806,7 @@ class Model:
             if val.shape != (len(idx),):
                 raise ParameterError(f"coupling into system {b.name!r}: the {what} has {val.size} entries, but "
                                      f"{len(idx)} inputs {[b.input_names[k] for k in idx]} are connected")
-            if not np.all(np.isfinite(val)):
+            if not _finite(val):
                 raise DataError(f"coupling into system {b.name!r}: the {what} is not finite at t = {t:.6g} s")
             w[b.wsl.start + np.asarray(idx)] = val
         return w
@@ -809,7 +819,7 @@ class Model:
                 v = b.rhs(x[b.sl], w[b.wsl], t)
             except SoroError as err:
                 raise type(err)(f"system {b.name!r} at t = {t:.6g} s: {err}") from err
-            if v.shape != (b.n,) or not np.all(np.isfinite(v)):
+            if v.shape != (b.n,) or not _finite(v):
                 raise DataError(f"system {b.name!r} gave a non-finite or mis-sized derivative {v.shape} at "
                                 f"t = {t:.6g} s (expected {b.n} finite values)")
             out[b.sl] = v
@@ -841,13 +851,13 @@ class Model:
         dW = None
         if (self._controller is not None or self._links) and len(cols):
             if self._fd_groups is None:          # every column alone
-                dW = _fd_columns(lambda xx: self._assemble(t, xx).copy(), x, w0, self._scale, cols)
+                dW = fd_columns(lambda xx: self._assemble(t, xx).copy(), x, w0, self._scale, cols)
             else:                                # grouped columns: each target's rows belong to one of them
                 dW = np.zeros((self._NW, len(cols)))
                 position = {j: k for k, j in enumerate(cols)}
                 for group, owner in self._fd_groups:
                     xp = x.copy()
-                    xp[group] += _EPS * np.maximum(np.abs(x[group]), self._scale[group])
+                    xp[group] += FD_STEP * np.maximum(np.abs(x[group]), self._scale[group])
                     dw = self._assemble(t, xp) - w0
                     for tname, j in owner.items():
                         rows = self._blocks[tname].wsl
@@ -1104,6 +1114,7 @@ class Model:
                                        "s; loosen rtol/atol or check the model for discontinuities")
 
     def _trajectory(self, t, X, W):
+        self._stats["evaluation_paths"] = self.evaluation_paths
         systems, U = {}, []
         for b in self._blocks.values():
             x, w = X[:, b.sl], W[:, b.wsl]

@@ -415,8 +415,8 @@ def beam_contact(beam, body, stiffness, damping=0.0, friction=0.0, regularizatio
         if not np.isfinite(v) or v < 0 or (pos and v == 0):
             raise ParameterError(f"contact {what} must be {'> 0' if pos else '>= 0'}, got {v!r}")
     xb = body.x0 if x is None else np.asarray(x, dtype=float).reshape(-1)
-    beam._kin(q, qd)
-    G, eta, J, w = beam._G, beam._eta, beam._J, beam._w
+    G, eta, J = beam.node_kinematics(q, qd)
+    w = beam.weights
     r = beam.contact_radius
     g = body.pose(xb)
     Rb, pb = g[:3, :3], g[:3, 3]
@@ -549,9 +549,8 @@ def grasp_force(beam, body, q, qd, x, anchor, stiffness, damping, at=None):
     r"""Force [N] (spatial) of a grasp: a spring-damper between the beam's node ``at`` (default the tip) and
     the body point ``anchor`` (body coordinates): :math:`F = k(P_b - P_a) + c(\dot P_b - \dot P_a)` acts on
     the body (and :math:`-F` on the beam). Returns (F, generalized force on the beam (n,), body wrench (6,))."""
-    i = len(beam.sigma) - 1 if at is None else beam._node(at)
-    beam._kin(np.asarray(q, float), np.asarray(qd, float))
-    G, eta, J = beam._G, beam._eta, beam._J
+    i = beam.node(at)
+    G, eta, J = beam.node_kinematics(np.asarray(q, float), np.asarray(qd, float))
     Pb, Vb = G[i, :3, 3], G[i, :3, :3] @ eta[i, 3:]
     g, tw = body.pose(x), body.twist(x)
     R = g[:3, :3]

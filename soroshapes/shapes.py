@@ -27,18 +27,18 @@ Units: SI throughout (m, kg, s, N, Pa); :math:`q` carries the unit of its strain
 """
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from sorofem.errors import ConvergenceError, DataError, ParameterError
+from sorofem.errors import ParameterError
 
+from . import beam as _bm
 from .basis import Basis
+from .beam import BeamModel, BeamTrajectory, IKResult
 
 __all__ = ["Shapes", "BeamTrajectory", "IKResult", "STRAINS"]
 
-_NO_NODES, _NO_WRENCH, _NO_FLAGS = np.zeros(0, dtype=np.int64), np.zeros((0, 6)), np.zeros(0, dtype=np.bool_)
 
 #: Names of the six strains, in the order of the ``dofs`` mask.
 STRAINS = ("torsion", "bending_y", "bending_z", "stretch", "shear_y", "shear_z")
@@ -78,6 +78,26 @@ def _material_moduli(material, E, G):
         if not (np.isfinite(v) and v > 0):
             raise ParameterError(f"{name} must be positive and finite, got {v!r}")
     return float(E), float(G), float(rho), float(zeta)
+
+
+def _gregory_weights(sigma, per):
+    """Quadrature weights [m] at the nodes ``sigma`` exact for cubics on every piece of ``per[k]`` equal
+    segments: Gregory's end corrections (3/8, 7/6, 23/24, 1, ..., 1, 23/24, 7/6, 3/8) h from 5 segments up,
+    Simpson (1, 4, 2, 4, 1) h/3 for 4 and (1, 4, 1) h/3 for 2, Simpson's 3/8 rule for 3, the trapezoid for 1."""
+    small = {1: [0.5, 0.5], 2: [1 / 3, 4 / 3, 1 / 3], 3: [3 / 8, 9 / 8, 9 / 8, 3 / 8],
+             4: [1 / 3, 4 / 3, 2 / 3, 4 / 3, 1 / 3]}
+    w = np.zeros(len(sigma))
+    a = 0
+    for m in per:
+        h = (sigma[a + m] - sigma[a]) / m
+        if m in small:
+            c = np.array(small[m])
+        else:
+            c = np.ones(m + 1)
+            c[:3] = c[-3:][::-1] = (3 / 8, 7 / 6, 23 / 24)
+        w[a:a + m + 1] += h * c
+        a += m
+    return w
 
 
 # Small callables stored by a Shapes instead of closures, so that a Shapes pickles (multiprocessing, a
@@ -123,37 +143,6 @@ class _PerPoint:
         return np.asarray([self.fn(x) for x in s], dtype=float).reshape(len(s), self.width)
 
 
-@dataclass
-class BeamTrajectory:
-    """Result of :meth:`Shapes.simulate`: times ``t`` (m,) [s], coordinates ``q`` and rates ``qd`` (m, n),
-    energies (m,) [J] (``kinetic``, ``potential`` = elastic + gravity, ``total``), tip positions (m, 3) [m],
-    and the solver statistics (``newton_iterations`` per step, ``steps``, ``wall_time`` [s])."""
-
-    t: np.ndarray
-    q: np.ndarray
-    qd: np.ndarray
-    kinetic: np.ndarray
-    potential: np.ndarray
-    tip: np.ndarray
-    stats: dict = field(default_factory=dict)
-
-    @property
-    def total(self):
-        """Total mechanical energy [J] (kinetic + elastic + gravity)."""
-        return self.kinetic + self.potential
-
-
-@dataclass
-class IKResult:
-    """Result of :meth:`Shapes.inverse_kinematics`: coordinates ``q``, final error norm ``error`` [m],
-    ``iterations``, ``converged`` (error below the tolerance)."""
-
-    q: np.ndarray
-    error: float
-    iterations: int
-    converged: bool
-
-
 class Shapes:
     r"""A Cosserat beam with a modal strain basis.
 
@@ -184,6 +173,12 @@ class Shapes:
     contact_radius : float [m], optional
         Radius of the tube that touches obstacles (default: the largest distance from the centroid to the
         section's boundary along its axes, i.e. the bounding half-width).
+    quadrature : "gregory", "lobatto" or "trapezoid"
+        How the mass, Coriolis and gravity integrals are summed (:mod:`soroshapes.beam`): at the nodes with
+        Gregory's end-corrected trapezoidal rule, exact for cubics, error :math:`O(h^4)` at no extra work
+        (default); three-point Gauss-Lobatto (Simpson) in every segment through its midpoint, :math:`O(h^4)`
+        with a smaller constant at twice the kinematic work; or the plain trapezoidal rule, :math:`O(h^2)`
+        (the discretization before issue 18).
 
     Examples
     --------
@@ -199,20 +194,8 @@ class Shapes:
     True
     """
 
-    def __getstate__(self):
-        """Picklable (e.g. to run the beam in a simulated board's process): the kernel module is re-imported."""
-        state = self.__dict__.copy()
-        del state["_beam"]
-        return state
-
-    def __setstate__(self, state):
-        from . import _beam
-        self.__dict__.update(state, _beam=_beam)
-
     def __init__(self, basis, dofs, length, section, material=None, *, base=None, xi0=None, segments=20,
-                 order=4, damping=None, E=None, G=None, contact_radius=None):
-        from . import _beam
-        self._beam = _beam
+                 order=4, damping=None, E=None, G=None, contact_radius=None, quadrature="gregory"):
         self.length = float(length)
         if not (np.isfinite(self.length) and self.length > 0):
             raise ParameterError(f"length must be a positive number of metres, got {length!r}")
@@ -231,26 +214,81 @@ class Shapes:
         if segments < 1:
             raise ParameterError(f"segments must be >= 1, got {segments}")
         self._segments = segments
+        if quadrature not in ("gregory", "lobatto", "trapezoid"):
+            raise ParameterError(f"quadrature must be 'gregory' (at the nodes, error ~h^4), 'lobatto' (Simpson in "
+                                 f"every segment through its midpoint, ~h^4 with a smaller constant, twice the "
+                                 f"kinematic work) or 'trapezoid' (at the nodes, ~h^2), got {quadrature!r}")
+        self.quadrature = quadrature
         self.base = _as_pose(base)
         self.E, self.G, self.density, zeta = _material_moduli(material, E, G)
         self.material = material
         self._section(section, contact_radius)
         self._xi0 = self._reference_strain(xi0)
-        self._discretize(segments)
-        self._stiffness()
-        # loads
-        self._gravity = np.zeros(3)
-        self._inputs = []        # (name, kind, data)
-        self._point_loads = []   # (node, force(t), moment(t), frame)
-        self._contacts = []
-        self._forces = []
-        self._work = _beam.scratch(self.n)
-        self._zero = np.zeros(self.n)
+        #: The frozen description (:class:`soroshapes.beam.BeamModel`) and the default workspace
+        #: (:class:`soroshapes.beam.BeamData`) of the methods; ``data=`` selects another (``make_data()``).
+        self.model = self._discretize(segments)
+        self.data = self.model.make_data()
+        self._loads = []         # soroshapes.beam load terms, in the order they were added
+        self._plan = None        # their LoadPlan, made on first use
         if damping is None:
             damping = 2.0 * zeta / self.natural_frequencies(1)[0] / (2 * np.pi) if zeta > 0 else 0.0
         if not (np.isfinite(damping) and damping >= 0):
             raise ParameterError(f"damping must be a time constant >= 0 [s], got {damping!r}")
         self.damping = float(damping)
+
+    @property
+    def damping(self):
+        """Kelvin-Voigt time constant :math:`\tau` [s] of :math:`D = \tau K`."""
+        return self._damping
+
+    @damping.setter
+    def damping(self, tau):
+        tau = float(tau)
+        if not (np.isfinite(tau) and tau >= 0):
+            raise ParameterError(f"damping must be a time constant >= 0 [s], got {tau!r}")
+        self._damping, self._plan = tau, None
+
+    def _add_load(self, term):
+        self._loads.append(term)
+        self._plan = None
+
+    def _load_plan(self):
+        if self._plan is None:
+            self._plan = _bm.LoadPlan.of(self.model, self._loads, self.damping)
+        return self._plan
+
+    @property
+    def evaluation_path(self):
+        """How :meth:`forward_dynamics` (and so a :class:`~soroshapes.model.Model` block) evaluates this beam:
+        ``"compiled"`` (one numba call: gravity, inputs, point loads) or ``"python: ..."`` naming the load terms
+        that need Python (contact, tendons, user forces; several times slower)."""
+        slow = sorted({type(ld).__name__ for ld in self._loads if isinstance(ld, (_bm.Contact, _bm.Tendon,
+                                                                                    _bm.UserForce))})
+        return "compiled" if not slow else "python: " + ", ".join(slow)
+
+    def make_data(self):
+        """A new workspace for this beam (queries with ``data=`` leave the default one untouched)."""
+        return self.model.make_data()
+
+    @property
+    def sigma(self):
+        """Arc lengths of the nodes [m], (N+1,)."""
+        return self.model.sigma
+
+    @property
+    def K(self):
+        """Stiffness matrix (n, n) [N m per coordinate^2]."""
+        return self.model.K
+
+    @property
+    def weights(self):
+        """Trapezoidal weights [m] of the nodes, (N+1,): a node's share of a distributed (contact) force."""
+        return self.model.node_weights
+
+    @property
+    def loads(self):
+        """The load terms (:mod:`soroshapes.beam`) in the order they were added."""
+        return tuple(self._loads)
 
     # ------------------------------------------------------------------------------------------------
     # construction
@@ -334,6 +372,10 @@ class Shapes:
         return np.array(sorted(br))
 
     def _discretize(self, segments):
+        """The :class:`BeamModel`: nodes on the basis breaks (equal segments within every piece); the chain of
+        frames through the segment midpoints (``lobatto``) or the nodes only; Magnus Gauss points, quadrature
+        weights, stiffness."""
+        from . import _beam
         br = self._breaks()
         pieces = np.diff(br)
         per = np.maximum(1, np.round(segments * pieces).astype(int))
@@ -341,27 +383,35 @@ class Shapes:
                                           for i in range(len(pieces))])
         nodes[-1] = 1.0
         sigma = nodes * self.length
-        h = np.diff(sigma)
-        gp = (0.5,) if self.order == 2 else self._beam.GAUSS2
-        pts = sigma[:-1, None] + h[:, None] * np.array(gp)[None, :]
-        # evaluate a piecewise basis inside each segment: nudge Gauss points off the breaks (they never sit on one)
-        th = self.theta(pts.ravel())
-        self.sigma = sigma
-        self._h = np.ascontiguousarray(h)
-        th = th.reshape(len(h), len(gp), 6, self.n)
-        self._rows = np.repeat(np.arange(6), self.dofs).astype(np.int64)
-        self._B = np.ascontiguousarray(th[:, :, self._rows, np.arange(self.n)])   # column k lives in row rows[k]
-        self._X0 = np.ascontiguousarray(self._xi0(pts.ravel()).reshape(len(h), len(gp), 6))
-        w = np.zeros(len(sigma))
-        w[:-1] += h / 2
-        w[1:] += h / 2
-        self._w = w
-        self._Md = np.ascontiguousarray(np.tile(self._Mdiag, (len(sigma), 1)))
-        N = len(sigma)
-        self._G = np.zeros((N, 4, 4))
-        self._J = np.zeros((N, 6, self.n))
-        self._Jd = np.zeros((N, 6, self.n))
-        self._eta = np.zeros((N, 6))
+        hs = np.diff(sigma)
+        node_w = np.zeros(len(sigma))
+        node_w[:-1] += hs / 2
+        node_w[1:] += hs / 2
+        if self.quadrature == "lobatto":           # Simpson: h/6 at the ends, 4h/6 at the midpoint
+            stride = 2
+            points = np.empty(2 * len(hs) + 1)
+            points[0::2] = sigma
+            points[1::2] = sigma[:-1] + hs / 2
+            w = np.zeros(len(points))
+            w[0:-1:2] += hs / 6
+            w[2::2] += hs / 6
+            w[1::2] = 4 * hs / 6
+        elif self.quadrature == "gregory":
+            stride, points, w = 1, sigma, _gregory_weights(sigma, per)
+        else:
+            stride, points, w = 1, sigma, node_w
+        h = np.diff(points)
+        gp = (0.5,) if self.order == 2 else _beam.GAUSS2
+        pts = points[:-1, None] + h[:, None] * np.array(gp)[None, :]
+        # a piecewise basis is evaluated inside each piece (Gauss points never sit on a break)
+        th = self.theta(pts.ravel()).reshape(len(h), len(gp), 6, self.n)
+        rows = np.repeat(np.arange(6), self.dofs).astype(np.int64)
+        B = th[:, :, rows, np.arange(self.n)]                     # column k lives in row rows[k]
+        X0 = self._xi0(pts.ravel()).reshape(len(h), len(gp), 6)
+        Md = np.tile(self._Mdiag, (len(points), 1))
+        return BeamModel(dofs=self.dofs, order=self.order, length=self.length, base=self.base, sigma=sigma,
+                         points=points, stride=stride, h=h, B=B, rows=rows, X0=X0, weights=w, node_weights=node_w,
+                         Md=Md, K=self._stiffness())
 
     def _quad(self, f, a=0.0, b=None):
         """Integrate ``f(sigma) -> (m, ...)`` over [a, b] by Gauss-Legendre on every basis piece, with
@@ -381,30 +431,36 @@ class Shapes:
 
     def _stiffness(self):
         Kd = self._Kdiag
-        self.K = self._quad(lambda s: np.einsum("mri,rc,mcj->mij", self.theta(s), Kd, self.theta(s)))
-        self.K = 0.5 * (self.K + self.K.T)
-        if np.linalg.cond(self.K) > 1e14:
+        K = self._quad(lambda s: np.einsum("mri,rc,mcj->mij", self.theta(s), Kd, self.theta(s)))
+        K = 0.5 * (K + K.T)
+        if np.linalg.cond(K) > 1e14:
             raise ParameterError("the stiffness matrix is singular: the chosen basis functions are linearly "
                                  "dependent on [0, L]; orthonormalize the basis or use fewer modes")
+        return K
 
     # ------------------------------------------------------------------------------------------------
     # loads (builders return self)
     # ------------------------------------------------------------------------------------------------
     def add_gravity(self, g=(0.0, 0.0, -9.81)):
-        """Gravity: spatial acceleration ``g`` [m/s^2] (default 9.81 along -z)."""
+        """Gravity: spatial acceleration ``g`` [m/s^2] (default 9.81 along -z); replaces an earlier one."""
         g = np.asarray(g, dtype=float)
         if g.shape != (3,) or not np.all(np.isfinite(g)):
             raise ParameterError("gravity must be a 3-vector [m/s^2]")
-        self._gravity = g
+        g = g.copy()
+        g.flags.writeable = False
+        self._loads = [ld for ld in self._loads if not isinstance(ld, _bm.Gravity)]
+        self._add_load(_bm.Gravity(g))
         return self
 
-    def _node(self, at):
-        at = self.length if at is None else float(at)
-        i = int(np.argmin(np.abs(self.sigma - at)))
-        if abs(self.sigma[i] - at) > 1e-9 * self.length:
-            raise ParameterError(f"point loads act at nodes; sigma={at:g} m is not one (nearest: "
-                                 f"{self.sigma[i]:g} m); pass at=one of shp.sigma or change segments")
-        return i
+    @property
+    def gravity(self):
+        """The gravity acceleration [m/s^2] (3,) (zeros without gravity)."""
+        return _bm.gravity_of(self._loads)
+
+    def node(self, at):
+        """Index of the node at arc length ``at`` [m] (None: the tip) in :attr:`sigma`; a ParameterError if ``at``
+        is not a node."""
+        return self.model.node(at)
 
     def add_point_load(self, force=None, moment=None, *, at=None, frame="spatial"):
         """A point force [N] and/or moment [N m] at arc length ``at`` [m] (a node; default the tip), in the
@@ -421,8 +477,11 @@ class Shapes:
             if v.shape != (3,) or not np.all(np.isfinite(v)):
                 raise ParameterError(f"{what} must be a finite 3-vector or a callable of t")
             return _Constant(v)
-        self._point_loads.append((self._node(at), signal(force, "force"), signal(moment, "moment"), frame))
+        self._add_load(_bm.PointLoad(self.node(at), signal(force, "force"), signal(moment, "moment"), frame))
         return self
+
+    def _input_name(self, name, kind):
+        return name or f"{kind}{len(self.inputs)}"
 
     def add_chamber(self, area, offset, span=None, name=None):
         r"""A pressure chamber of cross-section ``area`` [m^2] whose centroid sits at ``offset`` = (y, z) [m] from
@@ -437,7 +496,7 @@ class Shapes:
         a, b = self._span(span)
         W = area * np.array([0.0, off[1], -off[0], 1.0, 0.0, 0.0])
         col = self._quad(lambda s: np.einsum("mri,r->mi", self.theta(s), W), a, b)
-        self._inputs.append((name or f"chamber{len(self._inputs)}", "chamber", col))
+        self._add_load(_bm.Chamber(self._input_name(name, "chamber"), col))
         return self
 
     def add_tendon(self, offset, span=None, name=None):
@@ -445,17 +504,19 @@ class Shapes:
         rod), anchored at the span's end. Adds one input: its tension [N] (>= 0). The tension compresses the rod
         along the tendon: internal wrench :math:`W = -T (d \times \hat t, \hat t)` with the tendon direction
         :math:`\hat t = (\nu + \kappa \times d) / |\cdot|`, integrated at the Magnus Gauss points."""
+        from . import _beam
         off = np.asarray(offset, dtype=float)
         if off.shape != (2,) or not np.all(np.isfinite(off)):
             raise ParameterError("a tendon needs offset (y, z) [m]")
         a, b = self._span(span)
-        gp = (0.5,) if self.order == 2 else self._beam.GAUSS2
-        pts = self.sigma[:-1, None] + self._h[:, None] * np.array(gp)[None, :]
-        wts = np.repeat(self._h[:, None] / len(gp), len(gp), axis=1)
+        gp = (0.5,) if self.order == 2 else _beam.GAUSS2
+        h = self.model.h
+        pts = self.model.points[:-1, None] + h[:, None] * np.array(gp)[None, :]
+        wts = np.repeat(h[:, None] / len(gp), len(gp), axis=1)
         mask = (pts >= a - 1e-12) & (pts <= b + 1e-12)
-        self._inputs.append((name or f"tendon{len(self._inputs)}", "tendon",
-                             (np.array([0.0, off[0], off[1]]), wts * mask)))
+        self._add_load(_bm.Tendon(self._input_name(name, "tendon"), np.array([0.0, off[0], off[1]]), wts * mask))
         return self
+
 
     def _span(self, span):
         a, b = (0.0, self.length) if span is None else map(float, span)
@@ -477,7 +538,7 @@ class Shapes:
             if col.shape != (self.n,) or not np.all(np.isfinite(col)):
                 raise ParameterError(f"an actuator column must have {self.n} finite entries")
             fn = _Linear(col)
-        self._inputs.append((name or f"actuator{len(self._inputs)}", "actuator", fn))
+        self._add_load(_bm.Actuator(self._input_name(name, "actuator"), fn))
         return self
 
     def add_contact(self, obstacle, stiffness=None, damping=0.0, friction=0.0, regularization=1e-3):
@@ -498,48 +559,46 @@ class Shapes:
                 raise ParameterError(f"contact {name} must be >= 0, got {v!r}")
         if k <= 0 or regularization <= 0:
             raise ParameterError("contact stiffness and regularization must be positive")
-        self._contacts.append((obstacle, k, float(damping), float(friction), float(regularization)))
+        self._add_load(_bm.Contact(obstacle, k, float(damping), float(friction), float(regularization),
+                                       self.contact_radius))
         return self
 
     def add_force(self, f):
         """A user generalized force ``f(shapes, q, qd, t) -> (n,)`` [N or N m per coordinate]."""
         if not callable(f):
             raise ParameterError("add_force needs a callable f(shapes, q, qd, t) -> (n,) array")
-        self._forces.append(f)
+        self._add_load(_bm.UserForce(f))
         return self
 
     @property
     def inputs(self):
-        """Names of the inputs (chambers [Pa], tendons [N]) in the order of ``u``."""
-        return [name for name, _, _ in self._inputs]
+        """Names of the inputs (chambers [Pa], tendons [N], actuators) in the order of ``u``."""
+        return [ld.name for ld in _bm.input_terms(self._loads)]
+
 
     # ------------------------------------------------------------------------------------------------
-    # kinematics
+    # kinematics (thin wrappers over soroshapes.beam; ``data``: a workspace of make_data(), default self.data)
     # ------------------------------------------------------------------------------------------------
-    def _check_q(self, q, what="q"):
-        q = np.ascontiguousarray(q, dtype=float).reshape(-1) if q is not None else np.zeros(self.n)
-        if q.shape != (self.n,):
-            raise ParameterError(f"{what} must have {self.n} entries (dofs {self.dofs}), got {q.shape}")
-        if not math.isfinite(np.add.reduce(q)) and not np.all(np.isfinite(q)):   # the sum: a cheap first test
-            raise DataError(f"{what} contains NaN or inf")
-        return q
+    def state(self, q, qd=None, *, rate=False, data=None):
+        """One kinematic pass at (q, qd) into a workspace, returned (:class:`soroshapes.beam.BeamData`: frames
+        ``G``, body Jacobians ``J``, twists ``eta`` at ``model.points``, and ``Jd`` with ``rate``)."""
+        data = self.data if data is None else data
+        _bm.kinematics(self.model, data, q, qd, rate)
+        return data
 
-    def _kin(self, q, qd=None, rate=False):
-        q = self._check_q(q)
-        qd = np.zeros(self.n) if qd is None else self._check_q(qd, "qd")
-        self._beam.kinematics(q, qd, rate, self.order, self._h, self._B, self._rows, self._X0, self.base, self._G,
-                              self._J, self._Jd, self._eta, *self._work)
-        return q, qd
+    def node_kinematics(self, q, qd=None, *, data=None):
+        """(G, eta, J) at the nodes :attr:`sigma` for state (q, qd): frames (N+1, 4, 4), body twists (N+1, 6)
+        [rad/s, m/s], body Jacobians (N+1, 6, n); views into the workspace (copy them to keep them)."""
+        d, at = self.state(q, qd, data=data), self.model.at_nodes
+        return at(d.G), at(d.eta), at(d.J)
 
-    def forward_kinematics(self, q):
+    def forward_kinematics(self, q, *, data=None):
         """Frames g(sigma_i) at the nodes :attr:`sigma`: array (N+1, 4, 4); positions are ``[:, :3, 3]`` [m]."""
-        self._kin(q)
-        return self._G.copy()
+        return self.model.at_nodes(self.state(q, data=data).G).copy()
 
-    def positions(self, q):
+    def positions(self, q, *, data=None):
         """Backbone positions at the nodes, (N+1, 3) [m]."""
-        self._kin(q)
-        return self._G[:, :3, 3].copy()
+        return self.model.at_nodes(self.state(q, data=data).G)[:, :3, 3].copy()
 
     def beam(self, q):
         """This rod at coordinates ``q`` as a beam for :mod:`soroshapes.render`: ``{"frames", "radius"}``."""
@@ -550,79 +609,77 @@ class Shapes:
         from .render import render_png
         return render_png(path, [self.beam(q)], **kw)
 
-    def jacobian(self, q, at=None, frame="body"):
+    def jacobian(self, q, at=None, frame="body", *, data=None):
         r"""Geometric Jacobian at node ``at`` [m] (default the tip): body :math:`J` with :math:`\eta = J\dot q`
         (6, n), or ``frame="spatial"``: :math:`\mathrm{Ad}_g J`; ``at="all"`` gives (N+1, 6, n) body Jacobians."""
-        self._kin(q)
+        if frame not in ("body", "spatial"):
+            raise ParameterError("frame must be 'body' or 'spatial'")
+        d = self.state(q, data=data)
         if at == "all":
-            return self._J.copy()
-        i = self._node(at)
+            return self.model.at_nodes(d.J).copy()
+        i = self.node(at) * self.model.stride
         if frame == "body":
-            return self._J[i].copy()
-        if frame == "spatial":
-            from .lie import Ad
-            return Ad(self._G[i]) @ self._J[i]
-        raise ParameterError("frame must be 'body' or 'spatial'")
+            return d.J[i].copy()
+        from .lie import Ad
+        return Ad(d.G[i]) @ d.J[i]
 
-    def jacobian_rate(self, q, qd, at=None):
+    def jacobian_rate(self, q, qd, at=None, *, data=None):
         r""":math:`\dot J(q, \dot q)` (body) at node ``at`` (default tip), or all nodes with ``at="all"``."""
-        self._kin(q, qd, True)
-        return self._Jd.copy() if at == "all" else self._Jd[self._node(at)].copy()
+        d = self.state(q, qd, rate=True, data=data)
+        return self.model.at_nodes(d.Jd).copy() if at == "all" else d.Jd[self.node(at) * self.model.stride].copy()
 
     # ------------------------------------------------------------------------------------------------
     # dynamics terms
     # ------------------------------------------------------------------------------------------------
-    def _mcg(self, q, qd, want_c):
-        q = self._check_q(q)
-        qd = self._zero if qd is None else self._check_q(qd, "qd")
-        n = self.n
-        M, C, fg = np.empty((n, n)), np.empty((n, n)), np.empty(n)
-        self._beam.dynamics_terms(q, qd, want_c, self.order, self._h, self._B, self._rows, self._X0, self.base,
-                                  self._G, self._J, self._Jd, self._eta, *self._work, self._w, self._Md,
-                                  self._gravity, M, C, fg)
-        return M, C, fg
+    def _mcg(self, q, qd, want_c, data=None):
+        data = self.data if data is None else data
+        M, C, fg = _bm.dynamics(self.model, data, q, qd, self.gravity, want_c)
+        return M.copy(), C.copy(), fg.copy()
 
-    def mass_matrix(self, q):
+    def mass_matrix(self, q, *, data=None):
         """Generalized mass matrix M(q), (n, n) (symmetric positive definite)."""
-        return self._mcg(q, None, False)[0]
+        return self._mcg(q, None, False, data)[0]
 
-    def gravity_force(self, q):
+    def gravity_force(self, q, *, data=None):
         r"""Generalized gravity force :math:`f_g(q) = \sum_i w_i J_i^T \mathcal M_i (0, R_i^T a_g)` (n,)."""
-        return self._mcg(q, None, False)[2]
+        return self._mcg(q, None, False, data)[2]
 
-    def coriolis(self, q, qd):
+    def coriolis(self, q, qd, *, data=None):
         r"""Coriolis/centrifugal matrix :math:`C(q, \dot q)` with :math:`\dot M - 2C` skew-symmetric."""
-        return self._mcg(q, qd, True)[1]
+        return self._mcg(q, qd, True, data)[1]
 
-    def coriolis_jacobian(self, q, qd):
+    def coriolis_jacobian(self, q, qd, *, data=None):
         r""":math:`\partial (C(q, \dot q)\dot q) / \partial \dot q` (n, n), exact (see
         :func:`soroshapes._beam.coriolis_velocity_jacobian`); Newton matrices of implicit integrators use it."""
-        C = self._mcg(q, qd, True)[1]
-        Cv = np.empty_like(C)
-        S, _, _, _, _, Y = self._work
-        self._beam.coriolis_velocity_jacobian(self._J, self._Jd, self._eta, self._w, self._Md, C, Cv, S, Y)
-        return Cv
+        return _bm.coriolis_jacobian(self.model, self.data if data is None else data, q, qd).copy()
 
-    def dynamics(self, q, qd):
+    def dynamics(self, q, qd, *, data=None):
         """(M, C, f_g): mass matrix, Coriolis matrix and gravity force for state (q, qd), from one kinematic pass."""
-        return self._mcg(q, qd, True)
+        return self._mcg(q, qd, True, data)
 
-    def inverse_dynamics(self, q, qd, qdd):
+    def inverse_dynamics(self, q, qd, qdd, *, data=None):
         r"""Generalized force that produces the acceleration ``qdd`` at state (q, qd) against inertia, damping,
         elasticity and gravity: :math:`\tau = M\ddot q + C\dot q + D\dot q + Kq - f_g` (n,), computed
         matrix-free (one kinematic pass with :math:`\dot J\dot q` as a vector; no M or C is formed).
         Inputs, point loads, contact and user forces are not included: they are what :math:`\tau` is for."""
-        q, qd = self._check_q(q), self._check_q(qd, "qd")
-        qdd = self._check_q(qdd, "qdd")
-        if not hasattr(self, "_etad"):
-            self._etad, self._wvec = np.zeros((len(self.sigma), 6)), np.zeros((8, 6))
-        S, E, V, Op, _, AJ = self._work
-        self._beam.kinematics_vec(q, qd, self.order, self._h, self._B, self._rows, self._X0, self.base, self._G,
-                                  self._J, self._eta, self._etad, S, E, V, Op, AJ, self._wvec)
-        tau = np.empty(self.n)
-        self._beam.generalized_inertial_force(self._J, self._eta, self._etad, self._G, self._w, self._Md, qdd,
-                                              self._gravity, _NO_NODES, _NO_WRENCH, _NO_FLAGS, tau)
+        tau = _bm.inverse_dynamics(self.model, self.data if data is None else data, q, qd, qdd, self.gravity)
+        q, qd = np.asarray(q, dtype=float).reshape(-1), np.asarray(qd, dtype=float).reshape(-1)
         return tau + self.damping * (self.K @ qd) + self.K @ q
+
+    def forward_dynamics(self, q, qd, t=0.0, u=None, *, data=None):
+        r"""Accelerations :math:`\ddot q = M^{-1}(f - C\dot q - D\dot q - Kq)` at state (q, qd), time t [s] and
+        inputs ``u`` (all loads included), from one kinematic pass (one compiled call unless contact, tendons or
+        user forces are present: :func:`soroshapes.beam.accelerations`)."""
+        return _bm.accelerations(self.model, self.data if data is None else data, self._loads, q, qd, t, u,
+                                 self.damping, self, self._load_plan())
+
+    def generalized_force(self, q, qd=None, t=0.0, u=None, *, data=None):
+        """Generalized force [N or N m per coordinate] (n,) of all loads (gravity, inputs ``u``, point loads,
+        contact, user forces) at state (q, qd) and time t [s]."""
+        data = self.data if data is None else data
+        q, qd = _bm.kinematics(self.model, data, q, qd)
+        uv = _bm.inputs_at(self._loads, u, t)
+        return _bm.external_force(self.model, data, self._loads, q, qd, t, uv, owner=self)
 
     @property
     def damping_matrix(self):
@@ -641,142 +698,28 @@ class Shapes:
     def input_map(self, q, u=None):
         """G(q): (n, m) derivative of the inputs' generalized force with respect to the inputs (:attr:`inputs`)
         at the values ``u`` (default 0); constant for chambers, configuration-dependent for tendons."""
-        self._kin(q)
-        self._qcur = self._check_q(q)
-        u = np.zeros(len(self._inputs)) if u is None else np.asarray(u, dtype=float).reshape(-1)
-        cols = []
-        for i, (_, kind, data) in enumerate(self._inputs):
-            if kind == "actuator":
-                e = 1e-6 * max(1.0, abs(u[i]))
-                cols.append((np.asarray(data(u[i] + e)) - np.asarray(data(u[i] - e))) / (2 * e))
-            else:
-                cols.append(self._input_column(kind, data))
-        return np.column_stack(cols) if cols else np.zeros((self.n, 0))
+        q = _bm.check_state(self.model, q)
+        return _bm.input_map(self.model, self.data, self._loads, q, u)
 
-    def _input_column(self, kind, data):
-        """Generalized force per unit input of a chamber (constant) or a tendon (at the current kinematics)."""
-        if kind == "chamber":
-            return data
-        d, wts = data
-        col = np.zeros(self.n)
-        B, X0, rows = self._B, self._X0, self._rows
-        for s in range(B.shape[0]):
-            for a in range(B.shape[1]):
-                if wts[s, a] == 0:
-                    continue
-                xi = X0[s, a].copy()
-                np.add.at(xi, rows, B[s, a] * self._qcur)
-                t = xi[3:] + np.cross(xi[:3], d)
-                t /= np.linalg.norm(t)
-                W = -np.concatenate([np.cross(d, t), t])
-                col += wts[s, a] * B[s, a] * W[rows]
-        return col
-
-    def _input_force(self, u):
-        """Generalized force of the inputs ``u`` at the current kinematics."""
-        f = np.zeros(self.n)
-        for ui, (_, kind, data) in zip(u, self._inputs):
-            f += np.asarray(data(ui), dtype=float) if kind == "actuator" else self._input_column(kind, data) * ui
-        return f
-
-    def _external(self, q, qd, t, u, scale=1.0):
-        """Generalized force of gravity, inputs, point loads, contact and user forces at the current kinematics
-        (``_kin`` was called with q, qd). Loads except contact are multiplied by ``scale``."""
-        self._qcur = q
-        f = np.zeros(self.n)
-        if np.any(self._gravity):
-            M, C, fg = np.empty((self.n, self.n)), np.empty((self.n, self.n)), np.empty(self.n)
-            S, _, V, _, _, Y = self._work
-            self._beam.mass_coriolis_gravity(self._J, self._Jd, self._eta, self._G, self._w, self._Md,
-                                             self._gravity, M, C, fg, False, S, V, Y)
-            f += fg
-        if self._inputs:
-            f += self._input_force(self._inputs_at(u, t, q, qd))
-        for i, force, moment, frame in self._point_loads:
-            F, Mo = force(t), moment(t)
-            if frame == "spatial":
-                R = self._G[i, :3, :3]
-                F, Mo = R.T @ F, R.T @ Mo
-            f += self._J[i].T @ np.concatenate([Mo, F])
-        f *= scale
-        for fn in self._forces:
-            v = np.asarray(fn(self, q, qd, t), dtype=float).reshape(-1)
-            if v.shape != (self.n,) or not np.all(np.isfinite(v)):
-                raise DataError(f"user force returned {v.shape} / non-finite values; expected {self.n} finite")
-            f += scale * v
-        if self._contacts:
-            f += self._contact_force()
-        return f
-
-    def _inputs_at(self, u, t, q, qd):
-        m = len(self._inputs)
-        if u is None:
-            return np.zeros(m)
-        v = u(t) if callable(u) else u
-        v = np.asarray(v, dtype=float).reshape(-1)
-        if v.shape != (m,) or not np.all(np.isfinite(v)):
-            raise ParameterError(f"u must give {m} finite inputs ({', '.join(self.inputs)}), got {v.shape}")
-        return v
-
-    def contact_forces(self, q, qd=None):
+    def contact_forces(self, q, qd=None, *, data=None):
         """Contact forces [N] on the nodes at state (q, qd): (N+1, 3) spatial forces (each node's share of the
         distributed force: per-length force times its quadrature weight), zero where there is no contact."""
-        self._kin(q, qd)
-        self._contact_force()
-        return self.contact_forces_.copy()
-
-    def _contact_force(self):
-        """Penalty contact with friction at every node; returns the generalized force."""
-        P = self._G[:, :3, 3]
+        data = self.data if data is None else data
+        q, qd = _bm.kinematics(self.model, data, q, qd)
         f = np.zeros(self.n)
-        self.contact_forces_ = np.zeros((len(P), 3))
-        for obstacle, k, c, mu, eps in self._contacts:
-            d = obstacle(P)
-            hit = np.nonzero(d < self.contact_radius)[0]
-            if len(hit) == 0:
-                continue
-            nrm = obstacle.gradient(P[hit])
-            nrm /= np.linalg.norm(nrm, axis=1)[:, None]
-            for j, i in enumerate(hit):
-                R = self._G[i, :3, :3]
-                v = R @ self._eta[i, 3:]
-                vn = v @ nrm[j]
-                fn = max(0.0, k * (self.contact_radius - d[i]) - c * vn)
-                vt = v - vn * nrm[j]
-                F = fn * nrm[j] - mu * fn * vt / np.sqrt(vt @ vt + eps * eps)
-                F *= self._w[i]
-                self.contact_forces_[i] += F
-                f += self._J[i, 3:].T @ (R.T @ F)
-        return f
+        data.contact_forces[...] = 0.0
+        for ld in self._loads:
+            if isinstance(ld, _bm.Contact):
+                f += ld.force(self.model, data, q, qd, 0.0)
+        return data.contact_forces.copy()
 
-    def energy(self, q, qd=None):
+    def energy(self, q, qd=None, *, data=None):
         """Energies [J]: dict with kinetic, elastic, gravity (potential of the uniform gravity field), total."""
-        q, qd = self._kin(q, qd)
-        M = self.mass_matrix(q)
-        P = self._G[:, :3, 3]
-        mlin = self._Md[:, 3]
-        kin = 0.5 * qd @ M @ qd
-        el = 0.5 * q @ self.K @ q
-        grav = -float(np.sum(self._w * mlin * (P @ self._gravity)))
-        return {"kinetic": kin, "elastic": el, "gravity": grav, "total": kin + el + grav}
+        return _bm.energy(self.model, self.data if data is None else data, q, qd, self.gravity)
 
     # ------------------------------------------------------------------------------------------------
     # solvers
     # ------------------------------------------------------------------------------------------------
-    def _residual_static(self, q, u, scale, t=0.0):
-        self._kin(q)
-        return self.K @ q - self._external(q, np.zeros(self.n), t, u, scale)
-
-    def _fd_tangent(self, fun, q, r0):
-        n = self.n
-        Kt = np.empty((n, n))
-        for k in range(n):
-            e = 1e-7 * max(1.0, abs(q[k]))
-            dq = q.copy()
-            dq[k] += e
-            Kt[:, k] = (fun(dq) - r0) / e
-        return Kt
-
     def statics(self, u=None, q0=None, *, steps=1, tol=1e-9, max_iterations=40, min_step=1e-4, t=0.0):
         r"""Static equilibrium :math:`K q = f_g(q) + G(q)u + f_{ext}(q)` by Newton's method with load stepping.
 
@@ -788,60 +731,13 @@ class Shapes:
 
         Returns the coordinates q (n,).
         """
-        q = self._check_q(q0)
-        lam, dlam = 0.0, 1.0 / max(1, int(steps))
-        self.newton_iterations = []
-        while lam < 1.0 - 1e-14:
-            target = min(1.0, lam + dlam)
-            qn, its = self._newton_static(q, u, target, tol, max_iterations, t)
-            if qn is None:
-                dlam *= 0.5
-                if dlam < min_step:
-                    raise ConvergenceError(f"statics: Newton failed at load level {target:.4g} (reached {lam:.4g}) "
-                                           "with the minimum increment; use more steps, a better q0, or check "
-                                           "that the loads are reachable")
-                continue
-            q, lam = qn, target
-            self.newton_iterations.append(its)
-            if its <= 4:
-                dlam = min(2 * dlam, 1.0)
+        q, self.newton_iterations = _bm.statics(self.model, self.data, self._loads, u, q0, steps=steps, tol=tol,
+                                                max_iterations=max_iterations, min_step=min_step, t=t, owner=self)
         return q
-
-    def _newton_static(self, q, u, scale, tol, max_iterations, t):
-        fun = lambda x: self._residual_static(x, u, scale, t)  # noqa: E731
-        q = q.copy()
-        r = fun(q)
-        for it in range(1, max_iterations + 1):
-            Kt = self._fd_tangent(fun, q, r)
-            try:
-                dq = -np.linalg.solve(Kt, r)
-            except np.linalg.LinAlgError:
-                return None, it
-            ref = np.linalg.norm(r)
-            step = 1.0
-            while True:
-                qn = q + step * dq
-                rn = fun(qn)
-                if np.all(np.isfinite(rn)) and np.linalg.norm(rn) <= (1 - 1e-4 * step) * ref or step < 1e-3:
-                    break
-                step *= 0.5
-            if not np.all(np.isfinite(rn)):
-                return None, it
-            q, r = qn, rn
-            scale_ref = np.linalg.norm(self.K @ q) + 1e-12 * np.linalg.norm(np.diag(self.K))
-            if np.linalg.norm(r) <= tol * scale_ref and np.linalg.norm(step * dq) <= 1e-8 * (1 + np.linalg.norm(q)):
-                return q, it
-        return None, max_iterations
 
     # ------------------------------------------------------------------------------------------------
     # dynamics
     # ------------------------------------------------------------------------------------------------
-    def _accel_terms(self, q, qd, t, u):
-        """(M, C qd + D qd + K q - f): the left-hand side without the inertia term, at (q, qd, t)."""
-        M, C, _ = self._mcg(q, qd, True)
-        f = self._external(q, qd, t, u)
-        return M, C @ qd + self.damping * (self.K @ qd) + self.K @ q - f
-
     def explicit_step_limit(self, q=None):
         """Stability limit [s] of explicit time stepping, :math:`2/\\omega_{max}` (central difference), from
         the largest natural frequency of the linearization about ``q``."""
@@ -870,155 +766,9 @@ class Shapes:
         The step is ``t_end / ceil(t_end / dt)`` (at most ``dt``). ``u``: inputs, an array or a callable of
         t [s]. Returns a :class:`BeamTrajectory` recorded every ``record_every`` steps (and at the end).
         """
-        import time
-        if method not in ("implicit", "explicit"):
-            raise ParameterError("method must be 'implicit' or 'explicit'")
-        t_end, dt = float(t_end), float(dt)
-        if not (t_end > 0 and dt > 0 and np.isfinite(t_end) and np.isfinite(dt)):
-            raise ParameterError(f"t_end and dt must be positive [s], got {t_end!r}, {dt!r}")
-        record_every = int(record_every)
-        if record_every < 1:
-            raise ParameterError("record_every must be >= 1")
-        nsteps = int(np.ceil(t_end / dt - 1e-9))
-        dt = t_end / nsteps
-        min_dt = dt / 1024 if min_dt is None else float(min_dt)
-        q, qd = self._check_q(q0).copy(), self._check_q(qd0, "qd0").copy()
-        self._inputs_at(u, 0.0, q, qd)                      # validate u before the loop
-        t0 = time.perf_counter()
-        rec = {"t": [], "q": [], "qd": [], "kin": [], "pot": [], "tip": []}
-        its_all = []
-        start = 0
-        if method == "implicit" and self._fast_eligible():
-            start, q, qd = self._simulate_fast(q, qd, dt, nsteps, u, tol, max_iterations, record_every, rec, its_all)
-        if start < nsteps:
-            self._simulate_python(q, qd, start, dt, nsteps, u, method, tol, max_iterations, min_dt, record_every,
-                                  rec, its_all)
-        wall = time.perf_counter() - t0
-        return BeamTrajectory(np.array(rec["t"]), np.array(rec["q"]), np.array(rec["qd"]), np.array(rec["kin"]),
-                              np.array(rec["pot"]), np.array(rec["tip"]),
-                              {"steps": nsteps, "dt": dt, "newton_iterations": np.array(its_all), "wall_time": wall,
-                               "method": method, "compiled_steps": start})
-
-    def _fast_eligible(self):
-        return not (self._contacts or self._forces or any(kind == "tendon" for _, kind, _ in self._inputs))
-
-    def _simulate_fast(self, q, qd, dt, nsteps, u, tol, max_iterations, record_every, rec, its_all):
-        """The compiled loop; returns (steps done, q, qd) and appends its records."""
-        n = self.n
-        tm = (np.arange(nsteps) + 0.5) * dt
-        fext = np.zeros((nsteps, n))
-        if self._inputs:                 # chambers and actuators: forces independent of the configuration
-            for k, t in enumerate(tm):
-                fext[k] = self._input_force(self._inputs_at(u, t, None, None))
-        npl = len(self._point_loads)
-        pl_nodes = np.array([p[0] for p in self._point_loads], dtype=np.int64)
-        pl_spatial = np.array([p[3] == "spatial" for p in self._point_loads], dtype=np.bool_)
-        pl_W = np.zeros((nsteps, npl, 6))
-        for j, (_, force, moment, _) in enumerate(self._point_loads):
-            for k, t in enumerate(tm):
-                pl_W[k, j, :3] = moment(t)
-                pl_W[k, j, 3:] = force(t)
-        nrec = nsteps // record_every + 1 + (nsteps % record_every != 0)
-        out_t, out_q, out_qd = np.zeros(nrec), np.zeros((nrec, n)), np.zeros((nrec, n))
-        out_e, out_tip, its = np.zeros((nrec, 2)), np.zeros((nrec, 3)), np.zeros(nsteps, dtype=np.int64)
-        Ne = len(self.sigma)
-        etad, W = np.zeros((Ne, 6)), np.zeros((8, 6))
-        done = self._beam.integrate_midpoint(
-            q, qd, dt, nsteps, record_every, fext, pl_nodes, pl_W, pl_spatial, self.K, self.damping_matrix,
-            self.order, self._h, self._B, self._rows, self._X0, self.base, self._w, self._Md, self._gravity,
-            float(tol), int(max_iterations), out_t, out_q, out_qd, out_e, out_tip, its, self._G, self._J,
-            self._Jd, self._eta, etad, *self._work, W)
-        m = done // record_every + 1 + (done == nsteps and nsteps % record_every != 0)
-        if done < nsteps:
-            m = (done - 1) // record_every + 1 if done > 0 else 1
-        rec["t"] += list(out_t[:m])
-        rec["q"] += list(out_q[:m])
-        rec["qd"] += list(out_qd[:m])
-        rec["kin"] += list(out_e[:m, 0])
-        rec["pot"] += list(out_e[:m, 1])
-        rec["tip"] += list(out_tip[:m])
-        its_all += list(its[:done])
-        return done, q, qd
-
-    def _simulate_python(self, q, qd, start, dt, nsteps, u, method, tol, max_iterations, min_dt, record_every, rec,
-                         its_all):
-        def record(t):
-            e = self.energy(q, qd)
-            rec["t"].append(t)
-            rec["q"].append(q.copy())
-            rec["qd"].append(qd.copy())
-            rec["kin"].append(e["kinetic"])
-            rec["pot"].append(e["elastic"] + e["gravity"])
-            rec["tip"].append(self._G[-1, :3, 3].copy())
-        t_end = nsteps * dt
-        t, k = start * dt, start
-        if start == 0:
-            record(t)
-        while k < nsteps:
-            h, t_next = dt, (k + 1) * dt
-            while t < t_next - 1e-12 * dt:          # sub-steps when a step must be cut
-                hh = min(h, t_next - t)
-                if method == "implicit":
-                    step = self._midpoint_step(q, qd, t, hh, u, tol, max_iterations)
-                else:
-                    step = self._rk4_step(q, qd, t, hh, u)
-                if step is None:
-                    h *= 0.5
-                    if h < min_dt:
-                        raise ConvergenceError(f"simulate: the step at t = {t:.6g} s did not converge down to dt = "
-                                               f"{min_dt:.3g} s ({method}); use a smaller dt, the implicit method, "
-                                               "or check the loads")
-                    continue
-                q[:], qd[:], its = step
-                its_all.append(its)
-                t += hh
-            t, k = t_next, k + 1
-            if k % record_every == 0 or k == nsteps:
-                record(min(t, t_end))
-
-    def _midpoint_step(self, q, qd, t, h, u, tol, max_iterations):
-        """One implicit-midpoint step: Newton iterations on v_m with the matrix 2M/h + dCv/dv + D + h/2 K; when they
-        contract slowly (large steps with large rotations), the matrix is replaced by the finite-difference
-        Jacobian of the residual. Returns (q, qd, iterations) or None."""
-        Dm = self.damping * self.K
-
-        def residual(vm):
-            qm = q + 0.5 * h * vm
-            M, lhs = self._accel_terms(qm, vm, t + 0.5 * h, u)
-            return M @ (2.0 * (vm - qd) / h) + lhs, M, qm
-        vm = qd.copy()
-        R, M, qm = residual(vm)
-        S = 2.0 * M / h + self.coriolis_jacobian(qm, vm) + Dm + 0.5 * h * self.K
-        prev = np.inf
-        for it in range(1, max_iterations + 1):
-            if not np.all(np.isfinite(R)):
-                return None
-            nr = np.linalg.norm(R)
-            if it > 3 and nr > 0.25 * prev:
-                S = self._fd_tangent(lambda v: residual(v)[0], vm, R)
-            prev = nr
-            dv = np.linalg.solve(S, -R)
-            vm = vm + dv
-            R, M, qm = residual(vm)
-            ref = np.linalg.norm(self.K @ qm) + np.linalg.norm(M @ vm) / h
-            if np.linalg.norm(dv) <= tol * np.linalg.norm(vm) + 1e-12 or np.linalg.norm(R) <= 1e-3 * tol * ref:
-                return q + h * vm, 2.0 * vm - qd, it
-        return None
-
-    def _rk4_step(self, q, qd, t, h, u):
-        def f(x, v, tt):
-            M, lhs = self._accel_terms(x, v, tt, u)
-            return v, np.linalg.solve(M, -lhs)
-        k1 = f(q, qd, t)
-        k2 = f(q + 0.5 * h * k1[0], qd + 0.5 * h * k1[1], t + 0.5 * h)
-        k3 = f(q + 0.5 * h * k2[0], qd + 0.5 * h * k2[1], t + 0.5 * h)
-        k4 = f(q + h * k3[0], qd + h * k3[1], t + h)
-        qn = q + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
-        vn = qd + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
-        if not (np.all(np.isfinite(qn)) and np.all(np.isfinite(vn))) or np.linalg.norm(qn) > 1e6 * (
-                1 + np.linalg.norm(q)):
-            return None
-        return qn, vn, 0
+        return _bm.simulate(self.model, self.data, self._loads, t_end, dt, q0, qd0, u, tau=self.damping,
+                            method=method, tol=tol, max_iterations=max_iterations, min_dt=min_dt,
+                            record_every=record_every, owner=self)
 
     # ------------------------------------------------------------------------------------------------
     # inverse kinematics
@@ -1042,7 +792,7 @@ class Shapes:
             if v.shape not in ((3,), (4, 4)) or not np.all(np.isfinite(v)):
                 raise ParameterError(f"an IK target must be a finite (3,) position [m] or (4, 4) pose, got "
                                      f"shape {v.shape}")
-            out.append((self._node(at), "position" if v.shape == (3,) else "pose", v))
+            out.append((self.node(at), "position" if v.shape == (3,) else "pose", v))
         return out
 
     def inverse_kinematics(self, targets, q0=None, *, tol=1e-8, max_iterations=200, damping=1e-6,
@@ -1072,60 +822,6 @@ class Shapes:
         -------
         IKResult with ``q``, ``error`` (final |e| [m]), ``iterations``, ``converged``.
         """
-        tg = self._targets(targets)
-        q = self._check_q(q0).copy()
-        wrot = self.length if rotation_weight is None else float(rotation_weight)
-        if subtask is not None and subtask != "elastic" and not callable(subtask):
-            raise ParameterError("subtask must be 'elastic', a callable grad(q) -> (n,), or None")
-        nodes = np.array([i for i, _, _ in tg], dtype=np.int64)
-        kinds = np.array([0 if k == "position" else 1 for _, k, _ in tg], dtype=np.int64)
-        goals = np.zeros((len(tg), 4, 4))
-        for j, (_, kind, v) in enumerate(tg):
-            if kind == "position":
-                goals[j] = np.eye(4)
-                goals[j, :3, 3] = v
-            else:
-                goals[j] = v
-        args = (nodes, kinds, goals, wrot, float(tol), int(max_iterations), float(damping), 1e6 * self.length)
-        model = (self.order, self._h, self._B, self._rows, self._X0, self.base, self._G, self._J, self._Jd,
-                 self._eta, *self._work)
-        if not callable(subtask):
-            err, it, converged = self._beam.ik_solve(q, *args, self.K, subtask_gain if subtask else 0.0, *model)
-        else:
-            err, it, converged = self._ik_python(q, args, subtask, subtask_gain)
-        return IKResult(q=q, error=float(err), iterations=int(it), converged=bool(converged))
-
-    def _ik_python(self, q, args, grad, gain):
-        """:func:`soroshapes._beam.ik_solve` with a Python subtask gradient ``grad(q)`` (same algorithm)."""
-        nodes, kinds, goals, wrot, tol, max_it, lam, lam_max = args
-        m = int(sum(3 if k == 0 else 6 for k in kinds))
-        e, A = np.empty(m), np.empty((m, self.n))
-
-        def error(x):
-            self._kin(x)
-            return self._beam._ik_error(nodes, kinds, goals, wrot, self._G, self._J, e, A), e.copy(), A.copy()
-        err, ek, Ak = error(q)
-        it = 0
-        best, since_best = err, 0
-        while err >= tol and it < max_it and since_best < 10:
-            it += 1
-            AAt = Ak @ Ak.T + lam * lam * np.eye(m)
-            dq = Ak.T @ np.linalg.solve(AAt, ek)
-            stalled = np.linalg.norm(dq) < 1e-12 * (1 + np.linalg.norm(q))
-            g = np.asarray(grad(q), dtype=float).reshape(self.n)
-            gn = -(g - Ak.T @ np.linalg.solve(AAt, Ak @ g))
-            if np.linalg.norm(gn) > 0:
-                dq += gain * max(np.linalg.norm(dq), tol) * gn / np.linalg.norm(gn)
-            errn, en, An = error(q + dq)
-            if errn <= err + tol:
-                q[:], err, ek, Ak = q + dq, errn, en, An
-                lam = max(0.5 * lam, 1e-12)
-                if stalled:
-                    break
-                best, since_best = (err, 0) if err < best * (1 - 1e-9) else (best, since_best + 1)
-            else:
-                lam *= 4.0
-                if lam > lam_max:
-                    break
-        self._kin(q)
-        return err, it, err < tol
+        return _bm.inverse_kinematics(self.model, self.data, self._targets(targets), q0, tol=tol,
+                                      max_iterations=max_iterations, damping=damping,
+                                      rotation_weight=rotation_weight, subtask=subtask, subtask_gain=subtask_gain)

@@ -119,3 +119,32 @@ def test_trixie_stage_fails_with_a_message_when_the_mirror_is_unreachable(repo, 
     assert "debootstrap failed" in res.stderr and "http://127.0.0.1:9/debian" in res.stderr, res.stderr
     assert "Failed getting release file" in (cache / "debootstrap.log").read_text()
     assert not (cache / "trixie").exists(), "a failed build must not leave a root that looks usable"
+
+
+def _junit(path, cases):
+    """A JUnit file as pytest writes it: ``cases`` are (classname, name, outcome) with outcome in
+    passed/failed/skipped/collection."""
+    tags = {"passed": "", "failed": '<failure message="x">x</failure>', "skipped": '<skipped message="x"/>',
+            "collection": '<error message="collection failure">x</error>'}
+    counts = {k: sum(o == k for *_, o in cases) for k in tags}
+    body = "".join(f'<testcase classname="{c}" name="{n}">{tags[o]}</testcase>' for c, n, o in cases)
+    path.write_text(f'<testsuites><testsuite name="pytest" errors="{counts["collection"]}" '
+                    f'failures="{counts["failed"]}" skipped="{counts["skipped"]}" tests="{len(cases)}">{body}'
+                    "</testsuite></testsuites>")
+    return str(path)
+
+
+@pytest.mark.parametrize("cases, code, line, message", [
+    ([("a", "t1", "passed"), ("a", "t2", "skipped")], 0, "1 passed, 0 failed, 1 skipped", None),
+    ([("a", "t1", "passed"), ("a", "t2", "failed")], 1, "1 passed, 1 failed, 0 skipped", None),
+    ([("", "tests.conftest", "collection")], 1, "0 passed, 0 failed, 0 skipped",
+     "collection failed for tests.conftest"),
+    ([], 1, "0 passed, 0 failed, 0 skipped", "no test ran"),
+])
+def test_summary_line_names_collection_failures(tmp_path, python, repo, cases, code, line, message):
+    """scripts/test_summary.py (the closing line of make test): a suite that could not be collected is reported
+    as such, not as a count of failed tests."""
+    res = subprocess.run([python, str(repo / "scripts" / "test_summary.py"), _junit(tmp_path / "s.xml", cases)],
+                         capture_output=True, text=True)
+    assert res.returncode == code and res.stdout.strip() == line
+    assert message is None or message in res.stderr

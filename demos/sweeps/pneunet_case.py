@@ -52,6 +52,10 @@ def build(params, comm):
     return fem
 
 
+# the types of the parameters, checked when the sweep configuration is loaded (sorofem.sweep)
+build.parameters = {"pressure": float, "material": str, "chambers": int, "size": float}
+
+
 def summary(traj, params):
     """Tip bending angle [deg] at the final pressure, and the cavity area change [-] of the first chamber."""
     if traj.comm.rank != 0:

@@ -16,6 +16,10 @@ cone filters, Heaviside projection), :mod:`.problems` (compliance, compliant mec
 actuators; linear and hyperelastic; adjoint sensitivities), :mod:`.optimize` (the loop, checkpoints),
 :mod:`.export` (PNG, XDMF, thresholded and smooth meshes, extruded STL).
 """
+from .._petsc import init as _init_petsc
+
+_init_petsc()  # before DOLFINx: Python keeps its signal handling (sorofem._petsc)
+
 from .export import density_image, density_png, design_mesh, nodal_density, threshold_mesh, write_stl, write_xdmf
 from .filters import ConeFilter, Heaviside, HelmholtzFilter
 from .mma import MMA, mma_subproblem

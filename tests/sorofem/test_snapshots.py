@@ -1,4 +1,9 @@
-"""The snapshot format: round trip, deformation gradients, atomicity and refusal of bad data."""
+"""The snapshot format: round trip, deformation gradients, atomicity, refusal of bad data, checksums, every kind
+of damaged file (a DataError naming the file and the dataset) and a full disk."""
+import os
+import subprocess
+import sys
+
 import h5py
 import numpy as np
 import pytest
@@ -129,3 +134,220 @@ def test_reader_refuses_missing_foreign_and_newer_files(tmp_path):
         f.attrs["version"] = 99
     with pytest.raises(DataError, match="version 99"):
         Snapshots(tmp_path / "new.h5")
+
+
+# ---------------------------------------------------------------------------------------------- damaged files
+def _valid(path, steps=3):
+    """A small valid file: 4x4 square, a facet and a cell region, a cavity, inputs and reactions per step."""
+    X, cells = _square()
+    regions = {"left": ("facets", [[0, 5]]), "layer": ("cells", [0, 1])}
+    with SnapshotWriter(path, X, cells, "triangle", regions=regions, cavities=["left"]) as w:
+        for k in range(steps):
+            w.append(float(k), 0.01 * k * X, inputs={"pressure/cavity_0": 1e3 * k}, reactions={"left": [k, -k]},
+                     cell_fields={"von_mises": np.full(len(cells), float(k))})
+    return path
+
+
+def test_every_dataset_carries_a_fletcher32_checksum(tmp_path):
+    path = _valid(tmp_path / "case.h5")
+    names = []
+    with h5py.File(path, "r") as f:
+        f.visititems(lambda k, d: names.append((k, d.fletcher32)) if isinstance(d, h5py.Dataset) else None)
+    assert len(names) == 9 and all(ok for _, ok in names), names
+
+
+def _edit(fn):
+    def edit(path):
+        with h5py.File(path, "r+") as f:
+            fn(f)
+    return edit
+
+
+def _replace(name, data, **attrs):
+    def fn(f):
+        old = dict(f[name].attrs)
+        del f[name]
+        d = f.create_dataset(name, data=data)
+        d.attrs.update({**old, **attrs})
+    return _edit(fn)
+
+
+# (how the file is damaged, what the message names besides the file)
+DAMAGED = {
+    "missing cells": (_edit(lambda f: f["mesh"].__delitem__("cells")), "mesh/cells: missing"),
+    "missing displacement": (_edit(lambda f: f["steps"].__delitem__("displacement")), "steps/displacement: missing"),
+    "time shorter than displacement": (_replace("steps/time", [0.0, 1.0]),
+                                       r"steps/displacement: shape \(3, 25, 2\), expected .* = \(2, 25, 2\)"),
+    "negative cell index": (_replace("mesh/cells", np.where(np.arange(96).reshape(32, 3) == 7, -1,
+                                                            _square()[1])),
+                            r"mesh/cells: vertex index -1 out of range \[0, 25\)"),
+    "cell index past the vertices": (_replace("mesh/cells", _square()[1] + 1), "mesh/cells: vertex index 25 out"),
+    "region cell out of range": (_replace("mesh/regions/layer", [0, 32]), "mesh/regions/layer: cell index 32"),
+    "region facet negative": (_replace("mesh/regions/left", [[0, -3]]), "mesh/regions/left: vertex index -3"),
+    "unknown cell type": (_edit(lambda f: f["mesh/cells"].attrs.__setitem__("cell_type", "pentagon")),
+                          "mesh/cells: unknown cell_type 'pentagon'"),
+    "cell type missing": (_edit(lambda f: f["mesh/cells"].attrs.__delitem__("cell_type")),
+                          "mesh/cells: attribute 'cell_type' missing"),
+    "NaN time": (_replace("steps/time", [0.0, np.nan, 2.0]), "steps/time at step 1: holds NaN"),
+    "infinite input": (_replace("steps/inputs/pressure/cavity_0", [0.0, 1e3, np.inf]),
+                       "steps/inputs/pressure/cavity_0 at step 2: holds NaN or infinite"),
+    "input of another length": (_replace("steps/inputs/pressure/cavity_0", [0.0, 1e3]),
+                                r"steps/inputs/pressure/cavity_0: shape \(2,\), expected \(3,\)"),
+    "reaction of the wrong width": (_replace("steps/reaction/left", np.zeros((3, 3))),
+                                    r"steps/reaction/left: shape \(3, 3\), expected \(3, 2\)"),
+    "cell field of the wrong length": (_replace("steps/cell_field/von_mises", np.zeros((3, 5))),
+                                       r"steps/cell_field/von_mises: shape \(3, 5\), expected \(3, 32\)"),
+    "NaN vertex": (_replace("mesh/vertices", np.where(np.arange(50).reshape(25, 2) == 9, np.nan, _square()[0])),
+                   "mesh/vertices: holds NaN"),
+    "vertices of 4 coordinates": (_replace("mesh/vertices", np.zeros((25, 4))), r"mesh/vertices: shape \(25, 4\)"),
+    "cells as floats": (_replace("mesh/cells", _square()[1].astype(float)), "mesh/cells: has type float64"),
+    "a group instead of a dataset": (_edit(lambda f: (f["steps"].__delitem__("time"),
+                                                      f["steps"].create_group("time"))),
+                                     "steps/time: is a group, not a dataset"),
+    "metadata not JSON": (_edit(lambda f: f.attrs.__setitem__("metadata", "{oops")), "metadata: not valid JSON"),
+    "version not a number": (_edit(lambda f: f.attrs.__setitem__("version", "one")), "attribute 'version' is 'one'"),
+    "cavity not a region": (_edit(lambda f: f["mesh"].attrs.__setitem__("cavities", '["nope"]')),
+                            r"cavities \['nope'\] are not among the regions"),
+    "time kind unknown": (_edit(lambda f: f["steps/time"].attrs.__setitem__("kind", "hours")),
+                          "steps/time: kind 'hours'"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(DAMAGED))
+def test_every_kind_of_damage_is_a_data_error_naming_file_and_dataset(tmp_path, name):
+    damage, match = DAMAGED[name]
+    path = _valid(tmp_path / "case.h5")
+    damage(path)
+    with pytest.raises(DataError, match=match) as err:
+        Snapshots(path).displacement()
+    assert str(path) in str(err.value)
+
+
+def test_non_finite_displacement_names_the_step(tmp_path):
+    path = _valid(tmp_path / "case.h5")
+    with h5py.File(path, "r+") as f:
+        f["steps/displacement"][2, 4, 1] = np.inf   # rewritten with a valid checksum: only the value is wrong
+    snap = Snapshots(path)
+    snap.displacement(1)
+    for call in (lambda: snap.displacement(2), snap.displacement):
+        with pytest.raises(DataError, match=f"{path}: steps/displacement at step 2: holds NaN or infinite"):
+            call()
+
+
+def _flip(path, dataset, chunk=0, byte=17):
+    """Flip one bit inside a stored chunk of ``dataset`` (found from HDF5's chunk index)."""
+    with h5py.File(path, "r") as f:
+        info = f[dataset].id.get_chunk_info(chunk)
+    with open(path, "r+b") as fh:
+        fh.seek(info.byte_offset + byte)
+        b = fh.read(1)[0]
+        fh.seek(info.byte_offset + byte)
+        fh.write(bytes([b ^ 0x04]))
+
+
+def test_a_flipped_bit_is_caught_by_the_checksum_and_named(tmp_path):
+    path = _valid(tmp_path / "case.h5")
+    _flip(path, "steps/displacement", chunk=1)
+    snap = Snapshots(path)                       # the mesh and the series are intact
+    np.testing.assert_array_equal(snap.displacement(2), 0.02 * _square()[0])
+    with pytest.raises(DataError, match=f"{path}: steps/displacement at step 1: checksum mismatch"):
+        snap.displacement(1)
+    with pytest.raises(DataError, match="steps/displacement at step 1: checksum mismatch"):
+        snap.displacement()
+    path = _valid(tmp_path / "mesh.h5")
+    _flip(path, "mesh/vertices", byte=40)
+    with pytest.raises(DataError, match=f"{path}: mesh/vertices: checksum mismatch"):
+        Snapshots(path)
+
+
+def test_a_truncated_file_is_a_data_error_naming_it(tmp_path):
+    path = _valid(tmp_path / "case.h5")
+    data = path.read_bytes()
+    for keep in (len(data) // 2, len(data) - 100):
+        path.write_bytes(data[:keep])
+        with pytest.raises(DataError, match=str(path)):
+            Snapshots(path).displacement()
+
+
+def test_version_1_files_without_checksums_still_read(tmp_path):
+    """Files written before checksums were added (same format version 1) are read as before."""
+    X, cells = _square(1)
+    path = tmp_path / "old.h5"
+    with h5py.File(path, "w") as f:
+        f.attrs.update(format="soro-snapshots", version=1, units="SI", created="2026-01-01T00:00:00+00:00",
+                       metadata="{}")
+        f.create_dataset("mesh/vertices", data=X)
+        f.create_dataset("mesh/cells", data=cells).attrs["cell_type"] = "triangle"
+        f["mesh"].attrs["cavities"] = "[]"
+        f.create_group("mesh/regions")
+        f.create_dataset("steps/time", data=[0.0, 1.0]).attrs["kind"] = "load"
+        f.create_dataset("steps/displacement", data=np.stack([0 * X, 0.1 * X]))
+    snap = Snapshots(path)
+    assert snap.n_steps == 2 and snap.deformation_gradient(1)[0, 0, 0] == pytest.approx(1.1)
+
+
+# ---------------------------------------------------------------------------------------------- full disk
+def test_a_full_disk_is_a_data_error_naming_path_and_free_space(tmp_path, monkeypatch):
+    """Fault injection: (1) the free-space check before a step, (2) HDF5 failing to write (ENOSPC) anyway."""
+    import errno
+    import shutil
+    from collections import namedtuple
+
+    import sorofem.snapshots as snapshots
+
+    X, cells = _square()
+    path = tmp_path / "case.h5"
+    usage = namedtuple("usage", "total used free")
+    real = shutil.disk_usage
+    with SnapshotWriter(path, X, cells, "triangle") as w:   # a complete file is kept below
+        w.append(0.0, 0 * X)
+    monkeypatch.setattr(snapshots.shutil, "disk_usage", lambda p: usage(100 << 20, (100 << 20) - 4096, 4096))
+    with pytest.raises(DataError, match=rf"no space left writing {path}: 0.0 MiB free of 100.0 MiB on "):
+        with SnapshotWriter(path, X, cells, "triangle") as w:
+            w.append(0.0, 0 * X)
+    monkeypatch.setattr(snapshots.shutil, "disk_usage", real)
+
+    def full(self):
+        raise OSError(errno.ENOSPC, "No space left on device")
+    w = SnapshotWriter(path, X, cells, "triangle")
+    monkeypatch.setattr(h5py.File, "flush", full)
+    with pytest.raises(DataError, match=rf"no space left writing {path}: .* MiB free of .* Free some space"):
+        w.append(0.0, 0 * X)
+    monkeypatch.undo()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["case.h5"]   # no temporary file left
+    assert Snapshots(path).n_steps == 1                                   # the previous file is intact
+
+
+def _tmpfs(where, size):
+    where.mkdir()
+    res = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(where)], capture_output=True)
+    if res.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here ({res.stderr.decode().strip()}); the fault-injected test covers it")
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux") or os.geteuid() != 0, reason="mounts a tmpfs (root)")
+def test_a_really_full_disk_gives_the_message_and_no_crash(tmp_path, subprocess_env):
+    """A 512 KiB tmpfs: writing a 2.4 MiB case ends in the DataError (in a child process: no native crash,
+    no flood of HDF5 tracebacks)."""
+    disk = tmp_path / "disk"
+    _tmpfs(disk, "512k")
+    try:
+        code = ("import numpy as np, sys\n"
+                "from sorofem.snapshots import SnapshotWriter\n"
+                "from sorofem.errors import DataError\n"
+                "X = np.random.default_rng(0).random((10000, 2)); cells = np.array([[0, 1, 2]])\n"
+                "try:\n"
+                "    with SnapshotWriter(sys.argv[1], X, cells, 'triangle') as w:\n"
+                "        for k in range(15):\n"
+                "            w.append(float(k), X, inputs={'p': 1.0})\n"
+                "except DataError as e:\n"
+                "    print('DataError:', e)\n")
+        res = subprocess.run([sys.executable, "-c", code, str(disk / "case.h5")], capture_output=True, text=True,
+                             env=subprocess_env, timeout=120)
+        assert res.returncode == 0, res.stdout + res.stderr
+        assert f"DataError: no space left writing {disk / 'case.h5'}: " in res.stdout
+        assert "MiB free of 0.5 MiB" in res.stdout
+        assert "Traceback" not in res.stderr and "Exception ignored" not in res.stderr, res.stderr[:2000]
+        assert os.listdir(disk) == []
+    finally:
+        subprocess.run(["umount", str(disk)], check=False)

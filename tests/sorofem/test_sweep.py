@@ -1,5 +1,6 @@
 """Parameter sweeps (sorofem.sweep, `soro sweep`): sampling, configuration errors, snapshots and manifest,
 failure isolation, resume after a killed run, and MPI groups giving the serial results."""
+import contextlib
 import inspect
 import json
 import math
@@ -50,6 +51,9 @@ def build(params, comm):
     if "max_iterations" in params:
         return fem, {"max_iterations": params["max_iterations"]}
     return fem
+
+
+build.parameters = {"pressure": float, "material": str, "size": float, "max_iterations": int}
 
 
 def summary(traj, params):
@@ -164,6 +168,29 @@ BAD = {
                                "builder: cannot import module 'no_such_pkg.cases'"),
     "builder without function": (dict(head='builder = "case.py"\n'), "builder: expected \"file.py:function\""),
     "summary missing": (dict(head=GOOD_HEAD + 'summary = "case.py:post"\n'), "summary: .* has no function 'post'"),
+    # types, checked at load (the builder declares its parameters' types; [solve]'s are known)
+    "solve steps a word": (dict(solve='steps = "four"'), "solve.steps: must be an integer, got string 'four'"),
+    "solve steps not whole": (dict(solve="steps = 2.5"), "solve.steps: must be an integer, got number 2.5"),
+    "solve t_end a bool": (dict(solve="t_end = true"), "solve.t_end: must be a number, got bool True"),
+    "solve t_end negative": (dict(solve="t_end = -0.5"), "solve.t_end: must be positive, got -0.5"),
+    "solve predictor a number": (dict(solve="predictor = 1"), "solve.predictor: must be a bool, got integer 1"),
+    "bools for a number": (dict(parameters='pressure = [true, false]\nmaterial = ["Ecoflex0030"]'),
+                           "parameters.pressure: must be a number, got bool True"),
+    "bool in lhs choices": (dict(mode="lhs", sweep="samples = 2",
+                                 parameters='pressure = { choices = [true, false] }\nmaterial = ["Ecoflex0030"]'),
+                            "parameters.pressure: must be a number, got bool"),
+    "a float for an integer": (dict(fixed="max_iterations = 2.7"),
+                               "fixed.max_iterations: must be an integer, got number 2.7"),
+    "a whole float for an integer": (dict(parameters='pressure = [2e3]\nmaterial = ["Ecoflex0030"]\n'
+                                                     'max_iterations = [2.0, 3.0]'),
+                                     "parameters.max_iterations: must be an integer, got number 2.0"),
+    "a number for a name": (dict(parameters='pressure = [2e3]\nmaterial = ["Ecoflex0030"]', fixed="size = \"1\""),
+                            "fixed.size: must be a number, got string '1'"),
+    "an undeclared name": (dict(parameters='presure = [2e3]\nmaterial = ["Ecoflex0030"]'),
+                           "parameters.presure: the builder case.py:build takes no parameter 'presure'; it declares "
+                           "pressure, material, size, max_iterations"),
+    "mixed kinds": (dict(parameters='pressure = [1.0, true]\nmaterial = ["Ecoflex0030"]'),
+                    r"parameters.pressure: mixes bool and number values \[1.0, True\]"),
 }
 
 
@@ -376,6 +403,336 @@ def test_the_example_pneunet_case_bends(tmp_path):
     m = sweep.run(tmp_path / "out")
     angles = [c["summary"]["tip_angle_deg"] for c in m["cases"]]
     assert m["counts"]["done"] == 2 and 0 < angles[0] < angles[1]
+
+
+# ---------------------------------------------------------------------------------------------- provenance
+def _one_case(tmp_path, marks, **kwargs):
+    return _config(tmp_path, 'pressure = [2e3, 4e3]\nmaterial = ["Ecoflex0030"]', **kwargs)
+
+
+def test_a_resume_with_another_builder_solve_or_fixed_is_refused(tmp_path, monkeypatch, capsys):
+    """Results of another builder source, [solve] or [fixed] are refused before anything is written (the
+    manifest keeps the old settings); --force-rerun runs those cases again; then a resume is accepted."""
+    marks = tmp_path / "marks"
+    marks.mkdir()
+    monkeypatch.setenv("SWEEP_TEST_MARKS", str(marks))
+    cfg = _one_case(tmp_path, marks)
+    out = tmp_path / "out"
+    first = Sweep.from_toml(cfg).run(out)
+    assert first["counts"]["done"] == 2 and first["provenance"]["builder_files"].keys() == {"case.py"}
+    assert json.loads((out / "case_0000.json").read_text())["provenance"] == first["provenance"]
+    manifest = (out / "manifest.json").read_text()
+
+    (tmp_path / "case.py").write_text(BUILDER.replace("return fem\n", "return fem  # edited\n", 1))
+    with pytest.raises(ParameterError, match=r"holds results made with other settings: the builder's source "
+                                             r"changed \(case.py\) for case_0000, case_0001\. .*use a new output "
+                                             r"directory \(--out\) or run these cases again with --force-rerun"):
+        Sweep.from_toml(cfg).run(out)
+    assert (out / "manifest.json").read_text() == manifest and not (out / ".sweep.lock").exists()
+    assert cli.main(["sweep", str(cfg), "--out", str(out)]) == 2
+    assert "the builder's source changed (case.py)" in capsys.readouterr().err
+
+    (tmp_path / "case.py").write_text(BUILDER)       # back to the original source: accepted, nothing runs
+    assert Sweep.from_toml(cfg).run(out)["counts"]["done"] == 2 and sum(_marks(marks).values()) == 2
+    manifest = (out / "manifest.json").read_text()
+    cfg = _one_case(tmp_path, marks, solve="steps = 2\nt_end = 0.5")
+    with pytest.raises(ParameterError, match=r"\[solve\] changed \(t_end null -> 0.5\) for case_0000"):
+        Sweep.from_toml(cfg).run(out)
+    cfg = _one_case(tmp_path, marks, fixed="size = 0.003")
+    with pytest.raises(ParameterError, match=r"\[fixed\] changed \(size null -> 0.003\) for case_0000"):
+        Sweep.from_toml(cfg).run(out)
+    assert (out / "manifest.json").read_text() == manifest and sum(_marks(marks).values()) == 2
+
+    assert cli.main(["sweep", str(cfg), "--out", str(out), "--force-rerun"]) == 0
+    assert sum(_marks(marks).values()) == 4
+    again = Sweep.from_toml(cfg).run(out)                # the new settings are now the directory's
+    assert again["counts"]["done"] == 2 and again["fixed"] == {"size": 0.003} and sum(_marks(marks).values()) == 4
+    assert all(c["params"]["size"] == 0.003 for c in again["cases"])
+
+
+def test_files_the_builder_imports_from_its_folder_are_part_of_its_provenance(tmp_path, monkeypatch):
+    from sorofem.sweep import provenance_changes
+
+    (tmp_path / "shapes").mkdir()
+    (tmp_path / "shapes" / "__init__.py").write_text("")
+    (tmp_path / "shapes" / "block.py").write_text("SIZE = 0.002\n")
+    (tmp_path / "helper.py").write_text("from shapes.block import SIZE\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    cfg = _config(tmp_path, 'pressure = [2e3]\nmaterial = ["Ecoflex0030"]', head='builder = "case.py:build"\n')
+    (tmp_path / "case.py").write_text("import helper  # noqa\nimport numpy  # not from the folder\n" + BUILDER)
+    before = Sweep.from_toml(cfg).provenance
+    assert sorted(before["builder_files"]) == ["case.py", "helper.py", "shapes/__init__.py", "shapes/block.py"]
+    (tmp_path / "shapes" / "block.py").write_text("SIZE = 0.003\n")
+    after = Sweep.from_toml(cfg).provenance
+    assert provenance_changes(before, after) == ["the builder's source changed (shapes/block.py)"]
+    assert provenance_changes(after, after) == []
+    assert provenance_changes({**after, "package_version": "0.0.1"}, after) == [
+        f"the package version changed (0.0.1 -> {after['package_version']})"]
+    assert provenance_changes(None, after) == ["the results were written before provenance was recorded"]
+
+
+def _flip_bit(path, dataset="steps/displacement", chunk=1):
+    import h5py
+    with h5py.File(path, "r") as f:
+        offset = f[dataset].id.get_chunk_info(chunk).byte_offset
+    with open(path, "r+b") as fh:
+        fh.seek(offset + 11)
+        b = fh.read(1)[0]
+        fh.seek(offset + 11)
+        fh.write(bytes([b ^ 0x10]))
+
+
+def test_a_bit_flipped_or_truncated_done_snapshot_is_detected_and_rerun(tmp_path, monkeypatch):
+    from sorofem.io import file_digest
+    from sorofem.snapshots import Snapshots
+
+    marks = tmp_path / "marks"
+    marks.mkdir()
+    monkeypatch.setenv("SWEEP_TEST_MARKS", str(marks))
+    cfg = _config(tmp_path, 'pressure = [1e3, 2e3, 3e3]\nmaterial = ["Ecoflex0030"]')
+    out = tmp_path / "out"
+    sweep = Sweep.from_toml(cfg)
+    first = sweep.run(out)
+    for case in first["cases"]:
+        assert case["sha256"] == file_digest(out / case["snapshot"])
+    u1 = Snapshots(out / "case_0001.h5").displacement()
+    _flip_bit(out / "case_0000.h5")
+    data = (out / "case_0001.h5").read_bytes()
+    (out / "case_0001.h5").write_bytes(data[: len(data) * 2 // 3])
+    status = {ln.split()[0]: ln.split()[-1] for ln in sweep.table(out).splitlines()[2:]}
+    assert status == {"case_0000": "pending", "case_0001": "pending", "case_0002": "done"}
+    again = sweep.run(out)
+    assert again["counts"]["done"] == 3
+    assert _marks(marks) == {"1000-Ecoflex0030-25": 2, "2000-Ecoflex0030-25": 2, "3000-Ecoflex0030-25": 1}
+    for case in again["cases"]:
+        assert case["sha256"] == file_digest(out / case["snapshot"])
+    np.testing.assert_array_equal(Snapshots(out / "case_0001.h5").displacement(), u1)   # the same results
+    # a done record without a digest cannot be verified: the case runs again
+    rec = json.loads((out / "case_0002.json").read_text())
+    rec.pop("sha256")
+    (out / "case_0002.json").write_text(json.dumps(rec))
+    sweep.run(out)
+    assert _marks(marks)["3000-Ecoflex0030-25"] == 2
+
+
+def test_a_second_sweep_in_the_same_directory_is_refused(tmp_path):
+    import signal
+    import socket
+
+    cfg = _config(tmp_path, 'pressure = [2e3]\nmaterial = ["Ecoflex0030"]')
+    out = tmp_path / "out"
+    out.mkdir()
+    other = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(120)"])
+    try:
+        (out / ".sweep.lock").write_text(json.dumps({"pid": other.pid, "host": socket.gethostname()}))
+        with pytest.raises(ParameterError, match=rf"another sweep is running in {out} \(process {other.pid} on "
+                                                 rf"{socket.gethostname()}, lock .*\.sweep\.lock\): wait for it"):
+            Sweep.from_toml(cfg).run(out)
+        assert not (out / "manifest.json").exists()
+    finally:
+        other.send_signal(signal.SIGKILL)
+        other.wait()
+    # the process is gone: its lock is stale and taken over; the run removes its own lock at the end
+    assert Sweep.from_toml(cfg).run(out)["counts"]["done"] == 1
+    assert not (out / ".sweep.lock").exists()
+
+
+def _jit_timeout(params, comm):
+    raise TimeoutError("JIT compilation timed out, probably due to a failed previous compile.\n"
+                       "        Try cleaning cache (e.g. remove /x/libffcx_forms_abc.c) or increase timeout parameter.")
+
+
+def test_a_jit_timeout_is_kept_pending_not_failed(tmp_path, capsys):
+    m = Sweep(_jit_timeout, {"x": [1.0, 2.0]}).run(tmp_path / "out")
+    assert m["counts"] == {"done": 0, "failed": 0, "pending": 2}
+    rec = json.loads((tmp_path / "out" / "case_0000.json").read_text())
+    assert rec["status"] == "pending" and rec["error"].startswith("JIT timeout (kept pending, not failed): "
+                                                                  "TimeoutError: JIT compilation timed out")
+    assert "run the sweep again" in rec["error"]
+    seen = []
+    Sweep(_jit_timeout, {"x": [1.0, 2.0]}).run(tmp_path / "out", progress=lambda r, k, n: seen.append(r["id"]))
+    assert seen == ["case_0000", "case_0001"]      # pending cases run again without --retry-failed
+
+
+def test_an_undeclared_builder_still_needs_one_kind_per_parameter():
+    with pytest.raises(ParameterError, match=r"parameters.x: mixes bool and number values \[1.0, True\]"):
+        Sweep(_jit_timeout, {"x": [1.0, True]})
+    assert len(Sweep(_jit_timeout, {"x": [1, 2.5], "on": [True, False]})) == 4
+
+
+# ---------------------------------------------------------------------------------------------- JIT cache
+def test_jit_locks_stale_and_live(tmp_path):
+    import signal
+    import socket
+    import time
+
+    from sorofem import jitcache
+
+    host = socket.gethostname()
+    now = time.time()
+    live = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(120)"])
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    try:
+        def lock(name, owner=None, age=0.0):
+            c = tmp_path / f"{name}.c"
+            c.write_text("")
+            if owner is not None:
+                c.with_suffix(".c.owner").write_text(json.dumps(owner))
+            os.utime(c, (now - age, now - age))
+            if owner is not None:
+                os.utime(c.with_suffix(".c.owner"), (now - age, now - age))
+        lock("a_dead", {"pid": dead.pid, "host": host})
+        lock("b_live", {"pid": live.pid, "host": host}, age=5000.0)
+        lock("c_unknown_young", age=60.0)
+        lock("d_unknown_old", age=700.0)
+        lock("e_other_host", {"pid": 1, "host": "elsewhere"}, age=60.0)
+        (tmp_path / "f_done.c").write_text("")
+        (tmp_path / "f_done.c.cached").write_text("")
+        found = {k.module: k.stale for k in jitcache.scan(tmp_path, threshold=600.0, now=now)}
+        assert found == {"a_dead": True, "b_live": False, "c_unknown_young": False, "d_unknown_old": True,
+                         "e_other_host": False}
+        assert {p.name for p in jitcache.remove_stale(tmp_path, threshold=600.0, now=now)} == {"a_dead.c",
+                                                                                                "d_unknown_old.c"}
+        assert not (tmp_path / "a_dead.c.owner").exists() and (tmp_path / "f_done.c").exists()
+        assert {k.module for k in jitcache.scan(tmp_path, now=now)} == {"b_live", "c_unknown_young",
+                                                                          "e_other_host"}
+        # soro doctor reports stale locks, with the fix
+        status, problems = cli._check_jit_cache(tmp_path)
+        assert "1 compiled module(s), 3 compiling, 0 stale" in status and problems == []
+        live.send_signal(signal.SIGKILL)
+        live.wait()
+        status, problems = cli._check_jit_cache(tmp_path)
+        assert "1 stale" in status and len(problems) == 1
+        assert f"owner process {live.pid} is gone" in problems[0] and f"rm {tmp_path / 'b_live.c'}" in problems[0]
+    finally:
+        live.kill()
+        live.wait()
+
+
+def _descendants(pid):
+    """Process ids of every descendant of ``pid`` (from /proc)."""
+    children = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rpartition(")")[2].split()
+        except OSError:
+            continue
+        children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    out, todo = [], [pid]
+    while todo:
+        for child in children.get(todo.pop(), []):
+            out.append(child)
+            todo.append(child)
+    return out
+
+
+def _first_compile_killed(cmd, env, cache, sig, cwd):
+    """Start ``cmd`` in its own process group with an empty JIT cache; send ``sig`` to the group (SIGKILL) or the
+    process (SIGINT) as soon as a form compile has started (its lock and owner record exist); return the exit
+    status and the compile's lock file."""
+    import signal
+    import time
+
+    proc = subprocess.Popen(cmd, env=env, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    deadline = time.monotonic() + 600
+    owner = None
+    try:
+        while owner is None and proc.poll() is None and time.monotonic() < deadline:
+            owner = next((f for f in cache.glob("*.c.owner") if not f.with_name(f.name[:-6] + ".cached").exists()),
+                         None)
+            time.sleep(0.02)
+        assert owner is not None, "no compile started: " + (proc.communicate()[1] if proc.poll() is not None else "")
+        if sig == signal.SIGKILL:   # the whole job: mpirun puts its ranks in process groups of their own
+            family = _descendants(proc.pid)
+            os.killpg(proc.pid, signal.SIGKILL)
+            for pid in family:
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(pid, signal.SIGKILL)
+            from sorofem.io import process_alive
+            gone = time.monotonic() + 60
+            while any(process_alive(pid) for pid in family) and time.monotonic() < gone:
+                time.sleep(0.05)
+        else:
+            proc.send_signal(sig)
+        _, err = proc.communicate(timeout=300)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    return proc.returncode, owner.with_name(owner.name[:-6]), err
+
+
+def _fresh_cache_env(tmp_path, subprocess_env):
+    env = {**subprocess_env, "XDG_CACHE_HOME": str(tmp_path / "xdg")}
+    return env, tmp_path / "xdg" / "fenics"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_a_killed_first_compile_then_a_successful_resume(tmp_path, subprocess_env, ranks):
+    """The first run of a sweep is killed (SIGKILL of the whole job) while it compiles its first form: the
+    resume the CLI advises removes the stale lock and completes every case (serial, and one case on 2 ranks)."""
+    import signal
+
+    cfg = _config(tmp_path, 'pressure = [2e3, 3e3]\nmaterial = ["Ecoflex0030"]')
+    env, cache = _fresh_cache_env(tmp_path, subprocess_env)
+    out = tmp_path / "out"
+    cmd = [*SORO, "sweep", str(cfg), "--out", str(out)]
+    if ranks > 1:
+        cmd = ["mpirun", "-n", str(ranks), "--oversubscribe", *cmd, "--group-size", str(ranks)]
+    code, lock, _ = _first_compile_killed(cmd, env, cache, signal.SIGKILL, tmp_path)
+    assert code != 0 and lock.exists() and not lock.with_suffix(".c.cached").exists()   # the stale lock
+    res = subprocess.run(cmd, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=1200)
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert "sweep: 2 cases: 2 done, 0 failed, 0 pending" in res.stdout
+    assert f"removed a stale JIT lock {lock}" in res.stderr
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert {c["ranks"] for c in manifest["cases"]} == {ranks}
+    assert not [f for f in os.listdir(out) if f.startswith(".")]
+    from sorofem import jitcache
+    assert jitcache.scan(cache) == []
+
+
+@pytest.mark.slow
+def test_ctrl_c_during_the_first_compile_leaves_no_lock(tmp_path, subprocess_env):
+    import signal
+
+    cfg = _config(tmp_path, 'pressure = [2e3]\nmaterial = ["Ecoflex0030"]')
+    env, cache = _fresh_cache_env(tmp_path, subprocess_env)
+    cmd = [*SORO, "sweep", str(cfg), "--out", str(tmp_path / "out")]
+    code, lock, err = _first_compile_killed(cmd, env, cache, signal.SIGINT, tmp_path)
+    assert code == 130 and "interrupted: run the same command again to resume" in err, err
+    assert not lock.exists() and not lock.with_suffix(".c.owner").exists()
+    assert not (tmp_path / "out" / ".sweep.lock").exists()
+    res = subprocess.run(cmd, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=1200)
+    assert res.returncode == 0, res.stdout + res.stderr
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux") or os.geteuid() != 0, reason="mounts a tmpfs (root)")
+def test_a_full_disk_fails_the_case_with_the_message_and_no_crash(tmp_path, subprocess_env):
+    """A sweep writing into a 512 KiB tmpfs: the case fails with the DataError naming the snapshot and the free
+    space; the sweep process ends normally (exit 1: a case failed) and says so."""
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    res = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=512k", "tmpfs", str(disk)], capture_output=True)
+    if res.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {res.stderr.decode().strip()}")
+    try:
+        cfg = _config(tmp_path, 'pressure = [2e3]\nmaterial = ["Ecoflex0030"]')
+        res = subprocess.run([*SORO, "sweep", str(cfg), "--out", str(disk / "out")], env=subprocess_env,
+                             capture_output=True, text=True, timeout=600, cwd=tmp_path)
+        assert res.returncode == 1, res.stdout + res.stderr
+        assert "sweep: 1 cases: 0 done, 1 failed" in res.stdout
+        rec = json.loads((disk / "out" / "case_0000.json").read_text())
+        assert rec["status"] == "failed"
+        assert rec["error"].startswith(f"DataError: no space left writing {disk / 'out' / 'case_0000.h5'}: ")
+        assert "MiB free of 0.5 MiB" in rec["error"]
+        assert "Exception ignored" not in res.stderr and "Segmentation" not in res.stderr
+        assert not (disk / "out" / "case_0000.h5").exists()
+    finally:
+        subprocess.run(["umount", str(disk)], check=False)
 
 
 # ---------------------------------------------------------------------------------------------- MPI

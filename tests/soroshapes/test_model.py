@@ -290,3 +290,13 @@ def test_reads_must_name_systems():
         mdl.connect(lambda m: [0.0], "osc1", reads=["oscX"])
     with pytest.raises(ParameterError, match="linear_solver"):
         mdl.simulate(0.1, 0.01, linear_solver="lu")
+
+
+def test_a_controller_may_name_a_system_without_free_inputs():
+    """{"b": []} for a system with no inputs assigns nothing (and leaves the other system's input in place):
+    x' = -x + 1 from 0 gives 1 - exp(-t)."""
+    a = StateSpace(lambda x, u, t: -x + u, 1, 1, name="a")
+    b = StateSpace(lambda x, u, t: -x, 1, 0, name="b")
+    tr = Model().add(a).add(b).set_controller(lambda mdl: {"a": [1.0], "b": []}).simulate(0.1, 0.001)
+    assert tr["a"].x[-1, 0] == pytest.approx(1 - np.exp(-0.1), rel=1e-5)   # trapezoidal, h = 1 ms: ~1e-7
+    assert tr["b"].x[-1, 0] == 0.0

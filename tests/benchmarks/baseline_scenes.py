@@ -1,0 +1,110 @@
+"""Scenes timed side by side in two code trees (run by bench_baseline.py as ``python baseline_scenes.py SCENE
+OUT.json`` with the tree to measure first on ``sys.path``); only the public API that both trees share is used.
+
+An optional fourth argument sets the beam quadrature of this tree (``trapezoid``: the baseline's discretization,
+so that the two trees compute the same model). Each scene prints nothing and writes ``{"wall_s", "simulated_s", "figures"}`` (``figures``: arrays or numbers
+to compare between the trees) to OUT.json. Demos are loaded from the ``demos/`` folder of the measured tree.
+"""
+import importlib.util
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def _demo(tree, name):
+    spec = importlib.util.spec_from_file_location(f"demo_{name}", Path(tree) / "demos" / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def rod15(tree):
+    """The 15-DOF rod of bench_shapes (torsion + 2 bendings x 5 Chebyshev modes, 10 segments of order 2)
+    released straight under gravity, dt = 1 ms."""
+    from sorofem import materials, sdf
+    from soroshapes import Basis, Shapes
+    shp = Shapes(Basis.chebyshev(5), dofs=(5, 5, 5, 0, 0, 0), length=0.2, section=sdf.Circle(0.005),
+                 material=materials.NeoHookean(E=1e6, nu=0.45, density=1000.0), damping=0.0, segments=10,
+                 order=2).add_gravity()
+    shp.simulate(0.01, 1e-3)                         # warm up (JIT)
+    wall = np.inf
+    for _ in range(3):
+        t0 = time.perf_counter()
+        tr = shp.simulate(1.0, 1e-3, record_every=10)
+        wall = min(wall, time.perf_counter() - t0)
+    return {"wall_s": wall, "simulated_s": 1.0, "figures": {"tip": tr.tip.tolist()},
+            "newton_iterations_mean": float(np.mean(tr.stats["newton_iterations"]))}
+
+
+def soft_hand(tree):
+    """The soft hand of demos/soft_hand.py (five fingers, regulated reservoirs), 1 s, BDF2, dt = 2 ms."""
+    demo = _demo(tree, "soft_hand")
+    mdl, _ = demo.build()
+    mdl.simulate(0.02, 2e-3, method="bdf2", rtol=1e-4, atol=1e-6)          # warm up
+    mdl, _ = demo.build()
+    t0 = time.perf_counter()
+    tr = mdl.simulate(1.0, 2e-3, method="bdf2", rtol=1e-4, atol=1e-6)
+    wall = time.perf_counter() - t0
+    return {"wall_s": wall, "simulated_s": 1.0,
+            "figures": {n: tr[n].x[:, :tr[n].x.shape[1] // 2].tolist() for n in demo.NAMES}}
+
+
+def _quick_demo(name):
+    def run(tree):
+        demo = _demo(tree, name)
+        with tempfile.TemporaryDirectory() as tmp:
+            t0 = time.perf_counter()
+            report = demo.main(Path(tmp), quick=True)
+            wall = time.perf_counter() - t0
+        sim = report.get("simulated_s")
+        wall_sim = report.get("wall_time_s_sim", wall)
+        figures = {k: v for k, v in report.items()
+                   if isinstance(v, (int, float)) and not isinstance(v, bool) and "time" not in k
+                   and "real_time" not in k and "wall" not in k}
+        return {"wall_s": wall_sim, "simulated_s": sim, "figures": figures}
+    run.__doc__ = f"demos/{name}.py in its quick mode (the simulation's wall time from its report)."
+    return run
+
+
+def cold_start(tree):
+    """The first statics and the first simulate of this process (kernels compiled or loaded from the cache)."""
+    t0 = time.perf_counter()
+    from sorofem import materials, sdf
+    from soroshapes import Basis, Shapes
+    shp = Shapes(Basis.chebyshev(3), dofs=(0, 3, 3, 0, 0, 0), length=0.2, section=sdf.Circle(0.005),
+                 material=materials.NeoHookean(E=1e6, nu=0.45, density=1000.0)).add_gravity()
+    t1 = time.perf_counter()
+    q = shp.statics()
+    t2 = time.perf_counter()
+    tr = shp.simulate(0.01, 1e-3, q0=q)
+    t3 = time.perf_counter()
+    return {"wall_s": t3 - t1, "simulated_s": None, "figures": {"tip": tr.tip[-1].tolist()},
+            "import_and_build_s": t1 - t0, "statics_s": t2 - t1, "simulate_s": t3 - t2}
+
+
+SCENES = {"rod15": rod15, "soft_hand": soft_hand, "suzumori_gripper": _quick_demo("suzumori_gripper"),
+          "wavy_wall": _quick_demo("wavy_wall"), "manipulator_pick": _quick_demo("manipulator_pick"),
+          "cold_start": cold_start}
+
+def _quadrature(name):
+    """Make ``name`` the default quadrature of every Shapes built in this process (this tree only: the baseline
+    has the trapezoidal rule and no such keyword)."""
+    import soroshapes.shapes as shapes
+    init = shapes.Shapes.__init__
+
+    def patched(self, *args, **kw):
+        kw.setdefault("quadrature", name)
+        init(self, *args, **kw)
+    shapes.Shapes.__init__ = patched
+
+
+if __name__ == "__main__":
+    scene, out, tree = sys.argv[1], Path(sys.argv[2]), sys.argv[3]
+    if len(sys.argv) > 4:
+        _quadrature(sys.argv[4])
+    result = SCENES[scene](tree)
+    out.write_text(json.dumps(result))
