@@ -58,6 +58,21 @@ def import_gmsh():
     return gmsh
 
 
+def _initialize_keeping_sigint(gmsh):
+    """``gmsh.initialize`` without losing Python's SIGINT handler.
+
+    gmsh 4.8 sets SIGINT to ``SIG_DFL`` when imported (:func:`import_gmsh` undoes it); gmsh 4.11 and later
+    (Debian 13: 4.13) do it in ``initialize`` instead (its ``interruptible`` argument, absent in 4.8), so Ctrl-C
+    would kill the process outright, without ``KeyboardInterrupt`` and its clean-up. The handler in place before
+    the call is put back after it, which serves both versions.
+    """
+    main = threading.current_thread() is threading.main_thread()
+    before = signal.getsignal(signal.SIGINT) if main else None
+    gmsh.initialize([], readConfigFiles=False)
+    if main and before is not None and signal.getsignal(signal.SIGINT) is not before:
+        signal.signal(signal.SIGINT, before)
+
+
 @contextlib.contextmanager
 def session(name="sorofem"):
     """Yield the gmsh module with a fresh current model; the model is removed on exit (also on error)."""
@@ -65,7 +80,7 @@ def session(name="sorofem"):
     with _lock:
         global _initialized
         if not _initialized:  # gmsh 4.8 has no isInitialized(); initialising twice is harmless
-            gmsh.initialize([], readConfigFiles=False)
+            _initialize_keeping_sigint(gmsh)
             _initialized = True
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.option.setNumber("General.Verbosity", 2)
