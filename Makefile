@@ -41,6 +41,12 @@ test: bootstrap
 	$(PY) scripts/test_summary.py out/test/serial.xml out/test/mpi.xml || { [ $$status -ne 0 ] || status=1; }; \
 	exit $$status
 
+# The same suite on Debian 13 (DOLFINx 0.9, Python 3.13, numpy 2): a debootstrap root cached in /var/cache/soro
+# (built once in 2.5-10 min; rebuilt when stale), the project installed there by bootstrap.sh, then `make test`.
+.PHONY: test-trixie
+test-trixie:
+	@bash scripts/test-trixie.sh
+
 bench: bootstrap
 	$(PY) -m pytest -m bench tests/benchmarks -s $(PYTEST_OPTS)
 

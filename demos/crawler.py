@@ -107,7 +107,8 @@ def main(out: Path, quick: bool = False) -> dict:
     # centre of mass of the (uniform-density) body: mean over cells of the cell centroids, area-weighted
     X, cells, U = traj.vertices, traj.cells, traj.displacement
     x_cells = (X + U)[:, cells].mean(axis=2)
-    area0 = 0.5 * np.abs(np.cross(X[cells[:, 1]] - X[cells[:, 0]], X[cells[:, 2]] - X[cells[:, 0]]))
+    a, b = X[cells[:, 1]] - X[cells[:, 0]], X[cells[:, 2]] - X[cells[:, 0]]
+    area0 = 0.5 * np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])   # (np.cross of 2-vectors is deprecated in numpy 2)
     com = (x_cells * area0[None, :, None]).sum(axis=1) / area0.sum()
     dx, dy = (com[-1] - com[0]) / mm
     summary.update(com_dx_mm=float(dx), com_dy_mm=float(dy),

@@ -101,7 +101,8 @@ def main(out: Path, quick: bool = False) -> dict:
     t = traj.times
     force = traj.reactions["contact_0"]            # force of the slope on the walker [N/m], per step
     X, cells, U = traj.vertices, traj.cells, traj.displacement
-    area0 = 0.5 * np.abs(np.cross(X[cells[:, 1]] - X[cells[:, 0]], X[cells[:, 2]] - X[cells[:, 0]]))
+    a, b = X[cells[:, 1]] - X[cells[:, 0]], X[cells[:, 2]] - X[cells[:, 0]]
+    area0 = 0.5 * np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])   # (np.cross of 2-vectors is deprecated in numpy 2)
     com = (((X + U)[:, cells].mean(axis=2)) * area0[None, :, None]).sum(axis=1) / area0.sum()
     # gait frequency: dominant frequency of the normal contact force after the first 30 % (transient)
     keep = t > 0.3 * T

@@ -1,14 +1,17 @@
 #!/usr/bin/env bash
 # One-command setup of the development environment, idempotent.
 #
-#  1. Debian packages (FEniCSx/DOLFINx 0.5.2 with PETSc and SLEPc, gmsh, numba, SciPy, MPI, ...), installed
-#     with apt-get only when one is missing (`apt-get update` once, `sudo` when not root).
+#  1. Debian packages (FEniCSx/DOLFINx with PETSc and SLEPc, gmsh, numba, SciPy, MPI, ...), installed with
+#     apt-get only when one is missing (`apt-get update` once, `sudo` when not root). Supported: Debian 12
+#     (bookworm: DOLFINx 0.5.2, Python 3.11, numpy 1.24) and Debian 13 (trixie: DOLFINx 0.9, Python 3.13,
+#     numpy 2.2). Elsewhere with apt-get it installs the same package names and says that the result is untested.
 #  2. .venv made from Debian's /usr/bin/python3 with --system-site-packages, so it sees those packages.
 #  3. The project, editable, plus PyPI extras (OpenCV, tqdm, Gymnasium), with a constraints file that pins the
-#     versions of every numerical package Debian provides (numpy above all: a numpy 2 from PyPI breaks DOLFINx).
+#     versions of every numerical package Debian provides (numpy above all: a numpy from PyPI breaks DOLFINx).
 #
 # A second run checks a stamp (hash of this script, pyproject.toml and the installed package set) and
 # returns in about a second without changing anything. Usage: bash scripts/bootstrap.sh [--force]
+# (`--packages` prints the Debian package list and exits: scripts/test-trixie.sh uses it).
 set -euo pipefail
 
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -23,14 +26,19 @@ die() { printf '[bootstrap] error: %s\n' "$*" >&2; exit 1; }
 # --- 0. a Debian system ------------------------------------------------------------------------------
 ROOT=${SORO_BOOTSTRAP_ROOT:-}  # tests point this at a fake root to check the non-Debian message
 if [ ! -f "$ROOT/etc/debian_version" ] || ! command -v apt-get >/dev/null || ! command -v dpkg-query >/dev/null; then
-  die "this setup needs Debian 12 (bookworm) or a derivative with apt-get: the FEniCSx stack comes from
-  Debian's packages (python3-dolfinx 0.5.2). On another system use the container: make container-test
-  (docker or podman), or install DOLFINx 0.5 yourself and create .venv by hand."
+  die "this setup needs Debian 12 (bookworm) or 13 (trixie), or a derivative with apt-get: the FEniCSx stack
+  comes from Debian's packages (python3-dolfinx 0.5.2 or 0.9). On another system use the container: make
+  container-test (docker or podman), or install DOLFINx 0.5-0.9 yourself and create .venv by hand (README,
+  'Supported DOLFINx')."
 fi
 . "$ROOT/etc/os-release" 2>/dev/null || true
-if [ "${VERSION_CODENAME:-}" != "bookworm" ]; then
-  say "warning: tested on Debian bookworm, this is '${PRETTY_NAME:-unknown}'; continuing"
-fi
+case "${VERSION_CODENAME:-}" in
+  bookworm) release="Debian 12 (bookworm): DOLFINx 0.5.2, supported" ;;
+  trixie) release="Debian 13 (trixie): DOLFINx 0.9, supported" ;;
+  *) release="'${PRETTY_NAME:-unknown}' (${VERSION_CODENAME:-no codename}): NOT a supported release (Debian 12 and
+  13 are); installing the same Debian package names, whatever DOLFINx version they bring is untested (soro doctor
+  tells whether it is in the supported range)" ;;
+esac
 
 # libopenblas0-serial: Debian's alternatives then route libblas.so.3/liblapack.so.3 (MUMPS, numpy, scipy) to
 # OpenBLAS instead of the reference BLAS: the 95k-DOF 3D MUMPS factorization drops from 8.1 s to 1.5 s.
@@ -43,6 +51,11 @@ PACKAGES=(
   libopenblas0-serial
   build-essential make git ca-certificates
 )
+if [ "${1:-}" = "--packages" ]; then
+  printf '%s\n' "${PACKAGES[@]}"
+  exit 0
+fi
+say "$release"
 
 stamp_of() {
   # What the environment depends on: this script, the project metadata, and the Debian versions in use.

@@ -22,4 +22,7 @@ def init():
         return
     import petsc4py
 
-    petsc4py.init([sys.argv[0] if sys.argv and sys.argv[0] else "python", "-no_signal_handler"])
+    # the first entry is the program name; under `python -c` sys.argv[0] is "-c", which petsc4py 3.22 (Debian 13)
+    # takes for an option (it then prepends the interpreter, and PETSc warns at exit that "-c" was not used)
+    prog = sys.argv[0] if sys.argv and sys.argv[0] and not sys.argv[0].startswith("-") else sys.executable
+    petsc4py.init([prog or "python", "-no_signal_handler"])

@@ -75,7 +75,7 @@ _PACKAGES = [
     ("SLEPc", "slepc4py.SLEPc", lambda m: ".".join(map(str, m.Sys.getVersion())),
      "apt-get install python3-slepc4py; " + _BOOTSTRAP),
     ("DOLFINx", "dolfinx", lambda m: m.__version__,
-     "apt-get install python3-dolfinx (Debian bookworm ships 0.5.2); " + _BOOTSTRAP),
+     "apt-get install python3-dolfinx (Debian 12 ships 0.5.2, Debian 13 0.9.0); " + _BOOTSTRAP),
     ("OpenCV", "cv2", lambda m: m.__version__,
      "pip install opencv-python-headless into the project's venv; " + _BOOTSTRAP),
     ("tqdm", "tqdm", lambda m: m.__version__, "pip install tqdm into the project's venv; " + _BOOTSTRAP),
@@ -120,6 +120,14 @@ def _blas():
         return (f"reference BLAS ({real}): direct solves run ~5x slower; "
                 "`apt-get install libopenblas0-serial` (scripts/bootstrap.sh does)")
     return "not found in /usr/lib/*-linux-gnu (not a Debian layout)"
+
+
+def _check_dolfinx_support():
+    """Whether the installed DOLFINx is in the tested range (:data:`sorofem._dolfinx.SUPPORTED`)."""
+    from . import _dolfinx
+
+    ok, sentence = _dolfinx.support_status()
+    return ("yes: " if ok else "NO: ") + sentence, ([] if ok else [sentence])
 
 
 def _check_jit():
@@ -208,10 +216,13 @@ def doctor(stream=None):
     problems += p
     print(f"  {'JIT cache':<{width}}  {status}", file=out)
     if have_dolfinx:
+        support, p = _check_dolfinx_support()
+        problems += p
         status, p = _check_jit()
         problems += p
     else:
-        status = "skipped (DOLFINx missing)"
+        support = status = "skipped (DOLFINx missing)"
+    print(f"  {'supported':<{width}}  {support}", file=out)
     print(f"  {'form JIT':<{width}}  {status}", file=out)
     status, p = _check_mpi()
     problems += p

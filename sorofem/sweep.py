@@ -1115,9 +1115,7 @@ def _patient_jit():
     """Groups running side by side compile the same forms at the same moment; FFCx makes the second one wait
     for the first one's module, by default for 10 s only, then fails. Wait up to 10 min instead."""
     try:
-        import dolfinx.jit
-        value, doc = dolfinx.jit.DOLFINX_DEFAULT_JIT_PARAMETERS["timeout"]
-        if value < 600:
-            dolfinx.jit.DOLFINX_DEFAULT_JIT_PARAMETERS["timeout"] = (600, doc)
-    except (ImportError, KeyError, TypeError, ValueError):  # pragma: no cover - another DOLFINx layout
+        from . import _dolfinx
+        _dolfinx.set_jit_timeout(600)
+    except ImportError:  # pragma: no cover - no DOLFINx: nothing compiles forms
         log.debug("could not lengthen the JIT timeout", exc_info=True)

@@ -79,6 +79,48 @@ def test_bootstrap_refuses_non_debian(repo, tmp_path):
     assert not (tmp_path / "v").exists(), "nothing may be created on a refused system"
 
 
+@pytest.mark.parametrize("codename, says", [
+    ("bookworm", "Debian 12 (bookworm): DOLFINx 0.5.2, supported"),
+    ("trixie", "Debian 13 (trixie): DOLFINx 0.9, supported"),
+    ("forky", "NOT a supported release (Debian 12 and\n  13 are)"),
+])
+def test_bootstrap_names_the_release_and_whether_it_is_supported(repo, tmp_path, codename, says):
+    """On Debian 12 and 13 the bootstrap says which DOLFINx it installs; on anything else with apt-get it says
+    that it goes on with the same package names and that the result is untested."""
+    venv = Path(sys.prefix)
+    if not (venv / ".bootstrap-stamp").exists():
+        pytest.skip("not running from the bootstrapped venv")
+    (tmp_path / "etc").mkdir()
+    (tmp_path / "etc/debian_version").write_text("13.0\n")
+    (tmp_path / "etc/os-release").write_text(f'PRETTY_NAME="Debian test"\nVERSION_CODENAME={codename}\n')
+    res = subprocess.run(["bash", str(repo / "scripts/bootstrap.sh")], capture_output=True, text=True,
+                         env={**os.environ, "SORO_BOOTSTRAP_ROOT": str(tmp_path), "SORO_VENV": str(venv)})
+    assert res.returncode == 0, res.stderr
+    assert says in res.stdout and "up to date" in res.stdout, res.stdout
+
+
+def test_trixie_stage_fails_with_a_message_when_the_mirror_is_unreachable(repo, tmp_path):
+    """make test-trixie never skips: when debootstrap cannot reach the mirror the stage fails and says what to
+    check (here a stand-in debootstrap that fails as the real one does without network)."""
+    fake = tmp_path / "bin"
+    fake.mkdir()
+    (fake / "debootstrap").write_text("#!/bin/sh\necho 'E: Failed getting release file $3/dists/trixie/Release'\n"
+                                      "exit 1\n")
+    (fake / "debootstrap").chmod(0o755)
+    cache = tmp_path / "cache"
+    env = {**os.environ, "PATH": f"{fake}:{os.environ['PATH']}", "SORO_TRIXIE_CACHE": str(cache),
+           "SORO_DEBIAN_MIRROR": "http://127.0.0.1:9/debian"}
+    res = subprocess.run(["bash", str(repo / "scripts/test-trixie.sh")], capture_output=True, text=True, env=env,
+                         timeout=120)
+    assert res.returncode != 0
+    if os.geteuid() != 0:  # the stage needs chroot: as a user it stops at once and says so
+        assert "needs root" in res.stderr, res.stderr
+        return
+    assert "debootstrap failed" in res.stderr and "http://127.0.0.1:9/debian" in res.stderr, res.stderr
+    assert "Failed getting release file" in (cache / "debootstrap.log").read_text()
+    assert not (cache / "trixie").exists(), "a failed build must not leave a root that looks usable"
+
+
 def _junit(path, cases):
     """A JUnit file as pytest writes it: ``cases`` are (classname, name, outcome) with outcome in
     passed/failed/skipped/collection."""

@@ -22,6 +22,7 @@ per step while barely touching the resolved ones.
 """
 import numpy as np
 
+from .. import _dolfinx
 from ..errors import ParameterError
 
 __all__ = ["TimeIntegrator", "amplification_matrix"]
@@ -147,7 +148,7 @@ def simulate(fem, t_end, dt, scheme="generalized_alpha", rho_inf=0.8, beta=0.25,
     fem._set_loads(0.0)
     rhs = static.assemble_residual(lift=False)
     rhs.scale(-1.0)
-    dolfinx.fem.petsc.set_bc(rhs, b["bcs"], scale=0.0)
+    _dolfinx.set_bc(rhs, b["bcs"], alpha=0.0)
     M = dolfinx.fem.petsc.assemble_matrix(
         dolfinx.fem.form(sum(r * ufl.dot(ufl.TrialFunction(W), test) * wt * dx(k) for k, r in enumerate(rho))),
         bcs=b["bcs"], diagonal=1.0)
@@ -157,7 +158,7 @@ def simulate(fem, t_end, dt, scheme="generalized_alpha", rho_inf=0.8, beta=0.25,
     ksp.setType("preonly")
     ksp.getPC().setType("lu")
     ksp.getPC().setFactorSolverType("mumps")
-    ksp.solve(rhs, a_n.vector)
+    ksp.solve(rhs, _dolfinx.petsc_vec(a_n))
     a_n.x.scatter_forward()
     for obj in (ksp, M):
         obj.destroy()

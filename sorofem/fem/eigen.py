@@ -10,6 +10,7 @@ solved as non-Hermitian and the real parts are reported. Dirichlet rows carry 1 
 """
 import numpy as np
 
+from .. import _dolfinx
 from ..errors import ConvergenceError, ParameterError
 
 __all__ = ["Modes", "eigenmodes"]
@@ -88,7 +89,7 @@ def eigenmodes(fem, n=6, shift=0.0, tol=1e-10):
     for i in range(nconv):
         lam = eps.getEigenpair(i, vr, vi)
         f = dolfinx.fem.Function(W, name=f"mode_{i}")
-        vr.copy(f.vector)
+        vr.copy(_dolfinx.petsc_vec(f))
         f.x.scatter_forward()
         pairs.append((float(np.real(lam)), f))
     pairs.sort(key=lambda p: p[0])

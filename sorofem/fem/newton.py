@@ -22,6 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import _dolfinx
+
 log = logging.getLogger(__name__)
 
 __all__ = ["NewtonOutcome", "NewtonSolver", "VolumeConstraint"]
@@ -123,18 +125,18 @@ class NewtonSolver:
         import dolfinx.fem.petsc
         from petsc4py import PETSc
 
-        b, x = self.b, self.u.vector
+        b, x = self.b, _dolfinx.petsc_vec(self.u)
         with b.localForm() as loc:
             loc.set(0.0)
         dolfinx.fem.petsc.assemble_vector(b, self.R)
         if lift:
-            dolfinx.fem.petsc.apply_lifting(b, [self.J], bcs=[self.bcs], x0=[x], scale=-1.0)
+            _dolfinx.apply_lifting(b, [self.J], [self.bcs], [x], alpha=-1.0)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         if self.point_forces is not None:
             with b.localForm() as loc:
                 self.point_forces(loc.array, self.u.x.array)
         if lift:
-            dolfinx.fem.petsc.set_bc(b, self.bcs, x, -1.0)
+            _dolfinx.set_bc(b, self.bcs, x, alpha=-1.0)
         return b
 
     def _safeguard(self, cnorm, halvings=5):
@@ -144,7 +146,7 @@ class NewtonSolver:
         taken."""
         from petsc4py import PETSc
 
-        x = self.u.vector
+        x = _dolfinx.petsc_vec(self.u)
         trial = self.assemble_residual().norm()
         alpha = 1.0
         for _ in range(halvings):
@@ -165,7 +167,7 @@ class NewtonSolver:
 
         vec = dolfinx.fem.petsc.assemble_vector(form)
         vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        dolfinx.fem.petsc.set_bc(vec, self.bcs, scale=0.0)
+        _dolfinx.set_bc(vec, self.bcs, alpha=0.0)
         return vec
 
     def _constraint_values(self):
@@ -213,7 +215,7 @@ class NewtonSolver:
         """Iterate from the current ``u``. Returns a :class:`NewtonOutcome`; never raises on divergence."""
         from petsc4py import PETSc
 
-        x = self.u.vector
+        x = _dolfinx.petsc_vec(self.u)
         r0 = trial = None
         rnorm = cnorm = math.nan
         for it in range(1, self.max_iterations + 1):
@@ -268,7 +270,6 @@ class NewtonSolver:
     def rigid_body_modes(V):
         """Near-nullspace of elasticity on a blocked vector space: translations and infinitesimal rotations
         (3 in 2D, 6 in 3D), orthonormalized, as a PETSc ``NullSpace``."""
-        import dolfinx.la
         from petsc4py import PETSc
 
         gdim = V.mesh.geometry.dim
@@ -276,7 +277,7 @@ class NewtonSolver:
         n = imap.size_local
         x = V.tabulate_dof_coordinates()[:n]
         rot = [(0, 1)] if gdim == 2 else [(0, 1), (1, 2), (2, 0)]
-        basis = [dolfinx.la.create_petsc_vector(imap, gdim) for _ in range(gdim + len(rot))]
+        basis = [_dolfinx.create_petsc_vector(imap, gdim) for _ in range(gdim + len(rot))]
         arrays = [b.array.reshape(-1, gdim) for b in basis]
         for i in range(gdim):
             arrays[i][:n, i] = 1.0
@@ -284,7 +285,7 @@ class NewtonSolver:
             a = arrays[gdim + k]
             a[:n, i] = -x[:, j]
             a[:n, j] = x[:, i]
-        dolfinx.la.orthonormalize(basis)
+        _dolfinx.orthonormalize(basis)
         return PETSc.NullSpace().create(vectors=basis)
 
     def destroy(self):

@@ -27,6 +27,7 @@ import time as _time
 
 import numpy as np
 
+from .. import _dolfinx
 from .._jit import silence_compiler_logs
 from ..errors import ConvergenceError, MeshError, ParameterError
 from ..materials import Hyperelastic, Material
@@ -323,13 +324,11 @@ class Fem:
 
         msh = self.mesh.dolfinx
         tdim, fdim = msh.topology.dim, msh.topology.dim - 1
-        cell = msh.ufl_cell()
         kin = Kinematics(self.formulation, msh)
         if self.mixed:
-            el = ufl.MixedElement([ufl.VectorElement("Lagrange", cell, 2), ufl.FiniteElement("Lagrange", cell, 1)])
-            W = dolfinx.fem.FunctionSpace(msh, el)
+            W = _dolfinx.taylor_hood_space(msh)
         else:
-            W = dolfinx.fem.VectorFunctionSpace(msh, ("Lagrange", self.degree))
+            W = _dolfinx.function_space(msh, "Lagrange", self.degree, "vector")
         w = dolfinx.fem.Function(W, name="state")
         carry = getattr(self, "_carry", None)
         if carry is not None and carry.shape == w.x.array.shape:  # same spaces: keep the current state
@@ -351,7 +350,7 @@ class Fem:
         dx = ufl.Measure("dx", domain=msh, subdomain_data=ctags, metadata=md)
 
         # growth: theta = det F_g per cell (DG0), 1 where nothing expands
-        growth = dolfinx.fem.Function(dolfinx.fem.FunctionSpace(msh, ("DG", 0)), name="growth")
+        growth = dolfinx.fem.Function(_dolfinx.function_space(msh, "DG", 0), name="growth")
         growth.x.array[:] = 1.0
         # F enters the residual as a plain expression of u (the dynamics substitute u); the stress
         # P = d(density)/dF is taken with a ufl.variable copy of it
@@ -452,7 +451,7 @@ class Fem:
         energy_form = dolfinx.fem.form(sum(growth * mat.strain_energy(Fe) * wt * dx(k)
                                            for k, (_, mat) in enumerate(self._materials)))
         DG0 = growth.function_space
-        pts = DG0.element.interpolation_points()
+        pts = _dolfinx.interpolation_points(DG0)
         material_cells = [np.flatnonzero(marker == k).astype(np.int32) for k in range(len(self._materials))]
         von_mises = dolfinx.fem.Function(DG0, name="von_mises")
         stress_exprs = [dolfinx.fem.Expression(e, pts) for e in stress_exprs]
@@ -462,7 +461,7 @@ class Fem:
         for region, _, con in controls:  # reference volume and a tolerance scale
             con.reference = self._scalar(con.value)
             con.scale = max(abs(con.reference), self._size() ** d * 1e-6)
-        V1 = dolfinx.fem.VectorFunctionSpace(msh, ("Lagrange", 1))
+        V1 = _dolfinx.function_space(msh, "Lagrange", 1, "vector")
         u1 = dolfinx.fem.Function(V1, name="displacement")
         gatherer = VertexGatherer(V1)
         owned = W.dofmap.index_map.size_local * W.dofmap.index_map_bs
@@ -596,7 +595,6 @@ class Fem:
         """Displacement [m] at reference points (N, gdim): (N, gdim) on every rank.
 
         Raises :class:`ParameterError` if a point lies outside the mesh."""
-        import dolfinx.geometry
         from mpi4py import MPI
 
         msh = self.mesh.dolfinx
@@ -605,9 +603,7 @@ class Fem:
             raise ParameterError(f"points must have shape (N, {self.gdim}), got {pts.shape}")
         p3 = np.zeros((len(pts), 3))
         p3[:, : self.gdim] = pts
-        tree = dolfinx.geometry.BoundingBoxTree(msh, msh.topology.dim)
-        cand = dolfinx.geometry.compute_collisions(tree, p3)
-        cells = dolfinx.geometry.compute_colliding_cells(msh, cand, p3)
+        cells = _dolfinx.colliding_cells(msh, p3)
         u = self.displacement
         vals = np.full((len(pts), self.gdim), np.nan)
         found = np.zeros(len(pts), dtype=np.int32)
@@ -660,7 +656,7 @@ class Fem:
         b = self._built or self._build()
         self._set_ramp(True)
         dt0 = t_end / int(steps)
-        x = b["w"].vector
+        x = _dolfinx.petsc_vec(b["w"])
         controls = [con for _, _, con in b["controls"]]
         newton = self._newton(b["R"], b["J"], max_iterations)
         traj = self._trajectory("load")

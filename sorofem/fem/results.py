@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import _dolfinx
 from ..errors import DataError
 from ..io import on_root
 from ..snapshots import SnapshotWriter
@@ -32,7 +33,7 @@ class VertexGatherer:
         self.n_global = imap.size_global
         tdim = V1.mesh.topology.dim
         n_cells = V1.mesh.topology.index_map(tdim).size_local
-        cells = V1.dofmap.list.array.reshape(-1, V1.dofmap.dof_layout.num_dofs)[:n_cells]
+        cells = _dolfinx.cell_dofs(V1, n_cells)
         X = V1.tabulate_dof_coordinates()[: self.n_owned, : V1.mesh.geometry.dim]
         all_cells = comm.gather(self.local_to_global[cells], root=0)
         self.vertices = self.gather(X)

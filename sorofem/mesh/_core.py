@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import _dolfinx
 from .._jit import silence_compiler_logs
 from ..errors import GeometryError, MeshError
 from ..io import on_root
@@ -424,10 +425,6 @@ class Mesh:
     @classmethod
     def _from_root_arrays(cls, comm, build, side_tol=None, source=""):
         """Run ``build() -> (x (n, 3), cells, gmsh_type, gdim)`` on rank 0 and distribute the mesh."""
-        import dolfinx.cpp.io
-        import dolfinx.mesh
-        import ufl
-
         t0 = time.perf_counter()
         data = on_root(comm, build)
         if comm.rank == 0:
@@ -442,11 +439,9 @@ class Mesh:
         if comm.rank != 0:
             x, cells = np.zeros((0, 3)), np.zeros((0, nn), dtype=np.int64)
         name, degree, tdim = _gmsh.GMSH_CELLS[etype]
-        cell = ufl.Cell(name, geometric_dimension=gdim)
-        domain = ufl.Mesh(ufl.VectorElement(ufl.FiniteElement("Lagrange", cell, degree, variant="equispaced")))
-        perm = dolfinx.cpp.io.perm_gmsh(dolfinx.cpp.mesh.to_type(name), nn)
-        mesh = dolfinx.mesh.create_mesh(comm, np.ascontiguousarray(cells[:, perm], dtype=np.int64),
-                                        np.ascontiguousarray(x[:, :gdim]), domain)
+        perm = _dolfinx.gmsh_node_order(name, nn)
+        mesh = _dolfinx.create_mesh(comm, np.ascontiguousarray(cells[:, perm], dtype=np.int64),
+                                    np.ascontiguousarray(x[:, :gdim]), name, degree)
         out = cls(mesh, side_tol=side_tol, source=source)
         out.build_time = time.perf_counter() - t0
         return out
@@ -740,7 +735,7 @@ class Mesh:
                 if self._entities:
                     self.dolfinx.topology.create_connectivity(tdim - 1, tdim)
                 for name in self.regions:
-                    f.write_meshtags(self.meshtags(name))
+                    _dolfinx.write_meshtags(f, self.meshtags(name), self.dolfinx)
             comm.barrier()
             if comm.rank == 0:
                 os.replace(tmpdir / path.with_suffix(".h5").name, path.with_suffix(".h5"))
@@ -942,8 +937,6 @@ def _gather(msh):
     Returns on rank 0 ``(x (n, 3), cells, gmsh cell type, {name: (dim, gmsh type, nodes)}, tdim)``.
     """
     import basix
-    import dolfinx.cpp.io
-    import dolfinx.cpp.mesh
 
     m = msh.dolfinx
     comm = msh.comm
@@ -953,21 +946,19 @@ def _gather(msh):
     nghost = imap.num_ghosts
     glob = imap.local_to_global(np.arange(nloc + nghost, dtype=np.int32))
     ncell = m.topology.index_map(tdim).size_local
-    dm = m.geometry.dofmap
-    nn = dm.links(0).size
-    geo = np.asarray(dm.array).reshape(-1, nn)
+    geo = _dolfinx.geometry_dofs(m)
+    nn = geo.shape[1]
     name = m.topology.cell_type.name
     degree = 1 if nn == {"triangle": 3, "quadrilateral": 4, "tetrahedron": 4, "hexahedron": 8}[name] else 2
-    perm = np.asarray(dolfinx.cpp.io.perm_gmsh(dolfinx.cpp.mesh.to_type(name), nn))
+    perm = _dolfinx.gmsh_node_order(name, nn)
     cells_g = np.empty((ncell, nn), dtype=np.int64)
     cells_g[:, perm] = glob[geo[:ncell]]
     # facets: closure dofs of the local facet in the coordinate element
     el = basix.create_element(basix.ElementFamily.P, _regions._basix_cell(name), degree,
                               basix.LagrangeVariant.gll_warped)
     fclos = el.entity_closure_dofs[tdim - 1]
-    ftype = dolfinx.cpp.mesh.cell_entity_type(dolfinx.cpp.mesh.to_type(name), tdim - 1, 0)
     nfn = len(fclos[0])
-    fperm = np.asarray(dolfinx.cpp.io.perm_gmsh(ftype, nfn))
+    fperm = _dolfinx.gmsh_facet_node_order(name, nfn)
     m.topology.create_connectivity(tdim - 1, tdim)
     m.topology.create_connectivity(tdim, tdim - 1)
     f2c = m.topology.connectivity(tdim - 1, tdim)

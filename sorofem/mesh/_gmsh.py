@@ -6,6 +6,9 @@ after an exception) without state leaking between them. gmsh 4.8 installs ``SIG_
 imported, which would make Ctrl-C kill Python outright; :func:`import_gmsh` restores Python's handler (and
 skips the call when imported off the main thread, where ``signal.signal`` is not allowed). A meshing call in
 C++ cannot be interrupted mid-way; Ctrl-C takes effect when it returns.
+
+This module is also the seam between gmsh versions (4.8 on Debian 12, 4.13 on Debian 13): every call whose
+signature differs between them (the mesh-size callback) goes through a function here.
 """
 import contextlib
 import itertools
@@ -22,7 +25,7 @@ from ..errors import GeometryError, MeshError
 log = logging.getLogger(__name__)
 
 __all__ = ["import_gmsh", "session", "GMSH_CELLS", "csg_to_occ", "NotTranslatable", "extract", "set_options",
-           "loops_to_geo", "surface_to_volume", "snap_boundary_nodes"]
+           "set_size_callback", "loops_to_geo", "surface_to_volume", "snap_boundary_nodes"]
 
 #: gmsh element type → (DOLFINx cell name, degree, topological dimension)
 GMSH_CELLS = {2: ("triangle", 1, 2), 9: ("triangle", 2, 2), 3: ("quadrilateral", 1, 2), 10: ("quadrilateral", 2, 2),
@@ -55,6 +58,21 @@ def import_gmsh():
     return gmsh
 
 
+def _initialize_keeping_sigint(gmsh):
+    """``gmsh.initialize`` without losing Python's SIGINT handler.
+
+    gmsh 4.8 sets SIGINT to ``SIG_DFL`` when imported (:func:`import_gmsh` undoes it); gmsh 4.11 and later
+    (Debian 13: 4.13) do it in ``initialize`` instead (its ``interruptible`` argument, absent in 4.8), so Ctrl-C
+    would kill the process outright, without ``KeyboardInterrupt`` and its clean-up. The handler in place before
+    the call is put back after it, which serves both versions.
+    """
+    main = threading.current_thread() is threading.main_thread()
+    before = signal.getsignal(signal.SIGINT) if main else None
+    gmsh.initialize([], readConfigFiles=False)
+    if main and before is not None and signal.getsignal(signal.SIGINT) is not before:
+        signal.signal(signal.SIGINT, before)
+
+
 @contextlib.contextmanager
 def session(name="sorofem"):
     """Yield the gmsh module with a fresh current model; the model is removed on exit (also on error)."""
@@ -62,7 +80,7 @@ def session(name="sorofem"):
     with _lock:
         global _initialized
         if not _initialized:  # gmsh 4.8 has no isInitialized(); initialising twice is harmless
-            gmsh.initialize([], readConfigFiles=False)
+            _initialize_keeping_sigint(gmsh)
             _initialized = True
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.option.setNumber("General.Verbosity", 2)
@@ -98,7 +116,19 @@ def set_options(gmsh, size, order=1, cell="simplex", algorithm=None, size_callba
     opt("Mesh.HighOrderOptimize", 2 if order == 2 else 0)  # untangle curved cells near curved boundaries
     opt("Mesh.ElementOrder", 1)
     if size_callback is not None:
-        gmsh.model.mesh.setSizeCallback(lambda d, t, x, y, z: float(size_callback(x, y, z)))
+        set_size_callback(gmsh, size_callback)
+
+
+def set_size_callback(gmsh, h):
+    """Make ``h(x, y, z) -> size [m]`` gmsh's mesh-size callback.
+
+    gmsh 4.8 calls the callback as ``(dim, tag, x, y, z)``; gmsh 4.11 and later (Debian 13 has 4.13) add the
+    size ``lc`` gmsh computed itself as a sixth argument. The adapter takes both, so no version test is needed.
+    """
+    def callback(dim, tag, x, y, z, *lc):
+        return float(h(x, y, z))
+
+    gmsh.model.mesh.setSizeCallback(callback)
 
 
 # --------------------------------------------------------------------------------------------------------- CSG

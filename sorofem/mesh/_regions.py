@@ -14,6 +14,7 @@ linear facets. Components are found on rank 0 from the gathered boundary facets 
 """
 import numpy as np
 
+from .. import _dolfinx
 from ..errors import MeshError
 
 __all__ = ["exterior_facets", "facet_geometry", "sides", "cavities", "select", "quality"]
@@ -21,17 +22,15 @@ __all__ = ["exterior_facets", "facet_geometry", "sides", "cavities", "select", "
 
 def exterior_facets(mesh):
     """Local indices of the exterior (boundary) facets of ``mesh``."""
-    import dolfinx.cpp.mesh as cmesh
+    import dolfinx.mesh
 
     tdim = mesh.topology.dim
     mesh.topology.create_connectivity(tdim - 1, tdim)
-    return np.asarray(cmesh.exterior_facet_indices(mesh.topology), dtype=np.int32)
+    return np.asarray(dolfinx.mesh.exterior_facet_indices(mesh.topology), dtype=np.int32)
 
 
 def _entity_vertex_coords(mesh, dim, entities):
-    import dolfinx.cpp.mesh as cmesh
-
-    nodes = cmesh.entities_to_geometry(mesh._mesh, dim, np.asarray(entities, dtype=np.int32), False)
+    nodes = _dolfinx.entity_vertex_nodes(mesh, dim, entities)
     gdim = mesh.geometry.dim
     return mesh.geometry.x[:, :gdim][nodes]  # (n, nv, gdim)
 
@@ -209,13 +208,11 @@ def quality(mesh):
     name = mesh.topology.cell_type.name
     ncell = mesh.topology.index_map(tdim).size_local
     nvert = mesh.topology.index_map(0).size_local
-    dofmap = mesh.geometry.dofmap
-    ndofs = dofmap.links(0).size if ncell else 0
-    geo = np.asarray(dofmap.array, dtype=np.int64)
-    geo = geo.reshape(-1, ndofs)[:ncell] if ncell else np.zeros((0, 1), dtype=np.int64)
+    geo = np.asarray(_dolfinx.geometry_dofs(mesh, ncell), dtype=np.int64) if ncell else \
+        np.zeros((0, 1), dtype=np.int64)
+    ndofs = geo.shape[1] if ncell else 0
     x = mesh.geometry.x[:, :gdim]
-    degree = mesh.geometry.cmap.degree if hasattr(mesh.geometry.cmap, "degree") else \
-        mesh.ufl_domain().ufl_coordinate_element().degree()
+    degree = _dolfinx.geometry_degree(mesh)
     bcell = _basix_cell(name)
     nv = {"triangle": 3, "quadrilateral": 4, "tetrahedron": 4, "hexahedron": 8}[name]
     V = x[geo[:, :nv]] if ncell else np.zeros((0, nv, gdim))

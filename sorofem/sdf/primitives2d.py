@@ -295,8 +295,9 @@ def _check_simple(v):
     if short.size:
         raise GeometryError(f"polygon has a zero-length edge at vertex {short[0]} ({v[short[0]].tolist()}): "
                             "remove repeated vertices (do not repeat the first vertex at the end)")
-    cross = np.cross(e, np.roll(e, -1, axis=0))
-    dot = np.einsum("ij,ij->i", e, np.roll(e, -1, axis=0))
+    e_next = np.roll(e, -1, axis=0)
+    cross = e[:, 0] * e_next[:, 1] - e[:, 1] * e_next[:, 0]  # z of e x e_next (np.cross of 2-vectors: deprecated)
+    dot = np.einsum("ij,ij->i", e, e_next)
     fold = np.flatnonzero((np.abs(cross) <= tol * scale) & (dot < 0))
     if fold.size:
         raise GeometryError(f"polygon folds back on itself at vertex {(fold[0] + 1) % n}: "

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
+from .. import _dolfinx
 from ..io import atomic_path
 
 __all__ = ["nodal_density", "density_image", "density_png", "write_xdmf", "threshold_mesh", "design_mesh",
@@ -29,8 +30,7 @@ __all__ = ["nodal_density", "density_image", "density_png", "write_xdmf", "thres
 
 
 def _cells(domain, n):
-    g = domain.geometry
-    return g.dofmap.array.reshape(-1, g.dofmap.offsets[1])[:n]
+    return _dolfinx.geometry_dofs(domain, n)
 
 
 def nodal_density(problem, x):

@@ -23,6 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .. import _dolfinx
 from ..errors import ParameterError
 
 __all__ = ["HelmholtzFilter", "ConeFilter", "IdentityFilter", "Heaviside", "cell_centroids", "cell_volumes"]
@@ -32,7 +33,7 @@ def cell_centroids(domain):
     """Vertex-average centroids (n_cells, gdim) [m] of the local cells of a DOLFINx mesh."""
     tdim = domain.topology.dim
     n = domain.topology.index_map(tdim).size_local
-    dofs = domain.geometry.dofmap.array.reshape(-1, domain.geometry.dofmap.offsets[1])[:n]
+    dofs = _dolfinx.geometry_dofs(domain, n)
     return domain.geometry.x[dofs, : domain.geometry.dim].mean(axis=1)
 
 
@@ -41,7 +42,7 @@ def cell_volumes(domain):
     import dolfinx.fem as fem
     import dolfinx.fem.petsc  # noqa: F401
     import ufl
-    Q = fem.FunctionSpace(domain, ("DG", 0))
+    Q = _dolfinx.function_space(domain, "DG", 0)
     w = ufl.TestFunction(Q)
     vec = dolfinx.fem.petsc.assemble_vector(fem.form(w * ufl.dx(metadata={"quadrature_degree": 2})))
     n = domain.topology.index_map(domain.topology.dim).size_local
@@ -139,8 +140,8 @@ class HelmholtzFilter:
         domain = getattr(domain, "dolfinx", domain)
         self.radius = _check_radius(radius)
         dx = ufl.dx(metadata={"quadrature_degree": 2})
-        V = fem.FunctionSpace(domain, ("CG", 1))
-        Q = fem.FunctionSpace(domain, ("DG", 0))
+        V = _dolfinx.function_space(domain, "Lagrange", 1)
+        Q = _dolfinx.function_space(domain, "DG", 0)
         p, q = ufl.TrialFunction(V), ufl.TestFunction(V)
         r2 = fem.Constant(domain, self.radius**2)
         A = self._scipy(fem.form((r2 * ufl.inner(ufl.grad(p), ufl.grad(q)) + p * q) * dx))

@@ -45,6 +45,7 @@ import math
 
 import numpy as np
 
+from .. import _dolfinx
 from ..errors import ConvergenceError, ParameterError
 from .filters import ConeFilter, Heaviside, HelmholtzFilter, IdentityFilter, cell_centroids
 
@@ -350,9 +351,9 @@ class TopOpt:
         simplex = dom.topology.cell_type.name in ("triangle", "tetrahedron")
         qd = 1 if (simplex and self.nonlinear) else 2
         dx = ufl.dx(domain=dom, metadata={"quadrature_degree": qd})
-        V = fem.VectorFunctionSpace(dom, ("CG", 1))
-        Q = fem.FunctionSpace(dom, ("DG", 0))
-        cell_dofs = Q.dofmap.list.array[: self.n].astype(np.int64)
+        V = _dolfinx.function_space(dom, "Lagrange", 1, "vector")
+        Q = _dolfinx.function_space(dom, "DG", 0)
+        cell_dofs = _dolfinx.cell_dofs(Q, self.n)[:, 0].astype(np.int64)
         u, v, du = fem.Function(V), ufl.TestFunction(V), ufl.TrialFunction(V)
         rho, lam = fem.Function(Q), fem.Function(V)
         load = fem.Constant(dom, PETSc.ScalarType(1.0))  # load factor (ramps of the hyperelastic solve)
@@ -592,7 +593,7 @@ class TopOpt:
         A = self._assemble_A(b) if self.nonlinear else b["A"]
         rhs = b["du"].duplicate()
         rhs.array[:nd] = b["l"]
-        lamv = b["lam"].vector
+        lamv = _dolfinx.petsc_vec(b["lam"])
         self._solve(A, rhs, lamv, transpose=True)
         rhs.destroy()
         b["lam"].x.scatter_forward()

@@ -308,3 +308,19 @@ def test_file_errors(tmp_path):
     junk.write_text("solid junk\nendsolid\n")
     with pytest.raises(MeshError):
         Mesh.from_file(junk)
+
+
+def test_ctrl_c_still_raises_keyboard_interrupt_after_meshing(tmp_path, subprocess_env):
+    """gmsh 4.13 (Debian 13) sets SIGINT to SIG_DFL in gmsh.initialize, 4.8 (Debian 12) at import: after a mesh
+    is built, Ctrl-C must still raise KeyboardInterrupt (clean-up runs), not kill the process."""
+    import subprocess
+    import sys
+
+    code = ("import os, signal, time\n"
+            "from sorofem import sdf\nfrom sorofem.mesh import Mesh\n"
+            "Mesh.from_sdf(sdf.Circle(1e-3), size=0.5e-3)\n"
+            "try:\n    os.kill(os.getpid(), signal.SIGINT)\n    time.sleep(5)\n"
+            "except KeyboardInterrupt:\n    print('KeyboardInterrupt')\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=subprocess_env,
+                         cwd=tmp_path, timeout=300)
+    assert res.returncode == 0 and res.stdout.strip().endswith("KeyboardInterrupt"), (res.returncode, res.stderr)
