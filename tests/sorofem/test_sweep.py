@@ -703,7 +703,9 @@ def test_ctrl_c_during_the_first_compile_leaves_no_lock(tmp_path, subprocess_env
     env, cache = _fresh_cache_env(tmp_path, subprocess_env)
     cmd = [*SORO, "sweep", str(cfg), "--out", str(tmp_path / "out")]
     code, lock, err = _first_compile_killed(cmd, env, cache, signal.SIGINT, tmp_path)
-    assert code == 130 and "interrupted: run the same command again to resume" in err, err
+    # 130, or ended by the SIGINT itself (-2; a shell shows both as 130): seen once in a loaded run, after the
+    # interrupt had been handled (message printed, locks removed), which is what this test is about
+    assert code in (130, -signal.SIGINT) and "interrupted: run the same command again to resume" in err, err
     assert not lock.exists() and not lock.with_suffix(".c.owner").exists()
     assert not (tmp_path / "out" / ".sweep.lock").exists()
     res = subprocess.run(cmd, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=1200)
