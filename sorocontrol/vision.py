@@ -46,6 +46,9 @@ from sorofem.errors import DataError, ParameterError
 
 from .camera import ArucoTarget, CameraModel, Frame, require_cv2
 
+# numpy 2 renamed trapz to trapezoid (trapz is deprecated there); numpy 1.24 has only trapz
+_trapezoid = getattr(np, "trapezoid", None) or np.trapz
+
 __all__ = ["HsvRange", "MarkerDetector", "Detection", "order_chain", "calibrate_world", "marker_points",
            "depth_at", "RED", "GREEN", "BLUE", "YELLOW"]
 
@@ -539,7 +542,7 @@ def _refine_quad(gray, corners, cells, samples=24):
         if ok.sum() < 0.5 * samples:
             return None                              # this side is hidden or not a clean edge
         nn = (prof[ok] - dark[ok, None]) / (bright - dark)[ok, None]
-        te = t[-1] - np.trapz(nn, t, axis=1)         # edge offset from the coarse side along the normal [px]
+        te = t[-1] - _trapezoid(nn, t, axis=1)         # edge offset from the coarse side along the normal [px]
         x = s[ok] * np.linalg.norm(b - a)            # position along the side [px]
         keep = np.abs(te - np.median(te)) <= max(3 * np.median(np.abs(te - np.median(te))), 0.3)
         for _ in range(4):                           # trimmed straight-line fit te = alpha + beta x

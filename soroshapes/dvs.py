@@ -376,7 +376,7 @@ def dvs_basis(data, dofs, energy=None):
 # ------------------------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class PolynomialForce:
-    """:math:`\tau(u) = \sum_{d=1}^{D} c_d u^d` with ``coefficients`` (D, n): an identified actuator."""
+    r""":math:`\tau(u) = \sum_{d=1}^{D} c_d u^d` with ``coefficients`` (D, n): an identified actuator."""
 
     coefficients: np.ndarray
 
