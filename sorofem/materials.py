@@ -18,8 +18,28 @@ unit reference volume [J/m^3 = Pa]. The isochoric parts:
 ``Yeoh``           :math:`W = \\sum_{i=1}^{3} c_i(\\bar I_1 - 3)^i`,  :math:`\\mu = 2 c_1`
 =================  =========================================================================
 
+``NeoHookean(..., form="coupled")`` is the textbook compressible form with Lame's parameters,
+:math:`\\psi = \\tfrac{\\mu}{2}(I_1 - 3) - \\mu \\ln J + \\tfrac{\\lambda}{2}(\\ln J)^2`
+(:math:`\\lambda = \\kappa - 2\\mu/3`; the same small-strain constants as the decoupled form).
+
 ``LinearElastic`` (for rigid parts: PLA, frames) is :math:`\\psi = \\tfrac{\\lambda}{2}(\\operatorname{tr}\\varepsilon)^2
 + \\mu\\, \\varepsilon:\\varepsilon` with :math:`\\varepsilon = \\operatorname{sym}(F) - I`.
+
+For the mixed displacement-pressure formulation every law splits as
+:math:`\\psi = \\hat\\psi(F) + \\tfrac{k}{2} g(F)^2` (exactly, or with the volumetric law replaced at large
+strain) and gives :meth:`Material.mixed_energy` :math:`\\hat\\psi(F) + p\\, g(F) - p^2/(2k)`, whose stationary
+point in the pressure :math:`p` [Pa] is :math:`p = k\\, g(F)`:
+
+=====================  ==========================================  ==================  ============
+law                    :math:`\\hat\\psi`                          :math:`g`            :math:`k`
+=====================  ==========================================  ==================  ============
+decoupled laws         :math:`W(\\bar I_1, \\bar I_2)`               :math:`J - 1`        :math:`\\kappa`
+coupled Neo-Hookean    :math:`\\tfrac{\\mu}{2}(I_1-3) - \\mu\\ln J`      :math:`\\ln J`        :math:`\\lambda`
+``LinearElastic``      :math:`\\mu\\, \\mathrm{dev}\\,\\varepsilon : \\mathrm{dev}\\,\\varepsilon`  :math:`\\operatorname{tr}\\varepsilon`  :math:`K`
+=====================  ==========================================  ==================  ============
+
+(for the decoupled laws the mixed volumetric energy is :math:`\\kappa (J-1)^2/2`, equal to :math:`U(J)` to
+second order at :math:`J = 1`).
 
 The same formula serves two back ends: :meth:`Material.strain_energy` takes a UFL 3x3 deformation gradient
 (the FEM embeds plane-strain gradients in 3x3), and :meth:`Material.energy`, :meth:`Material.pk1`,
@@ -158,7 +178,17 @@ class Material:
         """Small-strain bulk modulus [Pa]."""
         raise NotImplementedError
 
+    def _mixed_parts(self, F):
+        """``(psi_hat, g, k)`` of the split :math:`\\psi = \\hat\\psi + k g^2/2` (see the module doc), UFL."""
+        raise NotImplementedError
+
     # --- derived -------------------------------------------------------------------------------------
+    def mixed_energy(self, F, p):
+        """Energy density [Pa] of the mixed formulation, :math:`\\hat\\psi(F) + p\\, g(F) - p^2/(2k)`, as a UFL
+        expression of a 3x3 UFL ``F`` and the pressure field ``p`` [Pa] (see the module doc)."""
+        psi_hat, g, k = self._mixed_parts(F)
+        return psi_hat + p * g - p**2 / (2.0 * k)
+
     @property
     def E(self):
         """Small-strain Young's modulus [Pa]: :math:`E = 9KG/(3K+G)`."""
@@ -181,6 +211,8 @@ class Material:
             args.pop("kappa", None)
         if "E" in changes:  # Young's modulus replaces the stored shear modulus
             args.pop("mu", None)
+        if "lmbda" in changes:  # Lame's first parameter replaces the stored bulk modulus
+            args.pop("kappa", None)
         return type(self)(**{**args, **changes})
 
     def _args(self):
@@ -253,6 +285,10 @@ class Hyperelastic(Material):
         import ufl
         return self.isochoric_energy(F) + self.volumetric_energy(ufl.det(F), log=ufl.ln)
 
+    def _mixed_parts(self, F):
+        import ufl
+        return self.isochoric_energy(F), ufl.det(F) - 1.0, self.kappa
+
     @staticmethod
     def _invariants(F):
         J = np.linalg.det(F)
@@ -288,14 +324,19 @@ class Hyperelastic(Material):
 
 
 class NeoHookean(Hyperelastic):
-    """Neo-Hookean solid, :math:`W = \\tfrac{\\mu}{2}(\\bar I_1 - 3)`.
+    """Neo-Hookean solid in the decoupled form :math:`\\psi = \\tfrac{\\mu}{2}(\\bar I_1 - 3) + U(J)` (default) or
+    the coupled form with Lame's parameters,
+    :math:`\\psi = \\tfrac{\\mu}{2}(I_1 - 3) - \\mu \\ln J + \\tfrac{\\lambda}{2}(\\ln J)^2`.
 
     Parameters
     ----------
     mu : float, optional
-        Shear modulus [Pa]. Alternatively give ``E`` [Pa] (with ``nu``, default 0.49): :math:`\\mu = E/(2(1+\\nu))`.
-    kappa, nu : float, optional
-        Bulk modulus [Pa], or small-strain Poisson ratio [-] (default 0.49).
+        Shear modulus [Pa]. Alternatively give ``E`` [Pa] (with ``nu``, default 0.49, or ``kappa`` or ``lmbda``).
+    kappa, nu, lmbda : float, optional
+        One of: bulk modulus [Pa], small-strain Poisson ratio [-] (default 0.49), Lame's first parameter [Pa]
+        (:math:`\\lambda = \\kappa - 2\\mu/3`). Both forms have the same small-strain constants.
+    form : {"decoupled", "coupled"}
+        Which energy (see above); they differ at finite volume change only.
     density, damping, friction, name : see :class:`Material`.
 
     Examples
@@ -304,13 +345,34 @@ class NeoHookean(Hyperelastic):
     >>> m = NeoHookean(E=19 * kPa, nu=0.45)
     >>> round(m.E / kPa, 6), round(m.nu, 6)
     (19.0, 0.45)
+    >>> c = NeoHookean(mu=1.0, lmbda=2.0, form="coupled")
+    >>> round(c.K, 6), round(c.lmbda, 6)
+    (2.666667, 2.0)
     """
 
-    def __init__(self, mu=None, *, E=None, **kw):
+    FORMS = ("decoupled", "coupled")
+
+    def __init__(self, mu=None, *, E=None, lmbda=None, form="decoupled", **kw):
+        if form not in self.FORMS:
+            raise ParameterError(f"form must be one of {self.FORMS}, got {form!r}")
+        self.form = form
         if (mu is None) == (E is None):
             raise ParameterError("give exactly one of mu (shear modulus) or E (Young's modulus), in Pa")
+        if lmbda is not None:
+            given = [k for k in ("kappa", "nu") if kw.get(k) is not None]
+            if given:
+                raise ParameterError(f"give one of lmbda, kappa or nu for the volumetric stiffness, not lmbda and "
+                                     f"{given[0]}")
+            lmbda = float(lmbda)
+            if not math.isfinite(lmbda):
+                raise ParameterError(f"lmbda must be finite [Pa], got {lmbda}")
         if mu is not None:
             self._mu = _positive("mu", mu)
+        elif lmbda is not None:  # E = mu (3 lmbda + 2 mu) / (lmbda + mu): the positive root in mu
+            E = _positive("E", E)
+            self._mu = ((E - 3 * lmbda) + math.sqrt((E - 3 * lmbda) ** 2 + 8 * E * lmbda)) / 4
+            if not (math.isfinite(self._mu) and self._mu > 0):
+                raise ParameterError(f"E={E} Pa and lmbda={lmbda} Pa give no positive shear modulus")
         elif kw.get("kappa") is not None:  # mu from E and the bulk modulus: E = 9 K mu / (3 K + mu)
             E, kappa = _positive("E", E), _positive("kappa", kw["kappa"])
             if E >= 9 * kappa:
@@ -319,11 +381,22 @@ class NeoHookean(Hyperelastic):
         else:
             nu = kw.get("nu")
             self._mu = _positive("E", E) / (2 * (1 + _poisson(0.49 if nu is None else nu)))
+        if lmbda is not None:
+            kappa = lmbda + 2.0 * self._mu / 3.0
+            if kappa <= 0:
+                raise ParameterError(f"lmbda={lmbda} Pa needs lmbda > -2 mu / 3 = {-2 * self._mu / 3:.6g} Pa (a "
+                                     "positive bulk modulus)")
+            kw["kappa"] = kappa
         super().__init__(**kw)
 
     @property
     def mu(self):
         return self._mu
+
+    @property
+    def lmbda(self):
+        """Lame's first parameter [Pa], :math:`\\lambda = \\kappa - 2\\mu/3`."""
+        return self.kappa - 2.0 * self._mu / 3.0
 
     def _w(self, I1b, I2b):
         return 0.5 * self._mu * (I1b - 3.0)
@@ -331,8 +404,41 @@ class NeoHookean(Hyperelastic):
     def _dw(self, I1b, I2b):
         return 0.5 * self._mu, 0.0
 
+    # the coupled form: psi = mu/2 (I1 - 3) - mu ln J + lmbda/2 (ln J)^2
+    def strain_energy(self, F):
+        if self.form == "decoupled":
+            return super().strain_energy(F)
+        import ufl
+        lnJ = ufl.ln(ufl.det(F))
+        return 0.5 * self._mu * (ufl.tr(F.T * F) - 3.0) - self._mu * lnJ + 0.5 * self.lmbda * lnJ**2
+
+    def _mixed_parts(self, F):
+        if self.form == "decoupled":
+            return super()._mixed_parts(F)
+        import ufl
+        lnJ = ufl.ln(ufl.det(F))
+        return 0.5 * self._mu * (ufl.tr(F.T * F) - 3.0) - self._mu * lnJ, lnJ, self.lmbda
+
+    def energy(self, F):
+        if self.form == "decoupled":
+            return super().energy(F)
+        F = _as_gradient(F)
+        J, _, I1, _ = self._invariants(F)
+        lnJ = np.log(J)
+        return 0.5 * self._mu * (I1 - 3.0) - self._mu * lnJ + 0.5 * self.lmbda * lnJ**2
+
+    def pk1(self, F):
+        """Decoupled: see :meth:`Hyperelastic.pk1`. Coupled:
+        :math:`P = \\mu (F - F^{-T}) + \\lambda \\ln J\\, F^{-T}`."""
+        if self.form == "decoupled":
+            return super().pk1(F)
+        F = _as_gradient(F)
+        FinvT = np.swapaxes(np.linalg.inv(F), -1, -2)
+        lnJ = np.log(np.linalg.det(F))[..., None, None]
+        return self._mu * (F - FinvT) + self.lmbda * lnJ * FinvT
+
     def _args(self):
-        return {"mu": self._mu, **super()._args()}
+        return {"mu": self._mu, **super()._args(), "form": self.form}
 
 
 class MooneyRivlin(Hyperelastic):
@@ -424,6 +530,12 @@ class LinearElastic(Material):
         import ufl
         eps = ufl.sym(F) - ufl.Identity(3)
         return 0.5 * self.lmbda * ufl.tr(eps) ** 2 + self.mu * ufl.inner(eps, eps)
+
+    def _mixed_parts(self, F):
+        import ufl
+        eps = ufl.sym(F) - ufl.Identity(3)
+        dev = eps - ufl.tr(eps) / 3.0 * ufl.Identity(3)
+        return self.mu * ufl.inner(dev, dev), ufl.tr(eps), self.K
 
     def _eps(self, F):
         F = np.asarray(F, dtype=float)

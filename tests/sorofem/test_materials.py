@@ -9,6 +9,7 @@ from sorofem.units import kPa, MPa
 
 LAWS = {
     "neo-hookean": lambda **kw: mat.NeoHookean(mu=50 * kPa, **kw),
+    "neo-hookean-coupled": lambda **kw: mat.NeoHookean(mu=50 * kPa, form="coupled", **kw),
     "mooney-rivlin": lambda **kw: mat.MooneyRivlin(30 * kPa, 10 * kPa, **kw),
     "yeoh": lambda **kw: mat.Yeoh(17 * kPa, -0.2 * kPa, 0.023 * kPa, **kw),
 }
@@ -86,6 +87,32 @@ def test_uniaxial_compressible_neo_hookean_from_cauchy_formula(nu, lam):
     assert m.pk1(F)[1, 1] == pytest.approx(0, abs=1e-8 * mu)
 
 
+@pytest.mark.parametrize("a", [0.6, 1.0, 1.7])
+def test_coupled_neo_hookean_uniaxial_strain_closed_form(a):
+    """F = diag(a, 1, 1): P11 = mu (a - 1/a) + lambda ln(a)/a, P22 = P33 = lambda ln a (the coupled form's
+    textbook stresses); the decoupled form with the same constants agrees to second order in ln a only."""
+    mu, lmbda = 40 * kPa, 150 * kPa
+    m = mat.NeoHookean(mu=mu, lmbda=lmbda, form="coupled")
+    P = m.pk1(np.diag([a, 1.0, 1.0]))
+    np.testing.assert_allclose(np.diag(P), [mu * (a - 1 / a) + lmbda * np.log(a) / a, lmbda * np.log(a),
+                                            lmbda * np.log(a)], rtol=1e-12, atol=1e-9 * mu)
+    assert m.energy(np.diag([a, 1.0, 1.0])) == pytest.approx(
+        0.5 * mu * (a * a - 1) - mu * np.log(a) + 0.5 * lmbda * np.log(a) ** 2, rel=1e-12, abs=1e-12 * mu)
+    d = mat.NeoHookean(mu=mu, lmbda=lmbda)       # the decoupled default, same small-strain constants
+    assert d.form == "decoupled" and d.K == pytest.approx(m.K) and m.lmbda == pytest.approx(lmbda)
+    eps = 1e-5
+    assert d.pk1(np.diag([1 + eps, 1, 1]))[0, 0] == pytest.approx(m.pk1(np.diag([1 + eps, 1, 1]))[0, 0], rel=1e-4)
+
+
+def test_lame_parameters_are_accepted_and_converted():
+    m = mat.NeoHookean(E=1 * MPa, lmbda=2 * MPa, form="coupled")
+    assert m.E == pytest.approx(1 * MPa) and m.lmbda == pytest.approx(2 * MPa)
+    assert m.nu == pytest.approx(m.lmbda / (2 * (m.lmbda + m.mu)))
+    c = m.with_(lmbda=3 * MPa)
+    assert c.form == "coupled" and c.lmbda == pytest.approx(3 * MPa) and c.mu == pytest.approx(m.mu)
+    assert m.with_(nu=0.3).nu == pytest.approx(0.3)
+
+
 def test_small_strain_constants_are_consistent():
     m = mat.NeoHookean(E=1 * MPa, nu=0.3)
     assert m.E == pytest.approx(1 * MPa) and m.nu == pytest.approx(0.3) and m.G == pytest.approx(1 * MPa / 2.6)
@@ -155,6 +182,9 @@ def test_every_preset_is_physical(name):
     (lambda: mat.Ecoflex0030(density=0), "density must be a positive"),
     (lambda: mat.Ecoflex0030(damping=-0.1), "damping must be a non-negative"),
     (lambda: mat.NeoHookean(mu=float("nan")), "positive finite"),
+    (lambda: mat.NeoHookean(mu=1e5, lmbda=1e6, nu=0.3), "not lmbda and nu"),
+    (lambda: mat.NeoHookean(mu=1e5, lmbda=-1e5), "lmbda > -2 mu / 3"),
+    (lambda: mat.NeoHookean(mu=1e5, form="lame"), "form must be one of"),
 ])
 def test_non_physical_parameters_are_refused(make, match):
     with pytest.raises(ParameterError, match=match):
