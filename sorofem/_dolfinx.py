@@ -17,7 +17,7 @@ import numpy as np
 
 __all__ = ["SUPPORTED", "version", "support_status", "create_mesh", "gmsh_node_order", "gmsh_facet_node_order",
            "geometry_degree", "geometry_dofs", "cell_dofs", "entity_vertex_nodes", "function_space",
-           "taylor_hood_space", "interpolation_points", "petsc_vec", "set_bc", "apply_lifting",
+           "mixed_space", "taylor_hood_space", "interpolation_points", "petsc_vec", "set_bc", "apply_lifting",
            "create_petsc_vector", "orthonormalize", "colliding_cells", "write_meshtags", "set_jit_timeout"]
 
 #: Oldest and newest DOLFINx ``(major, minor)`` that the test suite runs on (Debian 12 and Debian 13).
@@ -194,8 +194,8 @@ def _element(mesh, family, degree, shape=None):
                                  shape=shape)
     import ufl
 
-    fam = "DG" if disc else "Lagrange"
     cell = mesh.ufl_cell()
+    fam = ("DQ" if cell.cellname() in ("quadrilateral", "hexahedron") else "DG") if disc else "Lagrange"
     if shape is None:
         return ufl.FiniteElement(fam, cell, degree)
     if len(shape) == 1:
@@ -219,22 +219,28 @@ def function_space(mesh, family, degree, shape=None):
     return dolfinx.fem.FunctionSpace(mesh, el)
 
 
-def taylor_hood_space(mesh):
-    """The mixed space P2^d x P1 (displacement, pressure) on ``mesh``.
+def mixed_space(mesh, parts):
+    """A mixed space of ``parts``, each ``(family, degree, shape)`` as for :func:`function_space`
+    (e.g. ``[("Lagrange", 2, "vector"), ("Lagrange", 1, None)]``).
 
     0.5: ``ufl.MixedElement`` of legacy elements; 0.8+: ``basix.ufl.mixed_element``.
     """
     import dolfinx.fem
 
-    u_el = _element(mesh, "Lagrange", 2, (mesh.geometry.dim,))
-    p_el = _element(mesh, "Lagrange", 1)
+    els = [_element(mesh, fam, deg, (mesh.geometry.dim,) if shape == "vector" else shape)
+           for fam, deg, shape in parts]
     if _at_least(8):
         import basix.ufl
 
-        return dolfinx.fem.functionspace(mesh, basix.ufl.mixed_element([u_el, p_el]))
+        return dolfinx.fem.functionspace(mesh, basix.ufl.mixed_element(els))
     import ufl
 
-    return dolfinx.fem.FunctionSpace(mesh, ufl.MixedElement([u_el, p_el]))
+    return dolfinx.fem.FunctionSpace(mesh, ufl.MixedElement(els))
+
+
+def taylor_hood_space(mesh):
+    """The mixed space P2^d x P1 (displacement, pressure) on ``mesh`` (see :func:`mixed_space`)."""
+    return mixed_space(mesh, [("Lagrange", 2, "vector"), ("Lagrange", 1, None)])
 
 
 def interpolation_points(V):

@@ -56,8 +56,9 @@ class Contact:
         gdim, fdim = msh.geometry.dim, msh.topology.dim - 1
         if self.obstacle.dim != gdim:
             raise ParameterError(f"a {self.obstacle.dim}D obstacle cannot touch a {gdim}D body")
-        if fem.mixed:
-            raise ParameterError("contact is available for the displacement formulation (mixed=False)")
+        if fem._split:
+            raise ParameterError("contact is available for the displacement formulation (mixed=False, not plane "
+                                 "stress)")
         msh.topology.create_connectivity(fdim, msh.topology.dim)
         facets = dolfinx.mesh.exterior_facet_indices(msh.topology)
         V0, to_w = W.sub(0).collapse()

@@ -81,7 +81,7 @@ def amplification_matrix(integrator, omega_dt, xi=0.0):
 
 def _displacement_part(fem, f):
     import ufl
-    return ufl.split(f)[0] if fem.mixed else f
+    return ufl.split(f)[0] if fem._split else f
 
 
 def simulate(fem, t_end, dt, scheme="generalized_alpha", rho_inf=0.8, beta=0.25, gamma=0.5, rayleigh=(0.0, 0.0),
@@ -99,9 +99,10 @@ def simulate(fem, t_end, dt, scheme="generalized_alpha", rho_inf=0.8, beta=0.25,
 
     if not (np.isfinite(t_end) and t_end > 0 and np.isfinite(dt) and dt > 0):
         raise ParameterError(f"t_end and dt must be positive, got t_end={t_end}, dt={dt}")
-    if fem.mixed:
+    if fem._split:
         raise ParameterError("dynamics uses the displacement formulation: build the Fem with mixed=False (degree=2 "
-                             "and nu <= 0.49 keep locking small)")
+                             "and nu <= 0.49 keep locking small) and formulation 'plane_strain', 'axisymmetric' or "
+                             "'3d'; fem.eigen() gives the vibration modes of the mixed formulation")
     alpha_M, alpha_K = (float(c) for c in rayleigh)
     if alpha_M < 0 or alpha_K < 0:
         raise ParameterError(f"Rayleigh coefficients must be >= 0, got {rayleigh}")

@@ -7,6 +7,13 @@ At the current state :math:`u` the tangent stiffness :math:`K = \\partial R/\\pa
 of stability (buckling or a limit point). Follower pressures make :math:`K` non-symmetric: the problem is then
 solved as non-Hermitian and the real parts are reported. Dirichlet rows carry 1 in :math:`K` and 0 in
 :math:`M`, so constrained dofs map to infinite eigenvalues, far from the shift-and-invert target.
+
+In the mixed formulation (and in plane stress) the state holds a second field without inertia, the pressure
+(the thickness strain): :math:`M` is zero on its rows, so the problem is
+:math:`\\begin{bmatrix} K_{uu} & B^T \\\\ B & -C \\end{bmatrix} \\begin{bmatrix}\\phi \\\\ q\\end{bmatrix} =
+\\lambda \\begin{bmatrix} M_{uu} & 0 \\\\ 0 & 0\\end{bmatrix} \\begin{bmatrix}\\phi \\\\ q\\end{bmatrix}`: the second
+field is condensed out exactly (:math:`q = C^{-1} B \\phi`) and its rows only add infinite eigenvalues. The
+stiffness :math:`K_{uu} + B^T C^{-1} B` seen by the displacement is then free of volumetric locking.
 """
 import numpy as np
 
@@ -46,14 +53,13 @@ def eigenmodes(fem, n=6, shift=0.0, tol=1e-10):
     import dolfinx.fem.petsc
     from slepc4py import SLEPc
 
-    if fem.mixed:
-        raise ParameterError("eigen-analysis is available for the displacement formulation; build the Fem "
-                             "with mixed=False (degree=2 and nu <= 0.49 avoid locking)")
     if int(n) < 1:
         raise ParameterError(f"n must be >= 1, got {n}")
     b = fem._built or fem._build()
     W, kin = b["W"], b["kin"]
     u, v = ufl.TrialFunction(W), ufl.TestFunction(W)
+    if fem._split:  # the displacement part; the second field carries no inertia
+        u, v = ufl.split(u)[0], ufl.split(v)[0]
     md = {"quadrature_degree": fem.quadrature_degree}
     dx = ufl.Measure("dx", domain=fem.mesh.dolfinx, subdomain_data=b["cell_tags"], metadata=md)
     mass = sum(mat.density * ufl.dot(u, v) * kin.weight * dx(k) for k, (_, mat) in enumerate(fem._materials))
@@ -61,7 +67,7 @@ def eigenmodes(fem, n=6, shift=0.0, tol=1e-10):
     K.assemble()
     M = dolfinx.fem.petsc.assemble_matrix(dolfinx.fem.form(mass), bcs=b["bcs"], diagonal=0.0)
     M.assemble()
-    symmetric = not fem._pressures
+    symmetric = not fem._pressures and not fem._split  # M is singular on the second field: see the module doc
     eps = SLEPc.EPS().create(fem.mesh.comm)
     eps.setOperators(K, M)
     eps.setProblemType(SLEPc.EPS.ProblemType.GHEP if symmetric else SLEPc.EPS.ProblemType.GNHEP)
@@ -96,7 +102,7 @@ def eigenmodes(fem, n=6, shift=0.0, tol=1e-10):
     pairs = pairs[:n]
     shapes = []
     for _, f in pairs:
-        b["u1"].interpolate(f)
+        b["u1"].interpolate(f.sub(0).collapse() if fem._split else f)
         s = b["gatherer"].gather_function(b["u1"])
         if s is not None:
             s = s / max(np.abs(s).max(), 1e-300)

@@ -1,10 +1,17 @@
-"""Kinematics of the three formulations, written once in 3x3 form.
+"""Kinematics of the four formulations, written once in 3x3 form.
 
 Every formulation gives a 3x3 deformation gradient, so that material laws, follower pressures and cavity
 volumes are written once in 3D algebra:
 
 ``plane_strain`` (2D, per unit depth)
     :math:`F = \\begin{bmatrix} I_2 + \\nabla u & 0 \\\\ 0 & 1 \\end{bmatrix}`, measure weight 1 [m of depth].
+``plane_stress`` (2D, per unit reference thickness)
+    :math:`F = \\begin{bmatrix} I_2 + \\nabla u & 0 \\\\ 0 & \\lambda_3 \\end{bmatrix}`, weight 1 [m of
+    thickness]. The thickness stretch :math:`\\lambda_3 = 1 + e_{33}` is a discontinuous field of one degree
+    below the displacement's, an unknown of the problem: stationarity of the energy with respect to it is
+    :math:`\\int P_{33}\\, \\delta e_{33}\\, dX = 0`, the plane-stress condition, for every material law
+    (for linear elasticity on straight-sided triangles it gives exactly the condensed plane-stress law,
+    :math:`e_{33} = -\\lambda (\\varepsilon_{11} + \\varepsilon_{22}) / (\\lambda + 2\\mu)`).
 ``axisymmetric`` (2D section in the (r, z) = (x, y) half plane, x >= 0, revolved about the y axis)
     :math:`F = \\begin{bmatrix} I_2 + \\nabla u & 0 \\\\ 0 & 1 + u_r / R \\end{bmatrix}` (hoop stretch),
     measure weight :math:`2\\pi R`, so that integrals are over the full revolved body.
@@ -17,9 +24,11 @@ import math
 
 import ufl
 
+from ..errors import ParameterError
+
 __all__ = ["FORMULATIONS", "Kinematics"]
 
-FORMULATIONS = ("plane_strain", "axisymmetric", "3d")
+FORMULATIONS = ("plane_strain", "plane_stress", "axisymmetric", "3d")
 
 
 class Kinematics:
@@ -27,12 +36,17 @@ class Kinematics:
 
     Parameters
     ----------
-    formulation : {"plane_strain", "axisymmetric", "3d"}
+    formulation : {"plane_strain", "plane_stress", "axisymmetric", "3d"}
     domain : dolfinx.mesh.Mesh
+    thickness_strain : UFL expression, optional
+        The out-of-plane strain :math:`e_{33} = \\lambda_3 - 1` [-] (plane stress only, where it is required).
     """
 
-    def __init__(self, formulation, domain):
+    def __init__(self, formulation, domain, thickness_strain=None):
+        if (formulation == "plane_stress") != (thickness_strain is not None):
+            raise ParameterError("the thickness strain is given for (and only for) the plane-stress formulation")
         self.formulation = formulation
+        self.thickness_strain = thickness_strain
         self.gdim = domain.geometry.dim
         self.X = ufl.SpatialCoordinate(domain)
         self.N = ufl.FacetNormal(domain)
@@ -48,7 +62,12 @@ class Kinematics:
         g = ufl.grad(u)
         if self.formulation == "3d":
             return ufl.Identity(3) + g
-        hoop = 1.0 if self.formulation == "plane_strain" else 1.0 + u[0] / self.X[0]
+        if self.formulation == "plane_strain":
+            hoop = 1.0
+        elif self.formulation == "plane_stress":
+            hoop = 1.0 + self.thickness_strain
+        else:
+            hoop = 1.0 + u[0] / self.X[0]
         return ufl.as_matrix([[1.0 + g[0, 0], g[0, 1], 0.0],
                               [g[1, 0], 1.0 + g[1, 1], 0.0],
                               [0.0, 0.0, hoop]])
@@ -69,5 +88,6 @@ class Kinematics:
 
     @property
     def dimension(self):
-        """Spatial dimension of the enclosed volumes: 2 for plane strain (areas per depth), else 3."""
-        return 2 if self.formulation == "plane_strain" else 3
+        """Spatial dimension of the enclosed volumes: 2 for plane strain and plane stress (areas per depth; in
+        plane stress times the current thickness stretch), else 3."""
+        return 2 if self.formulation in ("plane_strain", "plane_stress") else 3

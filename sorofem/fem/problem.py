@@ -13,9 +13,15 @@ Weak form (reference configuration, weight :math:`w` = 1, or :math:`2\\pi R` whe
 
 Pressures are follower loads (they act along the current normal on the current area, Nanson's formula);
 a positive pressure pushes on the body's surface (inflates a cavity). With ``mixed=True`` the energy is
-:math:`\\int W_{iso}(F) + p (J - 1) - p^2/(2\\kappa)` with Taylor-Hood P2/P1 fields (no volumetric locking
-as :math:`\\nu \\to 1/2`); its volumetric law is :math:`U = \\kappa (J-1)^2/2`, equal at small strain to the
-displacement formulation's.
+:math:`\\int \\hat\\psi(F) + p\\, g(F) - p^2/(2k)` (:meth:`sorofem.materials.Material.mixed_energy`: for
+the decoupled laws :math:`W_{iso}(F) + p (J - 1) - p^2/(2\\kappa)`, for linear elasticity
+:math:`\\mu\\,\\mathrm{dev}\\,\\varepsilon:\\mathrm{dev}\\,\\varepsilon + p \\operatorname{tr}\\varepsilon - p^2/(2K)`) with
+Taylor-Hood P2/P1 fields: no volumetric locking as :math:`\\nu \\to 1/2`. Displacement-only P1 elements lock
+there (a nearly incompressible body becomes many times too stiff); building such a model warns
+(:class:`LockingWarning`) and names the fix.
+
+``formulation="plane_stress"`` adds the thickness strain as a discontinuous unknown field (see
+:mod:`sorofem.fem.kinematics`); results are per unit reference thickness.
 
 Loads depend on a parameter ``t`` marched from 0 to ``t_end`` by :meth:`Fem.solve`: a number ``a`` is applied
 as :math:`a\\,t` (a ramp reaching ``a`` at ``t = 1``); a callable ``f`` is applied as ``f(t)``. In
@@ -24,20 +30,29 @@ as :math:`a\\,t` (a ramp reaching ``a`` at ``t = 1``); a callable ``f`` is appli
 import logging
 import math
 import time as _time
+import warnings
 
 import numpy as np
 
 from .. import _dolfinx
 from .._jit import silence_compiler_logs
 from ..errors import ConvergenceError, MeshError, ParameterError
-from ..materials import Hyperelastic, Material
+from ..materials import Material
 from ..units import standard_gravity
 from .kinematics import FORMULATIONS, Kinematics
 from .newton import NewtonSolver, VolumeConstraint
 from .stepping import march
 from .results import Trajectory, VertexGatherer
 
-__all__ = ["Fem"]
+__all__ = ["Fem", "LockingWarning"]
+
+#: Poisson ratio from which displacement-only P1 elements warn of volumetric locking (bulk/shear modulus
+#: ratio ~100). The silicone presets' default 0.49 (ratio 50) stays below it.
+LOCKING_NU = 0.495
+
+
+class LockingWarning(UserWarning):
+    """A displacement-only P1 model of a nearly incompressible material: expect it to be far too stiff."""
 
 
 def _max_op():
@@ -105,9 +120,11 @@ class Fem:
         The body, with named regions (``left``, ``cavity_0``, ...).
     material : sorofem.materials.Material
         Material of every cell not assigned another one by :meth:`add_material`.
-    formulation : {"plane_strain", "axisymmetric", "3d"}, optional
+    formulation : {"plane_strain", "plane_stress", "axisymmetric", "3d"}, optional
         Default: ``plane_strain`` on 2D meshes, ``3d`` on 3D meshes. Axisymmetric meshes lie in x >= 0
         (x = r, y = z, axis = y axis); the radial displacement is fixed on the axis automatically.
+        ``plane_stress``: a thin sheet in the plane, results per unit reference thickness (forces [N/m],
+        tractions [Pa], energies [J/m]).
     degree : {1, 2}
         Polynomial degree of the displacement (2 with ``mixed``).
     mixed : bool
@@ -146,6 +163,9 @@ class Fem:
             raise ParameterError(f"degree must be 1 or 2, got {degree!r}")
         if mixed and degree != 2:
             raise ParameterError("the mixed formulation uses Taylor-Hood P2/P1 elements: pass degree=2")
+        if mixed and formulation == "plane_stress":
+            raise ParameterError("plane stress does not lock (the thickness is free to change): use mixed=False "
+                                 "with formulation='plane_stress'")
         self.formulation, self.degree, self.mixed = formulation, degree, bool(mixed)
         self.quadrature_degree = int(quadrature_degree or 2 * degree)
         self.petsc_options = dict(petsc_options or {})
@@ -165,6 +185,10 @@ class Fem:
     def _check_material(self, material):
         if not isinstance(material, Material):
             raise ParameterError(f"material must be a sorofem.materials.Material, got {type(material).__name__}")
+        if self.degree == 1 and not self.mixed and self.formulation != "plane_stress" and material.nu >= LOCKING_NU:
+            warnings.warn(f"{material.name} has nu = {material.nu:.4g} >= {LOCKING_NU}: displacement-only P1 "
+                          "elements lock (the model becomes many times too stiff); use degree=2, mixed=True "
+                          "(Taylor-Hood) for nearly incompressible materials", LockingWarning, stacklevel=3)
         return material
 
     def _region(self, name, kind):
@@ -324,20 +348,26 @@ class Fem:
 
         msh = self.mesh.dolfinx
         tdim, fdim = msh.topology.dim, msh.topology.dim - 1
-        kin = Kinematics(self.formulation, msh)
         if self.mixed:
             W = _dolfinx.taylor_hood_space(msh)
+        elif self.formulation == "plane_stress":  # displacement and thickness strain
+            W = _dolfinx.mixed_space(msh, [("Lagrange", self.degree, "vector"), ("DG", self.degree - 1, None)])
         else:
             W = _dolfinx.function_space(msh, "Lagrange", self.degree, "vector")
         w = dolfinx.fem.Function(W, name="state")
         carry = getattr(self, "_carry", None)
         if carry is not None and carry.shape == w.x.array.shape:  # same spaces: keep the current state
             w.x.array[:] = carry
+        p = e33 = None
         if self.mixed:
             u, p = ufl.split(w)
             v, _ = ufl.TestFunctions(W)
+        elif self.formulation == "plane_stress":
+            u, e33 = ufl.split(w)
+            v, _ = ufl.TestFunctions(W)
         else:
             u, v = w, ufl.TestFunction(W)
+        kin = Kinematics(self.formulation, msh, thickness_strain=e33)
         md = {"quadrature_degree": self.quadrature_degree}
         wt = kin.weight
 
@@ -360,11 +390,7 @@ class Fem:
             Fe = F * growth ** (-1.0 / 3.0)
             if not self.mixed:
                 return growth * mat.strain_energy(Fe)
-            if not isinstance(mat, Hyperelastic):
-                raise ParameterError(f"the mixed formulation needs hyperelastic materials; {mat.name} is "
-                                     f"{type(mat).__name__}")
-            Je = ufl.det(Fe)
-            return growth * (mat.isochoric_energy(Fe) + p * (Je - 1) - p**2 / (2 * mat.kappa))
+            return growth * mat.mixed_energy(Fe, p)
 
         energy = sum(density(mat, F) * wt * dx(k) for k, (_, mat) in enumerate(self._materials))
         residual = ufl.derivative(energy, w, ufl.TestFunction(W))
@@ -421,7 +447,7 @@ class Fem:
                 residual -= mat.density * ufl.dot(g, v) * wt * dx(k)
 
         # Dirichlet conditions
-        Wu = W.sub(0) if self.mixed else W
+        Wu = W.sub(0) if self._split else W
         bcs, bc_consts, support_dofs = [], [], {}
         fixed = [(r, comps, None) for r, comps in self._supports] + list(self._displacements)
         if self.formulation == "axisymmetric":
@@ -469,6 +495,9 @@ class Fem:
             for comp in support_dofs[region]:
                 dofs = np.unique(np.concatenate(support_dofs[region][comp]))
                 support_dofs[region][comp] = dofs[dofs < owned]
+        if self._split and (self._tendons or self._contacts):
+            raise ParameterError("tendons and contact act on the displacement formulation: build the Fem with "
+                                 "mixed=False and formulation 'plane_strain', 'axisymmetric' or '3d'")
         for tendon in self._tendons:
             tendon.setup(msh, W, owned, bcs)
         for contact in self._contacts:
@@ -528,7 +557,7 @@ class Fem:
     def displacement(self):
         """The current displacement as a DOLFINx Function (collapsed copy in the mixed formulation)."""
         b = self._built or self._build()
-        return b["w"].sub(0).collapse() if self.mixed else b["w"]
+        return b["w"].sub(0).collapse() if self._split else b["w"]
 
     def _scalar(self, form):
         import dolfinx.fem
@@ -727,7 +756,7 @@ class Fem:
             for load in point_loads:
                 load.add_tangent(A, u_array, b["t"])
 
-        gamg = self.petsc_options.get("pc_type") == "gamg" and not self.mixed
+        gamg = self.petsc_options.get("pc_type") == "gamg" and not self._split
         return NewtonSolver(R, J, b["w"], b["bcs"], self.petsc_options, scale=self._size(),
                             near_nullspace=NewtonSolver.rigid_body_modes(b["W"]) if gamg else None,
                             max_iterations=max_iterations, constraints=[c for _, _, c in b["controls"]],
@@ -806,6 +835,11 @@ class Fem:
         from .eigen import eigenmodes
 
         return eigenmodes(self, n=n, shift=shift)
+
+    @property
+    def _split(self):
+        """The state is a mixed function (displacement, then pressure or thickness strain)."""
+        return self.mixed or self.formulation == "plane_stress"
 
     def _cell_type(self):
         return self.mesh.dolfinx.topology.cell_type.name

@@ -1,0 +1,231 @@
+"""Plane stress, the mixed (Taylor-Hood) formulation with every material, and its eigen-analysis, against
+published and closed-form references; the locking warning of displacement-only P1 elements.
+
+The refinement study of Cook's membrane to its converged value is ``tests/benchmarks/bench_cook.py``; here the
+coarse levels are checked against a reference table.
+"""
+import warnings
+
+import numpy as np
+import pytest
+
+from sorofem import materials
+from sorofem.errors import ParameterError
+from sorofem.fem import Fem, LockingWarning
+from sorofem.mesh import Mesh
+
+# --------------------------------------------------------------------------------------------- Cook's membrane
+#: Converged vertical displacement of the middle of the loaded edge, (48, 52), of Cook's membrane in linear
+#: plane stress (E = 1, nu = 1/3, unit total shear on the right edge), the value the literature quotes (e.g.
+#: Simo & Rifai, IJNME 29, 1990; bench_cook.py converges to it: P2 at 64 x 64 and Richardson).
+COOK_REFERENCE = 23.96
+
+
+def cook_membrane(n, cell="triangle"):
+    """Cook's tapered panel (0, 0), (48, 44), (48, 60), (0, 44) [m] on an n x n structured grid of the bilinear
+    map of the unit square; ``left`` (x = 0) and ``right`` (x = 48) are found as the bounding-box sides."""
+    xi, eta = np.meshgrid(np.linspace(0, 1, n + 1), np.linspace(0, 1, n + 1), indexing="ij")
+    pts = np.column_stack([48.0 * xi.ravel(), (44.0 * xi + eta * (44.0 - 28.0 * xi)).ravel()])
+    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    if cell == "triangle":
+        cells = np.vstack([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
+    else:
+        cells = np.column_stack([a, b, c, d])
+    return Mesh.from_arrays(pts, cells)
+
+
+def cook_displacement(n, degree, cell="triangle", formulation="plane_stress"):
+    """Vertical displacement [m] at (48, 52) and the Fem."""
+    fem = Fem(cook_membrane(n, cell), materials.LinearElastic(E=1.0, nu=1 / 3), formulation=formulation,
+              degree=degree)
+    traj = fem.add_support("left").add_force("right", [0.0, 1.0 / 16.0]).solve(steps=1)
+    return float(fem.evaluate([[48.0, 52.0]])[0][1]), traj
+
+
+#: Measured values of this code (P2 triangles; bench_cook.py prints the sequence to 64 x 64). The test checks the
+#: coarse levels against them to 1e-6 (a regression of the discretization, far above solver round-off) and against
+#: the published converged value with the discretization error they must have: the error ratio between levels is
+#: ~4 (the re-entrant corner at (0, 44) limits P2 to about second order), so level n is within
+#: 0.1 * 4^(3 - log2 n) % of 23.96 with a margin of ~3.
+COOK_P2 = {2: 21.2514, 4: 23.4761, 8: 23.8607}
+
+
+def test_cook_membrane_plane_stress_converges_to_the_published_displacement():
+    values = {n: cook_displacement(n, 2)[0] for n in COOK_P2}
+    for n, v in values.items():
+        assert v == pytest.approx(COOK_P2[n], abs=1e-4)
+    errors = [COOK_REFERENCE - values[n] for n in sorted(values)]
+    assert all(e > 0 for e in errors)                          # from below (a displacement method is too stiff)
+    assert errors[0] / errors[1] > 3 and errors[1] / errors[2] > 3   # converging (rates 3.3 and 4.5 measured)
+    assert values[8] == pytest.approx(COOK_REFERENCE, rel=0.01)
+
+
+def test_cook_membrane_reaction_and_plane_strain_differ_as_the_moduli_do():
+    """The support carries the unit shear; plane strain is stiffer (E' = E / (1 - nu^2) for bending, 9/8 here)."""
+    v_stress, traj = cook_displacement(8, 2)
+    np.testing.assert_allclose(traj.reactions["left"][-1], [0.0, -1.0], atol=1e-9)
+    v_strain, _ = cook_displacement(8, 2, formulation="plane_strain")
+    assert 1.05 < v_stress / v_strain < 1.2
+
+
+# ------------------------------------------------------------------------------------ homogeneous plane stress
+def _strip(L=0.02, H=0.01, size=0.005, degree=1, **kw):
+    msh = Mesh.rectangle(L, H, size=size, center=(L / 2, H / 2))
+    return Fem(msh, kw.pop("material"), degree=degree, **kw)
+
+
+def _uniaxial_free(m, lam):
+    """3D uniaxial stress of the numpy law (both lateral stresses zero): (P11, lateral stretch)."""
+    from scipy.optimize import brentq
+    t = brentq(lambda t: m.pk1(np.diag([lam, t, t]))[1, 1], 0.2, 2.0, xtol=1e-15)
+    return m.pk1(np.diag([lam, t, t]))[0, 0], t
+
+
+@pytest.mark.parametrize("make", [
+    lambda: materials.LinearElastic(E=1e6, nu=0.3),
+    lambda: materials.NeoHookean(E=1e6, nu=0.45),
+    lambda: materials.NeoHookean(mu=3e5, lmbda=1e6, form="coupled"),
+    lambda: materials.Yeoh(1e5, -1e3, 5e2, nu=0.49),
+], ids=["linear", "neo-hookean", "neo-hookean-coupled", "yeoh"])
+def test_plane_stress_uniaxial_tension_is_the_3d_uniaxial_state(make):
+    """A plane-stress strip pulled along x is in 3D uniaxial stress (sigma_22 = sigma_33 = 0): its force per unit
+    thickness is P11 H and its width shrinks by the law's lateral stretch. Homogeneous: exact in P1 with a DG0
+    thickness strain, to solver accuracy."""
+    m = make()
+    L, H = 0.02, 0.01
+    lam = 1.001 if isinstance(m, materials.LinearElastic) else 1.5
+    fem = _strip(material=m, formulation="plane_stress")
+    fem.add_support("left", "x").add_support("bottom", "y").add_displacement("right", (lam - 1) * L, "x")
+    traj = fem.solve(steps=2)
+    P11, t = _uniaxial_free(m, lam)
+    assert -traj.reactions["left"][-1][0] == pytest.approx(P11 * H, rel=1e-6)
+    assert 1 + fem.evaluate([[L, H]])[0][1] / H == pytest.approx(t, rel=1e-8)
+
+
+# ------------------------------------------------------------------------------ mixed formulation, all laws
+ALL_LAWS = {
+    "linear": lambda nu: materials.LinearElastic(E=3e5, nu=nu),
+    "neo-hookean": lambda nu: materials.NeoHookean(mu=1e5, nu=nu),
+    "neo-hookean-coupled": lambda nu: materials.NeoHookean(mu=1e5, nu=nu, form="coupled"),
+    "mooney-rivlin": lambda nu: materials.MooneyRivlin(4e4, 1e4, nu=nu),
+    "yeoh": lambda nu: materials.Yeoh(5e4, -1e3, 5e2, nu=nu),
+}
+
+
+@pytest.mark.parametrize("law", sorted(ALL_LAWS))
+def test_mixed_plane_strain_stretch_matches_the_incompressible_closed_form(law):
+    """nu = 0.4999, plane strain, pulled along x with the top free: F = diag(l, 1/l, 1) in the incompressible
+    limit, P11 = 2 (l - l^-3)(W1 + W2) (hyperelastic; l = 1.5) or 4 mu eps (linear, eps = 1e-3, where
+    E' = E/(1 - nu^2) = 4 mu at nu = 1/2). Within the O(mu/kappa) ~ 1e-3 compressibility of the model."""
+    m = ALL_LAWS[law](0.4999)
+    L, H = 0.02, 0.01
+    linear = law == "linear"
+    lam = 1.001 if linear else 1.5
+    fem = _strip(material=m, degree=2, mixed=True, size=0.01)
+    fem.add_support("left", "x").add_support("bottom", "y").add_displacement("right", (lam - 1) * L, "x")
+    traj = fem.solve(steps=1 if linear else 3)
+    if linear:
+        ref = 4 * m.mu * (lam - 1)
+    else:
+        W1, W2 = m._dw(lam**2 + lam**-2 + 1, lam**2 + lam**-2 + 1)
+        ref = 2 * (lam - lam**-3) * (W1 + W2)
+    assert -traj.reactions["left"][-1][0] / H == pytest.approx(ref, rel=2e-3)
+    assert 1 + fem.evaluate([[L, H]])[0][1] / H == pytest.approx(1 / lam, rel=1e-3)   # area preserved
+
+
+def test_mixed_linear_elastic_uniaxial_strain_is_exact():
+    """Uniaxial strain eps (lateral faces on rollers): P11 = (lambda + 2 mu) eps exactly, even at nu = 0.4999
+    where lambda = 1667 mu; the displacement formulation gives the same on this homogeneous state."""
+    m = materials.LinearElastic(E=3e5, nu=0.4999)
+    L, H, eps = 0.02, 0.01, 1e-3
+    for mixed in (True, False):
+        fem = _strip(material=m, degree=2, mixed=mixed, size=0.01)
+        fem.add_support("left", "x").add_support("bottom", "y").add_support("top", "y")
+        traj = fem.add_displacement("right", eps * L, "x").solve(steps=1)
+        assert -traj.reactions["left"][-1][0] / H == pytest.approx((m.lmbda + 2 * m.mu) * eps, rel=1e-8)
+
+
+@pytest.mark.parametrize("mixed", [False, True])
+def test_coupled_neo_hookean_uniaxial_strain_matches_its_closed_form(mixed):
+    """F = diag(a, 1, 1) (lateral faces on rollers, plane strain): P11 = mu (a - 1/a) + lambda ln(a)/a and the
+    roller on top carries P22 L = lambda ln(a) L. The mixed form of this law is exact (p = lambda ln J), so both
+    formulations give it to solver accuracy on the homogeneous state."""
+    mu, lmbda, a = 1e5, 4e5, 1.4
+    m = materials.NeoHookean(mu=mu, lmbda=lmbda, form="coupled")
+    L, H = 0.02, 0.01
+    fem = _strip(material=m, degree=2, mixed=mixed, size=0.01)
+    fem.add_support("left", "x").add_support("bottom", "y").add_support("top", "y")
+    traj = fem.add_displacement("right", (a - 1) * L, "x").solve(steps=3)
+    assert -traj.reactions["left"][-1][0] / H == pytest.approx(mu * (a - 1 / a) + lmbda * np.log(a) / a, rel=1e-8)
+    assert traj.reactions["top"][-1][1] / L == pytest.approx(lmbda * np.log(a), rel=1e-8)  # reference length
+
+
+# ------------------------------------------------------------------------- free vibration without locking
+def _vortex_eigenvalue(material, degree, mixed, formulation=None, n=8):
+    """Lowest eigenvalue [1/s^2] of a unit square with every side on rollers (normal displacement zero).
+
+    Closed form (separation of variables in Navier's equation): the shear mode u = (sin pi x cos pi y,
+    -cos pi x sin pi y) is divergence-free, so omega^2 = 2 pi^2 mu / rho whatever lambda; the dilatational
+    modes start at (lambda + 2 mu) pi^2 / rho, above it for every nu >= 0, and go to infinity as nu -> 1/2."""
+    msh = Mesh.rectangle(1.0, 1.0, size=1.0 / n, center=(0.5, 0.5))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LockingWarning)
+        fem = Fem(msh, material, degree=degree, mixed=mixed, formulation=formulation)
+    for region, comp in (("left", "x"), ("right", "x"), ("bottom", "y"), ("top", "y")):
+        fem.add_support(region, comp)
+    exact = 2 * np.pi**2 * material.G / material.density
+    return float(fem.eigen(1, shift=0.5 * exact).eigenvalues[0]) / exact   # the eigenvalue nearest the shift
+
+
+@pytest.mark.parametrize("law", ["linear", "neo-hookean"])
+def test_mixed_free_vibration_has_the_compressible_frequency_as_nu_goes_to_one_half(law):
+    """Taylor-Hood: the shear mode's eigenvalue stays at its closed form (the same as for a compressible body)
+    from nu = 0.3 to 0.499999, within the P2 discretization error at 8 x 8 (3e-4 measured, bound 2e-3).
+    Displacement-only elements lock: P1 is more than twice too stiff at nu = 0.4999 (3.13 measured), P2's
+    error grows with nu (0.05 % at 0.3, 1.6 % at 0.4999)."""
+    make = ALL_LAWS[law]
+    for nu in (0.3, 0.49, 0.4999, 0.499999):
+        assert _vortex_eigenvalue(make(nu), 2, True) == pytest.approx(1.0, rel=2e-3)
+    if law == "linear":
+        assert _vortex_eigenvalue(make(0.4999), 1, False) > 2.0
+        p2 = [_vortex_eigenvalue(make(nu), 2, False) for nu in (0.3, 0.4999)]
+        assert p2[1] - 1 > 10 * (p2[0] - 1) > 0
+
+
+def test_plane_stress_eigen_analysis_has_the_shear_mode():
+    """Plane stress on rollers: the shear mode is the same divergence-free field (no out-of-plane strain)."""
+    assert _vortex_eigenvalue(materials.LinearElastic(E=2.6, nu=0.3), 2, False, "plane_stress") == \
+        pytest.approx(1.0, rel=2e-3)
+
+
+# ------------------------------------------------------------------------------ warnings and refusals
+def test_p1_near_incompressibility_warns_and_names_the_fix():
+    msh = Mesh.rectangle(0.02, 0.01, size=0.005)
+    with pytest.warns(LockingWarning, match="mixed=True"):
+        Fem(msh, materials.NeoHookean(mu=1e5, nu=0.4999))
+    fem = Fem(msh, materials.NeoHookean(mu=1e5, nu=0.45))
+    with pytest.warns(LockingWarning, match="degree=2, mixed=True"):
+        msh.add_region("half", lambda x: x[0] < 0.01, kind="cells")
+        fem.add_material("half", materials.LinearElastic(E=1e6, nu=0.499))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", LockingWarning)
+        Fem(msh, materials.NeoHookean(mu=1e5, nu=0.4999), degree=2, mixed=True)
+        Fem(msh, materials.NeoHookean(mu=1e5, nu=0.4999), formulation="plane_stress")
+        Fem(msh, materials.Ecoflex0030())                     # the presets' nu = 0.49 stays below the threshold
+
+
+def test_unsupported_combinations_are_refused_with_the_alternative():
+    msh = Mesh.rectangle(0.02, 0.01, size=0.005)
+    m = materials.NeoHookean(mu=1e5)
+    with pytest.raises(ParameterError, match="plane stress does not lock"):
+        Fem(msh, m, degree=2, mixed=True, formulation="plane_stress")
+    with pytest.raises(ParameterError, match="does not fit a 3D mesh"):
+        Fem(Mesh.box(0.02, 0.01, 0.01, size=0.01), m, formulation="plane_stress")
+    fem = Fem(msh, m, formulation="plane_stress").add_support("left")
+    with pytest.raises(ParameterError, match="eigen"):
+        fem.simulate(0.01, 0.001)
+    from sorofem import sdf
+    fem.add_contact(sdf.Line((0.0, -0.001), (0.0, 1.0)))
+    with pytest.raises(ParameterError, match="tendons and contact"):
+        fem.solve(steps=1)
