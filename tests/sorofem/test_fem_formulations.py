@@ -9,45 +9,19 @@ import warnings
 import numpy as np
 import pytest
 
+from fem_cases import COOK_REFERENCE, cook_displacement, vortex_eigenvalue
 from sorofem import materials
 from sorofem.errors import ParameterError
 from sorofem.fem import Fem, LockingWarning
 from sorofem.mesh import Mesh
 
 # --------------------------------------------------------------------------------------------- Cook's membrane
-#: Converged vertical displacement of the middle of the loaded edge, (48, 52), of Cook's membrane in linear
-#: plane stress (E = 1, nu = 1/3, unit total shear on the right edge), the value the literature quotes (e.g.
-#: Simo & Rifai, IJNME 29, 1990; bench_cook.py converges to it: P2 at 64 x 64 and Richardson).
-COOK_REFERENCE = 23.96
-
-
-def cook_membrane(n, cell="triangle"):
-    """Cook's tapered panel (0, 0), (48, 44), (48, 60), (0, 44) [m] on an n x n structured grid of the bilinear
-    map of the unit square; ``left`` (x = 0) and ``right`` (x = 48) are found as the bounding-box sides."""
-    xi, eta = np.meshgrid(np.linspace(0, 1, n + 1), np.linspace(0, 1, n + 1), indexing="ij")
-    pts = np.column_stack([48.0 * xi.ravel(), (44.0 * xi + eta * (44.0 - 28.0 * xi)).ravel()])
-    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
-    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
-    if cell == "triangle":
-        cells = np.vstack([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
-    else:
-        cells = np.column_stack([a, b, c, d])
-    return Mesh.from_arrays(pts, cells)
-
-
-def cook_displacement(n, degree, cell="triangle", formulation="plane_stress"):
-    """Vertical displacement [m] at (48, 52) and the Fem."""
-    fem = Fem(cook_membrane(n, cell), materials.LinearElastic(E=1.0, nu=1 / 3), formulation=formulation,
-              degree=degree)
-    traj = fem.add_support("left").add_force("right", [0.0, 1.0 / 16.0]).solve(steps=1)
-    return float(fem.evaluate([[48.0, 52.0]])[0][1]), traj
-
-
-#: Measured values of this code (P2 triangles; bench_cook.py prints the sequence to 64 x 64). The test checks the
-#: coarse levels against them to 1e-6 (a regression of the discretization, far above solver round-off) and against
-#: the published converged value with the discretization error they must have: the error ratio between levels is
-#: ~4 (the re-entrant corner at (0, 44) limits P2 to about second order), so level n is within
-#: 0.1 * 4^(3 - log2 n) % of 23.96 with a margin of ~3.
+#: Measured values of this code (P2 triangles, n x n grid; bench_cook.py prints the sequence to 64 x 64). The
+#: test checks the coarse levels against them to 1e-4 (the table's rounding; solver round-off is ~1e-12), and
+#: against the published converged value with the discretization error they must have: on these coarse grids the
+#: error falls by ~5 per halving of h (measured 5.6 and 4.9, asserted > 3; the observed order, 2.5 here, drops
+#: to 1.4 on fine grids where the stress singularities at the ends of the clamped edge dominate); at 8 x 8 it
+#: is 0.41 %, asserted < 1 %.
 COOK_P2 = {2: 21.2514, 4: 23.4761, 8: 23.8607}
 
 
@@ -57,7 +31,7 @@ def test_cook_membrane_plane_stress_converges_to_the_published_displacement():
         assert v == pytest.approx(COOK_P2[n], abs=1e-4)
     errors = [COOK_REFERENCE - values[n] for n in sorted(values)]
     assert all(e > 0 for e in errors)                          # from below (a displacement method is too stiff)
-    assert errors[0] / errors[1] > 3 and errors[1] / errors[2] > 3   # converging (rates 3.3 and 4.5 measured)
+    assert errors[0] / errors[1] > 3 and errors[1] / errors[2] > 3   # converging (5.6 and 4.9 measured)
     assert values[8] == pytest.approx(COOK_REFERENCE, rel=0.01)
 
 
@@ -162,22 +136,6 @@ def test_coupled_neo_hookean_uniaxial_strain_matches_its_closed_form(mixed):
 
 
 # ------------------------------------------------------------------------- free vibration without locking
-def _vortex_eigenvalue(material, degree, mixed, formulation=None, n=8):
-    """Lowest eigenvalue [1/s^2] of a unit square with every side on rollers (normal displacement zero).
-
-    Closed form (separation of variables in Navier's equation): the shear mode u = (sin pi x cos pi y,
-    -cos pi x sin pi y) is divergence-free, so omega^2 = 2 pi^2 mu / rho whatever lambda; the dilatational
-    modes start at (lambda + 2 mu) pi^2 / rho, above it for every nu >= 0, and go to infinity as nu -> 1/2."""
-    msh = Mesh.rectangle(1.0, 1.0, size=1.0 / n, center=(0.5, 0.5))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", LockingWarning)
-        fem = Fem(msh, material, degree=degree, mixed=mixed, formulation=formulation)
-    for region, comp in (("left", "x"), ("right", "x"), ("bottom", "y"), ("top", "y")):
-        fem.add_support(region, comp)
-    exact = 2 * np.pi**2 * material.G / material.density
-    return float(fem.eigen(1, shift=0.5 * exact).eigenvalues[0]) / exact   # the eigenvalue nearest the shift
-
-
 @pytest.mark.parametrize("law", ["linear", "neo-hookean"])
 def test_mixed_free_vibration_has_the_compressible_frequency_as_nu_goes_to_one_half(law):
     """Taylor-Hood: the shear mode's eigenvalue stays at its closed form (the same as for a compressible body)
@@ -186,16 +144,16 @@ def test_mixed_free_vibration_has_the_compressible_frequency_as_nu_goes_to_one_h
     error grows with nu (0.05 % at 0.3, 1.6 % at 0.4999)."""
     make = ALL_LAWS[law]
     for nu in (0.3, 0.49, 0.4999, 0.499999):
-        assert _vortex_eigenvalue(make(nu), 2, True) == pytest.approx(1.0, rel=2e-3)
+        assert vortex_eigenvalue(make(nu), 2, True) == pytest.approx(1.0, rel=2e-3)
     if law == "linear":
-        assert _vortex_eigenvalue(make(0.4999), 1, False) > 2.0
-        p2 = [_vortex_eigenvalue(make(nu), 2, False) for nu in (0.3, 0.4999)]
+        assert vortex_eigenvalue(make(0.4999), 1, False) > 2.0
+        p2 = [vortex_eigenvalue(make(nu), 2, False) for nu in (0.3, 0.4999)]
         assert p2[1] - 1 > 10 * (p2[0] - 1) > 0
 
 
 def test_plane_stress_eigen_analysis_has_the_shear_mode():
     """Plane stress on rollers: the shear mode is the same divergence-free field (no out-of-plane strain)."""
-    assert _vortex_eigenvalue(materials.LinearElastic(E=2.6, nu=0.3), 2, False, "plane_stress") == \
+    assert vortex_eigenvalue(materials.LinearElastic(E=2.6, nu=0.3), 2, False, "plane_stress") == \
         pytest.approx(1.0, rel=2e-3)
 
 
