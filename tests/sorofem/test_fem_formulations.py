@@ -187,3 +187,15 @@ def test_unsupported_combinations_are_refused_with_the_alternative():
     fem.add_contact(sdf.Line((0.0, -0.001), (0.0, 1.0)))
     with pytest.raises(ParameterError, match="tendons and contact"):
         fem.solve(steps=1)
+
+
+@pytest.mark.mpi
+def test_plane_stress_and_mixed_eigen_give_the_serial_figures_on_two_ranks():
+    """Under ``mpirun -n 2``: the DG thickness strain and the condensed pressure are distributed like the
+    displacement; Cook's membrane and the shear-mode eigenvalues equal the serial ones."""
+    from mpi4py import MPI
+    assert MPI.COMM_WORLD.size == 2
+    v, _ = cook_displacement(8, 2)
+    assert v == pytest.approx(COOK_P2[8], abs=1e-4)
+    assert vortex_eigenvalue(ALL_LAWS["neo-hookean"](0.4999), 2, True) == pytest.approx(1.0, rel=2e-3)
+    assert vortex_eigenvalue(ALL_LAWS["linear"](0.3), 2, False, "plane_stress") == pytest.approx(1.0, rel=2e-3)
