@@ -281,13 +281,18 @@ class Snapshots:
         self.path = Path(path)
         if not self.path.is_file():
             raise DataError(f"no snapshot file at {self.path}")
-        h5 = _h5py()
-        try:
-            f = h5.File(self.path, "r")
-        except OSError as e:
-            raise DataError(f"{self.path} is not a readable HDF5 file ({e}); was the case interrupted?") from e
+        h5, f = self._open("is not a readable HDF5 file", "; was the case interrupted?")
         with f:
             self._read(f, h5)
+
+    def _open(self, problem, hint=""):
+        """``(h5py, the file open read-only)``; a file HDF5 cannot open is a :class:`DataError`
+        ``"<path> <problem> (<HDF5's reason>)<hint>"``."""
+        h5 = _h5py()
+        try:
+            return h5, h5.File(self.path, "r")
+        except OSError as e:
+            raise DataError(f"{self.path} {problem} ({e}){hint}") from e
 
     def _fail(self, dataset, problem, step=None):
         where = f"{dataset}" + (f" at step {step}" if step is not None else "")
@@ -457,11 +462,7 @@ class Snapshots:
             if not -self.n_steps <= step < self.n_steps:
                 raise DataError(f"step {step} out of range: the file has {self.n_steps} steps")
             step = int(step) % self.n_steps
-        h5 = _h5py()
-        try:
-            f = h5.File(self.path, "r")
-        except OSError as e:
-            raise DataError(f"{self.path} can no longer be read ({e})") from e
+        h5, f = self._open("can no longer be read")
         with f:
             d = self._dataset(f, h5, "steps/displacement")
             if step is not None:
