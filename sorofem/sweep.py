@@ -103,11 +103,14 @@ and at its end.
 Provenance and checksums. Every status record (and the manifest, and each snapshot's metadata) holds the
 *provenance* of the results (:func:`provenance_changes` compares two): SHA-256 digests of the builder's (and
 summary's) source file and of every file it imports from the configuration's folder (found from its
-``import`` statements, recursively), of ``[solve]`` and ``[fixed]``, and the package version. A done case's
+``import`` statements, recursively, and from the file names its string literals hold: a module loaded with
+``spec_from_file_location``, a data file), of ``[solve]`` and ``[fixed]``, and the package version. A done case's
 status also holds the SHA-256 digest of its snapshot file, whose datasets carry HDF5 ``fletcher32``
 checksums (``docs/snapshot-format.md``).
 A disk that fills up while a snapshot is written fails that case with a ``DataError`` naming the file and
-the free space (nothing is left under the snapshot's name).
+the free space (nothing is left under the snapshot's name). A status or claim file that cannot be written
+stops the group that writes it (all its ranks together); the run ends on every rank with that ``DataError``
+after the other groups' cases and the manifest, and the case without a status runs again in the next run.
 
 Running
 -------
@@ -174,7 +177,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ParameterError
+from .errors import DataError, ParameterError
 from .io import process_alive, write_json
 
 __all__ = ["Sweep", "grid", "latin_hypercube", "SOLVE_KEYS", "SOLVE_TYPES", "PARAMETER_TYPES", "MODES",
@@ -477,21 +480,42 @@ def _canonical(obj):
 
 def _local_imports(path, base_dir):
     """Files of ``base_dir`` that the Python file ``path`` imports (``import x``, ``from x import y``,
-    ``from x.y import z``, at any depth of the file), found from its syntax tree."""
+    ``from x.y import z``, at any depth of the file), found from its syntax tree; and the files that a string
+    literal of the file names: a data file of ``base_dir`` the builder reads (relative to ``base_dir`` or to the
+    file's folder; not a ``.toml`` file: a sweep configuration's parameters may grow between runs), or a module
+    loaded by path (``spec_from_file_location(..., Path(__file__).parents[1] / "case_lib.py")``): a literal
+    ending in ``.py`` names the nearest such file in the file's folder or a folder above it."""
     import ast
 
     try:
         tree = ast.parse(Path(path).read_text(), filename=str(path))
     except (OSError, SyntaxError, ValueError):
         return []
-    names = []
+    names, literals = [], []
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             names += [a.name for a in node.names]
         elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
             names.append(node.module)
             names += [f"{node.module}.{a.name}" for a in node.names]
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str) and 0 < len(node.value) < 256 \
+                and "\n" not in node.value and "\0" not in node.value:
+            literals.append(node.value)
     found = []
+    base, here = base_dir.resolve(), Path(path).resolve().parent
+    for text in literals:
+        module = text.endswith(".py")
+        for candidate in [base / text, here / text] + ([p / text for p in here.parents] if module else []):
+            try:
+                real = candidate.resolve()
+                ok = real.is_file() and real.suffix != ".toml" and (module or base in real.parents)
+            except (OSError, ValueError):
+                continue
+            if ok:
+                if real not in found:
+                    found.append(real)
+                if module:
+                    break
     for name in names:
         parts = name.split(".")
         for n in range(1, len(parts) + 1):  # importing a.b.c runs a/__init__.py and a/b/__init__.py too
@@ -514,7 +538,7 @@ def _source_files(fn, base_dir):
         if f in files or not f.is_file():
             continue
         files.append(f)
-        if base_dir is not None:
+        if base_dir is not None and f.suffix == ".py":
             todo += _local_imports(f, base_dir)
     return files
 
@@ -535,8 +559,8 @@ def _provenance(builder, summary, base_dir, solve, fixed):
             code = getattr(fn, "__code__", None)
             files[f"<{_describe(fn)}>"] = _sha256(code.co_code + repr(code.co_consts).encode()) if code \
                 else _sha256(_describe(fn))
-        for f in sources:
-            name = str(f.relative_to(base)) if base is not None and base in f.parents else str(f)
+        for f in sources:  # named relative to the configuration's folder: moving the whole tree changes nothing
+            name = os.path.relpath(f, base) if base is not None else str(f)
             files[name] = _sha256(f.read_bytes())
     return {"package_version": __version__, "builder_sha256": _sha256(_canonical(files)), "builder_files": files,
             "solve_sha256": _sha256(_canonical(solve)), "solve": solve,
@@ -965,19 +989,23 @@ class Sweep:
                 n_reported += 1
                 report(rec, n_reported, len(todo))
 
+        stopped = None  # a claim or status file that could not be written (full disk): this group stops
         while True:
             index = None
             if group.rank == 0:
-                while pointer < len(todo):
-                    candidate = todo[pointer]
-                    pointer += 1
-                    if self._claim(out, candidate):
-                        index = candidate
-                        break
-            index = group.bcast(index, root=0)
-            if index is None:
+                try:
+                    while pointer < len(todo):
+                        candidate = todo[pointer]
+                        pointer += 1
+                        if self._claim(out, candidate):
+                            index = candidate
+                            break
+                except OSError as e:
+                    stopped = _write_error(out / f".{self.case_id(candidate)}.claim", e)
+            index, stopped = group.bcast((index, stopped), root=0)
+            if index is None or stopped is not None:
                 break
-            rec = self._run_case(index, out, group, color, MPI)
+            rec, stopped = self._run_case(index, out, group, color, MPI)
             if group.rank == 0:
                 mine += 1
                 if world.rank == 0:
@@ -987,6 +1015,8 @@ class Sweep:
                     sent.append(world.isend(rec, dest=0, tag=_TAG))
             if world.rank == 0:
                 drain()
+            if stopped is not None:
+                break
         total = world.allreduce(mine if group.rank == 0 else 0)
         if world.rank == 0:
             while n_reported < total:
@@ -1001,10 +1031,19 @@ class Sweep:
             self._clean(out)  # the claims of this run (every group is done)
             return self._manifest(out, self._statuses(out, force_rerun), world.size, group_size, started)
 
-        return world.bcast(on_root(world, finish), root=0)
+        manifest = world.bcast(on_root(world, finish), root=0)
+        # every rank raises the same error when some group could not write (no rank stops alone)
+        stops = [e for e in world.allgather(stopped if group.rank == 0 else None) if e is not None]
+        if stops:
+            raise stops[0]
+        return manifest
 
     def _run_case(self, index, out, group, color, MPI):
-        """Build, solve, save and summarize case ``index`` on ``group``; write its status (group rank 0)."""
+        """Build, solve, save and summarize case ``index`` on ``group``; write its status (group rank 0).
+
+        Returns ``(record, error)`` on every rank of the group: ``error`` is the :class:`DataError` of a status
+        file that could not be written (a full disk), else None; the record then says so and the case, which
+        has no status, runs again in the next run."""
         cid = self.case_id(index)
         params = self.cases[index]
         from . import jitcache
@@ -1044,15 +1083,23 @@ class Sweep:
         if jit_timeout:  # not the case's fault: a compile elsewhere held the form's lock; the next run retries
             rec["error"] = ("JIT timeout (kept pending, not failed): " + rec["error"] +
                             " -- run the sweep again; it removes stale JIT locks at start")
+        write_failed = None
         if group.rank == 0:
             previous = out / f"{cid}.json"
             try:
                 rec["attempts"] = int(json.loads(previous.read_text()).get("attempts", 1)) + 1
             except (OSError, ValueError, TypeError, AttributeError):
                 rec["attempts"] = 1
-            write_json(previous, rec)  # the claim stays until the run ends: no other group may take the case
+            try:
+                write_json(previous, rec)  # the claim stays until the run ends: no other group may take the case
+            except (OSError, DataError) as e:
+                write_failed = e if isinstance(e, DataError) else _write_error(previous, e)
+        write_failed = group.bcast(write_failed, root=0)
+        if write_failed is not None:
+            rec.update(status="failed", error=f"DataError: {write_failed} (the case has no status: the next run "
+                                              "does it again)")
         gc.collect()  # destroy this case's PETSc objects now, at the same point on every rank of the group
-        return rec
+        return rec, write_failed
 
     def _build(self, params, group, MPI):
         from .fem import Fem
@@ -1076,6 +1123,17 @@ class Sweep:
                                  f"{built.mesh.comm.size} rank(s), not on the case's ({group.size}): pass the "
                                  "comm it receives to the mesh, Mesh.from_sdf(shape, size=..., comm=comm)")
         return built, kwargs
+
+
+def _write_error(path, exc):
+    """The :class:`DataError` for a file of the sweep that could not be written: a full disk names the free
+    space (:func:`sorofem.io.disk_full_error`)."""
+    from .io import disk_full_error, is_disk_full
+
+    if is_disk_full(exc):
+        return disk_full_error(path, exc)
+    return DataError(f"could not write {path} ({type(exc).__name__}: {exc}); check that the output directory is "
+                     "writable on every rank")
 
 
 def _ids(ids):

@@ -5,6 +5,7 @@ import inspect
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 from collections import Counter
@@ -471,6 +472,68 @@ def test_files_the_builder_imports_from_its_folder_are_part_of_its_provenance(tm
     assert provenance_changes(None, after) == ["the results were written before provenance was recorded"]
 
 
+def test_files_the_builder_loads_by_path_are_part_of_its_provenance(tmp_path):
+    """Modules loaded with spec_from_file_location (beside the builder, or in a folder above it as the PneuNet
+    case loads its demo) and a data file the builder reads, named by string literals, are hashed with its source
+    (named relative to the configuration's folder); the sweep's own TOML file is not (its parameters may grow)."""
+    from sorofem.sweep import provenance_changes
+
+    folder = tmp_path / "cfg"
+    folder.mkdir()
+    (folder / "dyn_helper.py").write_text("SIZE = 0.002\n")
+    (tmp_path / "shared_lib.py").write_text("N = 1\n")
+    (folder / "profile.csv").write_text("0,1\n")
+    cfg = _config(folder, 'pressure = [2e3]\nmaterial = ["Ecoflex0030"]', head='builder = "case.py:build"\n')
+    (folder / "case.py").write_text(
+        "import importlib.util\nfrom pathlib import Path\n"
+        "_spec = importlib.util.spec_from_file_location('dyn', Path(__file__).with_name('dyn_helper.py'))\n"
+        "_lib = importlib.util.spec_from_file_location('lib', Path(__file__).parents[1] / 'shared_lib.py')\n"
+        "PROFILE = Path(__file__).parent / 'profile.csv'\nCONFIG = 'sweep.toml'\n" + BUILDER)
+    before = Sweep.from_toml(cfg).provenance
+    assert sorted(before["builder_files"]) == ["../shared_lib.py", "case.py", "dyn_helper.py", "profile.csv"]
+    for name, text in (("cfg/dyn_helper.py", "SIZE = 0.003\n"), ("shared_lib.py", "N = 2\n"),
+                       ("cfg/profile.csv", "0,2\n")):
+        (tmp_path / name).write_text(text)
+    after = Sweep.from_toml(cfg).provenance
+    assert provenance_changes(before, after) == [
+        "the builder's source changed (../shared_lib.py, dyn_helper.py, profile.csv)"]
+    pneunet = Sweep.from_toml(REPO / "demos/sweeps/pneunet.toml").provenance["builder_files"]
+    assert sorted(pneunet) == ["../pneunet_inflation.py", "pneunet_case.py"]
+
+
+def _status_disk_full(monkeypatch, rank=0):
+    """Fault injection: on MPI rank ``rank``, writing a case's status file fails as on a full disk."""
+    import errno
+
+    from mpi4py import MPI
+
+    from sorofem import sweep as sweep_module
+    from sorofem.io import disk_full_error
+    real = sweep_module.write_json
+
+    def write_json(path, data):
+        if Path(path).name.startswith("case_") and MPI.COMM_WORLD.rank == rank:
+            raise disk_full_error(path, OSError(errno.ENOSPC, "No space left on device"))
+        return real(path, data)
+    monkeypatch.setattr(sweep_module, "write_json", write_json)
+
+
+def test_a_status_file_on_a_full_disk_stops_the_run_with_the_message_and_the_case_runs_again(tmp_path,
+                                                                                            monkeypatch):
+    from sorofem.errors import DataError
+
+    cfg = _config(tmp_path, 'pressure = [2e3, 3e3]\nmaterial = ["Ecoflex0030"]')
+    out = tmp_path / "out"
+    with monkeypatch.context() as m:
+        _status_disk_full(m)
+        with pytest.raises(DataError, match=rf"no space left writing {out / 'case_0000.json'}: .* MiB free"):
+            Sweep.from_toml(cfg).run(out)
+    assert not (out / "case_0000.json").exists() and not (out / "case_0001.json").exists()   # stopped at once
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["counts"]["pending"] == 2 and not (out / ".sweep.lock").exists()
+    assert Sweep.from_toml(cfg).run(out)["counts"] == {"done": 2, "failed": 0, "pending": 0}
+
+
 def _flip_bit(path, dataset="steps/displacement", chunk=1):
     import h5py
     with h5py.File(path, "r") as f:
@@ -742,6 +805,47 @@ def _vertex_order(X):
     """Indices sorting the vertices by their coordinates (the same mesh numbered differently on N ranks)."""
     key = np.round(X / np.abs(X).max(), 9)
     return np.lexsort(key.T[::-1])
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("what", ["status", "claim"])
+def test_mpi_a_file_rank_0_cannot_write_stops_every_rank_with_the_message(tmp_path_factory, monkeypatch, what):
+    """A full disk met by rank 0 alone (fault injection) when it writes a case's status or claim file: every rank
+    ends the run with the same DataError (none waits forever), with one group of 2 ranks and with 2 groups."""
+    import errno
+
+    from mpi4py import MPI
+
+    from sorofem.errors import DataError
+
+    comm = MPI.COMM_WORLD
+    if comm.size < 2:
+        pytest.skip("run under mpirun -n 2 (make test does)")
+    base = Path(comm.bcast(str(tmp_path_factory.mktemp("full")) if comm.rank == 0 else None, root=0))
+    if comm.rank == 0:
+        _config(base, 'pressure = [2e3, 3e3]\nmaterial = ["Ecoflex0030"]')
+    comm.Barrier()
+    if what == "status":
+        _status_disk_full(monkeypatch)
+        message = "no space left writing .*case_000[01].json: .* MiB free"
+    else:
+        real_claim = Sweep._claim
+
+        def claim(self, out, i):
+            if comm.rank == 0:
+                raise OSError(errno.ENOSPC, "No space left on device")
+            return real_claim(self, out, i)
+        monkeypatch.setattr(Sweep, "_claim", claim)
+        message = r"no space left writing .*\.case_0000\.claim: .* MiB free"
+    for group_size in (comm.size, 1):
+        errors = []
+        try:
+            Sweep.from_toml(base / "sweep.toml").run(base / f"out{group_size}", comm=comm, group_size=group_size)
+        except DataError as e:
+            errors.append(str(e))
+        errors = comm.allgather(errors)
+        assert all(len(e) == 1 for e in errors), errors          # every rank raised
+        assert all(re.search(message, e[0]) for e in errors), errors
 
 
 @pytest.mark.mpi
