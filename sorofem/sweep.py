@@ -17,6 +17,7 @@ A complete example (``demos/sweeps/pneunet.toml``)::
     mode = "grid"                          # "grid": every combination; "lhs": Latin hypercube sample
     # samples = 12                         # lhs only: number of cases (required)
     # seed = 1                             # lhs only: random seed (default 0): same seed, same cases
+    # max_cells = 1_000_000                # a case whose mesh has more cells fails before its solve
 
     [parameters]                           # what varies from case to case, SI units
     pressure = [2e3, 4e3, 6e3]             # chamber pressure [Pa]; lhs: a range [lo, hi]
@@ -129,6 +130,10 @@ Running
   it creates, removes its own unfinished ones on an interrupt and the stale ones (owner gone, or of unknown
   owner and unchanged for 10 min) at start. A case that still meets a JIT timeout is recorded ``pending``,
   not ``failed``: the next run does it.
+* **Mesh size**: a case whose builder makes a mesh of more than ``max_cells`` cells (``[sweep]``, default
+  :data:`MAX_CELLS`) fails before its solve, naming the count and the limit (a mistyped mesh size would
+  otherwise solve for hours). The count is known once the builder has meshed: an estimate before meshing
+  needs the mesh module's help (not yet).
 * **Failures**: any exception in the builder, the solve or the summary (a ``ConvergenceError``, a
   ``ValueError`` ...) marks the case ``failed`` with its message and the last frames of its traceback;
   the other cases go on. ``KeyboardInterrupt`` stops the run (run it again to resume).
@@ -180,7 +185,7 @@ import numpy as np
 from .errors import DataError, ParameterError
 from .io import process_alive, write_json
 
-__all__ = ["Sweep", "grid", "latin_hypercube", "SOLVE_KEYS", "SOLVE_TYPES", "PARAMETER_TYPES", "MODES",
+__all__ = ["Sweep", "grid", "latin_hypercube", "SOLVE_KEYS", "SOLVE_TYPES", "PARAMETER_TYPES", "MODES", "MAX_CELLS",
            "format_record", "provenance_changes"]
 
 log = logging.getLogger(__name__)
@@ -192,7 +197,10 @@ MANIFEST = "manifest.json"
 FORMAT = "soro-sweep"
 VERSION = 1
 _TOP_KEYS = ("builder", "summary", "sweep", "parameters", "fixed", "solve")
-_SWEEP_KEYS = ("mode", "samples", "seed")
+_SWEEP_KEYS = ("mode", "samples", "seed", "max_cells")
+#: Default largest mesh (global cell count) a case may solve: a mistyped mesh size (1e-5 for 1e-3) fails the
+#: case with the count and the limit instead of solving for hours.
+MAX_CELLS = 1_000_000
 #: What the manifest keeps of a case's status record (besides index, id, params and status).
 _RECORD_KEYS = ("wall_time_s", "steps", "ranks", "group", "snapshot", "sha256", "summary", "attempts", "finished",
                 "error", "traceback", "load_level")
@@ -613,6 +621,9 @@ class Sweep:
         Folder against which a relative ``file.py`` of ``builder``/``summary`` is resolved.
     source : str, optional
         Where the configuration came from (used in error messages and the manifest).
+    max_cells : int, optional
+        Largest mesh (global number of cells) a case may solve (default :data:`MAX_CELLS`); a case whose
+        builder makes a larger one fails before its solve, with the count and this limit in its error.
 
     Raises
     ------
@@ -621,9 +632,13 @@ class Sweep:
     """
 
     def __init__(self, builder, parameters, mode="grid", samples=None, seed=None, fixed=None, solve=None,
-                 summary=None, base_dir=None, source=""):
+                 summary=None, base_dir=None, source="", max_cells=None):
         src = source
         self.source = str(source)
+        if max_cells is not None and (isinstance(max_cells, bool) or not isinstance(max_cells, (int, np.integer))
+                                      or max_cells < 1):
+            raise _err(src, "sweep.max_cells", f"must be a positive integer (a number of cells), got {max_cells!r}")
+        self.max_cells = MAX_CELLS if max_cells is None else int(max_cells)
         if builder is None or builder == "":
             raise _err(src, "builder", "missing: name the function that builds a case, e.g. "
                                        "builder = \"my_case.py:build\" (def build(params, comm) -> Fem)")
@@ -723,7 +738,8 @@ class Sweep:
             raise _err(source, "parameters", "missing: add a [parameters] table, e.g. pressure = [2e3, 4e3]")
         return cls(data["builder"], data["parameters"], mode=sweep.get("mode", "grid"),
                    samples=sweep.get("samples"), seed=sweep.get("seed"), fixed=data.get("fixed"),
-                   solve=data.get("solve"), summary=data.get("summary"), base_dir=base_dir, source=source)
+                   solve=data.get("solve"), summary=data.get("summary"), base_dir=base_dir, source=source,
+                   max_cells=sweep.get("max_cells"))
 
     # ------------------------------------------------------------------------------------------ naming
     def __len__(self):
@@ -1122,6 +1138,11 @@ class Sweep:
             raise ParameterError(f"the builder {self.builder_spec} built its mesh on a communicator of "
                                  f"{built.mesh.comm.size} rank(s), not on the case's ({group.size}): pass the "
                                  "comm it receives to the mesh, Mesh.from_sdf(shape, size=..., comm=comm)")
+        cells = built.mesh.num_cells
+        if cells > self.max_cells:
+            raise ParameterError(f"the builder {self.builder_spec} made a mesh of {cells} cells, more than "
+                                 f"max_cells = {self.max_cells}: is its mesh size (params {params}) meant to be "
+                                 "this small? If so, raise max_cells in [sweep] (Sweep(..., max_cells=...))")
         return built, kwargs
 
 

@@ -190,6 +190,8 @@ BAD = {
     "an undeclared name": (dict(parameters='presure = [2e3]\nmaterial = ["Ecoflex0030"]'),
                            "parameters.presure: the builder case.py:build takes no parameter 'presure'; it declares "
                            "pressure, material, size, max_iterations"),
+    "max_cells not whole": (dict(sweep="max_cells = 2.5e5"), "sweep.max_cells: must be a positive integer"),
+    "max_cells zero": (dict(sweep="max_cells = 0"), "sweep.max_cells: must be a positive integer"),
     "mixed kinds": (dict(parameters='pressure = [1.0, true]\nmaterial = ["Ecoflex0030"]'),
                     r"parameters.pressure: mixes bool and number values \[1.0, True\]"),
 }
@@ -386,6 +388,18 @@ def test_builder_contract_violations_fail_the_case_with_a_clear_message(tmp_path
         assert m["counts"]["failed"] == 1
         assert m["cases"][0]["error"].startswith("ParameterError: the builder ")
         assert message in m["cases"][0]["error"]
+
+
+def test_a_mesh_above_max_cells_fails_its_case_before_the_solve(tmp_path):
+    """A mistyped mesh size: the case fails with the cell count and the limit to raise, without solving."""
+    cfg = _config(tmp_path, 'pressure = [2e3]\nmaterial = ["Ecoflex0030"]', sweep="max_cells = 20")
+    sweep = Sweep.from_toml(cfg)
+    assert sweep.max_cells == 20
+    m = sweep.run(tmp_path / "out")
+    assert m["counts"]["failed"] == 1 and m["cases"][0]["steps"] is None
+    assert re.search(r"made a mesh of \d+ cells, more than max_cells = 20: is its mesh size .* meant to be this "
+                     r"small\? If so, raise max_cells in \[sweep\]", m["cases"][0]["error"])
+    assert Sweep.from_toml(_config(tmp_path, 'pressure = [2e3]\nmaterial = ["Ecoflex0030"]')).max_cells == 1_000_000
 
 
 def test_the_example_sweep_config_loads_and_is_not_a_demo():
