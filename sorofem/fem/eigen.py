@@ -67,7 +67,7 @@ def eigenmodes(fem, n=6, shift=0.0, tol=1e-10):
     K.assemble()
     M = dolfinx.fem.petsc.assemble_matrix(dolfinx.fem.form(mass), bcs=b["bcs"], diagonal=0.0)
     M.assemble()
-    symmetric = not fem._pressures and not fem._split  # M is singular on the second field: see the module doc
+    symmetric = not fem._pressures
     eps = SLEPc.EPS().create(fem.mesh.comm)
     eps.setOperators(K, M)
     eps.setProblemType(SLEPc.EPS.ProblemType.GHEP if symmetric else SLEPc.EPS.ProblemType.GNHEP)

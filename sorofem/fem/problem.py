@@ -128,7 +128,8 @@ class Fem:
     degree : {1, 2}
         Polynomial degree of the displacement (2 with ``mixed``).
     mixed : bool
-        Taylor-Hood displacement-pressure formulation for nearly incompressible materials.
+        Taylor-Hood displacement-pressure formulation for nearly incompressible materials (any material;
+        solve and eigen; not dynamics, contact or tendons).
     quadrature_degree : int, optional
         Quadrature degree of all integrals (default ``2 * degree``).
     petsc_options : dict, optional
@@ -831,7 +832,8 @@ class Fem:
     def eigen(self, n=6, shift=0.0):
         """The ``n`` eigenpairs of :math:`K\\phi = \\omega^2 M\\phi` nearest ``shift`` [1/s^2] about the current
         state: vibration modes, or, along a load path, the buckling indicator (see :mod:`sorofem.fem.eigen`).
-        Returns :class:`sorofem.fem.eigen.Modes`."""
+        With ``mixed=True`` the pressure is condensed out: the modes of nearly incompressible bodies without
+        locking. Returns :class:`sorofem.fem.eigen.Modes`."""
         from .eigen import eigenmodes
 
         return eigenmodes(self, n=n, shift=shift)
