@@ -41,6 +41,7 @@ import datetime
 import errno
 import json
 import shutil
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -70,6 +71,35 @@ def _finite(name, array):
         raise DataError(f"{name} holds NaN or infinite values; a diverged step must not be stored "
                         "(the solver should have cut the step and reported it)")
     return array
+
+
+@contextlib.contextmanager
+def _unraisable():
+    """Collect the exceptions Python would print as "Exception ignored in ..." while the block runs; yields the
+    list they are appended to.
+
+    h5py's handle destructors (Cython) report an error twice: first with ``PyErr_PrintEx`` (through
+    ``sys.excepthook``, which also sets ``sys.last_*``), then with ``sys.unraisablehook``. Both hooks are
+    replaced for the block and ``sys.last_*`` restored after it.
+    """
+    caught = []
+    hooks = sys.unraisablehook, sys.excepthook
+    last = [getattr(sys, name, None) for name in _LAST]
+    sys.unraisablehook = lambda u: caught.append(u.exc_value)
+    sys.excepthook = lambda kind, value, tb: None
+    try:
+        yield caught
+    finally:
+        sys.unraisablehook, sys.excepthook = hooks
+        for name, value in zip(_LAST, last):
+            if value is None:
+                with contextlib.suppress(AttributeError):
+                    delattr(sys, name)
+            else:
+                setattr(sys, name, value)
+
+
+_LAST = ("last_type", "last_value", "last_traceback")
 
 
 class SnapshotWriter:
@@ -130,7 +160,10 @@ class SnapshotWriter:
         self._guarded(lambda: self._start(h5, vertices, cells, cell_type, regions, cavities, metadata, time_kind))
 
     def _start(self, h5, vertices, cells, cell_type, regions, cavities, metadata, time_kind):
-        self._f = f = h5.File(self._tmp, "w")
+        # no chunk cache: every chunk (one step) is written once, and written now, so that a full disk fails
+        # this call, not the destructor of a dataset handle later (which loses the error and can leave a
+        # dangling handle that crashes HDF5 at exit)
+        self._f = f = h5.File(self._tmp, "w", rdcc_nbytes=0)
         f.attrs.update(format=FORMAT, version=VERSION, units="SI",
                        created=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
                        metadata=json.dumps(metadata or {}, default=str))
@@ -163,9 +196,19 @@ class SnapshotWriter:
 
     def _guarded(self, fn):
         """Run an HDF5 write; on failure discard the temporary file (a full disk as the DataError that names
-        the path and the free space)."""
+        the path and the free space).
+
+        HDF5 often reports a failed write not to the caller but from the destructor of a dataset handle, which
+        Python prints as an "Exception ignored" traceback and forgets (the write is then silently lost and
+        the file would be committed). During the write those exceptions are caught (:func:`_unraisable`),
+        printed nowhere, and the first one is raised here as if the write had failed.
+        """
         try:
-            return fn()
+            with _unraisable() as ignored:
+                out = fn()
+            if ignored:
+                raise ignored[0]
+            return out
         except Exception as e:
             self._discard()
             if is_disk_full(e):
@@ -173,10 +216,10 @@ class SnapshotWriter:
             raise
 
     def _discard(self):
-        """Close (ignoring HDF5's errors on a full disk) and remove the temporary file."""
+        """Close (silencing HDF5's errors on a full disk) and remove the temporary file."""
         f, self._f = self._f, None
         if f is not None:
-            with contextlib.suppress(Exception):
+            with _unraisable(), contextlib.suppress(Exception):
                 f.close()
         if self._atomic is not None:
             atomic, self._atomic = self._atomic, None

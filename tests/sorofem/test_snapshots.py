@@ -318,6 +318,35 @@ def test_a_full_disk_is_a_data_error_naming_path_and_free_space(tmp_path, monkey
     assert Snapshots(path).n_steps == 1                                   # the previous file is intact
 
 
+def test_a_write_error_met_in_a_destructor_is_the_data_error_without_tracebacks(tmp_path, monkeypatch, capfd):
+    """HDF5 may report a failed write from a handle's destructor ("Exception ignored in ...", once through
+    ``sys.excepthook`` and once through ``sys.unraisablehook``): the writer raises it as the DataError and
+    nothing is printed (fault injection: an object whose ``__del__`` fails with ENOSPC during the flush)."""
+    import errno
+
+    X, cells = _square()
+    path = tmp_path / "case.h5"
+
+    class Handle:
+        def __del__(self):
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+    def flush(self):
+        Handle()                                  # dropped at once: its error goes to sys.unraisablehook
+        sys.excepthook(RuntimeError, RuntimeError("errno = 28"), None)   # Cython's PyErr_PrintEx half
+    w = SnapshotWriter(path, X, cells, "triangle")
+    capfd.readouterr()
+    hooks = sys.unraisablehook, sys.excepthook
+    monkeypatch.setattr(h5py.File, "flush", flush)
+    with pytest.raises(DataError, match=rf"no space left writing {path}: .* MiB free of "):
+        w.append(0.0, 0 * X)
+    monkeypatch.undo()
+    err = capfd.readouterr().err
+    assert "Traceback" not in err and "Exception ignored" not in err and "errno" not in err, err
+    assert list(tmp_path.iterdir()) == []                               # nothing committed, no temporary file
+    assert (sys.unraisablehook, sys.excepthook) == hooks                 # the hooks are given back
+
+
 def _tmpfs(where, size):
     where.mkdir()
     res = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(where)], capture_output=True)
@@ -347,6 +376,17 @@ def test_a_really_full_disk_gives_the_message_and_no_crash(tmp_path, subprocess_
         assert res.returncode == 0, res.stdout + res.stderr
         assert f"DataError: no space left writing {disk / 'case.h5'}: " in res.stdout
         assert "MiB free of 0.5 MiB" in res.stdout
+        assert "Traceback" not in res.stderr and "Exception ignored" not in res.stderr, res.stderr[:2000]
+        assert os.listdir(disk) == []
+        # the same with the free-space check fooled (another writer fills the disk after it): HDF5 itself
+        # meets the full disk; before the fix its errors went to destructors ("Exception ignored" tracebacks),
+        # the truncated file was committed as done and the process crashed at exit (SIGSEGV)
+        fooled = ("import shutil, collections\n"
+                  "shutil.disk_usage = lambda p: collections.namedtuple('u', 'total used free')(1 << 40, 0, 1 << 40)\n")
+        res = subprocess.run([sys.executable, "-c", fooled + code, str(disk / "case.h5")], capture_output=True,
+                             text=True, env=subprocess_env, timeout=120)
+        assert res.returncode == 0, res.stdout + res.stderr
+        assert f"DataError: no space left writing {disk / 'case.h5'}: " in res.stdout
         assert "Traceback" not in res.stderr and "Exception ignored" not in res.stderr, res.stderr[:2000]
         assert os.listdir(disk) == []
     finally:
