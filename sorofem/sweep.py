@@ -1119,8 +1119,10 @@ class Sweep:
 
     def _build(self, params, group, MPI):
         from .fem import Fem
+        from .mesh import cell_limit
 
-        built = self.builder(dict(params), group)
+        with cell_limit(self.max_cells):   # Mesh.from_sdf refuses a larger estimate before gmsh runs
+            built = self.builder(dict(params), group)
         kwargs = {}
         if isinstance(built, tuple) and len(built) == 2:
             built, kwargs = built

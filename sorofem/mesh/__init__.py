@@ -17,6 +17,6 @@ from .._petsc import init as _init_petsc
 
 _init_petsc()  # before DOLFINx: Python keeps its signal handling (sorofem._petsc)
 
-from ._core import Mesh
+from ._core import MAX_CELLS, Mesh, cell_limit, estimate_cells
 
-__all__ = ["Mesh"]
+__all__ = ["Mesh", "MAX_CELLS", "cell_limit", "estimate_cells"]

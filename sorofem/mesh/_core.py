@@ -5,6 +5,8 @@ import os
 import shutil
 import tempfile
 import time
+import contextlib
+import contextvars
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -16,7 +18,7 @@ from ..errors import GeometryError, MeshError
 from ..io import on_root
 from . import _contour, _gmsh, _regions
 
-__all__ = ["Mesh"]
+__all__ = ["Mesh", "MAX_CELLS", "cell_limit", "estimate_cells"]
 
 log = logging.getLogger(__name__)
 silence_compiler_logs()
@@ -25,6 +27,112 @@ _SIMPLEX = {"simplex", "triangle", "tetrahedron", "tri", "tet"}
 _TENSOR = {"quadrilateral", "hexahedron", "quad", "hex"}
 SIDES_2D = ("left", "right", "bottom", "top")
 SIDES_3D = ("left", "right", "front", "back", "bottom", "top")
+
+
+MAX_CELLS = 2_000_000
+"""Default largest number of cells :meth:`Mesh.from_sdf` will generate (its ``max_cells``)."""
+
+_cell_limit = contextvars.ContextVar("sorofem_mesh_cell_limit", default=None)
+
+# cells per unit measure at element size h: regular triangle sqrt(3)/4 h^2, regular tetrahedron h^3/(6 sqrt 2),
+# square h^2, cube h^3 (gmsh's unstructured cells are close to regular at the requested size)
+_CELL_MEASURE = {("simplex", 2): math.sqrt(3) / 4, ("simplex", 3): 1 / (6 * math.sqrt(2)),
+                 ("quad", 2): 1.0, ("quad", 3): 1.0}
+
+
+@contextlib.contextmanager
+def cell_limit(max_cells):
+    """Within the block, :meth:`Mesh.from_sdf` calls that pass no ``max_cells`` use this limit (a sweep passes
+    its ``[sweep] max_cells`` to the builders it runs).
+
+    Parameters
+    ----------
+    max_cells : int
+        Largest estimated number of cells; positive.
+    """
+    token = _cell_limit.set(_check_max_cells(max_cells))
+    try:
+        yield
+    finally:
+        _cell_limit.reset(token)
+
+
+def _check_max_cells(max_cells):
+    if isinstance(max_cells, bool) or not isinstance(max_cells, (int, np.integer, float)) \
+            or not math.isfinite(max_cells) or max_cells < 1:
+        raise MeshError(f"max_cells must be a positive number of cells, got {max_cells!r}")
+    return int(max_cells)
+
+
+def estimate_cells(shape, size, cell="simplex", samples=2048, measure=None):
+    """Estimate how many cells meshing ``shape`` at ``size`` makes, without meshing.
+
+    .. math:: N \\approx |\\Omega|\\,\\big\\langle 1 / (c\\, h(x)^d) \\big\\rangle_{x \\in \\Omega}
+
+    with the domain's measure :math:`|\\Omega|` (``shape.area``/``shape.volume``: exact where the shape knows
+    it, otherwise numerical), the cell measure :math:`c\\,h^d` of a regular cell of edge :math:`h`
+    (triangle :math:`\\sqrt3/4`, tetrahedron :math:`1/(6\\sqrt2)`, quadrilateral/hexahedron 1) and, for a
+    varying size, the mean over ``samples`` points drawn (fixed seed) in the bounding box and kept inside.
+    Gmsh's cells are close to regular, so the estimate is within a factor of about 2 of the count.
+
+    Parameters
+    ----------
+    shape : sorofem.sdf shape
+        2D or 3D; lengths in m.
+    size : float or callable
+        Element size [m], or ``size(x) -> h`` [m] on an (N, dim) array of points [m].
+    cell : str
+        ``"simplex"`` (triangles/tetrahedra) or ``"quad"`` (quadrilaterals/hexahedra).
+    samples : int
+        Points sampled for a varying size.
+    measure : float, optional
+        The domain's area [m^2] or volume [m^3] if known (an upper bound such as the bounding box's gives an
+        upper bound of the count); default the shape's.
+
+    Returns
+    -------
+    float
+        The estimated number of cells.
+    """
+    dim = shape.dim
+    if measure is None:
+        measure = float(shape.area if dim == 2 else shape.volume)
+    c = _CELL_MEASURE[("quad" if cell == "quad" else "simplex", dim)]
+    if not callable(size):
+        return measure / (c * float(size) ** dim)
+    lo, hi = (np.asarray(b, dtype=float) for b in shape.bounds)
+    x = lo + (hi - lo) * np.random.default_rng(0).random((int(samples), dim))
+    x = x[np.asarray(shape(x)).reshape(-1) < 0]
+    if len(x) == 0:
+        raise GeometryError("no sample point falls inside the shape; is it empty or are its bounds wrong?")
+    h = np.asarray(size(x), dtype=float).reshape(-1)
+    if h.size == 1:
+        h = np.full(len(x), h[0])
+    if not np.all(np.isfinite(h) & (h > 0)):
+        raise MeshError("the size function returned a non-positive or non-finite element size inside the shape")
+    return measure * float(np.mean(1.0 / (c * h ** dim)))
+
+
+def _check_size_estimate(shape, h_fn, h_base, kind, max_cells):
+    """Refuse (MeshError) a mesh whose estimated cell count exceeds the limit, before gmsh runs. The bounding
+    box's measure bounds the estimate from above for free; the shape's own measure is computed only when that
+    bound is above the limit."""
+    limit = _check_max_cells(max_cells) if max_cells is not None else (_cell_limit.get() or MAX_CELLS)
+    size = h_base
+    if h_fn is not None:
+        pad = [0.0] * (3 - shape.dim)
+
+        def size(x):   # gmsh caps a size callback at h_base (Mesh.MeshSizeMax)
+            return np.minimum([h_fn(*p, *pad) for p in x], h_base)
+    lo, hi = (np.asarray(b, dtype=float) for b in shape.bounds)
+    n = estimate_cells(shape, size, kind, samples=512, measure=float(np.prod(hi - lo)))
+    if n > limit:
+        n = estimate_cells(shape, size, kind, samples=512)
+    if n > limit:
+        raise MeshError(f"meshing this shape at size {h_base:.3g} m would make about {n:.3g} cells (its "
+                        f"{'area' if shape.dim == 2 else 'volume'} over the cell size), more than max_cells = "
+                        f"{limit}: is the size (in metres, e.g. 0.5*mm) meant to be this small? If so, pass "
+                        "Mesh.from_sdf(..., max_cells=...) (in a sweep, raise max_cells in [sweep])")
 
 
 def _world():
@@ -473,7 +581,7 @@ class Mesh:
 
     @classmethod
     def from_sdf(cls, shape, size, order=1, cell="simplex", method="auto", refine=None, boundary_size=None,
-                 boundary_width=None, comm=None, side_tol=None):
+                 boundary_width=None, comm=None, side_tol=None, max_cells=None):
         """Mesh the inside (negative part) of a signed distance function.
 
         Parameters
@@ -500,13 +608,17 @@ class Mesh:
             Defaults to ``MPI.COMM_WORLD``; the mesh is built on rank 0 and distributed.
         side_tol : float, optional
             Tolerance [m] for the named sides; default ``1e-6`` times the bounding-box diagonal.
+        max_cells : int, optional
+            Largest number of cells to generate, checked against :func:`estimate_cells` before gmsh runs
+            (a mistyped size would otherwise mesh for minutes). Default: the enclosing :func:`cell_limit`
+            (a sweep's ``[sweep] max_cells``), else :data:`MAX_CELLS` (2e6).
 
         Raises
         ------
         GeometryError
             Empty shape, non-conservative bounds.
         MeshError
-            Non-positive size, meshing failure or unusable mesh.
+            Non-positive size, an estimated cell count above ``max_cells``, meshing failure or unusable mesh.
         """
         comm = comm or _world()
         order = _check_order(order)
@@ -519,6 +631,7 @@ class Mesh:
         h_base, h_bnd, h_fn = _size_function(size, refine, shape, boundary_size, boundary_width, dim)
         if kind == "quad" and dim == 3 and getattr(shape, "op", "") != "box":
             raise MeshError("hexahedra are only generated for a plain box (Mesh.box or sdf.Box); use tetrahedra")
+        _check_size_estimate(shape, h_fn, h_base, kind, max_cells)
 
         def build():
             with _gmsh.session("from_sdf") as gmsh:

@@ -229,6 +229,39 @@ def test_empty_shape_and_bad_args():
         Mesh.from_sdf(object(), size=1 * mm)
 
 
+# ----------------------------------------------------------------------------------------------- size estimate
+def test_the_cell_estimate_is_close_to_the_count():
+    """The estimate (measure over a regular cell's measure) is within a factor 2 of gmsh's count for
+    triangles and tetrahedra, for a constant and a varying size: it is meant to catch sizes that are off by
+    orders of magnitude (a size in mm typed as m), so a factor 2 is the accuracy it needs."""
+    holes = two_holes()
+    for shape, size in [(holes, 1 * mm), (sdf.Sphere(5 * mm), 1.5 * mm)]:
+        n = mesh_mod.estimate_cells(shape, size)
+        assert 0.5 < n / Mesh.from_sdf(shape, size=size).num_cells < 2.0
+    varying = lambda x: 1.5 * mm - 0.05 * np.abs(x[:, 0])          # noqa: E731 - 1.5 mm in the middle, 0.5 at the ends
+    n = mesh_mod.estimate_cells(holes, varying)
+    assert 0.5 < n / Mesh.from_sdf(holes, size=varying).num_cells < 2.0
+    assert mesh_mod.estimate_cells(holes, 1 * mm, cell="quad") == pytest.approx(holes.area / mm**2)
+
+
+def test_a_tiny_size_is_refused_before_meshing(monkeypatch):
+    """A size 1000x too small (0.5 um on a 40 mm x 10 mm strip, area 3.75e-4 m^2 over sqrt(3)/4 (0.5 um)^2:
+    3.46e9 triangles) is refused from the estimate, naming it,
+    the size and the keyword; gmsh never starts (its session is replaced by a failure)."""
+    def no_gmsh(*args, **kwargs):
+        raise AssertionError("gmsh was started")
+    monkeypatch.setattr(mesh_mod._core._gmsh, "session", no_gmsh)
+    with pytest.raises(MeshError, match=r"size 5e-07 m would make about 3\.46e\+09 cells .* more than max_cells = "
+                                        r"2000000: .* max_cells=\.\.\."):
+        Mesh.from_sdf(two_holes(), size=0.5e-3 * mm)
+    with pytest.raises(MeshError, match=r"about 8\.66e\+04 cells .* max_cells = 10000"):
+        Mesh.from_sdf(two_holes(), size=0.1 * mm, max_cells=10_000)
+    with pytest.raises(MeshError, match="max_cells = 100"), mesh_mod.cell_limit(100):   # a sweep's limit
+        Mesh.from_sdf(two_holes(), size=1 * mm, refine=[(sdf.Circle(3 * mm), 0.2 * mm)])
+    with pytest.raises(MeshError, match="max_cells must be a positive number"):
+        Mesh.from_sdf(two_holes(), size=1 * mm, max_cells=True)
+
+
 # ----------------------------------------------------------------------------------------------- images
 def _disk_png(path, n=200, r_px=60):
     from skimage import io as skio
