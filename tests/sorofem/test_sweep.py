@@ -391,14 +391,16 @@ def test_builder_contract_violations_fail_the_case_with_a_clear_message(tmp_path
 
 
 def test_a_mesh_above_max_cells_fails_its_case_before_the_solve(tmp_path):
-    """A mistyped mesh size: the case fails with the cell count and the limit to raise, without solving."""
+    """A mistyped mesh size: the case fails with the cell count and the limit to raise, without solving; a mesh
+    from Mesh.from_sdf, as here, is refused from its estimate before gmsh runs (the sweep passes max_cells to
+    it); any other mesh is refused after it is made."""
     cfg = _config(tmp_path, 'pressure = [2e3]\nmaterial = ["Ecoflex0030"]', sweep="max_cells = 20")
     sweep = Sweep.from_toml(cfg)
     assert sweep.max_cells == 20
     m = sweep.run(tmp_path / "out")
     assert m["counts"]["failed"] == 1 and m["cases"][0]["steps"] is None
-    assert re.search(r"made a mesh of \d+ cells, more than max_cells = 20: is its mesh size .* meant to be this "
-                     r"small\? If so, raise max_cells in \[sweep\]", m["cases"][0]["error"])
+    assert re.search(r"MeshError: meshing this shape at size .* would make about \d+ cells .* more than max_cells = "
+                     r"20: .* raise max_cells in \[sweep\]", m["cases"][0]["error"])
     assert Sweep.from_toml(_config(tmp_path, 'pressure = [2e3]\nmaterial = ["Ecoflex0030"]')).max_cells == 1_000_000
 
 
