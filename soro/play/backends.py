@@ -1,0 +1,648 @@
+r"""Back ends of ``soro play``: what moves the scene the page shows.
+
+* :class:`ModelBackend`: the reduced model steps in this process, paced by the wall clock (real time); when a
+  step takes longer than the time it simulates, the achieved real-time factor drops below 1, the frames keep
+  coming (about 30 per second of wall time) and the page says so.
+* :class:`BoardBackend`: a pneumatic board, simulated (:meth:`sorocontrol.Board.simulated`, the scene's beam as
+  its plant when the scene is one :class:`~soroshapes.Shapes` with one chamber per channel) or real
+  (:meth:`sorocontrol.Board.connect`). The sliders are the board's set-points; the 3D view is the shape the
+  board's sensors report (``view_source = "estimate"``) or, when they report none, the model's prediction
+  driven by the measured pressures (``"prediction"``). :meth:`Backend.vent` (the page closed) and
+  :meth:`Backend.close` (the server stops) vent the board.
+
+Every back end publishes frames (:meth:`Backend.frame`): a dict of plain numbers in SI units (positions in m,
+pressures in Pa, energies in J), the page's only input. One stepping thread per back end; commands from the
+page (:meth:`Backend.command`) are applied under a lock and answered by the next frame, whose ``input_seq``
+is the sequence number of the last command it includes (the page measures its latency with it).
+"""
+from __future__ import annotations
+
+import csv
+import logging
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+from sorofem.errors import ParameterError, SafetyError, SoroError
+
+__all__ = ["Backend", "ModelBackend", "BoardBackend", "section_outline", "scene_geometry"]
+
+log = logging.getLogger(__name__)
+
+FRAME_PERIOD = 1.0 / 30.0     # wall time between frames when the model keeps up [s]
+
+
+# ----------------------------------------------------------------------------------------------------------
+# geometry for the page
+# ----------------------------------------------------------------------------------------------------------
+def section_outline(section, n=24):
+    """Boundary of a 2D SDF ``section`` as ``n`` points (y, z) [m] about its centroid, found by bisection
+    along rays from the centroid (a star-shaped section: the rounded rectangles and circles of the demos)."""
+    from sorofem.sdf.properties import section_properties
+    c = np.asarray(section_properties(section).centroid, float)
+    a = 2 * np.pi * np.arange(n) / n
+    d = np.column_stack([np.cos(a), np.sin(a)])
+    lo, hi = np.zeros(n), np.full(n, float(np.max(np.abs(np.asarray(section.bounds) - c))) * 2 + 1e-6)
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        inside = np.asarray(section(c + mid[:, None] * d)).reshape(-1) < 0
+        lo, hi = np.where(inside, mid, lo), np.where(inside, hi, mid)
+    return 0.5 * (lo + hi)[:, None] * d
+
+
+def obstacle_points(shape, n=2500, seed=0):
+    """About ``n`` points [m] on the surface of a 3D SDF (within its bounds), projected onto the surface: the
+    page draws obstacles as these points. Unbounded shapes are cut to a 0.4 m box about the origin."""
+    lo, hi = (np.asarray(b, float) for b in shape.bounds)
+    lo = np.where(np.isfinite(lo), lo, -0.2)
+    hi = np.where(np.isfinite(hi), hi, 0.2)
+    lo, hi = np.maximum(lo, -0.2), np.minimum(hi, 0.2)
+    rng = np.random.default_rng(seed)
+    p = lo + (hi - lo) * rng.random((8 * n, 3))
+    d = np.asarray(shape(p)).reshape(-1)
+    h = 0.05 * float(np.max(hi - lo))
+    p = p[np.abs(d) < h][:n]
+    if len(p) == 0:
+        return np.zeros((0, 3))
+    p = np.asarray(shape.project(p), float)
+    keep = np.all((p >= lo - 1e-9) & (p <= hi + 1e-9), axis=1) & np.all(np.isfinite(p), axis=1)
+    return p[keep]
+
+
+def scene_geometry(scene):
+    """The static part of the page's scene: beam sections, obstacle surface points, channels, view."""
+    beams = []
+    for name in scene.beam_names:
+        shp = scene.beam(name)
+        beams.append({"name": name, "outline": _r(section_outline(shp.section)), "radius": shp.contact_radius})
+    return {
+        "title": scene.title,
+        "beams": beams,
+        "obstacles": [_r(obstacle_points(ob)) for ob in scene.obstacles],
+        "channels": [{"name": c.name, "label": c.label or c.name, "low": c.low, "high": c.high, "unit": c.unit,
+                      "initial": c.initial} for c in scene.channels],
+        "target": None if scene.target is None else list(map(float, scene.target.position)),
+        "view": list(map(float, scene.view)),
+    }
+
+
+def _r(a, nd=6):
+    return np.round(np.asarray(a, float), nd).tolist()
+
+
+# ----------------------------------------------------------------------------------------------------------
+# plants: the reduced model of a scene, stepped in this process
+# ----------------------------------------------------------------------------------------------------------
+class _Plant:
+    """The scene's system with its state; ``step(h, u)`` advances it by ``h`` [s] with inputs ``u`` (values of
+    the scene's channels, SI), holding them constant."""
+
+    def __init__(self, scene):
+        self.scene = scene
+        self.index = {name: k for k, name in enumerate(scene.inputs)}
+        self.reset()
+
+    def _full(self, u):
+        v = np.zeros(len(self.index))
+        for ch, val in zip(self.scene.channels, u):
+            v[self.index[ch.name]] = val
+        return v
+
+
+class _ShapesPlant(_Plant):
+    def reset(self):
+        shp = self.scene.system
+        self.t, self.q, self.qd = 0.0, np.zeros(shp.n), np.zeros(shp.n)
+
+    def step(self, h, u):
+        shp = self.scene.system
+        tr = shp.simulate(h, min(self.scene.dt, h), q0=self.q, qd0=self.qd, u=self._full(u))
+        self.q, self.qd, self.t = tr.q[-1].copy(), tr.qd[-1].copy(), self.t + h
+
+    def beam_states(self):
+        return {"beam": (self.scene.system, self.q, self.qd)}
+
+    def set_beam(self, name, q):
+        self.q, self.qd = np.asarray(q, float).copy(), np.zeros_like(self.q)
+
+    def bodies(self):
+        return []
+
+    def pressures(self):
+        return {}
+
+
+class _ModelPlant(_Plant):
+    def __init__(self, scene):
+        mdl = scene.system
+        self._u = np.zeros(len(mdl.inputs))
+        mdl.set_controller(lambda m: self._u, reads=())     # the sliders are the free inputs
+        self.slices, x, k = {}, mdl.initial_state(), 0
+        mdl.set_state(0.0, x)
+        for name in mdl.systems:
+            n = len(mdl[name].x)
+            self.slices[name] = slice(k, k + n)
+            k += n
+        super().__init__(scene)
+
+    def reset(self):
+        self.t, self.x = 0.0, self.scene.system.initial_state().copy()
+        self.scene.system.set_state(0.0, self.x)
+
+    def step(self, h, u):
+        mdl = self.scene.system
+        self._u = self._full(u)
+        tr = mdl.simulate(h, min(self.scene.dt, h), method=self.scene.method, x0=self.x, t0=self.t)
+        self.x, self.t = tr.x[-1].copy(), self.t + h
+        mdl.set_state(self.t, self.x)
+
+    def beam_states(self):
+        out = {}
+        for name in self.scene.beam_names:
+            shp = self.scene.beam(name)
+            xs = self.x[self.slices[name]]
+            out[name] = (shp, xs[:shp.n], xs[shp.n:2 * shp.n])
+        return out
+
+    def set_beam(self, name, q):
+        shp, sl = self.scene.beam(name), self.slices[name]
+        self.x[sl.start:sl.start + shp.n] = q
+        self.x[sl.start + shp.n:sl.start + 2 * shp.n] = 0.0
+        self.scene.system.set_state(self.t, self.x)
+
+    def bodies(self):
+        mdl, out = self.scene.system, []
+        for name in mdl.systems:
+            sysm = mdl[name].system
+            if hasattr(sysm, "pose") and hasattr(sysm, "twist"):       # RigidBody, SpinningBody
+                g = np.asarray(sysm.pose(self.x[self.slices[name]]), float)
+                out.append({"name": name, "pose": _r(g[:3, :])})
+        return out
+
+    def pressures(self):
+        from soroshapes import Fluidic
+        mdl = self.scene.system
+        return {name: float(mdl[name].pressure) for name in mdl.systems if isinstance(mdl[name].system, Fluidic)}
+
+
+def make_plant(scene):
+    """The plant of a scene (its Shapes or Model with a state)."""
+    return _ShapesPlant(scene) if scene.kind == "shapes" else _ModelPlant(scene)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# back ends
+# ----------------------------------------------------------------------------------------------------------
+class Backend:
+    """Common part: the channel values, commands, IK target, recording, frame publication.
+
+    Parameters
+    ----------
+    scene : soro.play.Scene
+    clock : callable () -> float [s]
+        Monotonic wall clock (injectable for tests).
+    out : path
+        Where recordings go (``out/play`` by default).
+    """
+
+    label = "backend"
+    view_source = "model"
+
+    def __init__(self, scene, clock=time.monotonic, out="out/play"):
+        self.scene, self.clock, self.out = scene, clock, Path(out)
+        self.plant = make_plant(scene)
+        self._lock = threading.Lock()
+        self._wake = threading.Event()
+        self._stop = threading.Event()
+        self._frame_cv = threading.Condition()
+        self.u = np.array([np.clip(c.initial, c.low, c.high) for c in scene.channels], float)
+        self.paused = False
+        self.mode = "simulate"
+        self.target = None if scene.target is None else np.asarray(scene.target.position, float).copy()
+        self._ik_dirty = False
+        self.ik_error = None
+        self.cmd_seq = 0
+        self.seq = 0
+        self.rtf = 1.0
+        self.message = ""
+        self._frame = None
+        self._recording = None
+        self._replay = None
+        self.last_recording = None
+        self.thread = None
+
+    # -- commands from the page ------------------------------------------------------------------------
+    def command(self, cmd):
+        """Apply one command (a dict from the page): ``{"type": "input", "name", "value"}``, ``"target"`` (with
+        ``position`` [m]), ``"play"``, ``"pause"``, ``"reset"``, ``"mode"`` (``"simulate"``/``"ik"``),
+        ``"record"``, ``"stop_record"``, ``"replay"``, ``"vent"``. ``seq`` (int) numbers the command.
+        Returns a short answer dict. Raises :class:`ParameterError` for a malformed command."""
+        kind = cmd.get("type")
+        seq = int(cmd.get("seq", 0) or 0)
+        answer = {"ok": True}
+        with self._lock:
+            if kind == "input":
+                names = [c.name for c in self.scene.channels]
+                name = cmd.get("name")
+                if name not in names:
+                    raise ParameterError(f"no channel {name!r}; channels: {names}")
+                k = names.index(name)
+                ch = self.scene.channels[k]
+                v = float(cmd.get("value"))
+                if not np.isfinite(v):
+                    raise ParameterError(f"channel {name!r}: value must be finite")
+                self.u[k] = float(np.clip(v, ch.low, ch.high))
+                self._on_input()
+            elif kind == "target":
+                if self.target is None:
+                    raise ParameterError("this scene has no IK target")
+                p = np.asarray(cmd.get("position"), float).reshape(-1)
+                if p.shape != (3,) or not np.all(np.isfinite(p)):
+                    raise ParameterError("target position must be 3 finite numbers [m]")
+                self.target = p
+                self.mode, self._ik_dirty = "ik", True
+            elif kind == "play":
+                self.paused = False
+                if self.mode == "ik":
+                    self.mode = "simulate"
+            elif kind == "pause":
+                self.paused = True
+            elif kind == "reset":
+                self._reset()
+            elif kind == "mode":
+                if cmd.get("mode") not in ("simulate", "ik"):
+                    raise ParameterError("mode must be 'simulate' or 'ik'")
+                self.mode = cmd["mode"]
+                self._ik_dirty = self.mode == "ik"
+            elif kind == "record":
+                self._recording = []
+            elif kind == "stop_record":
+                answer["path"] = str(self._save_recording())
+            elif kind == "replay":
+                answer["path"] = str(self._start_replay(cmd.get("path")))
+            elif kind == "vent":
+                self._vent_locked()
+            else:
+                raise ParameterError(f"unknown command {kind!r}")
+            self.cmd_seq = max(self.cmd_seq, seq)
+        self._wake.set()
+        return answer
+
+    def _on_input(self):
+        """Hook: a channel changed (the board back end leaves its vented state)."""
+
+    def _reset(self):
+        self.plant.reset()
+        self.u[:] = [np.clip(c.initial, c.low, c.high) for c in self.scene.channels]
+        if self.scene.target is not None:
+            self.target = np.asarray(self.scene.target.position, float).copy()
+        self.mode, self._replay, self.message = "simulate", None, ""
+
+    def vent(self):
+        """All channels to 0 (and the board vented): the page was closed."""
+        with self._lock:
+            self._vent_locked()
+        self._wake.set()
+
+    def _vent_locked(self):
+        self.u[:] = 0.0
+
+    # -- recording ---------------------------------------------------------------------------------------
+    def _signals(self, tip):
+        return [self.plant.t, *self.u.tolist(), *(tip.tolist() if tip is not None else [np.nan] * 3)]
+
+    def _save_recording(self):
+        from sorofem.io import atomic_path
+        rows = self._recording or []
+        self._recording = None
+        if not rows:
+            raise ParameterError("nothing recorded: press record, let it run, then stop")
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        path = self.out / f"{self.scene.title}-{stamp}.csv"
+        header = ["t_s", *[f"{c.name}_{c.unit}" for c in self.scene.channels], "tip_x_m", "tip_y_m", "tip_z_m"]
+        with atomic_path(path) as tmp:
+            with open(tmp, "w", newline="") as f:
+                w = csv.writer(f)
+                w.writerow(header)
+                w.writerows(rows)
+        with atomic_path(path.with_suffix(".npz")) as tmp:
+            states = {n: np.concatenate([q, qd]) for n, (_, q, qd) in self.plant.beam_states().items()}
+            np.savez(tmp, t=self.plant.t, u=self.u, **{f"state_{n}": s for n, s in states.items()})
+        self.last_recording = path
+        return path
+
+    def _start_replay(self, path=None):
+        path = Path(path) if path else self.last_recording
+        if path is None or not Path(path).is_file():
+            raise ParameterError(f"no recording to replay ({path}); record one first")
+        data = np.genfromtxt(path, delimiter=",", skip_header=1, ndmin=2)
+        m = len(self.scene.channels)
+        if data.shape[1] != m + 4:
+            raise ParameterError(f"{path} has {data.shape[1]} columns; this scene's recordings have {m + 4}")
+        self.plant.reset()
+        self._replay = (self.plant.t, data[:, 0] - data[0, 0], data[:, 1:1 + m])
+        self.paused, self.mode = False, "simulate"
+        return path
+
+    def _replay_inputs(self):
+        t0, ts, us = self._replay
+        k = int(np.searchsorted(ts, self.plant.t - t0, side="right")) - 1
+        if k >= len(ts) - 1:
+            self._replay = None
+            self.message = "replay finished"
+        self.u[:] = us[max(k, 0)]
+
+    # -- the frame ---------------------------------------------------------------------------------------
+    def _compose(self, input_seq, extra=None):
+        beams, tip, energy = [], None, 0.0
+        for name, (shp, q, qd) in self.view_states().items():
+            G = shp.forward_kinematics(q)
+            item = {"name": name, "p": _r(G[:, :3, 3]), "ey": _r(G[:, :3, 1], 4), "ez": _r(G[:, :3, 2], 4)}
+            if self.scene.obstacles:
+                f = shp.contact_forces(q, qd)
+                hit = np.flatnonzero(np.linalg.norm(f, axis=1) > 0)
+                item["contacts"] = [[*_r(G[i, :3, 3]), *_r(f[i])] for i in hit]
+            beams.append(item)
+            if tip is None or name == self.scene.target_beam:
+                tip = G[-1, :3, 3].copy()
+            energy += float(shp.energy(q, qd)["total"])
+        signals = {"tip_x": tip[0], "tip_y": tip[1], "tip_z": tip[2], "energy": energy} if tip is not None else {}
+        for c, v in zip(self.scene.channels, self.u):
+            signals[f"u:{c.name}"] = float(v)
+        for name, p in self.plant.pressures().items():
+            signals[f"p:{name}"] = p
+        if self.scene.signals is not None:
+            signals.update({k: float(v) for k, v in self.scene.signals(self.scene.system, self.plant).items()})
+        if self._recording is not None:
+            self._recording.append(self._signals(tip))
+        self.seq += 1
+        frame = {"seq": self.seq, "input_seq": input_seq, "t": self.plant.t, "rtf": self.rtf, "paused": self.paused,
+                 "mode": self.mode, "backend": self.label, "view_source": self.view_source, "beams": beams,
+                 "bodies": self.plant.bodies(), "target": None if self.target is None else self.target.tolist(),
+                 "tip": None if tip is None else tip.tolist(), "ik_error": self.ik_error,
+                 "inputs": self.u.tolist(), "signals": signals, "message": self.message,
+                 "recording": self._recording is not None, "replaying": self._replay is not None,
+                 "last_recording": None if self.last_recording is None else str(self.last_recording)}
+        if extra:
+            frame.update(extra)
+        with self._frame_cv:
+            self._frame = frame
+            self._frame_cv.notify_all()
+        return frame
+
+    def view_states(self):
+        """{beam name: (Shapes, q, qd)} shown in the 3D view."""
+        return self.plant.beam_states()
+
+    def frame(self):
+        """The latest frame (dict), or None before the first."""
+        with self._frame_cv:
+            return self._frame
+
+    def wait_frame(self, after_seq, timeout):
+        """The first frame with ``seq > after_seq``, waiting up to ``timeout`` [s] (None on timeout)."""
+        with self._frame_cv:
+            self._frame_cv.wait_for(lambda: self._frame is not None and self._frame["seq"] > after_seq, timeout)
+            f = self._frame
+            return f if f is not None and f["seq"] > after_seq else None
+
+    def _solve_ik(self):
+        name = self.scene.target_beam
+        shp, q, _ = self.plant.beam_states()[name]
+        at = self.scene.target.at
+        tgt = self.target if at is None else [(at, self.target)]
+        res = shp.inverse_kinematics(tgt, q0=q, tol=1e-7)
+        self.plant.set_beam(name, res.q)
+        self.ik_error = float(res.error)
+        self.message = "" if res.converged else \
+            f"target out of reach: the closest pose is {res.error * 1e3:.1f} mm away"
+
+    def _warm_up_ik(self):
+        """Compile the IK kernels (numba, several seconds the first time) on a copy of the target's beam in a
+        background thread, so that the first drag of the target does not stop the frames."""
+        if self.scene.target is None:
+            return
+        import copy
+        shp = copy.deepcopy(self.scene.beam(self.scene.target_beam))
+
+        def warm():
+            try:
+                tip = shp.positions(np.zeros(shp.n))[-1]
+                shp.inverse_kinematics(shp.positions(np.zeros(shp.n))[0] + 0.97 * (tip - shp.positions(
+                    np.zeros(shp.n))[0]), q0=np.zeros(shp.n), max_iterations=3)
+            except SoroError:
+                pass
+        threading.Thread(target=warm, daemon=True, name="soro-play-ik-warm-up").start()
+
+    # -- thread ------------------------------------------------------------------------------------------
+    def start(self):
+        """Start the stepping thread (publishes a first frame before returning)."""
+        with self._lock:
+            self._compose(self.cmd_seq)
+        self.thread = threading.Thread(target=self._run_guarded, daemon=True, name=f"soro-play-{self.label}")
+        self.thread.start()
+        return self
+
+    def _run_guarded(self):
+        try:
+            self._run()
+        except Exception as e:  # noqa: BLE001 - the page must hear of it, the server must not hang
+            log.exception("soro play: the back end stopped")
+            self.message = f"the back end stopped: {type(e).__name__}: {e}"
+            self.paused = True
+            with self._lock:
+                self._compose(self.cmd_seq)
+
+    def close(self):
+        """Stop the thread (idempotent)."""
+        self._stop.set()
+        self._wake.set()
+        if self.thread is not None and self.thread is not threading.current_thread():
+            self.thread.join(10.0)
+
+
+class ModelBackend(Backend):
+    """The reduced model stepping in this process in real time (see the module docstring).
+
+    Each step simulates ``h`` seconds; ``h`` is one frame period (1/30 s) when the model keeps up, else the
+    model time the last steps achieved in one frame period (at least the scene's ``dt``), so frames keep
+    coming at about 30 Hz of wall time and the achieved real-time factor (``rtf``: model time over wall time,
+    smoothed over about a second) is what the page shows.
+    """
+
+    label = "model"
+    view_source = "model"
+
+    def _run(self):
+        h, anchor, last_wall, warm = FRAME_PERIOD, None, self.clock(), False
+        while not self._stop.is_set():
+            with self._lock:
+                input_seq = self.cmd_seq
+                if self.mode == "ik" and self._ik_dirty:
+                    self._ik_dirty = False
+                    try:
+                        self._solve_ik()
+                    except SoroError as e:
+                        self.message = f"IK failed: {e}"
+                    self._compose(input_seq)
+                    continue
+                running = not self.paused and self.mode == "simulate"
+                if running and self._replay is not None:
+                    self._replay_inputs()
+                u = self.u.copy()
+            if not running:
+                self.rtf, anchor = 0.0, None
+                with self._lock:
+                    self._compose(input_seq)
+                self._wake.wait(0.25)
+                self._wake.clear()
+                continue
+            t0 = self.clock()
+            if anchor is None:                              # (wall, model time) that real time counts from
+                anchor, last_wall = (t0, self.plant.t), t0
+            try:
+                self.plant.step(h, u)
+            except SoroError as e:
+                with self._lock:
+                    self.paused = True
+                    self.message = f"the model failed at t = {self.plant.t:.3f} s: {e} (press reset)"
+                    self._compose(input_seq)
+                continue
+            compute = max(self.clock() - t0, 1e-6)
+            if not warm:                                    # after the first step: its kernels are loaded
+                warm = True
+                self._warm_up_ik()
+            due = anchor[0] + (self.plant.t - anchor[1])    # when the wall clock reaches the model's time
+            late = self.clock() - due
+            if late < 0:
+                self._wake.wait(-late)
+                self._wake.clear()
+            elif late > 2 * FRAME_PERIOD:                   # behind: count real time from now on
+                anchor = (self.clock(), self.plant.t)
+            now = self.clock()
+            wall = max(now - last_wall, 1e-6)
+            last_wall = now
+            a = min(1.0, wall)                              # ~1 s smoothing of the displayed factor
+            self.rtf = (1 - a) * self.rtf + a * (h / wall)
+            rate = h / compute                              # model seconds per wall second of stepping
+            h = FRAME_PERIOD if rate >= 1.0 else max(self.scene.dt, min(FRAME_PERIOD, rate * FRAME_PERIOD))
+            with self._lock:
+                self._compose(input_seq)
+
+
+class BoardBackend(Backend):
+    """A simulated or real board behind the page (see the module docstring).
+
+    Parameters
+    ----------
+    scene : soro.play.Scene
+        Its channels (pressures only) are the board's channels, in order.
+    board : sorocontrol.Board, optional
+        A connected board; default a simulated one (:meth:`sorocontrol.Board.simulated`) with the scene's beam
+        as plant when the scene is one Shapes whose inputs are all channels.
+    rate : float [Hz]
+        Commands per second to the board.
+    """
+
+    def __init__(self, scene, board=None, rate=50.0, **kw):
+        super().__init__(scene, **kw)
+        for c in scene.channels:
+            if c.unit != "Pa":
+                raise ParameterError(f"channel {c.name!r} is a {c.unit} input: a board drives pressures only")
+        if board is None:
+            from sorocontrol import Board
+            beam = scene.system if scene.kind == "shapes" and len(scene.inputs) == len(scene.channels) else None
+            board = Board.simulated(channels=len(scene.channels), p_min=min(0.0, min(c.low for c in scene.channels)),
+                                    p_max=max(c.high for c in scene.channels), beam=beam)
+            self.label = "simulated board"
+        else:
+            self.label = "board"
+        if board.channels < len(scene.channels):
+            board.close()
+            raise ParameterError(f"the board has {board.channels} channels, the scene {len(scene.channels)}")
+        self.board, self.rate = board, float(rate)
+        self.vented = True
+        self.board_state = None
+        n = scene.system.n if scene.kind == "shapes" else None
+        self._sensor_q = n is not None and board.read().sensors.size == 3 + n
+        self.view_source = "estimate" if self._sensor_q else "prediction"
+
+    def _on_input(self):
+        self.vented = False
+
+    def command(self, cmd):
+        if cmd.get("type") in ("target", "mode"):
+            raise ParameterError("the IK target drives the model back end (soro play --backend model); a board "
+                                 "follows its pressure sliders")
+        return super().command(cmd)
+
+    def _vent_locked(self):
+        self.u[:] = 0.0
+        self.vented = True
+        self.board_state = self.board.vent()
+
+    def _reset(self):
+        super()._reset()
+        self._vent_locked()
+
+    def view_states(self):
+        if self._sensor_q and self.board_state is not None:
+            shp = self.scene.system
+            q = np.asarray(self.board_state.sensors[3:3 + shp.n], float)
+            return {"beam": (shp, q, np.zeros_like(q))}
+        return self.plant.beam_states()
+
+    def _run(self):
+        period = 1.0 / self.rate
+        m = len(self.scene.channels)
+        last = self.clock()
+        while not self._stop.is_set():
+            t0 = self.clock()
+            with self._lock:
+                input_seq = self.cmd_seq
+                if self._replay is not None and not self.paused:
+                    self._replay_inputs()
+                    self.vented = False
+                u, vented = self.u.copy(), self.vented
+            try:
+                values = np.zeros(self.board.channels)
+                values[:m] = u
+                state = self.board.read() if vented else self.board.set_pressure(values)
+            except SoroError as e:
+                with self._lock:
+                    self.message = f"board: {e}"
+                    self.paused = True
+                    self._compose(input_seq)
+                self._wake.wait(1.0)
+                self._wake.clear()
+                continue
+            measured = np.asarray(state.measured[:m], float)
+            with self._lock:
+                self.board_state = state
+                now = self.clock()
+                if not self._sensor_q and not self.paused:     # the model's prediction from the measured pressures
+                    try:
+                        self.plant.step(max(now - last, 1e-3), measured)
+                    except SoroError as e:
+                        self.message = f"the prediction failed at t = {self.plant.t:.3f} s: {e} (press reset)"
+                        self.paused = True
+                self.rtf = 1.0
+                last = now
+                self._compose(input_seq, {"board": {"requested": state.requested[:m].tolist(),
+                                                    "measured": measured.tolist(), "vented": vented,
+                                                    "time": state.time}})
+            rest = period - (self.clock() - t0)
+            if rest > 0:
+                self._wake.wait(rest)
+                self._wake.clear()
+
+    def close(self):
+        """Stop the thread, vent and close the board (idempotent)."""
+        super().close()
+        try:
+            self.board.close()
+        except SoroError as e:     # the board's own watchdog vents it
+            raise SafetyError(f"could not vent the board on close ({e}); its watchdog vents it within "
+                              f"{self.board.watchdog:g} s") from e

@@ -1,0 +1,85 @@
+"""``soro play SCENE``: build the scene, make the back end, serve the page (the handler of the ``play``
+subcommand of :mod:`sorofem.cli`; exit codes in :mod:`soro.play`)."""
+from __future__ import annotations
+
+import sys
+import time
+
+__all__ = ["serve", "run", "EXIT_MISSING", "EXIT_SCENE", "EXIT_PORT", "EXIT_BOARD"]
+
+EXIT_MISSING, EXIT_SCENE, EXIT_PORT, EXIT_BOARD = 2, 3, 4, 5
+
+
+def serve(scene, backend="model", *, host="127.0.0.1", port=8765, board_url=None, secret=None, secret_file=None,
+          out="out/play", clock=None):
+    """Start serving ``scene`` (a :class:`~soro.play.Scene`, Shapes or Model) and return the running
+    :class:`~soro.play.PlayServer` (its ``url``; ``close()`` stops it and vents a board).
+
+    ``backend``: ``"model"`` (real-time stepping here), ``"sim"`` (the simulated board with the model as plant)
+    or ``"board"`` (a real board at ``board_url`` with ``secret`` or ``secret_file``)."""
+    from sorofem.errors import ParameterError
+
+    from .backends import BoardBackend, ModelBackend
+    from .scene import as_scene
+    from .server import PlayServer
+    scene = as_scene(scene)
+    kw = {"out": out} if clock is None else {"out": out, "clock": clock}
+    if backend not in ("model", "sim", "board"):
+        raise ParameterError(f"backend must be 'model', 'sim' or 'board', got {backend!r}")
+    if backend == "board" and not board_url:
+        raise ParameterError("the board back end needs --board-url tcp://host:port (and --secret-file or "
+                             "$SORO_BOARD_SECRET)")
+    def make():
+        if backend == "model":
+            return ModelBackend(scene, **kw)
+        board = None
+        if backend == "board":
+            from sorocontrol import Board
+            board = Board.connect(board_url, secret=secret, secret_file=secret_file)
+        return BoardBackend(scene, board=board, **kw)
+
+    return PlayServer(scene, make, host=host, port=port).start()
+
+
+def run(args, stream=None, err=None):
+    """The ``soro play`` handler: returns the exit status (see :mod:`soro.play`)."""
+    stream, err = stream or sys.stdout, err or sys.stderr
+    from sorofem.errors import ProtocolError, SoroError
+
+    from .scene import SceneError, SceneNotFoundError, load_scene
+    from .server import ServeError
+    try:
+        scene = load_scene(args.scene, quick=args.quick)
+    except SceneNotFoundError as e:
+        print(f"soro play: {e}", file=err)
+        return EXIT_MISSING
+    except SceneError as e:
+        print(f"soro play: {e}", file=err)
+        return EXIT_SCENE
+    try:
+        server = serve(scene, args.backend, host=args.host, port=args.port, board_url=args.board_url,
+                       secret_file=args.secret_file, out=args.out)
+    except ServeError as e:
+        print(f"soro play: {e}", file=err)
+        return EXIT_PORT
+    except ProtocolError as e:
+        print(f"soro play: cannot reach the board: {e}", file=err)
+        return EXIT_BOARD
+    except SoroError as e:
+        print(f"soro play: {e}", file=err)
+        return EXIT_SCENE
+    print(f"soro play: {scene.title} ({args.backend} back end) at {server.url}  (Ctrl-C stops and vents)",
+          file=stream, flush=True)
+    if args.open:
+        import webbrowser
+        webbrowser.open(server.url)
+    try:
+        end = None if args.duration is None else time.monotonic() + args.duration
+        while end is None or time.monotonic() < end:
+            time.sleep(0.2 if end is None else max(0.0, min(0.2, end - time.monotonic())))
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.close()
+    print("soro play: stopped", file=stream, flush=True)
+    return 0
