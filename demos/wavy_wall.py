@@ -158,3 +158,14 @@ def main(out: Path, quick: bool = False) -> dict:
         "real_time_factor": round(T / wall_s, 3),
         "png": "wavy_wall.png",
     }
+
+
+def scene(quick=False):
+    """``soro play wavy_wall``: the hanging arm against the grooved wall, one torque slider [N m] per segment,
+    the contact forces drawn, an IK target at the tip."""
+    from soro.play import Channel, Scene, Target
+
+    shp = arm()
+    channels = [Channel(f"segment{i}", -2.0, 2.0, "N m", label=f"segment {i} torque") for i in range(SEGMENTS)]
+    return Scene(shp, channels, target=Target((0.0, 0.0, -SEGMENTS * SEG_LEN)), obstacles=(wall(),), dt=2e-3,
+                 view=(0.0, 0.0), title="wavy_wall")

@@ -41,7 +41,7 @@ PAGE = r"""<!doctype html>
  <div class="box row"><button id="record">record</button><button id="stoprec">stop + save</button>
   <button id="replay">replay</button><span id="recinfo"></span></div>
  <div class="box"><b>Tip position [mm]</b><canvas class="plot" id="plot_tip" width="316" height="110"></canvas>
-  <b>Inputs [kPa | N]</b><canvas class="plot" id="plot_u" width="316" height="110"></canvas>
+  <b>Inputs [kPa | N | N m]</b><canvas class="plot" id="plot_u" width="316" height="110"></canvas>
   <b>Energy [mJ]</b><canvas class="plot" id="plot_e" width="316" height="90"></canvas></div>
 </div>
 <script>
@@ -152,7 +152,8 @@ function plot(id, series, scale) {
     H.forEach((h, j) => { const v = h[k]; if (v === undefined) return; j ? g.lineTo(X(h.t), Y(v * scale(k))) : g.moveTo(X(h.t), Y(v * scale(k))); });
     g.stroke(); });
 }
-const unitScale = k => k.startsWith("tip_") ? 1e3 : k === "energy" ? 1e3 : k.startsWith("u:") || k.startsWith("p:") ? (S.units[k] === "N" ? 1 : 1e-3) : 1;
+const unitScale = k => k.startsWith("tip_") ? 1e3 : k === "energy" ? 1e3 : k.startsWith("p:") ? 1e-3 :
+  k.startsWith("u:") ? (S.units[k] === "Pa" ? 1e-3 : 1) : 1;
 S.units = {};
 function show(fr) {
   S.frame = fr;
@@ -202,7 +203,7 @@ function build(scene) {
   const box = document.getElementById("channels");
   scene.channels.forEach((c, i) => {
     S.units["u:" + c.name] = c.unit;
-    const k = c.unit === "Pa" ? 1e-3 : 1, u = c.unit === "Pa" ? "kPa" : "N";
+    const k = c.unit === "Pa" ? 1e-3 : 1, u = c.unit === "Pa" ? "kPa" : c.unit;
     const row = document.createElement("div"); row.className = "row";
     row.innerHTML = `<label title="${c.name}">${c.label}</label><input type="range" id="ch${i}" data-name="${c.name}"
       min="${c.low * k}" max="${c.high * k}" step="${(c.high - c.low) * k / 200}" value="${c.initial * k}">

@@ -52,13 +52,12 @@ def section_outline(section, n=24):
     return 0.5 * (lo + hi)[:, None] * d
 
 
-def obstacle_points(shape, n=2500, seed=0):
-    """About ``n`` points [m] on the surface of a 3D SDF (within its bounds), projected onto the surface: the
-    page draws obstacles as these points. Unbounded shapes are cut to a 0.4 m box about the origin."""
+def obstacle_points(shape, box, n=2500, seed=0):
+    """About ``n`` points [m] on the surface of a 3D SDF within its bounds and the ``box`` (lo (3,), hi (3,))
+    [m], projected onto the surface: the page draws obstacles as these points."""
     lo, hi = (np.asarray(b, float) for b in shape.bounds)
-    lo = np.where(np.isfinite(lo), lo, -0.2)
-    hi = np.where(np.isfinite(hi), hi, 0.2)
-    lo, hi = np.maximum(lo, -0.2), np.minimum(hi, 0.2)
+    lo = np.maximum(np.where(np.isfinite(lo), lo, -np.inf), box[0])
+    hi = np.minimum(np.where(np.isfinite(hi), hi, np.inf), box[1])
     rng = np.random.default_rng(seed)
     p = lo + (hi - lo) * rng.random((8 * n, 3))
     d = np.asarray(shape(p)).reshape(-1)
@@ -66,21 +65,24 @@ def obstacle_points(shape, n=2500, seed=0):
     p = p[np.abs(d) < h][:n]
     if len(p) == 0:
         return np.zeros((0, 3))
-    p = np.asarray(shape.project(p), float)
+    p = np.asarray(shape.project(p)[0], float)
     keep = np.all((p >= lo - 1e-9) & (p <= hi + 1e-9), axis=1) & np.all(np.isfinite(p), axis=1)
     return p[keep]
 
 
 def scene_geometry(scene):
     """The static part of the page's scene: beam sections, obstacle surface points, channels, view."""
-    beams = []
+    beams, lo, hi = [], np.full(3, np.inf), np.full(3, -np.inf)
     for name in scene.beam_names:
         shp = scene.beam(name)
         beams.append({"name": name, "outline": _r(section_outline(shp.section)), "radius": shp.contact_radius})
+        base = shp.positions(np.zeros(shp.n))[0]
+        lo, hi = np.minimum(lo, base - 1.2 * shp.length), np.maximum(hi, base + 1.2 * shp.length)
+    box = (lo, hi) if np.all(np.isfinite(lo)) else (np.full(3, -0.2), np.full(3, 0.2))
     return {
         "title": scene.title,
         "beams": beams,
-        "obstacles": [_r(obstacle_points(ob)) for ob in scene.obstacles],
+        "obstacles": [_r(obstacle_points(ob, box)) for ob in scene.obstacles],
         "channels": [{"name": c.name, "label": c.label or c.name, "low": c.low, "high": c.high, "unit": c.unit,
                       "initial": c.initial} for c in scene.channels],
         "target": None if scene.target is None else list(map(float, scene.target.position)),
@@ -154,7 +156,8 @@ class _ModelPlant(_Plant):
     def step(self, h, u):
         mdl = self.scene.system
         self._u = self._full(u)
-        tr = mdl.simulate(h, min(self.scene.dt, h), method=self.scene.method, x0=self.x, t0=self.t)
+        tr = mdl.simulate(h, min(self.scene.dt, h), method=self.scene.method, x0=self.x, t0=self.t,
+                          rtol=self.scene.rtol, atol=self.scene.atol)
         self.x, self.t = tr.x[-1].copy(), self.t + h
         mdl.set_state(self.t, self.x)
 

@@ -47,7 +47,7 @@ class Channel:
     low, high : float
         The slider's limits in SI units (Pa for a pressure, N for a tension), ``low < high``.
     unit : str
-        ``"Pa"`` (shown in kPa) or ``"N"``.
+        ``"Pa"`` (a pressure, shown in kPa), ``"N"`` (a tension or force) or ``"N m"`` (a torque).
     label : str, optional
         Text beside the slider (default ``name``).
     initial : float
@@ -64,8 +64,8 @@ class Channel:
         if not (np.isfinite(self.low) and np.isfinite(self.high) and self.low < self.high):
             raise ParameterError(f"channel {self.name!r}: limits must be finite with low < high, got "
                                  f"({self.low!r}, {self.high!r})")
-        if self.unit not in ("Pa", "N"):
-            raise ParameterError(f"channel {self.name!r}: unit must be 'Pa' or 'N', got {self.unit!r}")
+        if self.unit not in ("Pa", "N", "N m"):
+            raise ParameterError(f"channel {self.name!r}: unit must be 'Pa', 'N' or 'N m', got {self.unit!r}")
 
 
 @dataclass(frozen=True)
@@ -95,6 +95,8 @@ class Scene:
         Integration step of the real-time stepping.
     method : str
         ``Model.simulate`` method for a Model ("trapezoidal", "midpoint", "bdf2").
+    rtol, atol : float
+        ``Model.simulate`` tolerances for a Model.
     view : (azimuth, elevation) [deg]
         Initial camera; (0, 0) looks along +y (the x-z plane fills the screen).
     title : str
@@ -107,6 +109,8 @@ class Scene:
     obstacles: tuple = ()
     dt: float = 2e-3
     method: str = "trapezoidal"
+    rtol: float = 1e-5
+    atol: float = 1e-8
     view: tuple = (0.0, 20.0)
     title: str = "scene"
     signals: object = None

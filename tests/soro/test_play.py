@@ -1,0 +1,238 @@
+"""``soro play``: the page in a real headless Chromium against the model and the simulated-board back ends,
+the scene protocol, the demo scenes, recording, and the command line's answers to bad input.
+
+The light scene is one pressurized finger (``play_finger_scene.py``) whose static tip has a closed form, so the
+browser test checks where the tip goes, not only that it moves. Deadlines are generous (20-60 s): the suite
+runs on loaded machines; the latency from a slider change to the next frame drawn is measured by
+``tests/benchmarks/bench_play.py``, never asserted here.
+"""
+import json
+import socket
+import subprocess
+import sys
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import play_finger_scene as fs
+import pytest
+from play_browser import browser_page, require_browser, wait_for
+
+SCENE = f"{Path(__file__).with_name('play_finger_scene.py')}:build"
+TIP_TOL = 1e-4   # [m] settled tip vs closed form: the 3 Chebyshev modes hold a constant curvature exactly, the
+                 # Magnus integration of a constant strain is exact; what is left is the settling (damped, 20 s)
+
+
+def _cmd(url, **cmd):
+    req = urllib.request.Request(url + "cmd", data=json.dumps(cmd).encode(), method="POST")
+    try:
+        return json.load(urllib.request.urlopen(req, timeout=10))
+    except urllib.error.HTTPError as e:
+        return json.load(e)
+
+
+def _state(url):
+    return json.load(urllib.request.urlopen(url + "state", timeout=10))
+
+
+@pytest.fixture
+def finger_server(tmp_path):
+    from soro.play import load_scene, serve
+    srv = serve(load_scene(SCENE), "model", port=0, out=tmp_path / "play")
+    yield srv
+    srv.close()
+
+
+def _dist(a, b):
+    return float(np.linalg.norm(np.subtract(a, b)))
+
+
+def test_browser_slider_moves_the_tip_and_the_tip_follows_the_dragged_target(finger_server, tmp_path):
+    require_browser()
+    ref = fs.static_tip(finger_server.scene.system, fs.P_MAX)
+    with browser_page(tmp_path / "chromium") as page:
+        page.goto(finger_server.url)
+        wait_for(page, "window.soroPlay && soroPlay.framesDrawn > 2", what="the page draws frames")
+        z0 = page.evaluate("soroPlay.frame.tip[2]")
+        assert abs(z0) < 1e-9                                   # straight at 0 Pa
+        page.locator("#ch0").focus()
+        page.keyboard.press("End")                              # the pressure slider to its maximum, 60 kPa
+        wait_for(page, f"soroPlay.frame.inputs[0] === {fs.P_MAX} && soroPlay.frame.tip[2] < {z0 - 1e-3}",
+                 what="the tip moves away from the chamber (-z) once the pressure arrives")
+        wait_for(page, f"Math.hypot(...soroPlay.frame.tip.map((v, i) => v - {list(ref)}[i])) < {TIP_TOL}",
+                 what=f"the tip settles at the closed-form {ref} m")
+        assert page.evaluate("soroPlay.latencies.length") >= 1  # the slider's change came back in a drawn frame
+        assert "model" in page.inner_text("#source")
+        # drag the IK target (drawn at the straight tip) to a reachable point of the bending plane
+        goal = [0.045, 0.0, 0.025]
+        x0, y0 = page.evaluate("soroPlay.clientOf(soroPlay.frame.target)")
+        x1, y1 = page.evaluate(f"soroPlay.clientOf({goal})")
+        page.mouse.move(x0, y0)
+        page.mouse.down()
+        page.mouse.move(x1, y1, steps=12)
+        page.mouse.up()
+        wait_for(page, "soroPlay.dragTarget !== undefined", what="the drag moves the target")
+        wait_for(page, "soroPlay.frame.mode === 'ik' && soroPlay.frame.target.every((v, i) => "
+                 "Math.abs(v - soroPlay.dragTarget[i]) < 1e-12) && "
+                 "Math.hypot(...soroPlay.frame.tip.map((v, i) => v - soroPlay.frame.target[i])) < 0.002",
+                 what="the tip follows the dragged target to within 2 mm")
+        target = page.evaluate("soroPlay.dragTarget")
+        assert _dist(target, goal) < 1e-3                       # the target went where the mouse went (~0.2 mm/px)
+        assert abs(target[1]) < 1e-12                           # dragged in the screen plane: y = 0 in this view
+        assert page.evaluate("soroPlay.frame.ik_error") < 1e-6  # reachable: the IK converged
+
+
+def test_browser_simulated_board_receives_the_slider_and_closing_the_page_vents_it(tmp_path):
+    require_browser()
+    from soro.play import load_scene, serve
+    from sorocontrol.protocol import Flag
+    srv = serve(load_scene(SCENE), "sim", port=0, out=tmp_path / "play")
+    board = srv.backend.board
+    try:
+        with browser_page(tmp_path / "chromium") as page:
+            page.goto(srv.url)
+            wait_for(page, "window.soroPlay && soroPlay.framesDrawn > 2", timeout=60, what="the page draws frames")
+            assert "estimated from the board's sensors" in page.inner_text("#source")
+            page.locator("#ch0").focus()
+            page.keyboard.press("End")
+            import time
+            deadline = time.monotonic() + 20
+            while time.monotonic() < deadline:
+                st = board.read()                               # read back from the board itself
+                if st.requested[0] == fs.P_MAX and abs(st.measured[0] - fs.P_MAX) < 0.02 * fs.P_MAX:
+                    break
+                time.sleep(0.05)
+            assert st.requested[0] == fs.P_MAX, f"the board never got the slider's {fs.P_MAX} Pa: {st}"
+            assert abs(st.measured[0] - fs.P_MAX) < 0.02 * fs.P_MAX    # its regulator reached it
+            wait_for(page, "soroPlay.frame.tip[2] < -1e-3", what="the sensed tip moves away from the chamber")
+            page.close()                                        # the page goes: the board vents
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline:
+            st = board.read()
+            if st.requested[0] == 0 and st.flagged(Flag.VENTED).size:
+                break
+            time.sleep(0.05)
+        assert st.requested[0] == 0 and 0 in st.flagged(Flag.VENTED), f"closing the page did not vent: {st}"
+        assert abs(st.measured[0]) < 1e3
+        for _ in range(10):                                     # and it stays vented (no set-point is re-sent)
+            assert board.read().requested[0] == 0
+            time.sleep(0.05)
+    finally:
+        srv.close()
+    assert board.server_process is None                         # closing the server vented and released it
+
+
+def test_commands_recording_replay_and_bad_commands(finger_server, tmp_path):
+    url = finger_server.url
+    assert _cmd(url, type="input", name="chamber", value=30e3, seq=1)["ok"]
+    assert _cmd(url, type="record")["ok"]
+    srv = finger_server
+    f = srv.backend.wait_frame(srv.backend.frame()["seq"] + 10, 20)
+    assert f is not None and f["recording"]
+    answer = _cmd(url, type="stop_record")
+    path = Path(answer["path"])
+    assert path.parent == tmp_path / "play" and path.is_file() and path.with_suffix(".npz").is_file()
+    rows = np.genfromtxt(path, delimiter=",", names=True)
+    assert rows.dtype.names == ("t_s", "chamber_Pa", "tip_x_m", "tip_y_m", "tip_z_m")
+    assert np.all(rows["chamber_Pa"] == 30e3) and np.all(np.diff(rows["t_s"]) >= 0)
+    assert _cmd(url, type="replay")["ok"]
+    assert _cmd(url, type="input", name="chamber", value=1e9)["ok"]       # clipped to the channel's limits
+    assert srv.backend.u[0] == fs.P_MAX
+    bad = _cmd(url, type="input", name="nope", value=1.0)
+    assert not bad["ok"] and "no channel 'nope'" in bad["error"] and "chamber" in bad["error"]
+    assert "unknown command" in _cmd(url, type="explode")["error"]
+    assert "3 finite numbers" in _cmd(url, type="target", position=[1, 2])["error"]
+    assert _cmd(url, type="pause")["ok"] and _cmd(url, type="reset")["ok"]
+    f = srv.backend.wait_frame(srv.backend.frame()["seq"], 20)
+    assert f["paused"] and f["inputs"] == [0.0]
+
+
+def test_model_backend_reports_the_achieved_factor_and_keeps_publishing_when_slow(tmp_path):
+    """An injected clock makes every step look 4x slower than real time: frames keep coming and the factor
+    the page shows drops well below 1."""
+    from soro.play import load_scene
+    from soro.play.backends import ModelBackend
+    scn = load_scene(SCENE)
+    fake = {"t": 0.0}
+    be = ModelBackend(scn, clock=lambda: fake["t"], out=tmp_path)
+    real_step = be.plant.step
+
+    def slow_step(h, u):
+        real_step(h, u)
+        fake["t"] += 4 * h                  # the wall clock advances four times the model time
+    be.plant.step = slow_step
+    be.start()
+    try:
+        f = be.wait_frame(0, 20)
+        for _ in range(300):                # ~10 s of the fake wall clock: the 1 s smoothing has settled
+            f = be.wait_frame(f["seq"], 20)
+        assert f is not None and f["t"] > 0
+        assert 0.2 < f["rtf"] < 0.3                             # 1/4, smoothed
+    finally:
+        be.close()
+
+
+def test_scene_protocol_errors():
+    from soro.play import Channel, Scene, SceneError
+    from soro.play.scene import as_scene
+    with pytest.raises(SceneError, match="soroshapes.Shapes or soroshapes.Model"):
+        as_scene(42)
+    shp = fs.finger()
+    with pytest.raises(SceneError, match="not an input.*chamber"):
+        Scene(shp, [Channel("valve", 0.0, 1.0)])
+    with pytest.raises(ValueError, match="low < high"):
+        Channel("chamber", 1.0, 0.0)
+    assert [c.name for c in Scene(shp).channels] == ["chamber"]       # default channel per input
+    assert Scene(shp).channels[0].high == 100e3
+
+
+@pytest.mark.parametrize("name", ["soft_hand", "jellyfish_gripper", "pcc_arm", "wavy_wall", "manipulator_pick",
+                                  "suzumori_gripper", "board_pick_place"])
+def test_demo_scenes_build_and_step(name):
+    from soro.play import load_scene
+    from soro.play.backends import ModelBackend, scene_geometry
+    scn = load_scene(name, quick=True)
+    geo = json.loads(json.dumps(scene_geometry(scn)))
+    assert geo["beams"] and all(len(b["outline"]) >= 8 for b in geo["beams"])
+    be = ModelBackend(scn)
+    u = np.array([0.5 * (c.low + c.high) for c in scn.channels])
+    be.plant.step(2 * scn.dt, u)
+    f = json.loads(json.dumps(be._compose(0)))
+    assert f["t"] == pytest.approx(2 * scn.dt)
+    assert all(np.isfinite(np.array(b["p"])).all() for b in f["beams"])
+    assert len(f["beams"]) == len(scn.beam_names)
+
+
+def _play(*args, timeout=120):
+    return subprocess.run([sys.executable, "-m", "sorofem.cli", "play", *args], capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def test_cli_missing_scene_exit_2():
+    r = _play("no/such/scene.py:build", "--port", "0")
+    assert r.returncode == 2
+    assert "does not exist" in r.stderr and "path/to/file.py:func" in r.stderr
+    r = _play("no_such_demo", "--port", "0")
+    assert r.returncode == 2 and "not a demo" in r.stderr and "soft_hand" in r.stderr
+    r = _play(f"{SCENE.rsplit(':', 1)[0]}:nope", "--port", "0")
+    assert r.returncode == 2 and "has no function 'nope'" in r.stderr
+
+
+def test_cli_scene_that_raises_exit_3():
+    r = _play(f"{SCENE.rsplit(':', 1)[0]}:raises", "--port", "0")
+    assert r.returncode == 3
+    assert "raised RuntimeError: this scene is broken on purpose" in r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def test_cli_port_in_use_exit_4_and_a_normal_run():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        port = s.getsockname()[1]
+        r = _play(SCENE, "--port", str(port))
+    assert r.returncode == 4
+    assert f"port {port} on 127.0.0.1 is in use" in r.stderr and "--port" in r.stderr
+    r = _play(SCENE, "--port", "0", "--duration", "0.5")
+    assert r.returncode == 0, r.stderr
+    assert "finger (model back end) at http://127.0.0.1:" in r.stdout and "stopped" in r.stdout
