@@ -504,7 +504,7 @@ class ModelBackend(Backend):
                 continue
             t0 = self.clock()
             if anchor is None:                              # (wall, model time) that real time counts from
-                anchor, last_wall = (t0, self.plant.t), t0
+                anchor, last_wall, t_prev = (t0, self.plant.t), t0, self.plant.t
             try:
                 self.plant.step(h, u)
             except SoroError as e:
@@ -517,22 +517,25 @@ class ModelBackend(Backend):
             if not warm:                                    # after the first step: its kernels are loaded
                 warm = True
                 self._warm_up_ik()
-            due = anchor[0] + (self.plant.t - anchor[1])    # when the wall clock reaches the model's time
-            late = self.clock() - due
-            if late < 0:
-                self._wake.wait(-late)
-                self._wake.clear()
-            elif late > 2 * FRAME_PERIOD:                   # behind: count real time from now on
-                anchor = (self.clock(), self.plant.t)
+            rate = h / compute                              # model seconds per wall second of stepping
+            h = FRAME_PERIOD if rate >= 1.0 else max(self.scene.dt, min(FRAME_PERIOD, rate * FRAME_PERIOD))
             now = self.clock()
             wall = max(now - last_wall, 1e-6)
             last_wall = now
             a = min(1.0, wall)                              # ~1 s smoothing of the displayed factor
-            self.rtf = (1 - a) * self.rtf + a * (h / wall)
-            rate = h / compute                              # model seconds per wall second of stepping
-            h = FRAME_PERIOD if rate >= 1.0 else max(self.scene.dt, min(FRAME_PERIOD, rate * FRAME_PERIOD))
-            with self._lock:
-                self._compose(input_seq)
+            self.rtf = (1 - a) * self.rtf + a * ((self.plant.t - t_prev) / wall)
+            t_prev = self.plant.t
+            with self._lock:                                # publish first, then wait for the wall clock:
+                self._compose(input_seq)                    # a command wakes the wait and is stepped at once
+            while not self._stop.is_set():
+                ahead = anchor[0] + (self.plant.t - anchor[1]) - self.clock()
+                if ahead < -2 * FRAME_PERIOD:               # behind: count real time from now on
+                    anchor = (self.clock(), self.plant.t)
+                if ahead <= 0 or not self._wake.wait(ahead):
+                    break
+                self._wake.clear()                          # a command: step it now unless the model is
+                if ahead <= 2 * FRAME_PERIOD:               # already two frames ahead of the wall clock
+                    break
 
 
 class BoardBackend(Backend):
