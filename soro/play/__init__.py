@@ -40,11 +40,11 @@ exist, 3 when the scene's code raises or returns no model, 4 when the port is in
 """
 from sorofem._lazy import lazy_attributes
 
-_SUBMODULES = ("scene", "backends", "server", "cli", "render")
+_SUBMODULES = ("scene", "backends", "server", "cli")
 _CLASSES = {"Scene": "scene", "Channel": "scene", "Target": "scene", "SceneError": "scene",
             "SceneNotFoundError": "scene", "load_scene": "scene", "default_channel": "scene",
             "ModelBackend": "backends", "BoardBackend": "backends", "PlayServer": "server", "ServeError": "server",
-            "serve": "cli", "render_rgb": "render"}
+            "serve": "cli", "serve_mirror": "cli"}
 
 __all__: list[str] = [*_SUBMODULES, *_CLASSES]
 

@@ -27,7 +27,7 @@ import numpy as np
 
 from sorofem.errors import ParameterError, SafetyError, SoroError
 
-__all__ = ["Backend", "ModelBackend", "BoardBackend", "section_outline", "scene_geometry"]
+__all__ = ["Backend", "ModelBackend", "BoardBackend", "MirrorBackend", "section_outline", "scene_geometry"]
 
 log = logging.getLogger(__name__)
 
@@ -190,6 +190,41 @@ class _ModelPlant(_Plant):
         return {name: float(mdl[name].pressure) for name in mdl.systems if isinstance(mdl[name].system, Fluidic)}
 
 
+class _MirrorPlant:
+    """A Model that something else steps (and whose controller it keeps): its current state, read through the
+    model's public views (``model["name"].x``) after the owner's ``set_state``."""
+
+    def __init__(self, scene):
+        self.scene = scene
+        self.t = 0.0
+
+    def reset(self):
+        pass
+
+    def step(self, h, u):
+        raise ParameterError("this view mirrors a model stepped elsewhere")
+
+    def beam_states(self):
+        mdl, out = self.scene.system, {}
+        for name in self.scene.beam_names:
+            shp, x = self.scene.beam(name), np.asarray(mdl[name].x, float)
+            out[name] = (shp, x[:shp.n], x[shp.n:2 * shp.n])
+        return out
+
+    def bodies(self):
+        mdl, out = self.scene.system, []
+        for name in mdl.systems:
+            sysm = mdl[name].system
+            if hasattr(sysm, "pose") and hasattr(sysm, "twist"):
+                out.append({"name": name, "pose": _r(np.asarray(sysm.pose(mdl[name].x), float)[:3, :])})
+        return out
+
+    def pressures(self):
+        from soroshapes import Fluidic
+        mdl = self.scene.system
+        return {name: float(mdl[name].pressure) for name in mdl.systems if isinstance(mdl[name].system, Fluidic)}
+
+
 def make_plant(scene):
     """The plant of a scene (its Shapes or Model with a state)."""
     return _ShapesPlant(scene) if scene.kind == "shapes" else _ModelPlant(scene)
@@ -215,7 +250,7 @@ class Backend:
 
     def __init__(self, scene, clock=time.monotonic, out="out/play"):
         self.scene, self.clock, self.out = scene, clock, Path(out)
-        self.plant = make_plant(scene)
+        self.plant = self._make_plant()
         self._lock = threading.Lock()
         self._wake = threading.Event()
         self._stop = threading.Event()
@@ -292,6 +327,9 @@ class Backend:
             self.cmd_seq = max(self.cmd_seq, seq)
         self._wake.set()
         return answer
+
+    def _make_plant(self):
+        return make_plant(self.scene)
 
     def _on_input(self):
         """Hook: a channel changed (the board back end leaves its vented state)."""
@@ -652,3 +690,29 @@ class BoardBackend(Backend):
         except SoroError as e:     # the board's own watchdog vents it
             raise SafetyError(f"could not vent the board on close ({e}); its watchdog vents it within "
                               f"{self.board.watchdog:g} s") from e
+
+
+class MirrorBackend(Backend):
+    """The page of a Model that its owner steps (the Gymnasium environment's ``render_mode="human"``): nothing
+    is stepped here and the owner's controller stays; :meth:`update` publishes the model's current state (set by
+    the owner with ``Model.set_state``). The sliders show the owner's inputs; the page cannot command them."""
+
+    label = "gymnasium env"
+    view_source = "model"
+
+    def _make_plant(self):
+        return _MirrorPlant(self.scene)
+
+    def command(self, cmd):
+        raise ParameterError("this page mirrors a model stepped by its owner (a Gymnasium env): it takes no commands")
+
+    def update(self, u=None):
+        """Publish a frame of the model's current state (``u``: the values of the scene's channels to show)."""
+        with self._lock:
+            self.plant.t = float(self.scene.system.t)
+            if u is not None:
+                self.u[:] = np.asarray(u, float).reshape(-1)[:len(self.u)]
+            self._compose(self.cmd_seq)
+
+    def _run(self):
+        self._stop.wait()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 import time
 
-__all__ = ["serve", "run", "EXIT_MISSING", "EXIT_SCENE", "EXIT_PORT", "EXIT_BOARD"]
+__all__ = ["serve", "serve_mirror", "run", "EXIT_MISSING", "EXIT_SCENE", "EXIT_PORT", "EXIT_BOARD"]
 
 EXIT_MISSING, EXIT_SCENE, EXIT_PORT, EXIT_BOARD = 2, 3, 4, 5
 
@@ -39,6 +39,21 @@ def serve(scene, backend="model", *, host="127.0.0.1", port=8765, board_url=None
         return BoardBackend(scene, board=board, **kw)
 
     return PlayServer(scene, make, host=host, port=port).start()
+
+
+def serve_mirror(model, inputs=None, *, host="127.0.0.1", port=0, title="gymnasium env"):
+    """Serve the page of a :class:`soroshapes.Model` that its owner steps (the Gymnasium environment's
+    ``render_mode="human"``): returns the running :class:`~soro.play.PlayServer`; call
+    ``server.backend.update(u)`` after each step (``u``: the values of ``inputs``, free inputs of the model shown
+    as read-only sliders; default all)."""
+    from .backends import MirrorBackend
+    from .scene import Scene, default_channel
+    from .server import PlayServer
+    names = list(model.inputs) if inputs is None else list(inputs)
+    scene = Scene(model, [default_channel(n) for n in names], title=title)
+    server = PlayServer(scene, lambda: MirrorBackend(scene), host=host, port=port).start()
+    server.backend.update()
+    return server
 
 
 def run(args, stream=None, err=None):

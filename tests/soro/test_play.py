@@ -236,3 +236,46 @@ def test_cli_port_in_use_exit_4_and_a_normal_run():
     r = _play(SCENE, "--port", "0", "--duration", "0.5")
     assert r.returncode == 0, r.stderr
     assert "finger (model back end) at http://127.0.0.1:" in r.stdout and "stopped" in r.stdout
+
+
+def _finger_env(**kw):
+    pytest.importorskip("gymnasium", reason="gymnasium is not installed: run scripts/bootstrap.sh")
+    from soroshapes import Model
+    from soroshapes.gym import ModelEnv
+    mdl = Model().add(fs.finger(), "finger")
+    return ModelEnv(mdl, observation=lambda m: m["finger"].x, reward=lambda m, a: 0.0, dt=0.05, horizon=20,
+                    action_inputs=["finger.chamber"], action_low=0.0, action_high=fs.P_MAX, **kw)
+
+
+def test_gym_rgb_array_renders_the_beam_offscreen():
+    env = _finger_env(render_mode="rgb_array", render_options={"size": (3, 3), "dpi": 60,
+                                                                "limits": ((-0.01, 0.07), (-0.04, 0.04), (-0.05, 0.03))})
+    env.reset(seed=0)
+    a = env.render()
+    assert a.dtype == np.uint8 and a.shape == (180, 180, 3)
+    for _ in range(6):
+        env.step(np.array([fs.P_MAX]))
+    b = env.render()
+    assert b.shape == a.shape and (a.astype(int) - b).any()      # the bent finger draws differently
+    assert (b < 200).any(axis=-1).sum() > 100                    # and something is drawn
+    with pytest.raises(ValueError, match="render_mode must be"):
+        _finger_env(render_mode="window")
+
+
+def test_gym_human_serves_the_page_with_the_env_state():
+    env = _finger_env(render_mode="human")
+    try:
+        env.reset(seed=0)
+        for _ in range(4):
+            env.step(np.array([fs.P_MAX]))
+        assert env.render() is None
+        url = env.render_url
+        assert url.startswith("http://127.0.0.1:")
+        f = _state(url)
+        shp, x = env.model["finger"].system, env.model["finger"].x
+        assert f["t"] == pytest.approx(env.t) and f["backend"] == "gymnasium env"
+        assert np.allclose(f["beams"][0]["p"], shp.positions(x[:shp.n]), atol=2e-6)     # rounded to 1 um
+        assert f["inputs"] == [fs.P_MAX]
+        assert "takes no commands" in _cmd(url, type="input", name="finger.chamber", value=0.0)["error"]
+    finally:
+        env.close()
