@@ -237,11 +237,12 @@ if __name__ == "__main__":
 def scene(quick=False):
     """``soro play jellyfish_gripper``: the six filaments, pre-curved by ``Q_PRE`` at rest, each with a chamber
     on its outer side fed by one supply pressure (a first-order line, 50 ms), the sphere drawn (no contact, as in
-    the demo's kinematic wrap), an IK target at the tip of the first filament."""
+    the demo's kinematic wrap), an IK target at the tip of the first filament. The material gets a damping ratio
+    of 0.1 (the demo's kinematic wrap needs none) so that the filaments settle."""
     from soro.play import Channel, Scene, Target
     from soroshapes import Basis, Model, Shapes, StateSpace
 
-    material = materials.NeoHookean(E=materials.gent_modulus(20), nu=0.45, density=1070.0)
+    material = materials.NeoHookean(E=materials.gent_modulus(20), nu=0.45, density=1070.0, damping=0.1)
     section = sdf.Rectangle(WIDTH, THICK)
     sphere = sdf.Sphere(RADIUS, center=tuple(CENTER))
 
@@ -258,6 +259,6 @@ def scene(quick=False):
             tip = shp.positions(np.zeros(shp.n))[-1]
         shp.add_chamber(4 * mm**2, (0.0, THICK / 4), name="chamber")       # outer side: curls inward
         mdl.add(shp, f"finger{k}").connect("supply", f"finger{k}", "chamber")
-    return Scene(mdl, [Channel("supply.u0", 0.0, 60e3, label="supply pressure")], obstacles=(sphere,),
-                 target=Target(tuple(tip), beam="finger0"), dt=2e-3, method="bdf2", view=(-30.0, 15.0),
+    return Scene(mdl, [Channel("supply.u0", 0.0, 30e3, label="supply pressure")], obstacles=(sphere,),
+                 target=Target(tuple(tip), beam="finger0"), dt=2e-3, method="bdf2", view=(-20.0, 15.0),
                  title="jellyfish_gripper")

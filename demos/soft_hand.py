@@ -300,4 +300,4 @@ def scene(quick=False):
 
     mdl, _ = build()
     channels = [Channel(f"p_{n}.pressure_ref", 0.0, 100 * kPa, label=f"{n} pressure") for n in NAMES]
-    return Scene(mdl, channels, dt=2e-3, method="bdf2", view=(-35.0, 35.0), title="soft_hand")
+    return Scene(mdl, channels, dt=2e-3, method="bdf2", view=(-35.0, 35.0), title="soft_hand", focus="index")

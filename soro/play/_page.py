@@ -145,9 +145,10 @@ function plot(id, series, scale) {
   let lo = 1e30, hi = -1e30;
   series.forEach(k => H.forEach(h => { const v = h[k]; if (v !== undefined) { lo = Math.min(lo, v * scale(k)); hi = Math.max(hi, v * scale(k)); } }));
   if (!(hi > lo)) { hi = lo + 1; lo -= 1; }
+  const fmt = v => Math.abs(v) < 1e-6 * Math.max(Math.abs(hi), Math.abs(lo), 1e-30) ? "0" : v.toPrecision(3);
   const t0 = H[0].t, t1 = H[H.length - 1].t, X = t => 30 + (c.width - 34) * (t - t0) / Math.max(t1 - t0, 1e-9),
         Y = v => c.height - 4 - (c.height - 8) * (v - lo) / (hi - lo);
-  g.fillStyle = "#666"; g.fillText(hi.toPrecision(3), 0, 10); g.fillText(lo.toPrecision(3), 0, c.height - 4);
+  g.fillStyle = "#666"; g.fillText(fmt(hi), 0, 10); g.fillText(fmt(lo), 0, c.height - 4);
   series.forEach((k, i) => { g.strokeStyle = COLORS[i % COLORS.length]; g.lineWidth = 1.5; g.beginPath();
     H.forEach((h, j) => { const v = h[k]; if (v === undefined) return; j ? g.lineTo(X(h.t), Y(v * scale(k))) : g.moveTo(X(h.t), Y(v * scale(k))); });
     g.stroke(); });

@@ -406,7 +406,7 @@ class Backend:
                 hit = np.flatnonzero(np.linalg.norm(f, axis=1) > 0)
                 item["contacts"] = [[*_r(G[i, :3, 3]), *_r(f[i])] for i in hit]
             beams.append(item)
-            if tip is None or name == self.scene.target_beam:
+            if name == self.scene.focus_beam:
                 tip = G[-1, :3, 3].copy()
             energy += float(shp.energy(q, qd)["total"])
         signals = {"tip_x": tip[0], "tip_y": tip[1], "tip_z": tip[2], "energy": energy} if tip is not None else {}

@@ -100,8 +100,10 @@ class Scene:
     view : (azimuth, elevation) [deg]
         Initial camera; (0, 0) looks along +y (the x-z plane fills the screen).
     title : str
-    signals : callable ``(system, state) -> dict of name: float``, optional
+    signals : callable ``(system, plant) -> dict of name: float``, optional
         Extra signals for the live plots (SI units).
+    focus : str, optional
+        The beam whose tip the plots follow (default the target's beam, else the first).
     """
     system: object
     channels: tuple = ()
@@ -114,6 +116,7 @@ class Scene:
     view: tuple = (0.0, 20.0)
     title: str = "scene"
     signals: object = None
+    focus: str | None = None
     kind: str = field(init=False, default="shapes")
 
     def __post_init__(self):
@@ -143,6 +146,8 @@ class Scene:
             if self.kind == "model" and self.target.beam not in self.beam_names:
                 raise SceneError(f"the target's beam {self.target.beam!r} is not a beam of the model; beams: "
                                  f"{self.beam_names}")
+        if self.focus is not None and self.focus not in self.beam_names:
+            raise SceneError(f"Scene.focus {self.focus!r} is not a beam; beams: {self.beam_names}")
         for ob in self.obstacles:
             if getattr(ob, "dim", None) != 3:
                 raise SceneError("Scene.obstacles must be 3D SDFs of sorofem.sdf")
@@ -168,7 +173,13 @@ class Scene:
 
     @property
     def target_beam(self):
+        """The beam the IK target moves (None without a target)."""
         return None if self.target is None else (self.target.beam or self.beam_names[0])
+
+    @property
+    def focus_beam(self):
+        """The beam whose tip the plots follow."""
+        return self.focus or self.target_beam or self.beam_names[0]
 
 
 def default_channel(name):

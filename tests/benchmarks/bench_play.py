@@ -57,3 +57,37 @@ def test_bench_play_latency_finger(record, tmp_path):
 def test_bench_play_latency_soft_hand(record, tmp_path):
     require_browser()
     record(target_median_ms=50, **_latency("soft_hand", 1, tmp_path))
+
+
+def _screenshot(scene_spec, slider_presses, path, tmp_path, settle=3.0):
+    """Open the page of ``scene_spec``, press End on the sliders listed (their maximum), let it run ``settle``
+    seconds of wall time, and save a screenshot of the page to ``path``."""
+    from soro.play import load_scene, serve
+    from sorofem.io import atomic_path
+    srv = serve(load_scene(scene_spec), "model", port=0, out=tmp_path / "play")
+    try:
+        with browser_page(tmp_path / "chromium", size=(1100, 700)) as page:
+            page.goto(srv.url)
+            wait_for(page, "window.soroPlay && soroPlay.framesDrawn > 30", timeout=120, what="frames")
+            for k, key in slider_presses:
+                page.locator(f"#ch{k}").focus()
+                page.keyboard.press(key)
+            time.sleep(settle)
+            with atomic_path(path) as tmp:
+                page.screenshot(path=str(tmp))
+            return page.evaluate("soroPlay.frame.rtf")
+    finally:
+        srv.close()
+
+
+def test_bench_play_screenshots(record, repo, tmp_path):
+    """The page for the soft hand (index and middle fingers at 100 kPa) and the jellyfish gripper (supply at
+    its maximum, 30 kPa): ``out/play/soft_hand.png`` and ``out/play/jellyfish_gripper.png``."""
+    require_browser()
+    out = repo / "out" / "play"
+    out.mkdir(parents=True, exist_ok=True)
+    rtf_hand = _screenshot("soft_hand", [(1, "End"), (2, "End")], out / "soft_hand.png", tmp_path)
+    rtf_jelly = _screenshot("jellyfish_gripper", [(0, "End")], out / "jellyfish_gripper.png", tmp_path)
+    assert (out / "soft_hand.png").stat().st_size > 10_000 and (out / "jellyfish_gripper.png").stat().st_size > 10_000
+    record(soft_hand_png=str(out / "soft_hand.png"), jellyfish_png=str(out / "jellyfish_gripper.png"),
+           soft_hand_real_time_factor=round(float(rtf_hand), 3), jellyfish_real_time_factor=round(float(rtf_jelly), 3))
