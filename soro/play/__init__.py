@@ -35,8 +35,13 @@ Without channels every free input gets one (:func:`default_channel`: 0-100 kPa, 
 60000.0
 
 Exit status of ``soro play``: 0 after a normal stop (Ctrl-C or ``--duration``), 2 when the scene does not
-exist, 3 when the scene's code raises or returns no model, 4 when the port is in use or cannot be bound,
-5 when the board cannot be reached.
+exist or an option is invalid (a board back end on a non-local ``--host`` is refused: the page has no login),
+3 when the scene's code raises or returns no model, 4 when the port is in use or cannot be bound, 5 when the
+board cannot be reached.
+
+Safety of the board back ends: the board is vented when the last page closes (the page's ``pagehide`` beacon,
+or its event stream dropping), when the server stops, when the stepping thread fails (whatever the error), and,
+if all of that fails (the process is killed), by the board's own watchdog.
 """
 from sorofem._lazy import lazy_attributes
 

@@ -491,10 +491,18 @@ class Backend:
             self._run()
         except Exception as e:  # noqa: BLE001 - the page must hear of it, the server must not hang
             log.exception("soro play: the back end stopped")
-            self.message = f"the back end stopped: {type(e).__name__}: {e}"
-            self.paused = True
             with self._lock:
-                self._compose(self.cmd_seq)
+                self.paused = True
+                self.message = f"the back end stopped: {type(e).__name__}: {e}"
+                try:
+                    self._vent_locked()                     # a board goes to 0 Pa, whatever failed
+                    self.message += "; vented"
+                except Exception as v:  # noqa: BLE001 - say it; the board's watchdog is the last resort
+                    self.message += f"; venting failed too ({v}): the board's watchdog vents it"
+                try:
+                    self._compose(self.cmd_seq)
+                except Exception:  # noqa: BLE001 - the frame is a courtesy; the message is logged above
+                    log.exception("soro play: could not publish the last frame")
 
     def close(self):
         """Stop the thread (idempotent)."""
@@ -610,7 +618,11 @@ class BoardBackend(Backend):
         self.vented = True
         self.board_state = None
         n = scene.system.n if scene.kind == "shapes" else None
-        self._sensor_q = n is not None and board.read().sensors.size == 3 + n
+        try:
+            self._sensor_q = n is not None and board.read().sensors.size == 3 + n
+        except BaseException:
+            board.close()                                   # vents and releases it
+            raise
         self.view_source = "estimate" if self._sensor_q else "prediction"
 
     def _on_input(self):

@@ -23,6 +23,9 @@ def serve(scene, backend="model", *, host="127.0.0.1", port=8765, board_url=None
     from .scene import as_scene
     from .server import PlayServer
     scene = as_scene(scene)
+    if backend in ("sim", "board") and host not in ("127.0.0.1", "localhost", "::1"):
+        raise ParameterError(f"a board back end serves on this machine only (--host 127.0.0.1): the page has no "
+                             f"login, and anyone reaching {host} could drive the board")
     kw = {"out": out} if clock is None else {"out": out, "clock": clock}
     if backend not in ("model", "sim", "board"):
         raise ParameterError(f"backend must be 'model', 'sim' or 'board', got {backend!r}")
@@ -59,7 +62,7 @@ def serve_mirror(model, inputs=None, *, host="127.0.0.1", port=0, title="gymnasi
 def run(args, stream=None, err=None):
     """The ``soro play`` handler: returns the exit status (see :mod:`soro.play`)."""
     stream, err = stream or sys.stdout, err or sys.stderr
-    from sorofem.errors import ProtocolError, SoroError
+    from sorofem.errors import ParameterError, ProtocolError, SoroError
 
     from .scene import SceneError, SceneNotFoundError, load_scene
     from .server import ServeError
@@ -80,11 +83,16 @@ def run(args, stream=None, err=None):
     except ProtocolError as e:
         print(f"soro play: cannot reach the board: {e}", file=err)
         return EXIT_BOARD
+    except ParameterError as e:
+        print(f"soro play: {e}", file=err)
+        return EXIT_MISSING
     except SoroError as e:
         print(f"soro play: {e}", file=err)
         return EXIT_SCENE
     print(f"soro play: {scene.title} ({args.backend} back end) at {server.url}  (Ctrl-C stops and vents)",
           file=stream, flush=True)
+    if args.host not in ("127.0.0.1", "localhost", "::1"):
+        print(f"soro play: warning: serving on {args.host}: anyone who reaches it can drive the scene", file=err)
     if args.open:
         import webbrowser
         webbrowser.open(server.url)

@@ -279,3 +279,86 @@ def test_gym_human_serves_the_page_with_the_env_state():
         assert "takes no commands" in _cmd(url, type="input", name="finger.chamber", value=0.0)["error"]
     finally:
         env.close()
+
+
+class _StubBoard:
+    """A board that records what it is told (the stub bus of the safety tests), in the shape of
+    :class:`sorocontrol.Board`: ``channels``, ``watchdog``, ``read``, ``set_pressure``, ``vent``, ``close``."""
+
+    channels, watchdog = 1, 0.5
+
+    def __init__(self, fail_after=None):
+        self.calls, self.p, self.fail_after = [], 0.0, fail_after
+
+    def _state(self):
+        from sorocontrol.protocol import State
+        z = np.array([self.p])
+        return State(0.0, 0, z, z, z, np.zeros(1, dtype=int), np.zeros(0))
+
+    def read(self):
+        self.calls.append(("read",))
+        return self._state()
+
+    def set_pressure(self, values):
+        if self.fail_after is not None and sum(c[0] == "set" for c in self.calls) >= self.fail_after:
+            raise RuntimeError("bus error")
+        self.calls.append(("set", float(values[0])))
+        self.p = float(values[0])
+        return self._state()
+
+    def vent(self):
+        self.calls.append(("vent",))
+        self.p = 0.0
+        return self._state()
+
+    def close(self):
+        self.calls.append(("close",))
+        self.p = 0.0
+
+
+def _wait(cond, timeout=20.0):
+    import time
+    t0 = time.monotonic()
+    while not cond():
+        assert time.monotonic() - t0 < timeout, "condition not met within the deadline"
+        time.sleep(0.01)
+
+
+def test_board_backend_writes_zero_when_the_page_closes_the_server_stops_or_the_loop_fails(tmp_path):
+    from soro.play import load_scene
+    from soro.play.backends import BoardBackend
+    scn = load_scene(SCENE)
+    stub = _StubBoard()
+    be = BoardBackend(scn, board=stub, out=tmp_path).start()
+    try:
+        assert be.view_source == "prediction"           # the stub reports no shape: the model predicts it
+        _wait(lambda: ("read",) in stub.calls)
+        assert not any(c[0] == "set" for c in stub.calls)   # vented at start: nothing is commanded before a slider
+        be.command({"type": "input", "name": "chamber", "value": 40e3, "seq": 1})
+        _wait(lambda: ("set", 40e3) in stub.calls)
+        be.vent()                                       # what the server does when the last page closes
+        assert stub.calls[-1] == ("vent",) or ("vent",) in stub.calls
+        n = len(stub.calls)
+        _wait(lambda: len(stub.calls) > n + 5)
+        assert all(c[0] != "set" for c in stub.calls[n:])  # and it stays vented: only reads
+    finally:
+        be.close()
+    assert stub.calls[-1] == ("close",)                 # Board.close vents and releases it
+
+    failing = _StubBoard(fail_after=3)
+    be = BoardBackend(scn, board=failing, out=tmp_path).start()
+    try:
+        be.command({"type": "input", "name": "chamber", "value": 20e3, "seq": 1})
+        _wait(lambda: be.frame()["message"].startswith("the back end stopped"))
+        assert "RuntimeError: bus error" in be.frame()["message"] and "vented" in be.frame()["message"]
+        assert failing.calls[-1] == ("vent",) and failing.p == 0.0
+    finally:
+        be.close()
+    with pytest.raises(ValueError, match="IK target drives the model back end"):
+        BoardBackend(scn, board=_StubBoard(), out=tmp_path).command({"type": "target", "position": [0, 0, 0]})
+
+
+def test_board_backend_refuses_a_public_host():
+    from soro.play import load_scene, serve
+    with pytest.raises(ValueError, match="on this machine only"):
+        serve(load_scene(SCENE), "sim", host="0.0.0.0", port=0)
