@@ -28,8 +28,9 @@ Without channels every free input gets one (:func:`default_channel`: 0-100 kPa, 
 
 >>> from soro.play import Scene, Channel
 >>> from soroshapes import Basis, Shapes
->>> from sorofem import sdf
->>> shp = Shapes(Basis.chebyshev(2), dofs=(0, 2, 0, 0, 0, 0), length=0.06, section=sdf.Circle(0.005))
+>>> from sorofem import materials, sdf
+>>> shp = Shapes(Basis.chebyshev(2), dofs=(0, 2, 0, 0, 0, 0), length=0.06, section=sdf.Circle(0.005),
+...              material=materials.DragonSkin30())
 >>> shp = shp.add_chamber(2e-5, (0.0, 0.002), name="chamber")
 >>> Scene(shp, [Channel("chamber", 0.0, 60e3)]).channels[0].high
 60000.0
