@@ -260,6 +260,7 @@ class Backend:
         self.mode = "simulate"
         self.target = None if scene.target is None else np.asarray(scene.target.position, float).copy()
         self._ik_dirty = False
+        self._want_reset = False
         self.ik_error = None
         self.cmd_seq = 0
         self.seq = 0
@@ -292,6 +293,8 @@ class Backend:
                 if not np.isfinite(v):
                     raise ParameterError(f"channel {name!r}: value must be finite")
                 self.u[k] = float(np.clip(v, ch.low, ch.high))
+                if self._replay is not None:                # the person takes over from the recording
+                    self._replay, self.message = None, "replay stopped: a slider moved"
                 self._on_input()
             elif kind == "target":
                 if self.target is None:
@@ -335,7 +338,8 @@ class Backend:
         """Hook: a channel changed (the board back end leaves its vented state)."""
 
     def _reset(self):
-        self.plant.reset()
+        """Back to the start; the plant is reset by the stepping thread (:meth:`_apply_pending`)."""
+        self._want_reset = True
         self.u[:] = [np.clip(c.initial, c.low, c.high) for c in self.scene.channels]
         if self.scene.target is not None:
             self.target = np.asarray(self.scene.target.position, float).copy()
@@ -362,7 +366,8 @@ class Backend:
             raise ParameterError("nothing recorded: press record, let it run, then stop")
         stamp = time.strftime("%Y%m%d-%H%M%S")
         path = self.out / f"{self.scene.title}-{stamp}.csv"
-        header = ["t_s", *[f"{c.name}_{c.unit}" for c in self.scene.channels], "tip_x_m", "tip_y_m", "tip_z_m"]
+        header = ["t_s", *[f"{c.name}_{c.unit.replace(' ', '')}" for c in self.scene.channels], "tip_x_m", "tip_y_m",
+                  "tip_z_m"]
         with atomic_path(path) as tmp:
             with open(tmp, "w", newline="") as f:
                 w = csv.writer(f)
@@ -382,10 +387,21 @@ class Backend:
         m = len(self.scene.channels)
         if data.shape[1] != m + 4:
             raise ParameterError(f"{path} has {data.shape[1]} columns; this scene's recordings have {m + 4}")
-        self.plant.reset()
-        self._replay = (self.plant.t, data[:, 0] - data[0, 0], data[:, 1:1 + m])
-        self.paused, self.mode = False, "simulate"
+        self._want_reset = True                             # the stepping thread resets, then starts the replay
+        self._replay = (None, data[:, 0] - data[0, 0], data[:, 1:1 + m])
+        self.paused, self.mode, self.message = False, "simulate", ""
         return path
+
+    def _apply_pending(self):
+        """In the stepping thread, under the lock: a reset asked for by a command (the plant is only ever
+        touched by this thread). Returns True when it reset."""
+        if not self._want_reset:
+            return False
+        self._want_reset = False
+        self.plant.reset()
+        if self._replay is not None and self._replay[0] is None:
+            self._replay = (self.plant.t, *self._replay[1:])
+        return True
 
     def _replay_inputs(self):
         t0, ts, us = self._replay
@@ -528,6 +544,8 @@ class ModelBackend(Backend):
         h, anchor, last_wall, warm = FRAME_PERIOD, None, self.clock(), False
         while not self._stop.is_set():
             with self._lock:
+                if self._apply_pending():
+                    anchor = None                           # real time counts from the new start
                 input_seq = self.cmd_seq
                 if self.mode == "ik" and self._ik_dirty:
                     self._ik_dirty = False
@@ -657,6 +675,7 @@ class BoardBackend(Backend):
         while not self._stop.is_set():
             t0 = self.clock()
             with self._lock:
+                self._apply_pending()
                 input_seq = self.cmd_seq
                 if self._replay is not None and not self.paused:
                     self._replay_inputs()

@@ -136,8 +136,12 @@ def test_commands_recording_replay_and_bad_commands(finger_server, tmp_path):
     assert rows.dtype.names == ("t_s", "chamber_Pa", "tip_x_m", "tip_y_m", "tip_z_m")
     assert np.all(rows["chamber_Pa"] == 30e3) and np.all(np.diff(rows["t_s"]) >= 0)
     assert _cmd(url, type="replay")["ok"]
+    f = srv.backend.wait_frame(srv.backend.frame()["seq"] + 3, 20)
+    assert f["replaying"] and f["inputs"] == [30e3] and f["t"] < rows["t_s"][-1] - rows["t_s"][0] + 0.5
     assert _cmd(url, type="input", name="chamber", value=1e9)["ok"]       # clipped to the channel's limits
-    assert srv.backend.u[0] == fs.P_MAX
+    assert srv.backend.u[0] == fs.P_MAX                                   # and the slider ends the replay
+    f = srv.backend.wait_frame(srv.backend.frame()["seq"] + 3, 20)
+    assert not f["replaying"] and f["inputs"] == [fs.P_MAX] and "replay stopped" in f["message"]
     bad = _cmd(url, type="input", name="nope", value=1.0)
     assert not bad["ok"] and "no channel 'nope'" in bad["error"] and "chamber" in bad["error"]
     assert "unknown command" in _cmd(url, type="explode")["error"]
