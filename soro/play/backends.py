@@ -32,6 +32,7 @@ __all__ = ["Backend", "ModelBackend", "BoardBackend", "MirrorBackend", "section_
 log = logging.getLogger(__name__)
 
 FRAME_PERIOD = 1.0 / 30.0     # wall time between frames when the model keeps up [s]
+MAX_STEP_WALL = 0.1           # longest wall time of one step before its model time shrinks [s]
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -531,17 +532,20 @@ class Backend:
 class ModelBackend(Backend):
     """The reduced model stepping in this process in real time (see the module docstring).
 
-    Each step simulates ``h`` seconds; ``h`` is one frame period (1/30 s) when the model keeps up, else the
-    model time the last steps achieved in one frame period (at least the scene's ``dt``), so frames keep
-    coming at about 30 Hz of wall time and the achieved real-time factor (``rtf``: model time over wall time,
-    smoothed over about a second) is what the page shows.
+    Each step simulates ``h`` = one frame period (1/30 s) of model time and is published at once; then the loop
+    waits for the wall clock (a command cuts the wait). A model that cannot keep up steps back to back and the
+    page shows the achieved real-time factor (``rtf``: model time over wall time, smoothed over about a second);
+    ``h`` shrinks only when one step would take longer than ``MAX_STEP_WALL`` of wall time (the frames keep
+    coming at 10 Hz or more), never below the scene's ``dt``: each ``Model.simulate`` call has a fixed cost
+    (its first Newton matrix), so shorter calls would lower the factor further. The first step after a command
+    is a quarter of ``h``, so that the change shows after a short step (the page's latency).
     """
 
     label = "model"
     view_source = "model"
 
     def _run(self):
-        h, anchor, last_wall, warm = FRAME_PERIOD, None, self.clock(), False
+        h, anchor, last_wall, warm, stepped_seq = FRAME_PERIOD, None, self.clock(), False, 0
         while not self._stop.is_set():
             with self._lock:
                 if self._apply_pending():
@@ -569,8 +573,10 @@ class ModelBackend(Backend):
             t0 = self.clock()
             if anchor is None:                              # (wall, model time) that real time counts from
                 anchor, last_wall, t_prev = (t0, self.plant.t), t0, self.plant.t
+            hk = h if input_seq == stepped_seq else max(self.scene.dt, 0.25 * h)   # a new command: short step
+            stepped_seq = input_seq
             try:
-                self.plant.step(h, u)
+                self.plant.step(hk, u)
             except SoroError as e:
                 with self._lock:
                     self.paused = True
@@ -581,8 +587,8 @@ class ModelBackend(Backend):
             if not warm:                                    # after the first step: its kernels are loaded
                 warm = True
                 self._warm_up_ik()
-            rate = h / compute                              # model seconds per wall second of stepping
-            h = FRAME_PERIOD if rate >= 1.0 else max(self.scene.dt, min(FRAME_PERIOD, rate * FRAME_PERIOD))
+            if hk == h:
+                h = max(self.scene.dt, min(FRAME_PERIOD, h * MAX_STEP_WALL / compute))
             now = self.clock()
             wall = max(now - last_wall, 1e-6)
             last_wall = now
