@@ -366,3 +366,29 @@ def test_board_backend_refuses_a_public_host():
     from soro.play import load_scene, serve
     with pytest.raises(ValueError, match="on this machine only"):
         serve(load_scene(SCENE), "sim", host="0.0.0.0", port=0)
+
+
+def test_real_board_backend_by_url_and_secret(tmp_path):
+    """The ``board`` back end over the real protocol (a BoardServer with a mock driver on loopback): the
+    slider's value is the board's request, the view is the model's prediction (the driver reports no shape),
+    a wrong secret is a clear error, and closing the server vents the board."""
+    from soro.play import load_scene, serve
+    from sorocontrol import BoardServer, MockDriver
+    from sorofem.errors import ProtocolError
+    secret = "5b0e9c41d7a2f3866c1e0b9d4a7f2e13"
+    with BoardServer(MockDriver(1), secret, port=0) as board_srv:
+        url = f"tcp://127.0.0.1:{board_srv.address[1]}"
+        with pytest.raises(ProtocolError):
+            serve(load_scene(SCENE), "board", port=0, board_url=url, secret="9e2d7c1a5f3b8046e7d2c9a1b5f40e37")
+        import time
+        time.sleep(1.0)                 # the board's back-off after a failed login (0.1 s after the first)
+        srv = serve(load_scene(SCENE), "board", port=0, board_url=url, secret=secret, out=tmp_path)
+        try:
+            f = srv.backend.wait_frame(0, 20)
+            assert f["backend"] == "board" and f["view_source"] == "prediction"
+            assert _cmd(srv.url, type="input", name="chamber", value=25e3)["ok"]
+            _wait(lambda: board_srv.requested[0] == 25e3)
+            _wait(lambda: (srv.backend.frame()["tip"][2] < -1e-4))      # the prediction bends the finger
+        finally:
+            srv.close()
+        _wait(lambda: board_srv.requested[0] == 0 and board_srv.applied[0] == 0)
