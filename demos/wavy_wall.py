@@ -162,10 +162,15 @@ def main(out: Path, quick: bool = False) -> dict:
 
 def scene(quick=False):
     """``soro play wavy_wall``: the hanging arm against the grooved wall, one torque slider [N m] per segment,
-    the contact forces drawn, an IK target at the tip."""
+    the contact forces drawn, a target at the tip for IK or for the demo's Cartesian impedance controller."""
     from soro.play import Channel, Scene, Target
+    from soroshapes import Model
 
     shp = arm()
-    channels = [Channel(f"segment{i}", -2.0, 2.0, "N m", label=f"segment {i} torque") for i in range(SEGMENTS)]
-    return Scene(shp, channels, target=Target((0.0, 0.0, -SEGMENTS * SEG_LEN)), obstacles=(wall(),), dt=2e-3,
-                 view=(0.0, 0.0), title="wavy_wall")
+    start = CORNER + 2 * mm * N_DIR                         # the demo's start: the tip just off the wall
+    ik = shp.inverse_kinematics(start, q0=np.full(SEGMENTS, 1.0))
+    mdl = Model().add(shp, "arm", x0=np.concatenate([ik.q, np.zeros(SEGMENTS)]))
+    channels = [Channel(f"arm.segment{i}", -2.0, 2.0, "N m", label=f"segment {i} torque") for i in range(SEGMENTS)]
+    return Scene(mdl, channels, target=Target(tuple(start), beam="arm"), obstacles=(wall(),),
+                 dt=4e-3, method="bdf2", view=(0.0, 0.0), title="wavy_wall",
+                 impedance=dict(stiffness=150.0, damping=15.0, axes=(0, 2), null_damping=2e-3))

@@ -36,7 +36,8 @@ PAGE = r"""<!doctype html>
  <div class="box" id="channels"><b>Inputs</b></div>
  <div class="box row">
   <button id="play">play</button><button id="pause">pause</button><button id="reset">reset</button>
-  <select id="modesel"><option value="simulate">simulate</option><option value="ik">IK (drag the target)</option></select>
+  <select id="modesel"><option value="simulate">simulate</option><option value="ik">IK (drag the target)</option>
+   <option value="impedance" id="impopt" hidden>impedance (drag the set-point)</option></select>
  </div>
  <div class="box row"><button id="record">record</button><button id="stoprec">stop + save</button>
   <button id="replay">replay</button><span id="recinfo"></span></div>
@@ -173,6 +174,7 @@ function show(fr) {
   }
   document.getElementById("time").textContent = fr.t.toFixed(2);
   const rtf = document.getElementById("rtf");
+  document.getElementById("modesel").value = fr.mode;
   rtf.textContent = fr.paused || fr.mode === "ik" ? "paused" : "x" + fr.rtf.toFixed(2) +
     (fr.rtf < 0.95 ? " (the model cannot keep up: it steps as fast as it can)" : "");
   rtf.className = !fr.paused && fr.mode !== "ik" && fr.rtf < 0.95 ? "slow" : "";
@@ -201,6 +203,7 @@ function build(scene) {
   S.scene = scene;
   document.getElementById("title").textContent = scene.title;
   cam.az = scene.view[0]; cam.el = scene.view[1];
+  document.getElementById("impopt").hidden = !scene.impedance;
   const box = document.getElementById("channels");
   scene.channels.forEach((c, i) => {
     S.units["u:" + c.name] = c.unit;

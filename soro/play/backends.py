@@ -87,6 +87,7 @@ def scene_geometry(scene):
         "channels": [{"name": c.name, "label": c.label or c.name, "low": c.low, "high": c.high, "unit": c.unit,
                       "initial": c.initial} for c in scene.channels],
         "target": None if scene.target is None else list(map(float, scene.target.position)),
+        "impedance": scene.impedance is not None,
         "view": list(map(float, scene.view)),
     }
 
@@ -141,7 +142,15 @@ class _ModelPlant(_Plant):
     def __init__(self, scene):
         mdl = scene.system
         self._u = np.zeros(len(mdl.inputs))
-        mdl.set_controller(lambda m: self._u, reads=())     # the sliders are the free inputs
+        self.impedance_target = None                        # (k,) set-point [m] of the impedance mode, or None
+        self._impedance = None
+        if scene.impedance is not None:
+            from soroshapes.control import impedance
+            kw = dict(scene.impedance)
+            self._axes = list(kw.get("axes", (0, 1, 2)))
+            self._impedance = impedance(scene.target_beam, setpoint=lambda t: self.impedance_target, **kw)
+        self._owner = [name.split(".", 1)[0] for name in mdl.inputs]
+        mdl.set_controller(self._control, reads=None if scene.impedance else ())
         self.slices, x, k = {}, mdl.initial_state(), 0
         mdl.set_state(0.0, x)
         for name in mdl.systems:
@@ -149,6 +158,22 @@ class _ModelPlant(_Plant):
             self.slices[name] = slice(k, k + n)
             k += n
         super().__init__(scene)
+
+    def _control(self, model):
+        """The sliders' values (the free inputs), plus the impedance controller's in the impedance mode."""
+        if self._impedance is None or self.impedance_target is None:
+            return self._u
+        out = {}
+        for k, owner in enumerate(self._owner):
+            out.setdefault(owner, []).append(self._u[k])
+        out = {name: np.asarray(v) for name, v in out.items()}
+        for name, v in self._impedance(model).items():
+            out[name] = out.get(name, 0.0) + np.asarray(v, float)
+        return out
+
+    def set_impedance_target(self, p):
+        """Track ``p`` (3,) [m] (its ``axes``) with the impedance controller; None switches it off."""
+        self.impedance_target = None if p is None else np.asarray(p, float)[self._axes].copy()
 
     def reset(self):
         self.t, self.x = 0.0, self.scene.system.initial_state().copy()
@@ -304,7 +329,10 @@ class Backend:
                 if p.shape != (3,) or not np.all(np.isfinite(p)):
                     raise ParameterError("target position must be 3 finite numbers [m]")
                 self.target = p
-                self.mode, self._ik_dirty = "ik", True
+                if self.mode == "impedance":
+                    self.plant.set_impedance_target(p)
+                else:
+                    self.mode, self._ik_dirty = "ik", True
             elif kind == "play":
                 self.paused = False
                 if self.mode == "ik":
@@ -314,10 +342,13 @@ class Backend:
             elif kind == "reset":
                 self._reset()
             elif kind == "mode":
-                if cmd.get("mode") not in ("simulate", "ik"):
-                    raise ParameterError("mode must be 'simulate' or 'ik'")
+                modes = ("simulate", "ik") + (("impedance",) if self.scene.impedance is not None else ())
+                if cmd.get("mode") not in modes:
+                    raise ParameterError(f"mode must be one of {modes} for this scene, got {cmd.get('mode')!r}")
                 self.mode = cmd["mode"]
                 self._ik_dirty = self.mode == "ik"
+                if self.scene.impedance is not None:
+                    self.plant.set_impedance_target(self.target if self.mode == "impedance" else None)
             elif kind == "record":
                 self._recording = []
             elif kind == "stop_record":
@@ -344,6 +375,8 @@ class Backend:
         self.u[:] = [np.clip(c.initial, c.low, c.high) for c in self.scene.channels]
         if self.scene.target is not None:
             self.target = np.asarray(self.scene.target.position, float).copy()
+        if self.scene.impedance is not None:
+            self.plant.set_impedance_target(None)
         self.mode, self._replay, self.message = "simulate", None, ""
 
     def vent(self):
@@ -559,7 +592,7 @@ class ModelBackend(Backend):
                         self.message = f"IK failed: {e}"
                     self._compose(input_seq)
                     continue
-                running = not self.paused and self.mode == "simulate"
+                running = not self.paused and self.mode in ("simulate", "impedance")
                 if running and self._replay is not None:
                     self._replay_inputs()
                 u = self.u.copy()

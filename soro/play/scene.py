@@ -104,6 +104,10 @@ class Scene:
         Extra signals for the live plots (SI units).
     focus : str, optional
         The beam whose tip the plots follow (default the target's beam, else the first).
+    impedance : dict, optional
+        Keywords of :func:`soroshapes.control.impedance` (``stiffness`` [N/m], ``damping`` [N s/m], ``axes``,
+        ``null_damping``, ...) for a Model scene with a target: the page's "impedance" mode adds Cartesian
+        impedance control of the target beam's tip toward the dragged target to the sliders' inputs.
     """
     system: object
     channels: tuple = ()
@@ -117,6 +121,7 @@ class Scene:
     title: str = "scene"
     signals: object = None
     focus: str | None = None
+    impedance: dict | None = None
     kind: str = field(init=False, default="shapes")
 
     def __post_init__(self):
@@ -146,6 +151,9 @@ class Scene:
             if self.kind == "model" and self.target.beam not in self.beam_names:
                 raise SceneError(f"the target's beam {self.target.beam!r} is not a beam of the model; beams: "
                                  f"{self.beam_names}")
+        if self.impedance is not None and (self.kind != "model" or self.target is None):
+            raise SceneError("Scene.impedance needs a Model scene with a target (the controller drives the "
+                             "target's beam; wrap a Shapes in a Model: Model().add(shp, 'arm'))")
         if self.focus is not None and self.focus not in self.beam_names:
             raise SceneError(f"Scene.focus {self.focus!r} is not a beam; beams: {self.beam_names}")
         for ob in self.obstacles:

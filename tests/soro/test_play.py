@@ -392,3 +392,32 @@ def test_real_board_backend_by_url_and_secret(tmp_path):
         finally:
             srv.close()
         _wait(lambda: board_srv.requested[0] == 0 and board_srv.applied[0] == 0)
+
+
+def test_impedance_mode_brings_the_tip_to_the_target(tmp_path):
+    """manipulator_pick's arm under its Cartesian impedance controller (the demo's gains): the tip settles on
+    a set-point in the arm's plane, within 2 mm (gravity and elasticity are compensated, so the steady
+    state is the set-point)."""
+    from soro.play import load_scene
+    from soro.play.backends import ModelBackend
+    scn = load_scene("manipulator_pick", quick=True)
+    be = ModelBackend(scn, out=tmp_path).start()
+    try:
+        goal = [0.08, 0.0, 0.12]
+        be.command({"type": "mode", "mode": "impedance"})
+        be.command({"type": "target", "position": goal})
+        deadline = 120.0
+        import time
+        t0 = time.monotonic()
+        while True:
+            f = be.wait_frame(be.frame()["seq"], 20)
+            if f["mode"] == "impedance" and _dist([f["tip"][0], f["tip"][2]], [goal[0], goal[2]]) < 2e-3:
+                break
+            assert not f["paused"], f["message"]
+            assert time.monotonic() - t0 < deadline, f"the tip did not reach {goal}: {f['tip']} at t = {f['t']}"
+        with pytest.raises(ValueError, match="mode must be one of"):
+            be.command({"type": "mode", "mode": "dance"})
+    finally:
+        be.close()
+    with pytest.raises(ValueError, match="mode must be one of"):      # a scene without impedance
+        ModelBackend(load_scene(SCENE), out=tmp_path).command({"type": "mode", "mode": "impedance"})
