@@ -2,8 +2,9 @@ r"""``soro play``: drive a reduced model, the simulated board or a real board fr
 
 ``soro play SCENE`` serves a page on ``http://127.0.0.1:8765/`` (prints the URL; ``--open`` also opens it)
 that shows the scene in 3D, live: beams as tubes with their cross-sections, rigid bodies, obstacles (points
-on their SDF surfaces), contact forces (arrows) and the IK target. It has a slider per input channel (within
-the channel's limits), play/pause/reset, a draggable IK target, the achieved real-time factor, live plots of
+on their SDF surfaces), contact forces (arrows) and the target. It has a slider per input channel (within
+the channel's limits), play/pause/reset, a draggable target (inverse kinematics, or the set-point of a Cartesian
+impedance controller where the scene gives its gains), the achieved real-time factor, live plots of
 the tip position, the inputs (and reservoir pressures) and the energy, and record (CSV of the signals plus an
 NPZ snapshot of the state, under ``out/play/``) and replay.
 
