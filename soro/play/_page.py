@@ -23,6 +23,7 @@ PAGE = r"""<!doctype html>
  #rtf.slow{color:#b00;font-weight:bold}
  canvas.plot{background:#fff;border:1px solid #ccc}
  #msg{color:#b00}
+ #modesel{max-width:150px}
  h1{font-size:15px;margin:0}
 </style></head><body>
 <div id="left">
