@@ -155,3 +155,16 @@ def main(out: Path, quick: bool = False) -> dict:
         "loop_missed": stats.missed,
         "png": "pick_place.png",
     }
+
+
+def scene(quick=False):
+    """``soro play board_pick_place``: the two-segment arm of the board demo, one slider per board channel (four
+    chambers 0-90 kPa, the gripper 0-60 kPa); ``soro play board_pick_place --backend sim`` drives the simulated
+    board with this arm as its plant."""
+    from soro.play import Channel, Scene, Target
+
+    shp = arm()
+    channels = [Channel(n, 0.0, P_MAX, label=n.replace("_", " ")) for n in shp.inputs[:4]]
+    channels.append(Channel("gripper", 0.0, GRIP, label="gripper"))
+    return Scene(shp, channels, target=Target(tuple(shp.positions(np.zeros(shp.n))[-1])), dt=2e-3,
+                 view=(0.0, 0.0), title="board_pick_place")

@@ -232,3 +232,33 @@ if __name__ == "__main__":
 
     print(json.dumps(main(Path(sys.argv[1] if len(sys.argv) > 1 else "out/jellyfish_gripper"),
                           quick="--quick" in sys.argv), indent=2))
+
+
+def scene(quick=False):
+    """``soro play jellyfish_gripper``: the six filaments, pre-curved by ``Q_PRE`` at rest, each with a chamber
+    on its outer side fed by one supply pressure (a first-order line, 50 ms), the sphere drawn (no contact, as in
+    the demo's kinematic wrap), an IK target at the tip of the first filament. The material gets a damping ratio
+    of 0.1 (the demo's kinematic wrap needs none) so that the filaments settle."""
+    from soro.play import Channel, Scene, Target
+    from soroshapes import Basis, Model, Shapes, StateSpace
+
+    material = materials.NeoHookean(E=materials.gent_modulus(20), nu=0.45, density=1070.0, damping=0.1)
+    section = sdf.Rectangle(WIDTH, THICK)
+    sphere = sdf.Sphere(RADIUS, center=tuple(CENTER))
+
+    def rest(sigma):                     # the pre-deformation as the rest strain (Chebyshev T0..T2 on kappa_y)
+        x = 2 * sigma / LENGTH - 1
+        return (0.0, Q_PRE[0] + Q_PRE[1] * x + Q_PRE[2] * (2 * x * x - 1), 0.0, 1.0, 0.0, 0.0)
+
+    mdl = Model().add(StateSpace(lambda x, u, t: (u - x) / 0.05, 1, 1), "supply")
+    for k in range(FINGERS):
+        shp = Shapes(Basis.chebyshev(3), dofs=(0, 3, 3, 0, 0, 0), length=LENGTH, section=section, material=material,
+                     base=base_pose(2 * np.pi * k / FINGERS), segments=10 if quick else 20, xi0=rest,
+                     contact_radius=THICK / 2)
+        if k == 0:
+            tip = shp.positions(np.zeros(shp.n))[-1]
+        shp.add_chamber(4 * mm**2, (0.0, THICK / 4), name="chamber")       # outer side: curls inward
+        mdl.add(shp, f"finger{k}").connect("supply", f"finger{k}", "chamber")
+    return Scene(mdl, [Channel("supply.u0", 0.0, 30e3, label="supply pressure")], obstacles=(sphere,),
+                 target=Target(tuple(tip), beam="finger0"), dt=2e-3, method="bdf2", view=(-20.0, 15.0),
+                 title="jellyfish_gripper")

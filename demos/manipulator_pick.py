@@ -164,3 +164,23 @@ def main(out: Path, quick: bool = False) -> dict:
         "simulated_s": T, "wall_time_s_sim": round(wall, 2), "real_time_factor": round(T / wall, 3),
         "png": "manipulator_pick.png",
     }
+
+
+def scene(quick=False):
+    """``soro play manipulator_pick``: the three-segment arm (a torque slider [N m] per segment, a target at its
+    tip for IK or for the demo's Cartesian impedance controller) above the cylinder standing on the table."""
+    from soro.play import Channel, Scene, Target
+    from soroshapes import Model
+    from soroshapes.rigid import couple_ground
+
+    shp = arm()
+    above = np.array([PICK[0], 0.0, 0.06])                 # the demo's start: bent, above the cylinder
+    start = shp.inverse_kinematics(above, q0=np.array([-2.0, -1.0, -1.0]))
+    mdl = Model().add(shp, "arm", x0=np.concatenate([start.q, np.zeros(3)])).add(cylinder())
+    ang = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    rim = np.column_stack([R_CYL * np.cos(ang), R_CYL * np.sin(ang), np.full(12, -H_CYL / 2)])
+    couple_ground(mdl, "cylinder", rim, stiffness=3e3, damping=6.0, friction=0.5, regularization=1e-3)
+    channels = [Channel(f"arm.segment{i}", -0.5, 0.5, "N m", label=f"segment {i} torque") for i in range(3)]
+    return Scene(mdl, channels, target=Target(tuple(above), beam="arm"), dt=2e-3, method="bdf2",
+                 view=(0.0, 10.0), title="manipulator_pick",
+                 impedance=dict(stiffness=150.0, damping=12.0, axes=(0, 2), null_damping=2e-3))

@@ -248,3 +248,13 @@ if __name__ == "__main__":
 
     print(json.dumps(main(Path(sys.argv[1] if len(sys.argv) > 1 else "out/pcc_arm"), quick="--quick" in sys.argv),
                      indent=2))
+
+
+def scene(quick=False):
+    """``soro play pcc_arm``: the arm sagging and swinging under gravity (it has no actuators: no sliders), with
+    a draggable IK target at its tip."""
+    from soro.play import Scene, Target
+
+    shp, _ = build()
+    return Scene(shp, target=Target((SEGMENTS * SEG_LEN, 0.0, 0.0)), dt=2e-3 if quick else 1e-3, view=(0.0, 0.0),
+                 title="pcc_arm")

@@ -291,3 +291,13 @@ if __name__ == "__main__":
 
     print(json.dumps(main(Path(sys.argv[1] if len(sys.argv) > 1 else "out/soft_hand"), quick="--quick" in sys.argv),
                      indent=2))
+
+
+def scene(quick=False):
+    """``soro play soft_hand``: the hand with one slider per finger, the set point [Pa] of its reservoir's
+    regulator (the oscillators are replaced by the sliders)."""
+    from soro.play import Channel, Scene
+
+    mdl, _ = build()
+    channels = [Channel(f"p_{n}.pressure_ref", 0.0, 100 * kPa, label=f"{n} pressure") for n in NAMES]
+    return Scene(mdl, channels, dt=2e-3, method="bdf2", view=(-35.0, 35.0), title="soft_hand", focus="index")

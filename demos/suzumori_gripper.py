@@ -165,3 +165,21 @@ def main(out: Path, quick: bool = False) -> dict:
         "newton_iterations": int(tr.stats.get("newton_iterations", 0)) if isinstance(tr.stats, dict) else None,
         "png": "suzumori_gripper.png",
     }
+
+
+def scene(quick=False):
+    """``soro play suzumori_gripper``: the four three-chamber fingers around the bolt, one pressure slider per
+    chamber (0-300 kPa)."""
+    from soro.play import Channel, Scene
+    from soroshapes import Model
+    from soroshapes.rigid import couple_contact
+
+    mdl = Model()
+    for j in range(4):
+        mdl.add(finger(j), f"finger{j}")
+    mdl.add(bolt())
+    for j in range(4):
+        couple_contact(mdl, f"finger{j}", "bolt", stiffness=2e5, damping=20.0, friction=0.6, regularization=2e-3)
+    channels = [Channel(f"finger{j}.chamber{k}", 0.0, 300 * kPa, label=f"finger {j} chamber {k}")
+                for j in range(4) for k in range(3)]
+    return Scene(mdl, channels, dt=2e-3, method="bdf2", view=(-30.0, 20.0), title="suzumori_gripper")

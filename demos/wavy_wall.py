@@ -158,3 +158,19 @@ def main(out: Path, quick: bool = False) -> dict:
         "real_time_factor": round(T / wall_s, 3),
         "png": "wavy_wall.png",
     }
+
+
+def scene(quick=False):
+    """``soro play wavy_wall``: the hanging arm against the grooved wall, one torque slider [N m] per segment,
+    the contact forces drawn, a target at the tip for IK or for the demo's Cartesian impedance controller."""
+    from soro.play import Channel, Scene, Target
+    from soroshapes import Model
+
+    shp = arm()
+    start = CORNER + 2 * mm * N_DIR                         # the demo's start: the tip just off the wall
+    ik = shp.inverse_kinematics(start, q0=np.full(SEGMENTS, 1.0))
+    mdl = Model().add(shp, "arm", x0=np.concatenate([ik.q, np.zeros(SEGMENTS)]))
+    channels = [Channel(f"arm.segment{i}", -2.0, 2.0, "N m", label=f"segment {i} torque") for i in range(SEGMENTS)]
+    return Scene(mdl, channels, target=Target(tuple(start), beam="arm"), obstacles=(wall(),),
+                 dt=4e-3, method="bdf2", view=(0.0, 0.0), title="wavy_wall",
+                 impedance=dict(stiffness=150.0, damping=15.0, axes=(0, 2), null_damping=2e-3))

@@ -6,8 +6,9 @@
 #     (bookworm: DOLFINx 0.5.2, Python 3.11, numpy 1.24) and Debian 13 (trixie: DOLFINx 0.9, Python 3.13,
 #     numpy 2.2). Elsewhere with apt-get it installs the same package names and says that the result is untested.
 #  2. .venv made from Debian's /usr/bin/python3 with --system-site-packages, so it sees those packages.
-#  3. The project, editable, plus PyPI extras (OpenCV, tqdm, Gymnasium), with a constraints file that pins the
-#     versions of every numerical package Debian provides (numpy above all: a numpy from PyPI breaks DOLFINx).
+#  3. The project, editable, plus PyPI extras (OpenCV, tqdm, Gymnasium; Playwright for soro play's tests), with
+#     a constraints file that pins the versions of every numerical package Debian provides (numpy above all: a
+#     numpy from PyPI breaks DOLFINx).
 #
 # A second run checks a stamp (hash of this script, pyproject.toml and the installed package set) and
 # returns in about a second without changing anything. Usage: bash scripts/bootstrap.sh [--force]
@@ -40,6 +41,8 @@ case "${VERSION_CODENAME:-}" in
   tells whether it is in the supported range)" ;;
 esac
 
+# chromium: the headless browser of soro play's tests (driven by Playwright from PyPI, the `play` extra; its own
+# browser download is never used).
 # libopenblas0-serial: Debian's alternatives then route libblas.so.3/liblapack.so.3 (MUMPS, numpy, scipy) to
 # OpenBLAS instead of the reference BLAS: the 95k-DOF 3D MUMPS factorization drops from 8.1 s to 1.5 s.
 # The serial build, so that MPI ranks do not oversubscribe the cores with BLAS threads.
@@ -49,6 +52,7 @@ PACKAGES=(
   python3-gmsh python3-meshio python3-h5py python3-numba python3-scipy python3-numpy
   python3-matplotlib python3-pytest python3-skimage python3-hypothesis
   libopenblas0-serial
+  chromium
   build-essential make git ca-certificates
 )
 if [ "${1:-}" = "--packages" ]; then
@@ -115,7 +119,7 @@ grep -q '^numpy==' "$constraints" || die "Debian's numpy is not visible to /usr/
 # --- 4. the project and PyPI extras ------------------------------------------------------------------------
 say "installing the project (editable) and extras into $VENV"
 export PIP_DISABLE_PIP_VERSION_CHECK=1
-"$VENV/bin/python" -m pip install -q --no-build-isolation -c "$constraints" -e ".[extras]" \
+"$VENV/bin/python" -m pip install -q --no-build-isolation -c "$constraints" -e ".[extras,play]" \
   || die "pip install failed; see the messages above (network access to PyPI is needed for opencv, tqdm and gymnasium)"
 "$VENV/bin/python" - <<'PY' || exit 1
 import numpy, sys

@@ -15,6 +15,9 @@
     rule (:func:`soroshapes.dvs.cheapest`: the smallest median time per solve among the rows within the
     tolerance on the test and contact tip errors) that also marks the table's selected row. Without files
     it runs the PneuNet of ``demos/dvs_pneunet.py`` (``--quick`` for a short run).
+``soro play SCENE [--backend model|sim|board] [--port N] [--open]``
+    Serve a live page of a scene (a demo name or ``path/to/file.py:build``) on 127.0.0.1 and print its URL:
+    3D view, a slider per input, a draggable IK target, live plots, recording (:mod:`soro.play`).
 ``soro sweep CONFIG.toml [--out DIR] [--group-size K] [--retry-failed] [--force-rerun] [--dry-run]``
     Run a batch of FEM cases described by a TOML file (format: :mod:`sorofem.sweep`), one snapshot file and
     one status file per case plus ``manifest.json`` in ``DIR`` (default ``out/sweeps/<config name>/``).
@@ -405,7 +408,22 @@ def main(argv=None):
     q.add_argument("--resolution", type=float, default=None,
                    help="marching-cubes grid step [mm] (default: a third of the smallest feature)")
     q.add_argument("--no-preview", action="store_true", help="skip the PNG")
+    p = sub.add_parser("play", help="drive a scene live in the browser (model, simulated board or real board)")
+    p.add_argument("scene", help="demo name (soft_hand, pcc_arm, ...) or path/to/file.py:build")
+    p.add_argument("--backend", choices=("model", "sim", "board"), default="model",
+                   help="model: real-time stepping here (default); sim: the simulated board; board: a real board")
+    p.add_argument("--board-url", help="tcp://host:port of a real board (--backend board)")
+    p.add_argument("--secret-file", help="the board's secret (default $SORO_BOARD_SECRET)")
+    p.add_argument("--host", default="127.0.0.1", help="interface to serve on (default 127.0.0.1: this machine)")
+    p.add_argument("--port", type=int, default=8765, help="TCP port (default 8765; 0: any free port)")
+    p.add_argument("--open", action="store_true", help="also open the page in the default browser")
+    p.add_argument("--quick", action="store_true", help="the scene's quick variant")
+    p.add_argument("--duration", type=float, default=None, help="stop after this many seconds (default: Ctrl-C)")
+    p.add_argument("--out", default="out/play", help="where recordings go (default out/play)")
     args = parser.parse_args(argv)
+    if args.command == "play":    # soro play SCENE (soro.play)
+        from soro.play.cli import run as run_play
+        return run_play(args)
     if args.command == "robot":   # soro robot list | export NAME (sorofem.robots)
         from .robots._cli import run as run_robot
         return run_robot(args)

@@ -11,6 +11,12 @@ the model's implicit integrator (``Model.simulate(dt, dt/substeps, x0=x_k, t0=t_
 with :math:`t_k = k\,dt`. An episode is truncated after ``horizon`` steps and terminated when
 ``terminate(model)`` is true. Gymnasium is an optional dependency, imported when this module is.
 
+Rendering (``render_mode``): ``"rgb_array"`` returns the model's beams at the current state drawn offscreen as
+tubes (:func:`soroshapes.render.render_png`, keywords in ``render_options``: ``obstacles``, ``view``, ``size``,
+``dpi``, ``limits``) as an (H, W, 3) uint8 array; ``"human"`` serves the live page of ``soro play`` (the
+application layer's :func:`soro.play.serve_mirror`, found by name when first rendered) on 127.0.0.1, its
+address in :attr:`ModelEnv.render_url`, and each ``render()`` publishes the current state to it.
+
 Example
 -------
 >>> import numpy as np
@@ -74,13 +80,22 @@ class ModelEnv(_gym.Env):
         dtype of both spaces and of the observations (float64 default; float32 for most RL libraries).
     seed : int, optional
         Seeds ``np_random`` (``reset(seed=...)`` reseeds).
+    render_mode : None, "rgb_array" or "human"
+        See the module docstring.
+    render_options : dict, optional
+        Keywords of :func:`soroshapes.render.render_png` for ``"rgb_array"`` (``limits`` [m] fixes the axes,
+        so that frames of an episode line up).
     """
 
-    metadata = {"render_modes": []}
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 30}
 
     def __init__(self, model, observation, reward, dt, horizon, *, action_inputs=None, action_low=-1.0,
                  action_high=1.0, x0=None, reset_fn=None, terminate=None, substeps=1, method="trapezoidal",
-                 dtype=np.float64, seed=None):
+                 dtype=np.float64, seed=None, render_mode=None, render_options=None):
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ParameterError(f"render_mode must be None, 'rgb_array' or 'human', got {render_mode!r}")
+        self.render_mode, self._render_options = render_mode, dict(render_options or {})
+        self.render_url, self._viewer = None, None
         for what, fn in (("observation", observation), ("reward", reward)):
             if not callable(fn):
                 raise ParameterError(f"ModelEnv {what} must be a callable of the model")
@@ -189,3 +204,50 @@ class ModelEnv(_gym.Env):
         truncated = self._k >= self.horizon
         return obs, reward, terminated, truncated, {"t": self.t,
                                                    "newton_iterations": traj.stats["newton_iterations"]}
+
+    # -- rendering ------------------------------------------------------------------------------------------
+    def _beams(self):
+        from .shapes import Shapes
+        beams = []
+        for name in self.model.systems:
+            sysm = self.model[name].system
+            if isinstance(sysm, Shapes):
+                beams.append(sysm.beam(np.asarray(self.model[name].x, dtype=float)[:sysm.n]))
+        return beams
+
+    def render(self):
+        """``"rgb_array"``: the beams at the current state, (H, W, 3) uint8; ``"human"``: publish the state to the
+        page (started on the first call, address in :attr:`render_url`), returns None; no mode: None."""
+        if self.render_mode == "rgb_array":
+            import os
+            import tempfile
+
+            from matplotlib.image import imread
+
+            from .render import render_png
+            beams = self._beams()
+            if not beams:
+                raise ParameterError("render_mode='rgb_array' draws the model's beams (Shapes systems): this model "
+                                     "has none")
+            with tempfile.TemporaryDirectory() as d:
+                img = imread(render_png(os.path.join(d, "frame.png"), beams, **self._render_options))
+            return np.round(img[..., :3] * 255).astype(np.uint8)
+        if self.render_mode == "human":
+            if self._viewer is None:
+                import importlib
+                try:
+                    play = importlib.import_module("soro.play")
+                except ImportError as e:
+                    raise DependencyError("render_mode='human' serves the page of soro play (the soro package of "
+                                          "this project): install the project, `bash scripts/bootstrap.sh`") from e
+                self._viewer = play.serve_mirror(self.model, [self._free_names[i] for i in self._idx])
+                self.render_url = self._viewer.url
+            self._viewer.backend.update(self._action)
+        return None
+
+    def close(self):
+        """Stop the page of ``render_mode="human"`` (if any)."""
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None
+        super().close()
