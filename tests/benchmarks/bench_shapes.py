@@ -5,7 +5,7 @@ Targets (issue): FK + Jacobian + M + C evaluations per second for 6 DOF and 50 q
 that the integrator evaluates);
 real-time factor of a 15-DOF rod at dt = 1 ms >= 100x; IK solves per second for 3 DOF >= 5 000/s. Each
 figure is measured in one run, best of a few warm repetitions, and printed; correctness of what was timed is
-asserted (never a time).
+asserted (never a time). The side by side with PyElastica and MuJoCo is in ``peers/bench_peers.py``.
 """
 import os
 
@@ -96,85 +96,3 @@ def test_bench_ik_solves_per_second(record):
     per_s = len(targets) / best
     record(dofs=3, solves_per_s=round(per_s), converged_fraction=float(ok),
            iterations_mean=float(np.mean([r.iterations for r in results])), target=5000, met=bool(per_s >= 5000))
-
-
-# ------------------------------------------------------------------------------------------------------------
-# side by side with PyElastica (its own venv, see tests/benchmarks/peers/)
-# ------------------------------------------------------------------------------------------------------------
-ROD = {"length": 0.2, "radius": 5e-3, "E": 1e6, "density": 1000.0, "g": 9.81}
-TOLERANCES = (0.05, 0.02, 0.01, 0.005)
-
-
-def _peer_rod(k, segments=10):
-    """Our model of the peer's rod: extensible and shearable in the loaded plane (bending about y, stretch,
-    shear z), shear stiffness (27/28) G A with G = E/3 as PyElastica's."""
-    E = ROD["E"]
-    return Shapes(Basis.chebyshev(k), dofs=(0, k, 0, k, 0, k), length=ROD["length"],
-                  section=sdf.Circle(ROD["radius"]), material=materials.NeoHookean(E=E, nu=0.45, density=1000.0),
-                  E=E, G=27 / 28 * E / 3, damping=0.0, segments=segments)
-
-
-def _ours_static(case, k):
-    L, r = ROD["length"], ROD["radius"]
-    t0 = time.perf_counter()
-    shp = _peer_rod(k)
-    if case == "gravity":
-        shp.add_gravity((0.0, 0.0, -ROD["g"]))
-    else:
-        shp.add_point_load(force=[0.0, 0.0, -3 * ROD["E"] * np.pi * r**4 / 4 / L**2])
-    build = time.perf_counter() - t0
-    shp.statics()
-    best = np.inf
-    for _ in range(5):
-        t0 = time.perf_counter()
-        q = shp.statics()
-        best = min(best, time.perf_counter() - t0)
-    tip = shp.positions(q)[-1]
-    return {"modes": k, "tip_dx": tip[0] - L, "tip_dz": tip[2], "solve_s": best, "build_s": build}
-
-
-def _cheapest(runs, err_key, time_key, tol):
-    ok = [r for r in runs if r[err_key] <= tol]
-    return min(ok, key=lambda r: r[time_key]) if ok else None
-
-
-def test_bench_against_pyelastica(record):
-    import sys
-    from pathlib import Path
-    sys.path.insert(0, str(Path(__file__).parent))
-    from peers.elastica_study import elastica_convergence, elastica_realtime
-
-    table = {}
-    for case in ("gravity", "tip_load"):
-        peer = elastica_convergence(case, n_list=(5, 10, 20, 40, 80, 160))
-        assert all(r["converged"] for r in peer)
-        ref = np.array([peer[-1]["extrapolated_dx"], peer[-1]["extrapolated_dz"]])   # converged reference
-        ours = [_ours_static(case, k) for k in (1, 2, 3, 4, 6)]
-        for r in ours:
-            r["rel_err"] = float(np.hypot(r["tip_dx"] - ref[0], r["tip_dz"] - ref[1]) / np.linalg.norm(ref))
-            r["total_s"] = r["solve_s"] + r["build_s"]
-        # the two models converge to the same rod up to PyElastica's dilatation-scaled couples (< 0.1 %)
-        assert ours[-1]["rel_err"] < 1e-3
-        rows = []
-        for tol in TOLERANCES:
-            p = _cheapest(peer, "rel_err_vs_extrapolated", "wall_s", tol)
-            o = _cheapest(ours, "rel_err", "total_s", tol)
-            rows.append({"tol": tol, "pyelastica_elements": p and p["n_elements"], "pyelastica_s": p and p["wall_s"],
-                         "ours_modes": o["modes"], "ours_s": o["total_s"],
-                         "speedup": (p["wall_s"] / o["total_s"]) if p else None})
-        table[case] = rows
-        print(f"\n{case}: tolerance | PyElastica elements, s | ours modes, s (build + solve) | speedup")
-        for row in rows:
-            print(f"  {row['tol']:.3f} | {row['pyelastica_elements']}, {row['pyelastica_s']} | "
-                  f"{row['ours_modes']}, {row['ours_s']:.2e} | {row['speedup']}")
-    # real time: the same rod released under gravity, undamped
-    peer_rt = elastica_realtime(n_elements=20)
-    shp = _peer_rod(3).add_gravity((0.0, 0.0, -ROD["g"]))
-    shp.simulate(0.01, 1e-3)
-    t0 = time.perf_counter()
-    tr = shp.simulate(1.0, 1e-3, record_every=100)
-    ours_rtf = 1.0 / (time.perf_counter() - t0)
-    assert np.all(np.isfinite(tr.q))
-    record(table=table, pyelastica_rtf_20_elements=peer_rt["rtf"], pyelastica_dt=peer_rt["dt"],
-           ours_rtf_9_dof=round(ours_rtf, 1), ours_dt=1e-3,
-           met=all(r["speedup"] is None or r["speedup"] >= 10 for rows in table.values() for r in rows))
