@@ -26,6 +26,11 @@ Every 6 x 6 matrix met here (``ad``, ``Ad`` of a pose's inverse, ``T``, ``dT``) 
 column), and ``T``, ``dT`` are built from closed forms of their 3 x 3 blocks (:func:`_tangent_closed`). Column
 ``k`` of :math:`\Theta` has a single nonzero (in strain ``rows[k]``), which the order-2 updates exploit.
 Kernels write into work arrays passed by the caller (a :class:`soroshapes.beam.BeamData` workspace).
+
+The implicit integrator (:func:`integrate_midpoint`) never forms the 6 x n Jacobians in its iterations: its
+residual comes from the O(N) forward/backward recursions of :func:`newton_euler` (``T`` and ``dT`` applied to
+vectors as polynomials in ``ad``), and its iteration matrix from the mass matrix that
+:func:`mass_matrix_pieces` assembles from the per-piece operators of the same pass.
 """
 import numpy as np
 from sorofem._numba import njit  # numba.njit with a cache that concurrent processes may share
