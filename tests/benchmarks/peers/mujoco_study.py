@@ -63,6 +63,12 @@ def chain_xml(n, dt, beta=0.0, gravity=True):
             f'<worldbody>{body}</worldbody></mujoco>')
 
 
+def _quiet(mujoco):
+    """Route MuJoCo's warnings (an unstable trial step) away from the MUJOCO_LOG.TXT it would write in the working
+    folder: the runs read the warning counters instead."""
+    mujoco.set_mju_user_warning(lambda message: None)
+
+
 def _omega_max(n):
     """Highest hinge frequency estimate [rad/s]: the last link on its joint, sqrt(k / (m l^2 / 3))."""
     L, rho = ROD["length"], ROD["density"]
@@ -88,6 +94,7 @@ def static_tip(case, n, beta=0.05, dt_factor=0.5, v_tol=1e-6, check_every=50, t_
     ``simulated_s``, ``converged``."""
     import mujoco
     import numpy as np
+    _quiet(mujoco)
     L = ROD["length"]
     _, EI = _section()
     dt = dt_factor * 2.0 / _omega_max(n)
@@ -121,6 +128,7 @@ def release_tip(n, dt, t_end=1.0, record_every_s=0.01):
     and the wall time of the stepping [s] (``mj_step`` in batches between the records)."""
     import mujoco
     import numpy as np
+    _quiet(mujoco)
     model = mujoco.MjModel.from_xml_string(chain_xml(n, dt, 0.0, gravity=True))
     data = mujoco.MjData(model)
     per = max(1, int(round(record_every_s / dt)))
