@@ -48,7 +48,8 @@ from .numerics import FD_STEP
 __all__ = ["BeamModel", "BeamData", "StateRangeError", "BeamTrajectory", "IKResult", "Gravity", "PointLoad",
            "Chamber", "Tendon", "Actuator", "Contact", "UserForce", "check_state", "kinematics", "dynamics",
            "coriolis_jacobian", "inverse_dynamics", "forward_dynamics", "accelerations", "energy", "external_force",
-           "input_map", "inputs_at", "LoadPlan", "statics", "simulate", "inverse_kinematics"]
+           "input_map", "inputs_at", "LoadPlan", "statics", "simulate", "explicit_step_limit",
+           "inverse_kinematics"]
 
 _NO_NODES, _NO_WRENCH, _NO_FLAGS = np.zeros(0, dtype=np.int64), np.zeros((0, 6)), np.zeros(0, dtype=np.bool_)
 
@@ -780,6 +781,12 @@ def _simulate_python(q, qd, start, dt, nsteps, method, min_dt, owner, model, dat
                 step = None
             if step is None:
                 h *= 0.5
+                if h < min_dt and method == "explicit":
+                    limit = explicit_step_limit(model, data)
+                    raise ConvergenceError(
+                        f"simulate: explicit RK4 did not converge at t = {t:.6g} s down to dt = {min_dt:.3g} s: "
+                        f"it is stable only below dt = {limit:.3g} s for this rod (Shapes.explicit_step_limit(), "
+                        f"2/omega_max); use dt < {limit:.3g} s or method='implicit' (A-stable, any dt)")
                 if h < min_dt:
                     raise ConvergenceError(f"simulate: the step at t = {t:.6g} s did not converge down to dt = "
                                            f"{min_dt:.3g} s ({method}); use a smaller dt, the implicit method, "
@@ -791,6 +798,16 @@ def _simulate_python(q, qd, start, dt, nsteps, method, min_dt, owner, model, dat
         t, k = t_next, k + 1
         if k % record_every == 0 or k == nsteps:
             record(min(t, t_end))
+
+
+def explicit_step_limit(model, data, q=None):
+    r"""Stability limit [s] of explicit time stepping, :math:`2/\omega_{max}` (central difference), with
+    :math:`\omega_{max}^2` the largest eigenvalue of :math:`K\phi = \omega^2 M(q)\phi` (default ``q``: straight;
+    geometric stiffness of gravity and loads not included). Overwrites ``data``."""
+    from scipy.linalg import eigh
+    M = dynamics(model, data, np.zeros(model.n) if q is None else q, want_c=False)[0]
+    w2 = eigh(model.K, M, eigvals_only=True)[-1]
+    return 2.0 / math.sqrt(max(w2, 0.0)) if w2 > 0 else math.inf
 
 
 def _midpoint_step(model, data, loads, q, qd, t, h, u, tau, tol, max_iterations, owner):

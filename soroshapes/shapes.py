@@ -741,7 +741,7 @@ class Shapes:
     def explicit_step_limit(self, q=None):
         """Stability limit [s] of explicit time stepping, :math:`2/\\omega_{max}` (central difference), from
         the largest natural frequency of the linearization about ``q``."""
-        return 2.0 / (2 * np.pi * self.natural_frequencies(q=q)[-1])
+        return _bm.explicit_step_limit(self.model, self.data, None if q is None else _bm.check_state(self.model, q))
 
     def simulate(self, t_end, dt, q0=None, qd0=None, u=None, *, method="implicit", tol=1e-8, max_iterations=20,
                  min_dt=None, record_every=1):
