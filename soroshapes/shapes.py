@@ -758,7 +758,7 @@ class Shapes:
         until :math:`|\Delta v| \le` ``tol`` :math:`|v_m| + 10^{-12}`; then :math:`q_{n+1} = q_n + h v_m`,
         :math:`\dot q_{n+1} = 2v_m - \dot q_n`. Scenes with gravity, chambers and point loads only (no
         contact, tendons or user forces) run in one compiled loop (:func:`soroshapes._beam.integrate_midpoint`:
-        residuals by O(N) Newton-Euler recursions, an extrapolating predictor, the matrix :math:`2M/h + D +
+        residuals by O(N) Newton-Euler recursions, the linearized step as predictor, the matrix :math:`2M/h + D +
         \tfrac h2 K` refreshed when convergence slows and the complete, differenced :math:`\partial R/\partial
         v_m` for a step that fails with it; ``stats["matrix_refreshes"]`` counts the factorizations). A step that does
         not converge in ``max_iterations`` is halved, down to ``min_dt`` (default dt/1024), then a
