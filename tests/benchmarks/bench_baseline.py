@@ -91,7 +91,9 @@ def test_bench_against_the_baseline(scene, record):
     # the same model, solved by reorganized kernels (other rounding): agreement to a few times the scenes'
     # integrator tolerances (rtol 1e-4 to 1e-6; the rod's Newton tolerance 1e-8)
     assert figures["difference_same_model"] < 1e-3, figures
-    assert figures["difference_new_quadrature"] < 0.1, figures
+    # the baseline's trapezoidal rule is the farther model: at the rod's 4 segments it is 14.7 % off a converged
+    # model, this tree's default 1.2 % (bench_shapes.py::test_bench_rod15_discretization_error)
+    assert figures["difference_new_quadrature"] < {"rod15": 0.2}.get(scene, 0.1), figures
 
 
 def _precompile(tree, env):
