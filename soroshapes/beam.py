@@ -43,10 +43,13 @@ import numpy as np
 
 from sorofem.errors import DataError, ParameterError
 
+from .numerics import FD_STEP
+
 __all__ = ["BeamModel", "BeamData", "StateRangeError", "BeamTrajectory", "IKResult", "Gravity", "PointLoad",
            "Chamber", "Tendon", "Actuator", "Contact", "UserForce", "check_state", "kinematics", "dynamics",
            "coriolis_jacobian", "inverse_dynamics", "forward_dynamics", "accelerations", "energy", "external_force",
-           "input_map", "inputs_at", "LoadPlan", "statics", "simulate", "inverse_kinematics"]
+           "input_map", "inputs_at", "LoadPlan", "statics", "simulate", "explicit_step_limit",
+           "inverse_kinematics"]
 
 _NO_NODES, _NO_WRENCH, _NO_FLAGS = np.zeros(0, dtype=np.int64), np.zeros((0, 6)), np.zeros(0, dtype=np.bool_)
 
@@ -136,7 +139,7 @@ class BeamData:
     calls (the next call overwrites them)."""
 
     __slots__ = ("G", "J", "Jd", "eta", "etad", "S", "E", "V", "Op", "dOp", "AJ", "W", "M", "C", "Cv", "fg",
-                 "R", "piv", "qdd", "contact_forces")
+                 "R", "piv", "qdd", "contact_forces", "acc", "SA", "SX", "NE")
 
     def __init__(self, model):
         N, n = model.points.shape[0], model.n
@@ -151,6 +154,11 @@ class BeamData:
         self.M, self.C, self.Cv, self.fg = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n)), np.zeros(n)
         self.R, self.piv, self.qdd = np.zeros(n), np.zeros(n, dtype=np.int64), np.zeros(n)
         self.contact_forces = np.zeros((model.nodes, 3))
+        # the Newton-Euler recursions (soroshapes._beam.newton_euler): acceleration twists, per-piece Ad of the
+        # inverse and tangent, strains at the Gauss points, and their work vectors
+        P = N - 1
+        self.acc = np.zeros((N, 6))
+        self.SA, self.SX, self.NE = np.zeros((P, 6, 6)), np.zeros((P, 4, 6)), np.zeros((32, 6))
 
     def __getstate__(self):
         return {k: getattr(self, k) for k in self.__slots__}
@@ -698,7 +706,8 @@ def simulate(model, data, loads, t_end, dt, q0=None, qd0=None, u=None, *, tau=0.
     return BeamTrajectory(np.array(rec["t"]), np.array(rec["q"]), np.array(rec["qd"]), np.array(rec["kin"]),
                           np.array(rec["pot"]), np.array(rec["tip"]),
                           {"steps": nsteps, "dt": dt, "newton_iterations": np.array(its_all), "wall_time": wall,
-                           "method": method, "compiled_steps": start})
+                           "method": method, "compiled_steps": start,
+                           "matrix_refreshes": rec.get("refreshes", 0)})
 
 
 def _simulate_compiled(q, qd, dt, nsteps, model, data, loads, u, tau, tol, max_iterations, record_every, rec,
@@ -722,11 +731,12 @@ def _simulate_compiled(q, qd, dt, nsteps, model, data, loads, u, tau, tol, max_i
     nrec = nsteps // record_every + 1 + (nsteps % record_every != 0)
     out_t, out_q, out_qd = np.zeros(nrec), np.zeros((nrec, n)), np.zeros((nrec, n))
     out_e, out_tip, its = np.zeros((nrec, 2)), np.zeros((nrec, 3)), np.zeros(nsteps, dtype=np.int64)
+    jacs = np.zeros(nsteps, dtype=np.int64)
     done = _beam.integrate_midpoint(
         q, qd, dt, nsteps, record_every, fext, pl_nodes, pl_W, pl_spatial, model.K, tau * model.K,
         model.order, model.h, model.B, model.rows, model.X0, model.base, model.weights, model.Md,
-        gravity_of(loads), float(tol), int(max_iterations), out_t, out_q, out_qd, out_e, out_tip, its,
-        data.G, data.J, data.Jd, data.eta, data.etad, data.S, data.E, data.V, data.Op, data.dOp, data.AJ, data.W)
+        gravity_of(loads), float(tol), int(max_iterations), FD_STEP, out_t, out_q, out_qd, out_e, out_tip, its,
+        jacs, data.G, data.eta, data.acc, data.SA, data.SX, data.E, data.NE)
     m = done // record_every + 1 + (done == nsteps and nsteps % record_every != 0)
     if done < nsteps:
         m = (done - 1) // record_every + 1 if done > 0 else 1
@@ -737,6 +747,7 @@ def _simulate_compiled(q, qd, dt, nsteps, model, data, loads, u, tau, tol, max_i
     rec["pot"] += list(out_e[:m, 1])
     rec["tip"] += list(out_tip[:m])
     its_all += list(its[:done])
+    rec["refreshes"] = rec.get("refreshes", 0) + int(np.count_nonzero(jacs[:done]))
     return done, q, qd
 
 
@@ -770,6 +781,12 @@ def _simulate_python(q, qd, start, dt, nsteps, method, min_dt, owner, model, dat
                 step = None
             if step is None:
                 h *= 0.5
+                if h < min_dt and method == "explicit":
+                    limit = explicit_step_limit(model, data)
+                    raise ConvergenceError(
+                        f"simulate: explicit RK4 did not converge at t = {t:.6g} s down to dt = {min_dt:.3g} s: "
+                        f"it is stable only below dt = {limit:.3g} s for this rod (Shapes.explicit_step_limit(), "
+                        f"2/omega_max); use dt < {limit:.3g} s or method='implicit' (A-stable, any dt)")
                 if h < min_dt:
                     raise ConvergenceError(f"simulate: the step at t = {t:.6g} s did not converge down to dt = "
                                            f"{min_dt:.3g} s ({method}); use a smaller dt, the implicit method, "
@@ -781,6 +798,16 @@ def _simulate_python(q, qd, start, dt, nsteps, method, min_dt, owner, model, dat
         t, k = t_next, k + 1
         if k % record_every == 0 or k == nsteps:
             record(min(t, t_end))
+
+
+def explicit_step_limit(model, data, q=None):
+    r"""Stability limit [s] of explicit time stepping, :math:`2/\omega_{max}` (central difference), with
+    :math:`\omega_{max}^2` the largest eigenvalue of :math:`K\phi = \omega^2 M(q)\phi` (default ``q``: straight;
+    geometric stiffness of gravity and loads not included). Overwrites ``data``."""
+    from scipy.linalg import eigh
+    M = dynamics(model, data, np.zeros(model.n) if q is None else q, want_c=False)[0]
+    w2 = eigh(model.K, M, eigvals_only=True)[-1]
+    return 2.0 / math.sqrt(max(w2, 0.0)) if w2 > 0 else math.inf
 
 
 def _midpoint_step(model, data, loads, q, qd, t, h, u, tau, tol, max_iterations, owner):

@@ -37,7 +37,7 @@ from . import beam as _bm
 from .basis import Basis
 from .beam import BeamModel, BeamTrajectory, IKResult
 
-__all__ = ["Shapes", "BeamTrajectory", "IKResult", "STRAINS"]
+__all__ = ["Shapes", "BeamTrajectory", "IKResult", "STRAINS", "precompile"]
 
 
 #: Names of the six strains, in the order of the ``dofs`` mask.
@@ -741,7 +741,7 @@ class Shapes:
     def explicit_step_limit(self, q=None):
         """Stability limit [s] of explicit time stepping, :math:`2/\\omega_{max}` (central difference), from
         the largest natural frequency of the linearization about ``q``."""
-        return 2.0 / (2 * np.pi * self.natural_frequencies(q=q)[-1])
+        return _bm.explicit_step_limit(self.model, self.data, None if q is None else _bm.check_state(self.model, q))
 
     def simulate(self, t_end, dt, q0=None, qd0=None, u=None, *, method="implicit", tol=1e-8, max_iterations=20,
                  min_dt=None, record_every=1):
@@ -757,8 +757,10 @@ class Shapes:
         forces are left out: they change the rate of convergence, not the solution)
         until :math:`|\Delta v| \le` ``tol`` :math:`|v_m| + 10^{-12}`; then :math:`q_{n+1} = q_n + h v_m`,
         :math:`\dot q_{n+1} = 2v_m - \dot q_n`. Scenes with gravity, chambers and point loads only (no
-        contact, tendons or user forces) run in one compiled loop (:func:`soroshapes._beam.integrate_midpoint`,
-        matrix-free residuals, the iteration matrix refreshed only when convergence slows). A step that does
+        contact, tendons or user forces) run in one compiled loop (:func:`soroshapes._beam.integrate_midpoint`:
+        residuals by O(N) Newton-Euler recursions, the linearized step as predictor, the matrix :math:`2M/h + D +
+        \tfrac h2 K` refreshed when convergence slows and the complete, differenced :math:`\partial R/\partial
+        v_m` for a step that fails with it; ``stats["matrix_refreshes"]`` counts the factorizations). A step that does
         not converge in ``max_iterations`` is halved, down to ``min_dt`` (default dt/1024), then a
         :class:`~sorofem.errors.ConvergenceError` reports the time. ``method="explicit"``: classical RK4
         (stable only below about :meth:`explicit_step_limit`; a blow-up is reported, never returned).
@@ -825,3 +827,36 @@ class Shapes:
         return _bm.inverse_kinematics(self.model, self.data, self._targets(targets), q0, tol=tol,
                                       max_iterations=max_iterations, damping=damping,
                                       rotation_weight=rotation_weight, subtask=subtask, subtask_gain=subtask_gain)
+
+
+def precompile():
+    """Compile the beam kernels a first session needs (or load them from numba's cache) and leave them in the
+    cache, so that every later process, from any folder and any user, starts without the JIT (about 40 s with
+    an empty cache; ``scripts/bootstrap.sh`` calls this once after installing). Exercises, on a small rod with
+    gravity, a point load and a chamber: ``statics``, ``simulate`` (the compiled loop), the kinematics and
+    dynamics queries, ``forward_dynamics`` (the path of :class:`soroshapes.Model`) and ``inverse_kinematics``.
+    Returns the seconds it took."""
+    import time
+    from sorofem import materials, sdf
+    from .basis import Basis
+    t0 = time.perf_counter()
+    shp = Shapes(Basis.chebyshev(3), dofs=(1, 3, 3, 0, 0, 0), length=0.1, section=sdf.Circle(0.005),
+                 material=materials.NeoHookean(E=1e6, nu=0.45, density=1000.0)).add_gravity()
+    shp.add_point_load((0.0, 0.0, -0.01)).add_chamber(1e-5, (0.0, 0.002), name="chamber")
+    q = shp.statics(u=[0.0])
+    shp.simulate(0.003, 1e-3, q0=q, u=[0.0])
+    qd = np.full(shp.n, 0.1)
+    shp.forward_kinematics(q)
+    shp.jacobian(q)
+    shp.jacobian_rate(q, qd)
+    shp.dynamics(q, qd)
+    shp.coriolis_jacobian(q, qd)
+    shp.inverse_dynamics(q, qd, qd)
+    shp.forward_dynamics(q, qd, u=[0.0])
+    shp.energy(q, qd)
+    shp.inverse_kinematics(shp.forward_kinematics(q)[-1][:3, 3].copy(), q0=np.zeros(shp.n))
+    return time.perf_counter() - t0
+
+
+if __name__ == "__main__":
+    print(f"[soroshapes] beam kernels compiled and cached in {precompile():.1f} s")

@@ -11,14 +11,17 @@ also runs in this tree with the baseline's trapezoidal rule: that run must repro
 20 segments, a few percent of a trajectory after a second).
 
 Cold start: the first ``statics`` + first ``simulate`` of a fresh process, with the kernel cache that the
-previous runs left (what every process after ``make test``/``make demo`` finds) and with an empty cache.
+previous runs left (what every process after ``make test``/``make demo`` finds), with an empty cache, and with an
+empty cache that the bootstrap's precompile step then filled (from another folder, and as another user).
 Asserts that every scene ran and agrees with the baseline to a loose bound (never a time).
 """
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -88,10 +91,42 @@ def test_bench_against_the_baseline(scene, record):
     # the same model, solved by reorganized kernels (other rounding): agreement to a few times the scenes'
     # integrator tolerances (rtol 1e-4 to 1e-6; the rod's Newton tolerance 1e-8)
     assert figures["difference_same_model"] < 1e-3, figures
-    assert figures["difference_new_quadrature"] < 0.1, figures
+    # the baseline's trapezoidal rule is the farther model: at the rod's 4 segments it is 14.7 % off a converged
+    # model, this tree's default 1.2 % (bench_shapes.py::test_bench_rod15_discretization_error)
+    assert figures["difference_new_quadrature"] < {"rod15": 0.2}.get(scene, 0.1), figures
+
+
+def _precompile(tree, env):
+    """What scripts/bootstrap.sh does once after installing (this tree only): returns its wall time [s]."""
+    with tempfile.TemporaryDirectory() as tmp:
+        e = {**os.environ, "PYTHONPATH": str(tree), "NUMBA_NUM_THREADS": "1", **env}
+        t0 = time.perf_counter()
+        proc = subprocess.run([sys.executable, "-m", "soroshapes.shapes"], env=e, cwd=tmp, capture_output=True,
+                              text=True, timeout=3600)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        return time.perf_counter() - t0
+
+
+def _as_other_user(tree):
+    """The cold-start scene run by another user (``nobody``, from /tmp) against the kernels the source tree's cache
+    holds: that user may read the cache but not write it. None when not root or without runuser."""
+    if os.geteuid() != 0 or not shutil.which("runuser"):
+        return None
+    with tempfile.TemporaryDirectory() as tmp:
+        os.chmod(tmp, 0o777)
+        out = Path(tmp) / "r.json"
+        cmd = ["runuser", "-u", "nobody", "--", "env", f"PYTHONPATH={tree}", "NUMBA_NUM_THREADS=1", "HOME=/nonexistent",
+               sys.executable, str(SCENES), "cold_start", str(out), str(tree)]
+        proc = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True, timeout=3600)
+        assert proc.returncode == 0, f"cold start as nobody: {proc.stderr[-3000:]}"
+        return json.loads(out.read_text())
 
 
 def test_bench_cold_start(record):
+    """The first statics + first simulate of a fresh process (must-show 6: <= 3 s together): with the cache
+    that earlier runs left, with an empty cache (the JIT of every kernel), and, in this tree, with an empty
+    cache that the bootstrap's precompile step (``python -m soroshapes.shapes``) then filled, measured in a
+    later process from another folder, and as another user."""
     base = _baseline_tree()
     figures = {}
     for label, tree in (("baseline", base), ("this_tree", ROOT)):
@@ -103,5 +138,13 @@ def test_bench_cold_start(record):
                           "cached_import_and_build_s": round(warm["import_and_build_s"], 3),
                           "empty_cache_statics_plus_simulate_s": round(cold["wall_s"], 3)}
         assert np.all(np.isfinite(warm["figures"]["tip"]))
-    best = figures["this_tree"]["cached_statics_plus_simulate_s"]
+    with tempfile.TemporaryDirectory() as cache:
+        pre = _precompile(ROOT, {"NUMBA_CACHE_DIR": cache})
+        after = _run(ROOT, "cold_start", {"NUMBA_CACHE_DIR": cache})
+    figures["this_tree"]["bootstrap_precompile_s"] = round(pre, 3)
+    figures["this_tree"]["after_bootstrap_statics_plus_simulate_s"] = round(after["wall_s"], 3)
+    other = _as_other_user(ROOT)
+    if other is not None:
+        figures["this_tree"]["other_user_statics_plus_simulate_s"] = round(other["wall_s"], 3)
+    best = figures["this_tree"]["after_bootstrap_statics_plus_simulate_s"]
     record(**figures, target_s=3.0, met=bool(best <= 3.0))

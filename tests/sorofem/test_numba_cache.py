@@ -79,3 +79,60 @@ def test_without_the_lock_the_same_interleaving_corrupts_the_cache(tmp_path, pyt
     if code == 0 and out == ["15.0", "10.0"]:
         pytest.skip("this numba no longer mixes up the cache entries under this interleaving")
     assert code != 0 or out != ["15.0", "10.0"]
+
+
+READER = textwrap.dedent("""
+    import sorofem._numba  # noqa: F401
+    import numpy as np
+    from numba import njit
+
+    @njit(cache=True)
+    def total(a):
+        s = 0.0
+        for x in a.flat:
+            s += x
+        return s
+
+    @njit(cache=True)
+    def scaled(a, f):
+        return a * f
+
+    print(total(np.arange(4.0)), scaled(np.arange(3.0), 2.0).sum(), len(total.stats.cache_hits))
+""")
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "geteuid") or __import__("os").geteuid() != 0
+                    or not __import__("shutil").which("runuser"), reason="needs root and runuser to act as another user")
+def test_another_user_reads_the_cache_it_may_not_write():
+    """A kernel module owned by root, its ``__pycache__`` filled by root: user ``nobody`` (no writable home) loads
+    the cached kernel and compiles what the cache lacks in memory. Before, numba found no writable cache
+    location and every ``cache=True`` function raised "no locator available" at import (so ``import
+    soroshapes`` failed for such a user, e.g. a service account)."""
+    import os
+    import shutil
+    import tempfile
+    from pathlib import Path
+    tmp_path = Path(tempfile.mkdtemp(prefix="soro-cache-"))       # pytest's tmp_path is not readable by nobody
+    try:
+        _read_as_another_user(tmp_path)
+    finally:
+        shutil.rmtree(tmp_path, ignore_errors=True)
+
+
+def _read_as_another_user(tmp_path):
+    import os
+    tmp_path.chmod(0o755)
+    (tmp_path / "reader.py").write_text(READER)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path)] + sys.path)}
+    env.pop("NUMBA_CACHE_DIR", None)
+    root = subprocess.run([sys.executable, "-c", "import reader"], env=env, cwd=tmp_path, capture_output=True,
+                          text=True, timeout=300)
+    assert root.returncode == 0, root.stderr
+    # drop the second kernel's cache entry: nobody must compile it and fail to save it, quietly
+    for f in (tmp_path / "__pycache__").glob("reader.scaled-*"):
+        f.unlink()
+    other = subprocess.run(["runuser", "-u", "nobody", "--", "env", f"PYTHONPATH={env['PYTHONPATH']}",
+                            "HOME=/nonexistent", sys.executable, "-c", "import reader"], cwd="/tmp",
+                           capture_output=True, text=True, timeout=300)
+    assert other.returncode == 0, other.stderr
+    assert other.stdout.split() == ["6.0", "6.0", "1"]       # results right, and total() came from the cache

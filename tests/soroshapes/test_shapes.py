@@ -214,10 +214,17 @@ def test_implicit_steps_100x_the_explicit_limit_stay_stable(modulus, gravity):
 
 
 def test_explicit_blow_up_is_reported_not_returned():
+    """RK4 past its stability limit raises; the message names the limit (the value of explicit_step_limit, to the
+    3 digits it prints) and the two fixes."""
     shp = rod(Basis.chebyshev(3), dofs=(0, 3, 0, 3, 0, 0))
-    dt = 20 * shp.explicit_step_limit()
-    with pytest.raises(ConvergenceError, match="did not converge"):
+    limit = shp.explicit_step_limit()
+    dt = 20 * limit
+    with pytest.raises(ConvergenceError, match="did not converge") as err:
         shp.simulate(200 * dt, dt, qd0=np.ones(6), method="explicit", min_dt=dt / 2)
+    msg = str(err.value)
+    assert f"below dt = {limit:.3g} s" in msg and f"use dt < {limit:.3g} s" in msg
+    assert "method='implicit'" in msg and "explicit_step_limit" in msg
+    assert shp.explicit_step_limit() == limit      # the query did not depend on the state the failure left
 
 
 def test_contact_forces_follow_the_penalty_and_regularized_coulomb_laws():
