@@ -99,6 +99,7 @@ P_AMP, OMEGA, PHASE, SHARPNESS = 80 * kPa, 7.0, np.pi / 6, 8.0
 V0 = 4 * np.pi / 3 * (35 * mm) ** 3
 ALPHA_PER_MM = 0.06          # alpha = 0.06 q1 with q1 in 1/mm (the seed's unit)
 TAU_P, T_I, MAX_FLOW = 0.02, 1.0, 5e-3
+DRIVE_TABLE_DT = 1e-4        # [s] the drive as a periodic table (interpolation error < 0.3 Pa)
 R_AIR, T_AIR = 287.05, 293.15
 
 
@@ -130,6 +131,7 @@ def build():
     """The hand: a :class:`soroshapes.Model` with fingers ``thumb``.. and reservoirs ``p_thumb``.., and the
     list of the five :class:`soroshapes.Shapes`."""
     from soroshapes import Basis, Fluidic, Model, Shapes
+    from soroshapes.network import Schedule, StateMap
 
     mat = materials.DragonSkin10()
     section = sdf.RoundedRectangle(WIDTH, THICK, CORNER)
@@ -145,9 +147,14 @@ def build():
         fingers.append(shp)
         fl = Fluidic(None, V0=V0, T=T_AIR, gas_constant=R_AIR, regulator=reg)
         mdl.add(shp, name=name).add(fl, name=f"p_{name}")
-        mdl.connect(lambda m, n=name: volume(m[n].x[0]), f"p_{name}", port="volume")
+        # volume(q1) as a declarative map of the finger's state: V0 + V0 tanh(alpha q1), compiled
+        mdl.connect(StateMap(name, [ALPHA_PER_MM * 1e-3], index=0, offset=V0, scale=V0, function="tanh"),
+                    f"p_{name}", port="volume")
         mdl.connect(f"p_{name}", name, "chamber")
-    mdl.set_controller(lambda m: {f"p_{n}": [v] for n, v in zip(NAMES, set_point(m.t))})
+    period = 2 * np.pi / OMEGA                 # set_point(t) over one period, linear between samples
+    t = np.linspace(0.0, period, int(np.ceil(period / DRIVE_TABLE_DT)) + 1)
+    pd = np.array([set_point(ti) for ti in t])
+    mdl.set_controller(Schedule(t, {f"p_{n}": pd[:, i:i + 1] for i, n in enumerate(NAMES)}, period=period))
     return mdl, fingers
 
 

@@ -546,6 +546,8 @@ class Model:
             state. A named ``source`` declares itself.
         """
         blk = self._target(target)
+        if reads is None and callable(source):
+            reads = getattr(source, "reads", None)          # a StateMap declares what it reads
         reads = self._check_reads(reads, "connect")
         if not (callable(source) or source in self._blocks):
             raise ParameterError(f"connect: source must be a system name or a callable of the model, got {source!r}"
@@ -602,6 +604,8 @@ class Model:
         if fn is not None and not callable(fn):
             raise ParameterError("the controller must be a callable fn(model) -> inputs")
         self._controller = fn
+        if reads is None:
+            reads = getattr(fn, "reads", None)              # a Schedule reads no state
         self._controller_reads = self._check_reads(reads, "set_controller")
         self._prepared = False
         return self
@@ -629,11 +633,32 @@ class Model:
         ``"python..."`` (Fluidic, StateSpace and rigid-body right-hand sides, beams with contact, tendons or user
         forces, and every callable coupling and controller). Also in a trajectory's ``stats``."""
         paths = {name: getattr(b.system, "evaluation_path", "python") for name, b in self._blocks.items()}
+        net = self._lowered()
+        compiled = not isinstance(net, str)
         if self._links:
-            paths["couplings"] = "python"
+            paths["couplings"] = "compiled" if compiled else "python"
         if self._controller is not None:
-            paths["controller"] = "python"
+            paths["controller"] = "compiled" if compiled else "python"
+        if compiled:
+            paths.update({name: "compiled" for name in self._blocks})
+        paths["network"] = "compiled" if compiled else f"python: {net}"
         return paths
+
+    def _lowered(self):
+        """The network lowered for the compiled kernel (:func:`soroshapes.network.lower`), or a str saying which
+        part keeps it on the Python path."""
+        from . import network
+        self._prepare_layout()
+        blocks = [dict(name=b.name, kind=b.kind, system=b.system, xoff=b.sl.start, n=b.n, woff=b.wsl.start,
+                       nw=b.nw, m=b.m) for b in self._blocks.values()]
+        links = [(src if callable(src) else src, b.name, idx) for src, b, idx in self._links if idx != "volume"]
+        volumes = {b.name: src for src, b, idx in self._links if idx == "volume"}
+        free = [(b.name, sum(1 for bb, _ in self._free if bb is b)) for b in self._blocks.values()
+                if any(bb is b for bb, _ in self._free)]
+        try:
+            return network.lower(blocks, links, volumes, self._controller, (free, self._free_rows))
+        except NotImplementedError as why:
+            return f"{why} runs in Python"
 
     @property
     def n(self):
@@ -920,7 +945,7 @@ class Model:
 
     # -- integration -----------------------------------------------------------------------------------
     def simulate(self, t_end, dt, method="trapezoidal", x0=None, rtol=1e-6, atol=1e-9, adaptive=False, *,
-                 max_iterations=12, record_every=1, min_dt=None, t0=0.0, linear_solver="auto"):
+                 max_iterations=12, record_every=1, min_dt=None, t0=0.0, linear_solver="auto", compiled=None):
         """Integrate the network from ``t0`` to ``t0 + t_end`` [s] with step ``dt`` [s] (fixed:
         ``t_end/ceil(t_end/dt)``; adaptive: the first step) by the implicit ``method`` ("trapezoidal",
         "midpoint", "bdf2"); ``t0`` lets a simulation continue from a state reached earlier (time-dependent
@@ -931,7 +956,11 @@ class Model:
         tolerance. A step whose Newton iterations fail is split (down to ``min_dt``, default dt/1024), then a
         :class:`~sorofem.errors.ConvergenceError` gives the time. ``linear_solver``: the Newton matrix
         :math:`I - cJ` is factorized dense (LAPACK) or sparse (SuperLU on the block-sparse :meth:`jacobian`);
-        ``"auto"`` takes sparse from 200 states on. Returns a :class:`ModelTrajectory`.
+        ``"auto"`` takes sparse from 200 states on. ``compiled``: None runs the network in one compiled kernel
+        (:mod:`soroshapes.network`, fixed steps, dense LU) when every part of it has a compiled form and on the
+        Python path otherwise (:attr:`evaluation_paths` says which and why); True requires the compiled kernel (a
+        :class:`~sorofem.errors.ParameterError` names the part that has none); False forces the Python path.
+        Returns a :class:`ModelTrajectory`.
         """
         if method not in ("trapezoidal", "midpoint", "bdf2"):
             raise ParameterError(f"method must be 'trapezoidal', 'midpoint' or 'bdf2', got {method!r}")
@@ -958,6 +987,16 @@ class Model:
         self._J, self._lu_key, self._stats = None, None, {"steps": 0, "rejected": 0, "newton_iterations": 0,
                                                          "jacobians": 0, "cut_steps": 0}
         rec_t, rec_x, rec_w = [t0], [x.copy()], [self._assemble(t0, x).copy()]
+        if compiled or compiled is None:
+            net = self._lowered()
+            if compiled and isinstance(net, str):
+                raise ParameterError(f"simulate(compiled=True): the network has no compiled form: {net}; use "
+                                     "StateMap couplings and a Schedule controller (soroshapes.network), or "
+                                     "compiled=None for the Python path")
+            if compiled and adaptive:
+                raise ParameterError("simulate(compiled=True) runs fixed steps: use adaptive=False")
+            if not isinstance(net, str) and not adaptive:
+                return self._simulate_compiled(net, x, t0, t_end, dt, method, record_every, min_dt, rec_w[0])
         wall = _time.perf_counter()
         if adaptive:
             self._run_adaptive(x, t0, t0 + t_end, dt, method, rec_t, rec_x, rec_w)
@@ -990,7 +1029,34 @@ class Model:
                     rec_w.append(self._assemble(tt, x).copy())
         self._stats["wall_time"] = _time.perf_counter() - wall
         self._stats["method"] = method
+        self._stats["path"] = "python"
         return self._trajectory(np.array(rec_t), np.array(rec_x), np.array(rec_w))
+
+    def _simulate_compiled(self, net, x, t0, t_end, dt, method, record_every, min_dt, w0):
+        """Fixed steps by :func:`soroshapes.network.integrate` (the same steps, Newton test and splitting as
+        the Python path)."""
+        from . import network
+        nsteps = int(np.ceil(t_end / dt - 1e-9))
+        h = t_end / nsteps
+        min_dt = h / 1024 if min_dt is None else float(min_dt)
+        record_every = max(1, int(record_every))
+        rows = 1 + nsteps // record_every + (1 if nsteps % record_every else 0)
+        out_t, out_x, out_w = np.zeros(rows), np.zeros((rows, self._N)), np.zeros((rows, self._NW))
+        out_t[0], out_x[0], out_w[0] = t0, x, w0
+        st = np.zeros(8)
+        code = {"trapezoidal": network.TRAPEZOIDAL, "midpoint": network.MIDPOINT, "bdf2": network.BDF2}[method]
+        wall = _time.perf_counter()
+        got = network.integrate(x.copy(), t0, h, nsteps, code, record_every, min_dt, net.arrays, self._scale,
+                                self._rtol, self._atol, self._maxit, out_t, out_x, out_w, st)
+        self._stats.update(steps=int(st[0]), newton_iterations=int(st[2]), jacobians=int(st[3]),
+                           cut_steps=int(st[6]), wall_time=_time.perf_counter() - wall, method=method,
+                           path="compiled")
+        if got < 0:
+            raise ConvergenceError(f"Model.simulate: Newton failed at t = {st[7]:.6g} s down to dt = {min_dt:.3g} s "
+                                   f"({method}, compiled network); use a smaller dt, check the couplings and "
+                                   "controller for discontinuities, or loosen rtol")
+        out_t[-1] = t0 + t_end
+        return self._trajectory(out_t[:got], out_x[:got], out_w[:got])
 
     def _split(self, method, t, x, h, hh, min_dt):
         """Cover [t, t+h] with steps of hh (halved on failure) after a failed step."""
@@ -1125,6 +1191,8 @@ class Model:
                 extra = {"q": x[:, :b.nq], "qd": x[:, b.nq:]}
             elif b.kind == "fluidic":
                 V = w[:, 1]
-                extra = {"volume": V, "pressure": np.array([b.system.pressure(xi, Vi) for xi, Vi in zip(x, V)])}
+                fl = b.system             # gauge pressure, vectorized (Fluidic.pressure for each row)
+                p = x[:, 0] * fl.R * fl.T / V if fl.isothermal else x[:, 0]
+                extra = {"volume": V, "pressure": p - fl.p0}
             systems[b.name] = SystemTrajectory(b.name, t, x, u, extra)
         return ModelTrajectory(t, X, np.hstack(U) if U else np.zeros((len(t), 0)), systems, dict(self._stats))

@@ -1,0 +1,854 @@
+r"""Compiled networks: a :class:`~soroshapes.model.Model` lowered to flat arrays and integrated by one numba kernel.
+
+What is lowered
+---------------
+:meth:`Model.simulate <soroshapes.model.Model.simulate>` runs a network here, with no Python in the step loop,
+when every part of it has a compiled form:
+
+* systems: :class:`~soroshapes.shapes.Shapes` beams whose loads run compiled (gravity, chambers and linear
+  actuators: ``Shapes.evaluation_path == "compiled"``, no point loads), every :class:`~soroshapes.model.Fluidic`
+  reservoir (isothermal or polytropic, regulated or not) whose volume is constant or given by a
+  :class:`StateMap`;
+* couplings: the output of a named system (a beam's state, a reservoir's gauge pressure) into inputs of
+  another, and :class:`StateMap` (an affine map of one system's state through an optional ``tanh``), as an
+  input or as a reservoir's volume;
+* the controller: none, or a :class:`Schedule` (a piecewise-linear table of the free inputs against time,
+  optionally periodic).
+
+Anything else (a Python callable coupling or controller, a :class:`~soroshapes.model.StateSpace` with a
+Python ``f``, beams with contact, tendons or user forces, adaptive steps) runs on the Python path of
+:mod:`soroshapes.model`; :attr:`Model.evaluation_paths <soroshapes.model.Model.evaluation_paths>` names the
+first part that forces it. :class:`StateMap` and :class:`Schedule` are also callables of the model, so the
+same network runs on both paths (the tests compare them).
+
+The kernel
+----------
+The network's right-hand side :math:`F(t, x)` is assembled as on the Python path: reservoir volumes, the
+controller's free inputs, then the couplings in declaration order, then every system's derivative (a beam by
+:func:`soroshapes._beam.forward_dynamics`, its input force :math:`G u` with the constant input matrix). One
+implicit step (trapezoidal, midpoint or BDF2 with a trapezoidal first step) solves its residual by Newton's
+method with the iteration matrix :math:`I - cJ`, :math:`J = \partial F/\partial x` by forward differences of
+:math:`F` whose columns are grouped (Curtis-Powell-Reid) over the block dependency pattern (a column of system
+:math:`j` changes only the derivatives of the systems that read :math:`j`), factorized once and reused across
+steps until Newton contracts slowly; the stopping test, the refresh and the step splitting after a failure are
+those of the Python path (:meth:`Model.simulate <soroshapes.model.Model.simulate>`), so the two paths agree to
+the Newton tolerance. Many steps run in one compiled call; the kernel records states and inputs every
+``record_every`` steps.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sorofem._numba import njit
+from sorofem.errors import ParameterError
+
+from ._beam import _lu, _lu_solve
+from ._beam import forward_dynamics as _fd
+from .numerics import FD_STEP
+
+__all__ = ["StateMap", "Schedule", "lower", "integrate"]
+
+_FUNCTIONS = {"identity": 0, "tanh": 1}
+
+
+# ------------------------------------------------------------------------------------------------------------
+# declarative couplings and controllers (callables of the model for the Python path, tables for the kernel)
+# ------------------------------------------------------------------------------------------------------------
+class StateMap:
+    r"""A coupling :math:`y = o + s \odot \phi(A\,x_{[index]})` of one system's state :math:`x`.
+
+    Parameters
+    ----------
+    system : str
+        Name of the system whose state is read.
+    matrix : (k, len(index)) or (len(index),) array
+        :math:`A` (units: those of :math:`y/s` per state unit).
+    index : int, sequence of int or None
+        The state entries read (default all).
+    offset, scale : float or (k,)
+        :math:`o` and :math:`s` (units of :math:`y`).
+    function : "identity" or "tanh"
+        :math:`\phi`, applied entrywise.
+
+    Use it as ``model.connect(StateMap(...), target, port="volume")`` (a reservoir's volume [m^3]) or as an input
+    coupling; it runs compiled (see the module docstring) and, as a callable of the model, on the Python path.
+
+    Examples
+    --------
+    >>> V = StateMap("finger", [2e-5], index=0, offset=1e-4, scale=1e-4, function="tanh")
+    >>> V.reads
+    ('finger',)
+    """
+
+    def __init__(self, system, matrix, *, index=None, offset=0.0, scale=1.0, function="identity"):
+        if not isinstance(system, str):
+            raise ParameterError(f"StateMap reads a system by its name (a str), got {system!r}")
+        if function not in _FUNCTIONS:
+            raise ParameterError(f"StateMap function must be one of {sorted(_FUNCTIONS)}, got {function!r}")
+        A = np.atleast_2d(np.asarray(matrix, dtype=float))
+        self.index = None if index is None else np.atleast_1d(np.asarray(index, dtype=np.int64)).reshape(-1)
+        if self.index is not None and A.shape[1] != len(self.index):
+            raise ParameterError(f"StateMap matrix has {A.shape[1]} columns for {len(self.index)} indices")
+        self.offset = np.broadcast_to(np.asarray(offset, dtype=float), (A.shape[0],)).copy()
+        self.scale = np.broadcast_to(np.asarray(scale, dtype=float), (A.shape[0],)).copy()
+        for what, v in (("matrix", A), ("offset", self.offset), ("scale", self.scale)):
+            if not np.all(np.isfinite(v)):
+                raise ParameterError(f"StateMap {what} must be finite, got {v}")
+        self.system, self.matrix, self.function = system, A, function
+        self.reads = (system,)
+
+    @property
+    def size(self):
+        """Number of outputs k."""
+        return self.matrix.shape[0]
+
+    def full_matrix(self, n):
+        """:math:`A` scattered onto all ``n`` states of the system (k, n)."""
+        idx = np.arange(n) if self.index is None else self.index
+        if idx.size != self.matrix.shape[1] or (idx.size and (idx.min() < 0 or idx.max() >= n)):
+            raise ParameterError(f"StateMap of system {self.system!r}: indices {idx.tolist()} / matrix with "
+                                 f"{self.matrix.shape[1]} columns do not fit its {n} states")
+        A = np.zeros((self.size, n))
+        A[:, idx] = self.matrix
+        return A
+
+    def __call__(self, model):
+        x = model.state(self.system)
+        a = self.full_matrix(len(x)) @ x
+        return self.offset + self.scale * (np.tanh(a) if self.function == "tanh" else a)
+
+
+class Schedule:
+    r"""A controller that plays a piecewise-linear table of the free inputs against time.
+
+    Parameters
+    ----------
+    times : (K,) increasing [s]
+    values : (K, m) array in the order of :attr:`Model.inputs <soroshapes.model.Model.inputs>`, or a dict
+        ``{system name: (K, m_system)}`` (a system left out gets 0)
+    period : float [s], optional
+        Repeat the table with this period (then ``times`` must run from 0 to ``period``); otherwise the
+        first and last rows hold before and after the table.
+
+    Set it with ``model.set_controller(Schedule(...))``: it runs compiled and, as a callable of the model,
+    on the Python path (it reads no state).
+
+    Examples
+    --------
+    >>> s = Schedule([0.0, 1.0], {"cup": [[0.0], [2.0]]})
+    >>> float(s.at(0.25)["cup"][0])
+    0.5
+    """
+
+    reads = ()
+
+    def __init__(self, times, values, *, period=None):
+        t = np.asarray(times, dtype=float).reshape(-1)
+        if t.size < 2 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+            raise ParameterError("Schedule times must be at least 2 finite, strictly increasing times [s]")
+        if isinstance(values, dict):
+            self.values = {k: np.asarray(v, dtype=float).reshape(t.size, -1) for k, v in values.items()}
+            arrays = self.values.values()
+        else:
+            self.values = np.asarray(values, dtype=float).reshape(t.size, -1)
+            arrays = (self.values,)
+        if not all(np.all(np.isfinite(v)) for v in arrays):
+            raise ParameterError("Schedule values must be finite")
+        if period is not None:
+            period = float(period)
+            if not (period > 0 and abs(t[0]) <= 1e-12 * period and abs(t[-1] - period) <= 1e-9 * period):
+                raise ParameterError(f"a periodic Schedule needs times from 0 to the period {period!r} s, got "
+                                     f"{t[0]:g} .. {t[-1]:g} s")
+        self.times, self.period = t, period
+
+    @classmethod
+    def sample(cls, fn, t_end, dt, *, period=None):
+        """The table of ``fn(t) -> (m,)`` sampled every ``dt`` [s] (or so: a whole number of intervals) on [0,
+        ``t_end``] (with ``period``: on one period). Linear interpolation between samples is within
+        :math:`\\tfrac{dt^2}{8}\\max|\\ddot u|` of ``fn``."""
+        span = float(period if period is not None else t_end)
+        k = max(1, int(math.ceil(span / float(dt) - 1e-9)))
+        t = np.linspace(0.0, span, k + 1)
+        return cls(t, np.array([np.asarray(fn(ti), dtype=float).reshape(-1) for ti in t]), period=period)
+
+    def _phase(self, t):
+        return t % self.period if self.period is not None else t
+
+    def at(self, t):
+        """The table's values at time ``t`` [s] (an array or a dict, like ``values``)."""
+        tt = self._phase(float(t))
+        if isinstance(self.values, dict):
+            return {k: np.array([np.interp(tt, self.times, v[:, j]) for j in range(v.shape[1])])
+                    for k, v in self.values.items()}
+        return np.array([np.interp(tt, self.times, self.values[:, j]) for j in range(self.values.shape[1])])
+
+    def __call__(self, model):
+        return self.at(model.t)
+
+    def table(self, free):
+        """The (K, m) table in the order of the free inputs ``free``, a list of (system name, count)."""
+        if not isinstance(self.values, dict):
+            m = sum(c for _, c in free)
+            if self.values.shape[1] != m:
+                raise ParameterError(f"Schedule has {self.values.shape[1]} columns, the model has {m} free inputs")
+            return self.values
+        cols = []
+        for name, count in free:
+            v = self.values.get(name)
+            if v is None:
+                v = np.zeros((self.times.size, count))
+            if v.shape[1] != count:
+                raise ParameterError(f"Schedule gives {v.shape[1]} inputs for system {name!r}, which has {count} "
+                                     "free inputs")
+            cols.append(v)
+        unknown = set(self.values) - {name for name, _ in free}
+        if unknown:
+            raise ParameterError(f"Schedule gives inputs for systems without free inputs: {sorted(unknown)}")
+        return np.hstack(cols) if cols else np.zeros((self.times.size, 0))
+
+
+# ------------------------------------------------------------------------------------------------------------
+# lowering: the network as flat arrays
+# ------------------------------------------------------------------------------------------------------------
+BEAM, FLUIDIC = 0, 1
+# per-beam integer parameters (rows of ``bint``)
+_B_N, _B_M, _B_P, _B_NG, _B_ORDER, _B_FO, _B_WO, _B_IO, _B_PO = range(9)
+
+
+def _beam_floats(n, m, P, ng):
+    """Sizes of the model arrays of one beam in the float buffer: K, D, Gin, h, B, X0, base, weights, Md, g."""
+    return (n * n, n * n, n * m, P, P * ng * n, P * ng * 6, 16, P + 1, (P + 1) * 6, 3)
+
+
+def _beam_work(n, P):
+    """Sizes of the work arrays of one beam: G, J, Jd, eta, etad, S, E, V, Op, AJ, W, M, C, fg, R, qdd, f_in."""
+    Np = P + 1
+    return (Np * 16, Np * 6 * n, Np * 6 * n, Np * 6, Np * 6, 216, 16, 48, 6 * n, 6 * n, 48, n * n, n * n, n, n, n,
+            n)
+
+
+class Lowered:
+    """The network as the kernel's arrays (see :func:`lower`); ``arrays`` is the argument tuple."""
+
+    def __init__(self, arrays, N, NW, groups, dep):
+        self.arrays, self.N, self.NW, self.groups, self.dep = arrays, N, NW, groups, dep
+
+
+def lower(blocks, links, volumes, controller, free):
+    """Lower a network description to the kernel's arrays, or raise ``NotImplementedError(reason)``.
+
+    Parameters
+    ----------
+    blocks : list of dict(name, kind, system, xoff, n, woff, nw, m)
+    links : list of (source, target name, input indices); ``source`` a system name or a :class:`StateMap`
+    volumes : dict {fluidic name: None (constant) or StateMap}
+    controller : None or :class:`Schedule`
+    free : list of (system name, count of free inputs) and ``free_rows`` positions in w, as (free, rows)
+    """
+    free_list, free_rows = free
+    index = {b["name"]: i for i, b in enumerate(blocks)}
+    kind = np.zeros(len(blocks), np.int64)
+    table = np.zeros((len(blocks), 6), np.int64)         # kind, xoff, n, woff, nw, aux
+    bint, bflt, bwork, bintb = [], [], [], []
+    fpar = []
+    maps, mapint = [], []
+
+    def add_map(smap):
+        if not isinstance(smap, StateMap):
+            raise NotImplementedError(f"the Python callable {getattr(smap, '__name__', smap)!r}")
+        if smap.system not in index:
+            raise ParameterError(f"StateMap reads system {smap.system!r}, which is not in the model")
+        src = blocks[index[smap.system]]
+        A = smap.full_matrix(src["n"])
+        k = smap.size
+        mapint.append([index[smap.system], k, _FUNCTIONS[smap.function], sum(len(v) for v in maps)])
+        maps.append(np.concatenate([A.reshape(-1), smap.offset, smap.scale]))
+        return len(mapint) - 1
+
+    fo = wo = io = 0
+    for i, b in enumerate(blocks):
+        table[i, 1:5] = b["xoff"], b["n"], b["woff"], b["nw"]
+        if b["kind"] == "shapes":
+            shp = b["system"]
+            path = shp.evaluation_path
+            if path != "compiled":
+                raise NotImplementedError(f"beam {b['name']!r} ({path})")
+            from .beam import LoadPlan
+            mdl = shp.model
+            plan = LoadPlan.of(mdl, shp.loads, shp.damping)
+            if len(plan.point_loads):
+                raise NotImplementedError(f"beam {b['name']!r} (point loads)")
+            if plan.input_matrix is None:
+                raise NotImplementedError(f"beam {b['name']!r} (a nonlinear actuator)")
+            n, m, P, ng = mdl.n, b["m"], mdl.h.shape[0], mdl.B.shape[1]
+            arrays = [mdl.K, plan.D, plan.input_matrix, mdl.h, mdl.B, mdl.X0, mdl.base, mdl.weights, mdl.Md,
+                      plan.gravity]
+            for a, size in zip(arrays, _beam_floats(n, m, P, ng)):
+                a = np.ascontiguousarray(a, dtype=float).reshape(-1)
+                if a.size != size:
+                    raise ParameterError(f"beam {b['name']!r}: unexpected model array size {a.size} != {size}")
+                bflt.append(a)
+            bintb.append(np.asarray(mdl.rows, dtype=np.int64))
+            bint.append([n, m, P, ng, mdl.order, fo, wo, io, io + n])
+            fo += sum(_beam_floats(n, m, P, ng))
+            wo += sum(_beam_work(n, P))
+            bintb.append(np.zeros(n, np.int64))             # pivots
+            io += 2 * n
+            kind[i], table[i, 5] = BEAM, len(bint) - 1
+        elif b["kind"] == "fluidic":
+            fl = b["system"]
+            reg = fl.regulator or (1.0, 0.0, 0.0)
+            vol = volumes.get(b["name"])
+            if vol is None:
+                if not fl.constant:
+                    raise NotImplementedError(f"reservoir {b['name']!r} (a Python volume V(t))")
+                vkind, vval = 0, fl.volume
+            else:
+                vkind, vval = 1, float(add_map(vol))
+            fpar.append([float(fl.isothermal), fl.R, fl.T, fl.p0, fl.polytropic, fl.leak, fl.filter_gain,
+                         float(fl.regulator is not None), reg[0], reg[1], reg[2], float(fl.filtered), vkind, vval])
+            kind[i], table[i, 5] = FLUIDIC, len(fpar) - 1
+        else:
+            raise NotImplementedError(f"system {b['name']!r} (a StateSpace with a Python f)")
+        table[i, 0] = kind[i]
+    link_rows, link_tab = [], []
+    for src, tname, idx in links:
+        tb = blocks[index[tname]]
+        rows = [tb["woff"] + k for k in idx]
+        if isinstance(src, str):
+            sb = blocks[index[src]]
+            size = sb["n"] if sb["kind"] == "shapes" else 1
+            lk, ls = 0, index[src]
+        else:
+            ls = add_map(src)
+            lk, size = 1, src.size
+        if size != len(rows):
+            raise ParameterError(f"coupling into system {tname!r}: the source gives {size} values for {len(rows)} "
+                                 "connected inputs")
+        link_tab.append([lk, ls, len(link_rows), len(rows)])
+        link_rows.extend(rows)
+    if controller is None:
+        ctimes, cvals, cper = np.zeros(2), np.zeros((2, len(free_rows))), 0.0
+        ckind = 0
+    elif isinstance(controller, Schedule):
+        ctimes, cvals = controller.times, np.ascontiguousarray(controller.table(free_list))
+        cper, ckind = (controller.period or 0.0), 1
+    else:
+        raise NotImplementedError(f"the Python controller {getattr(controller, '__name__', controller)!r}")
+
+    # dependency of each block's derivative on the blocks' states (closed over sources fed by their inputs)
+    nb = len(blocks)
+    reads = [{i} for i in range(nb)]
+    feeds = [set() for _ in range(nb)]              # blocks whose state feeds block i's inputs
+    for src, tname, _ in links:
+        t = index[tname]
+        s = index[src] if isinstance(src, str) else index[src.system]
+        feeds[t].add(s)
+    for name, vol in volumes.items():
+        if vol is not None:
+            feeds[index[name]].add(index[vol.system])
+    changed = True
+    while changed:
+        changed = False
+        for i in range(nb):
+            more = set()
+            for s in feeds[i]:
+                if blocks[s]["kind"] == "fluidic":          # a pressure output depends on the volume input
+                    more |= feeds[s]
+            if not more <= feeds[i]:
+                feeds[i] |= more
+                changed = True
+    dep = np.zeros((nb, nb), np.bool_)               # dep[i, j]: block i's derivative reads block j's state
+    for i in range(nb):
+        for j in reads[i] | feeds[i]:
+            dep[i, j] = True
+    # Curtis-Powell-Reid: blocks that no block reads together share a perturbation
+    colors = []
+    for j in range(nb):
+        readers = set(np.nonzero(dep[:, j])[0])
+        for members, seen in colors:
+            if not (readers & seen):
+                members.append(j)
+                seen |= readers
+                break
+        else:
+            colors.append(([j], set(readers)))
+    groups = []
+    for members, _ in colors:
+        width = max(blocks[j]["n"] for j in members)
+        for k in range(width):
+            groups.append([blocks[j]["xoff"] + k for j in members if k < blocks[j]["n"]])
+    N = sum(b["n"] for b in blocks)
+    NW = sum(b["nw"] for b in blocks)
+    G = np.full((len(groups), max(len(g) for g in groups)), -1, np.int64)
+    for gi, g in enumerate(groups):
+        G[gi, :len(g)] = g
+    col_block = np.zeros(N, np.int64)
+    for i, b in enumerate(blocks):
+        col_block[b["xoff"]:b["xoff"] + b["n"]] = i
+
+    def cat(parts, dtype=float):
+        return np.concatenate(parts).astype(dtype) if parts else np.zeros(0, dtype)
+
+    arrays = (table, np.array(bint, np.int64).reshape(-1, 9), cat(bflt), np.zeros(wo), cat(bintb, np.int64),
+              np.array(fpar, float).reshape(-1, 14), np.array(mapint, np.int64).reshape(-1, 4), cat(maps),
+              np.array(link_tab, np.int64).reshape(-1, 4), np.array(link_rows, np.int64),
+              np.int64(ckind), np.ascontiguousarray(ctimes, float), np.ascontiguousarray(cvals, float).reshape(
+                  len(ctimes), -1), float(cper), np.asarray(free_rows, np.int64), G, dep, col_block)
+    return Lowered(arrays, N, NW, groups, dep)
+
+
+# ------------------------------------------------------------------------------------------------------------
+# the kernel
+# ------------------------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _interp_row(times, vals, period, t, out):
+    """Row-wise linear interpolation of the table at t (periodic if period > 0, else held at the ends)."""
+    K = times.shape[0]
+    tt = t
+    if period > 0.0:
+        tt = t - period * math.floor(t / period)
+    if tt <= times[0]:
+        for j in range(out.shape[0]):
+            out[j] = vals[0, j]
+        return
+    if tt >= times[K - 1]:
+        for j in range(out.shape[0]):
+            out[j] = vals[K - 1, j]
+        return
+    k = np.searchsorted(times, tt, side="right") - 1
+    a = (tt - times[k]) / (times[k + 1] - times[k])
+    for j in range(out.shape[0]):
+        out[j] = (1.0 - a) * vals[k, j] + a * vals[k + 1, j]
+
+
+@njit(cache=True)
+def _map_eval(mapint, maps, table, x, mi, r):
+    """Output r of StateMap mi at the state x."""
+    src, k, fn, o = mapint[mi, 0], mapint[mi, 1], mapint[mi, 2], mapint[mi, 3]
+    xo, n = table[src, 1], table[src, 2]
+    s = 0.0
+    for c in range(n):
+        s += maps[o + r * n + c] * x[xo + c]
+    if fn == 1:
+        s = math.tanh(s)
+    return maps[o + k * n + r] + maps[o + k * n + k + r] * s
+
+
+@njit(cache=True)
+def _pressure(fpar, fi, x0, V):
+    """Absolute pressure [Pa] of reservoir fi at its first state x0 and volume V."""
+    if fpar[fi, 0] != 0.0:
+        return x0 * fpar[fi, 1] * fpar[fi, 2] / V
+    return x0
+
+
+@njit(cache=True)
+def assemble(t, x, net, w):
+    """w = W(t, x): reservoir volumes, scheduled free inputs, couplings in declaration order. Returns False when a
+    volume is not positive and finite."""
+    (table, bint, bflt, bwork, bintb, fpar, mapint, maps, link_tab, link_rows, ckind, ctimes, cvals, cper,
+     free_rows, groups, dep, col_block) = net
+    for j in range(w.shape[0]):
+        w[j] = 0.0
+    ok = True
+    for i in range(table.shape[0]):
+        if table[i, 0] == FLUIDIC:
+            fi = table[i, 5]
+            if fpar[fi, 12] == 0.0:
+                V = fpar[fi, 13]
+            else:
+                V = _map_eval(mapint, maps, table, x, int(fpar[fi, 13]), 0)
+            if not (V > 0.0 and math.isfinite(V)):
+                ok = False
+            w[table[i, 3] + 1] = V
+    if ckind == 1 and free_rows.shape[0] > 0:
+        u = np.empty(free_rows.shape[0])
+        _interp_row(ctimes, cvals, cper, t, u)
+        for j in range(free_rows.shape[0]):
+            w[free_rows[j]] = u[j]
+    for li in range(link_tab.shape[0]):
+        lk, src, ro, nr = link_tab[li, 0], link_tab[li, 1], link_tab[li, 2], link_tab[li, 3]
+        for r in range(nr):
+            if lk == 1:
+                v = _map_eval(mapint, maps, table, x, src, r)
+            elif table[src, 0] == FLUIDIC:
+                fi = table[src, 5]
+                V = w[table[src, 3] + 1]
+                v = _pressure(fpar, fi, x[table[src, 1]], V) - fpar[fi, 3]
+            else:
+                v = x[table[src, 1] + r]
+            w[link_rows[ro + r]] = v
+    return ok
+
+
+@njit(cache=True)
+def _beam_rhs(bi, x, xo, w, wo, net, out):
+    """Derivative (qd, qdd) of beam bi into out[xo:xo+2n]; False if the state is out of range."""
+    table, bint, bflt, bwork, bintb = net[0], net[1], net[2], net[3], net[4]
+    n, m, P, ng, order, fo, wko, io, po = (bint[bi, 0], bint[bi, 1], bint[bi, 2], bint[bi, 3], bint[bi, 4],
+                                           bint[bi, 5], bint[bi, 6], bint[bi, 7], bint[bi, 8])
+    Np = P + 1
+    o = fo
+    K = bflt[o:o + n * n].reshape((n, n))
+    o += n * n
+    D = bflt[o:o + n * n].reshape((n, n))
+    o += n * n
+    Gin = bflt[o:o + n * m].reshape((n, m))
+    o += n * m
+    h = bflt[o:o + P]
+    o += P
+    B = bflt[o:o + P * ng * n].reshape((P, ng, n))
+    o += P * ng * n
+    X0 = bflt[o:o + P * ng * 6].reshape((P, ng, 6))
+    o += P * ng * 6
+    base = bflt[o:o + 16].reshape((4, 4))
+    o += 16
+    wts = bflt[o:o + Np]
+    o += Np
+    Md = bflt[o:o + Np * 6].reshape((Np, 6))
+    o += Np * 6
+    ag = bflt[o:o + 3]
+    rows = bintb[io:io + n]
+    piv = bintb[po:po + n]
+    o = wko
+    G = bwork[o:o + Np * 16].reshape((Np, 4, 4))
+    o += Np * 16
+    J = bwork[o:o + Np * 6 * n].reshape((Np, 6, n))
+    o += Np * 6 * n
+    Jd = bwork[o:o + Np * 6 * n].reshape((Np, 6, n))
+    o += Np * 6 * n
+    eta = bwork[o:o + Np * 6].reshape((Np, 6))
+    o += Np * 6
+    etad = bwork[o:o + Np * 6].reshape((Np, 6))
+    o += Np * 6
+    S = bwork[o:o + 216].reshape((6, 6, 6))
+    o += 216
+    E = bwork[o:o + 16].reshape((4, 4))
+    o += 16
+    V = bwork[o:o + 48].reshape((8, 6))
+    o += 48
+    Op = bwork[o:o + 6 * n].reshape((6, n))
+    o += 6 * n
+    AJ = bwork[o:o + 6 * n].reshape((6, n))
+    o += 6 * n
+    W = bwork[o:o + 48].reshape((8, 6))
+    o += 48
+    M = bwork[o:o + n * n].reshape((n, n))
+    o += n * n
+    C = bwork[o:o + n * n].reshape((n, n))
+    o += n * n
+    fg = bwork[o:o + n]
+    o += n
+    R = bwork[o:o + n]
+    o += n
+    qdd = bwork[o:o + n]
+    o += n
+    f_in = bwork[o:o + n]
+    end = o + n
+    for k in range(n):
+        s = 0.0
+        for j in range(m):
+            s += Gin[k, j] * w[wo + j]
+        f_in[k] = s
+    q = x[xo:xo + n]
+    qd = x[xo + n:xo + 2 * n]
+    nodes = np.zeros(0, np.int64)
+    pW = np.zeros((0, 6))
+    spatial = np.zeros(0, np.bool_)
+    ok = _fd(q, qd, f_in, K, D, nodes, pW, spatial, order, h, B, rows, X0, base, wts, Md, ag, G, J, Jd, eta, etad, S,
+             E, V, Op, AJ, W, M, C, fg, R, piv, qdd)
+    s = 0.0
+    for k in range(n):
+        s += qdd[k]
+    if not (ok and math.isfinite(s)):
+        for j in range(wko, end):                   # never keep a poisoned workspace (stale NaN times 0)
+            bwork[j] = 0.0
+        return False
+    for k in range(n):
+        out[xo + k] = qd[k]
+        out[xo + n + k] = qdd[k]
+    return True
+
+
+@njit(cache=True)
+def _fluidic_rhs(fi, x, xo, nx, w, wo, fpar, out):
+    """Derivative of reservoir fi (see :meth:`soroshapes.model.Fluidic.rhs`)."""
+    V = w[wo + 1]
+    iso, R, T, p0, poly, leak, a = (fpar[fi, 0], fpar[fi, 1], fpar[fi, 2], fpar[fi, 3], fpar[fi, 4], fpar[fi, 5],
+                                    fpar[fi, 6])
+    reg, kp, ki, mx, filt = fpar[fi, 7], fpar[fi, 8], fpar[fi, 9], fpar[fi, 10], fpar[fi, 11]
+    p = _pressure(fpar, fi, x[xo], V)
+    if reg != 0.0:
+        e = w[wo] - (p - p0)
+        nu = kp * e + ki * x[xo + nx - 1]
+        mdot = min(max(nu, -mx), mx)
+        out[xo + nx - 1] = e + (mdot - nu) / kp
+    else:
+        mdot = w[wo]
+    mdot = mdot - leak * (p - p0)
+    if iso != 0.0:
+        out[xo] = mdot
+    else:
+        Vdot = 0.0
+        if filt != 0.0:
+            Vdot = x[xo + 1] + a * V
+            out[xo + 1] = -a * (x[xo + 1] + a * V)
+        out[xo] = poly / V * (R * T * mdot - p * Vdot)
+
+
+@njit(cache=True)
+def rhs(t, x, net, w, out, only):
+    """F(t, x) into out (the blocks with ``only[i]`` True; inputs assembled into w). False if a state is out of
+    range or a volume is not positive."""
+    table, fpar = net[0], net[5]
+    if not assemble(t, x, net, w):
+        return False
+    for i in range(table.shape[0]):
+        if not only[i]:
+            continue
+        xo, nx, wo = table[i, 1], table[i, 2], table[i, 3]
+        if table[i, 0] == BEAM:
+            if not _beam_rhs(table[i, 5], x, xo, w, wo, net, out):
+                return False
+        else:
+            _fluidic_rhs(table[i, 5], x, xo, nx, w, wo, fpar, out)
+    for i in range(table.shape[0]):
+        if only[i]:
+            for j in range(table[i, 1], table[i, 1] + table[i, 2]):
+                if not math.isfinite(out[j]):
+                    return False
+    return True
+
+
+@njit(cache=True)
+def jacobian(t, x, net, scale, w, f0, fp, xp, Jac):
+    """:math:`\\partial F/\\partial x` by grouped forward differences (steps ``FD_STEP max(|x_j|, scale_j)``).
+    False if an evaluation fails."""
+    table, groups, dep, col_block = net[0], net[15], net[16], net[17]
+    nb = table.shape[0]
+    N = x.shape[0]
+    alls = np.ones(nb, np.bool_)
+    if not rhs(t, x, net, w, f0, alls):
+        return False
+    for i in range(N):
+        for j in range(N):
+            Jac[i, j] = 0.0
+    sel = np.zeros(nb, np.bool_)
+    for g in range(groups.shape[0]):
+        for i in range(N):
+            xp[i] = x[i]
+        for b in range(nb):
+            sel[b] = False
+        for c in range(groups.shape[1]):
+            j = groups[g, c]
+            if j < 0:
+                break
+            xp[j] = x[j] + FD_STEP * max(abs(x[j]), scale[j])
+            for b in range(nb):
+                if dep[b, col_block[j]]:
+                    sel[b] = True
+        if not rhs(t, xp, net, w, fp, sel):
+            return False
+        for c in range(groups.shape[1]):
+            j = groups[g, c]
+            if j < 0:
+                break
+            d = xp[j] - x[j]
+            for b in range(nb):
+                if dep[b, col_block[j]]:
+                    for i in range(table[b, 1], table[b, 1] + table[b, 2]):
+                        Jac[i, j] = (fp[i] - f0[i]) / d
+    return True
+
+
+# method codes
+TRAPEZOIDAL, MIDPOINT, BDF2 = 0, 1, 2
+
+
+@njit(cache=True)
+def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ws, st, x1):
+    """One implicit step from (t, x0) into x1; True on success. ``ws``: work arrays; ``st``: statistics and the
+    state of the reused iteration matrix (st[4] = 1 when Jac is valid, st[5] the c of the factors)."""
+    (w, f0, fp, xp, r, guess, Jac, LU, piv, fx0) = ws
+    N = x0.shape[0]
+    nb = net[0].shape[0]
+    alls = np.ones(nb, np.bool_)
+    if method == TRAPEZOIDAL:
+        if not rhs(t, x0, net, w, fx0, alls):
+            return False
+        c = 0.5 * h
+        tj = t + h
+        for i in range(N):
+            guess[i] = x0[i] + h * fx0[i]
+    elif method == MIDPOINT:
+        if not rhs(t, x0, net, w, fx0, alls):
+            return False
+        c = 0.5 * h
+        tj = t + 0.5 * h
+        for i in range(N):
+            guess[i] = x0[i] + h * fx0[i]
+    else:
+        c = 2.0 * h / 3.0
+        tj = t + h
+        for i in range(N):
+            guess[i] = 2.0 * x0[i] - xprev[i]
+    for i in range(N):
+        x1[i] = guess[i]
+    for attempt in range(2):
+        fresh = st[4] == 0.0 or attempt == 1
+        if fresh:
+            for i in range(N):                         # the Jacobian at the guess (first) or at the failed iterate
+                xp[i] = x1[i] if method != MIDPOINT else 0.5 * (x0[i] + x1[i])
+            xj = xp.copy()
+            if not jacobian(tj, xj, net, scale, w, f0, fp, xp, Jac):
+                st[4] = 0.0
+                return False
+            st[3] += 1
+            st[4] = 1.0
+            st[5] = -1.0
+        if st[5] != c:
+            for i in range(N):
+                for j in range(N):
+                    LU[i, j] = -c * Jac[i, j]
+                LU[i, i] += 1.0
+            if not _lu(LU, piv):
+                st[4] = 0.0
+                return False
+            st[5] = c
+        for i in range(N):
+            x1[i] = guess[i]
+        prev, ok = np.inf, False
+        for it in range(maxit):
+            if method == TRAPEZOIDAL:
+                good = rhs(t + h, x1, net, w, r, alls)
+                if good:
+                    for i in range(N):
+                        r[i] = x1[i] - x0[i] - 0.5 * h * (fx0[i] + r[i])
+            elif method == MIDPOINT:
+                for i in range(N):
+                    xp[i] = 0.5 * (x0[i] + x1[i])
+                good = rhs(t + 0.5 * h, xp, net, w, r, alls)
+                if good:
+                    for i in range(N):
+                        r[i] = x1[i] - x0[i] - h * r[i]
+            else:
+                good = rhs(t + h, x1, net, w, r, alls)
+                if good:
+                    for i in range(N):
+                        r[i] = x1[i] - 4.0 / 3.0 * x0[i] + xprev[i] / 3.0 - c * r[i]
+            if not good:
+                break
+            _lu_solve(LU, piv, r)
+            nrm = 0.0
+            finite = True
+            for i in range(N):
+                x1[i] -= r[i]
+                if not math.isfinite(x1[i]):
+                    finite = False
+            st[2] += 1
+            if not finite:
+                break
+            for i in range(N):
+                v = abs(r[i]) / (rtol * abs(x1[i]) + atol * scale[i])
+                if v > nrm:
+                    nrm = v
+            if nrm <= 1e-3:
+                ok = True
+                break
+            if it >= 2 and nrm > 0.5 * prev:
+                break
+            prev = nrm
+        if ok:
+            return True
+        finite = True
+        for i in range(N):
+            if not math.isfinite(x1[i]):
+                finite = False
+        if not finite:
+            for i in range(N):
+                x1[i] = guess[i]
+        if fresh and attempt == 1:
+            break
+    st[4] = 0.0
+    return False
+
+
+@njit(cache=True)
+def _split(method, t, x, h, hh, min_dt, net, scale, rtol, atol, maxit, ws, st, xn, tmp):
+    """Cover [t, t+h] with steps of hh, halved on failure (down to min_dt) after a failed step; the result in
+    xn. Returns the time reached (t + h on success)."""
+    st[6] += 1
+    end = t + h
+    for i in range(x.shape[0]):
+        xn[i] = x[i]
+    while t < end - 1e-12 * h:
+        step = min(hh, end - t)
+        for i in range(x.shape[0]):
+            tmp[i] = xn[i]
+        if not _step(method, t, tmp, step, tmp, net, scale, rtol, atol, maxit, ws, st, xn):
+            for i in range(x.shape[0]):
+                xn[i] = tmp[i]
+            hh *= 0.5
+            if hh < min_dt:
+                return t
+            continue
+        t += step
+    return end
+
+
+@njit(cache=True)
+def integrate(x, t0, h, nsteps, method, record_every, min_dt, net, scale, rtol, atol, maxit, out_t, out_x, out_w,
+              st):
+    """Fixed-step integration of the network from (t0, x) with ``nsteps`` steps of ``h`` [s] (``method`` a code:
+    0 trapezoidal, 1 midpoint, 2 BDF2 with a trapezoidal first step and after a split). Records (t, x, w) every
+    ``record_every`` steps and at the end into out_t, out_x, out_w from row 1 (row 0: the caller's start).
+    ``st``: steps, rejected, newton_iterations, jacobians, (matrix valid, factor c), cut_steps, failure time.
+    Returns the number of recorded rows, or -1 when Newton failed down to ``min_dt`` (the time in st[7])."""
+    N = x.shape[0]
+    NW = out_w.shape[1]
+    ws = (np.zeros(NW), np.zeros(N), np.zeros(N), np.zeros(N), np.zeros(N), np.zeros(N), np.zeros((N, N)),
+          np.zeros((N, N)), np.zeros(N, np.int64), np.zeros(N))
+    xn, prev, tmp = np.zeros(N), x.copy(), np.zeros(N)
+    have_prev = False
+    rec = 1
+    for k in range(nsteps):
+        t = t0 + k * h
+        if method == BDF2 and have_prev:
+            ok = _step(BDF2, t, x, h, prev, net, scale, rtol, atol, maxit, ws, st, xn)
+            if ok:
+                for i in range(N):
+                    prev[i] = x[i]
+            else:
+                reached = _split(TRAPEZOIDAL, t, x, h, 0.5 * h, min_dt, net, scale, rtol, atol, maxit, ws, st, xn,
+                                 tmp)
+                if reached < t + h - 1e-12 * h:
+                    st[7] = reached
+                    return -1
+                have_prev = False
+        else:
+            base = TRAPEZOIDAL if method == BDF2 else method
+            ok = _step(base, t, x, h, prev, net, scale, rtol, atol, maxit, ws, st, xn)
+            if not ok:
+                reached = _split(base, t, x, h, 0.5 * h, min_dt, net, scale, rtol, atol, maxit, ws, st, xn, tmp)
+                if reached < t + h - 1e-12 * h:
+                    st[7] = reached
+                    return -1
+            if method == BDF2:
+                for i in range(N):
+                    prev[i] = x[i]
+                have_prev = True
+        for i in range(N):
+            x[i] = xn[i]
+        st[0] += 1
+        if (k + 1) % record_every == 0 or k == nsteps - 1:
+            tt = t0 + (k + 1) * h
+            out_t[rec] = tt
+            for i in range(N):
+                out_x[rec, i] = x[i]
+            assemble(tt, x, net, out_w[rec])
+            rec += 1
+    return rec
+
