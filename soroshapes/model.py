@@ -1047,7 +1047,7 @@ class Model:
         code = {"trapezoidal": network.TRAPEZOIDAL, "midpoint": network.MIDPOINT, "bdf2": network.BDF2}[method]
         wall = _time.perf_counter()
         got = network.integrate(x.copy(), t0, h, nsteps, code, record_every, min_dt, net.arrays, self._scale,
-                                self._rtol, self._atol, self._maxit, out_t, out_x, out_w, st)
+                                self._rtol, self._atol, self._maxit, 1e-3, out_t, out_x, out_w, st)
         self._stats.update(steps=int(st[0]), newton_iterations=int(st[2]), jacobians=int(st[3]),
                            cut_steps=int(st[6]), wall_time=_time.perf_counter() - wall, method=method,
                            path="compiled")

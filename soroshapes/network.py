@@ -388,6 +388,28 @@ def lower(blocks, links, volumes, controller, free):
     col_block = np.zeros(N, np.int64)
     for i, b in enumerate(blocks):
         col_block[b["xoff"]:b["xoff"] + b["n"]] = i
+    # connected components of the dependency graph: the iteration matrix is block diagonal over them
+    comp = list(range(nb))
+
+    def root(i):
+        while comp[i] != i:
+            i = comp[i]
+        return i
+    for i in range(nb):
+        for j in range(nb):
+            if dep[i, j]:
+                comp[root(i)] = root(j)
+    members = {}
+    for i in range(nb):
+        members.setdefault(root(i), []).append(i)
+    cols = [np.concatenate([np.arange(blocks[i]["xoff"], blocks[i]["xoff"] + blocks[i]["n"]) for i in mem])
+            for mem in members.values()]
+    comps = np.full((len(cols), max(len(c) for c in cols)), -1, np.int64)
+    for k, c in enumerate(cols):
+        comps[k, :len(c)] = c
+    block_comp = np.zeros(nb, np.int64)
+    for k, mem in enumerate(members.values()):
+        block_comp[mem] = k
 
     def cat(parts, dtype=float):
         return np.concatenate(parts).astype(dtype) if parts else np.zeros(0, dtype)
@@ -396,7 +418,7 @@ def lower(blocks, links, volumes, controller, free):
               np.array(fpar, float).reshape(-1, 14), np.array(mapint, np.int64).reshape(-1, 4), cat(maps),
               np.array(link_tab, np.int64).reshape(-1, 4), np.array(link_rows, np.int64),
               np.int64(ckind), np.ascontiguousarray(ctimes, float), np.ascontiguousarray(cvals, float).reshape(
-                  len(ctimes), -1), float(cper), np.asarray(free_rows, np.int64), G, dep, col_block)
+                  len(ctimes), -1), float(cper), np.asarray(free_rows, np.int64), G, dep, col_block, comps, block_comp)
     return Lowered(arrays, N, NW, groups, dep)
 
 
@@ -450,7 +472,7 @@ def assemble(t, x, net, w):
     """w = W(t, x): reservoir volumes, scheduled free inputs, couplings in declaration order. Returns False when a
     volume is not positive and finite."""
     (table, bint, bflt, bwork, bintb, fpar, mapint, maps, link_tab, link_rows, ckind, ctimes, cvals, cper,
-     free_rows, groups, dep, col_block) = net
+     free_rows, groups, dep, col_block, comps, block_comp) = net
     for j in range(w.shape[0]):
         w[j] = 0.0
     ok = True
@@ -574,6 +596,16 @@ def _beam_rhs(bi, x, xo, w, wo, net, out):
 
 
 @njit(cache=True)
+def _beam_mass(bi, net):
+    """The mass matrix that the last evaluation of beam bi left in its workspace (a view)."""
+    bint, bwork = net[1], net[3]
+    n, P = bint[bi, 0], bint[bi, 2]
+    Np = P + 1
+    o = bint[bi, 6] + Np * 16 + 2 * Np * 6 * n + 2 * Np * 6 + 216 + 16 + 48 + 12 * n + 48
+    return bwork[o:o + n * n].reshape((n, n))
+
+
+@njit(cache=True)
 def _fluidic_rhs(fi, x, xo, nx, w, wo, fpar, out):
     """Derivative of reservoir fi (see :meth:`soroshapes.model.Fluidic.rhs`)."""
     V = w[wo + 1]
@@ -624,9 +656,11 @@ def rhs(t, x, net, w, out, only):
 
 
 @njit(cache=True)
-def jacobian(t, x, net, scale, w, f0, fp, xp, Jac):
-    """:math:`\\partial F/\\partial x` by grouped forward differences (steps ``FD_STEP max(|x_j|, scale_j)``).
-    False if an evaluation fails."""
+def jacobian(t, x, net, scale, w, f0, fp, xp, Jac, JF):
+    """:math:`\\partial F/\\partial x` by grouped forward differences (steps ``FD_STEP max(|x_j|, scale_j)``)
+    into Jac, and into JF the same with the acceleration rows of every beam multiplied by its mass matrix at x
+    (the force Jacobian, which changes slowly with the configuration; see :func:`_iteration_matrix`). False if
+    an evaluation fails."""
     table, groups, dep, col_block = net[0], net[15], net[16], net[17]
     nb = table.shape[0]
     N = x.shape[0]
@@ -661,7 +695,88 @@ def jacobian(t, x, net, scale, w, f0, fp, xp, Jac):
                 if dep[b, col_block[j]]:
                     for i in range(table[b, 1], table[b, 1] + table[b, 2]):
                         Jac[i, j] = (fp[i] - f0[i]) / d
+    if not rhs(t, x, net, w, f0, alls):               # the workspaces at x again (their mass matrices)
+        return False
+    for i in range(N):
+        for j in range(N):
+            JF[i, j] = Jac[i, j]
+    for b in range(nb):
+        if table[b, 0] == BEAM:
+            n = table[b, 2] // 2
+            r0 = table[b, 1] + n
+            M = _beam_mass(table[b, 5], net)
+            for k in range(n):
+                for j in range(N):
+                    s = 0.0
+                    for l in range(n):
+                        s += M[k, l] * Jac[r0 + l, j]
+                    JF[r0 + k, j] = s
     return True
+
+
+@njit(cache=True)
+def _iteration_matrix(c, net, JF, Jac, LUc, pivc):
+    r"""Factor :math:`I - cJ` per connected component, with the acceleration rows of every beam taken as
+    :math:`M(q)^{-1}` (current, from the last evaluation) times the force Jacobian ``JF``: a stale Jacobian then
+    misses only the slow change of the forces, not that of the inertia (the configuration dependence of
+    :math:`M` is what makes a beam's stale iteration matrix contract slowly). False if singular."""
+    table, comps, block_comp = net[0], net[18], net[19]
+    N = JF.shape[0]
+    for i in range(N):
+        for j in range(N):
+            Jac[i, j] = JF[i, j]
+    for b in range(table.shape[0]):
+        if table[b, 0] == BEAM:
+            n = table[b, 2] // 2
+            r0 = table[b, 1] + n
+            Mf = _beam_mass(table[b, 5], net).copy()
+            piv = np.zeros(n, np.int64)
+            if not _lu(Mf, piv):
+                return False
+            col = np.empty(n)
+            k = block_comp[b]
+            for cc in range(comps.shape[1]):
+                j = comps[k, cc]
+                if j < 0:
+                    break
+                for l in range(n):
+                    col[l] = JF[r0 + l, j]
+                _lu_solve(Mf, piv, col)
+                for l in range(n):
+                    Jac[r0 + l, j] = col[l]
+    for k in range(comps.shape[0]):
+        s = 0
+        while s < comps.shape[1] and comps[k, s] >= 0:
+            s += 1
+        A = LUc[k, :s, :s]
+        for a in range(s):
+            for b2 in range(s):
+                A[a, b2] = -c * Jac[comps[k, a], comps[k, b2]]
+            A[a, a] += 1.0
+        if not _lu(A, pivc[k, :s]):
+            return False
+    return True
+
+
+@njit(cache=True)
+def _solve_component(comps, k, LUc, pivc, r, rc, x1, rtol, atol, scale):
+    """The Newton correction of component k with the factors of :func:`_iteration_matrix`, applied to x1;
+    returns its weighted size max |dx_j|/(rtol |x_j| + atol s_j) (inf if x1 is no longer finite)."""
+    s = 0
+    while s < comps.shape[1] and comps[k, s] >= 0:
+        rc[s] = r[comps[k, s]]
+        s += 1
+    _lu_solve(LUc[k, :s, :s], pivc[k, :s], rc[:s])
+    nrm = 0.0
+    for a in range(s):
+        j = comps[k, a]
+        x1[j] -= rc[a]
+        if not math.isfinite(x1[j]):
+            return np.inf
+        v = abs(rc[a]) / (rtol * abs(x1[j]) + atol * scale[j])
+        if v > nrm:
+            nrm = v
+    return nrm
 
 
 # method codes
@@ -669,13 +784,18 @@ TRAPEZOIDAL, MIDPOINT, BDF2 = 0, 1, 2
 
 
 @njit(cache=True)
-def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ws, st, x1):
+def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, x1):
     """One implicit step from (t, x0) into x1; True on success. ``ws``: work arrays; ``st``: statistics and the
     state of the reused iteration matrix (st[4] = 1 when Jac is valid, st[5] the c of the factors)."""
-    (w, f0, fp, xp, r, guess, Jac, LU, piv, fx0) = ws
+    (w, f0, fp, xp, r, guess, Jac, JF, LUc, pivc, rc, fx0, pp) = ws
     N = x0.shape[0]
     nb = net[0].shape[0]
+    comps, block_comp = net[18], net[19]
+    nc = comps.shape[0]
     alls = np.ones(nb, np.bool_)
+    only = np.ones(nb, np.bool_)
+    conv = np.zeros(nc, np.bool_)
+    prevc = np.zeros(nc)
     if method == TRAPEZOIDAL:
         if not rhs(t, x0, net, w, fx0, alls):
             return False
@@ -695,6 +815,9 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ws, st, x1):
         tj = t + h
         for i in range(N):
             guess[i] = 2.0 * x0[i] - xprev[i]
+        if st[5] == 1.0:                                # quadratic extrapolation through three states
+            for i in range(N):
+                guess[i] = 3.0 * x0[i] - 3.0 * xprev[i] + pp[i]
     for i in range(N):
         x1[i] = guess[i]
     for attempt in range(2):
@@ -703,64 +826,67 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ws, st, x1):
             for i in range(N):                         # the Jacobian at the guess (first) or at the failed iterate
                 xp[i] = x1[i] if method != MIDPOINT else 0.5 * (x0[i] + x1[i])
             xj = xp.copy()
-            if not jacobian(tj, xj, net, scale, w, f0, fp, xp, Jac):
+            if not jacobian(tj, xj, net, scale, w, f0, fp, xp, Jac, JF):
                 st[4] = 0.0
                 return False
             st[3] += 1
             st[4] = 1.0
-            st[5] = -1.0
-        if st[5] != c:
-            for i in range(N):
-                for j in range(N):
-                    LU[i, j] = -c * Jac[i, j]
-                LU[i, i] += 1.0
-            if not _lu(LU, piv):
-                st[4] = 0.0
-                return False
-            st[5] = c
         for i in range(N):
             x1[i] = guess[i]
-        prev, ok = np.inf, False
+        # Newton per connected component: a component that has converged is no longer evaluated
+        for k in range(nc):
+            conv[k] = False
+            prevc[k] = np.inf
+        for b in range(nb):
+            only[b] = True
+        ok = False
         for it in range(maxit):
             if method == TRAPEZOIDAL:
-                good = rhs(t + h, x1, net, w, r, alls)
+                good = rhs(t + h, x1, net, w, r, only)
                 if good:
                     for i in range(N):
                         r[i] = x1[i] - x0[i] - 0.5 * h * (fx0[i] + r[i])
             elif method == MIDPOINT:
                 for i in range(N):
                     xp[i] = 0.5 * (x0[i] + x1[i])
-                good = rhs(t + 0.5 * h, xp, net, w, r, alls)
+                good = rhs(t + 0.5 * h, xp, net, w, r, only)
                 if good:
                     for i in range(N):
                         r[i] = x1[i] - x0[i] - h * r[i]
             else:
-                good = rhs(t + h, x1, net, w, r, alls)
+                good = rhs(t + h, x1, net, w, r, only)
                 if good:
                     for i in range(N):
                         r[i] = x1[i] - 4.0 / 3.0 * x0[i] + xprev[i] / 3.0 - c * r[i]
             if not good:
                 break
-            _lu_solve(LU, piv, r)
-            nrm = 0.0
-            finite = True
-            for i in range(N):
-                x1[i] -= r[i]
-                if not math.isfinite(x1[i]):
-                    finite = False
+            if it == 0 and not _iteration_matrix(c, net, JF, Jac, LUc, pivc):   # M at the first iterate
+                st[4] = 0.0
+                return False
             st[2] += 1
-            if not finite:
+            finite, slow, done = True, False, True
+            for k in range(nc):
+                if conv[k]:
+                    continue
+                nrm = _solve_component(comps, k, LUc, pivc, r, rc, x1, rtol, atol, scale)
+                if not math.isfinite(nrm):
+                    finite = False
+                    break
+                prev = prevc[k]
+                if nrm <= ntol or (it >= 1 and nrm < prev and nrm * nrm / (prev - nrm) <= ntol):
+                    conv[k] = True                     # the rate-based estimate of the remaining error
+                else:
+                    done = False
+                    if it >= 2 and nrm > 0.5 * prev:
+                        slow = True                    # contracts slowly: refresh the Jacobian
+                prevc[k] = nrm
+            if not finite or slow:
                 break
-            for i in range(N):
-                v = abs(r[i]) / (rtol * abs(x1[i]) + atol * scale[i])
-                if v > nrm:
-                    nrm = v
-            if nrm <= 1e-3:
+            if done:
                 ok = True
                 break
-            if it >= 2 and nrm > 0.5 * prev:
-                break
-            prev = nrm
+            for b in range(nb):
+                only[b] = not conv[block_comp[b]]
         if ok:
             return True
         finite = True
@@ -777,7 +903,7 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ws, st, x1):
 
 
 @njit(cache=True)
-def _split(method, t, x, h, hh, min_dt, net, scale, rtol, atol, maxit, ws, st, xn, tmp):
+def _split(method, t, x, h, hh, min_dt, net, scale, rtol, atol, maxit, ntol, ws, st, xn, tmp):
     """Cover [t, t+h] with steps of hh, halved on failure (down to min_dt) after a failed step; the result in
     xn. Returns the time reached (t + h on success)."""
     st[6] += 1
@@ -788,7 +914,7 @@ def _split(method, t, x, h, hh, min_dt, net, scale, rtol, atol, maxit, ws, st, x
         step = min(hh, end - t)
         for i in range(x.shape[0]):
             tmp[i] = xn[i]
-        if not _step(method, t, tmp, step, tmp, net, scale, rtol, atol, maxit, ws, st, xn):
+        if not _step(method, t, tmp, step, tmp, net, scale, rtol, atol, maxit, ntol, ws, st, xn):
             for i in range(x.shape[0]):
                 xn[i] = tmp[i]
             hh *= 0.5
@@ -800,7 +926,7 @@ def _split(method, t, x, h, hh, min_dt, net, scale, rtol, atol, maxit, ws, st, x
 
 
 @njit(cache=True)
-def integrate(x, t0, h, nsteps, method, record_every, min_dt, net, scale, rtol, atol, maxit, out_t, out_x, out_w,
+def integrate(x, t0, h, nsteps, method, record_every, min_dt, net, scale, rtol, atol, maxit, ntol, out_t, out_x, out_w,
               st):
     """Fixed-step integration of the network from (t0, x) with ``nsteps`` steps of ``h`` [s] (``method`` a code:
     0 trapezoidal, 1 midpoint, 2 BDF2 with a trapezoidal first step and after a split). Records (t, x, w) every
@@ -809,20 +935,26 @@ def integrate(x, t0, h, nsteps, method, record_every, min_dt, net, scale, rtol, 
     Returns the number of recorded rows, or -1 when Newton failed down to ``min_dt`` (the time in st[7])."""
     N = x.shape[0]
     NW = out_w.shape[1]
+    comps = net[18]
+    nc, mc = comps.shape[0], comps.shape[1]
     ws = (np.zeros(NW), np.zeros(N), np.zeros(N), np.zeros(N), np.zeros(N), np.zeros(N), np.zeros((N, N)),
-          np.zeros((N, N)), np.zeros(N, np.int64), np.zeros(N))
+          np.zeros((N, N)), np.zeros((nc, mc, mc)), np.zeros((nc, mc), np.int64), np.zeros(mc), np.zeros(N),
+          np.zeros(N))
     xn, prev, tmp = np.zeros(N), x.copy(), np.zeros(N)
     have_prev = False
     rec = 1
     for k in range(nsteps):
         t = t0 + k * h
         if method == BDF2 and have_prev:
-            ok = _step(BDF2, t, x, h, prev, net, scale, rtol, atol, maxit, ws, st, xn)
+            ok = _step(BDF2, t, x, h, prev, net, scale, rtol, atol, maxit, ntol, ws, st, xn)
             if ok:
                 for i in range(N):
+                    ws[12][i] = prev[i]
                     prev[i] = x[i]
+                st[5] = 1.0
             else:
-                reached = _split(TRAPEZOIDAL, t, x, h, 0.5 * h, min_dt, net, scale, rtol, atol, maxit, ws, st, xn,
+                st[5] = 0.0
+                reached = _split(TRAPEZOIDAL, t, x, h, 0.5 * h, min_dt, net, scale, rtol, atol, maxit, ntol, ws, st, xn,
                                  tmp)
                 if reached < t + h - 1e-12 * h:
                     st[7] = reached
@@ -830,9 +962,9 @@ def integrate(x, t0, h, nsteps, method, record_every, min_dt, net, scale, rtol, 
                 have_prev = False
         else:
             base = TRAPEZOIDAL if method == BDF2 else method
-            ok = _step(base, t, x, h, prev, net, scale, rtol, atol, maxit, ws, st, xn)
+            ok = _step(base, t, x, h, prev, net, scale, rtol, atol, maxit, ntol, ws, st, xn)
             if not ok:
-                reached = _split(base, t, x, h, 0.5 * h, min_dt, net, scale, rtol, atol, maxit, ws, st, xn, tmp)
+                reached = _split(base, t, x, h, 0.5 * h, min_dt, net, scale, rtol, atol, maxit, ntol, ws, st, xn, tmp)
                 if reached < t + h - 1e-12 * h:
                     st[7] = reached
                     return -1
