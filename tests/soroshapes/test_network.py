@@ -1,0 +1,182 @@
+"""The compiled network (soroshapes.network) against the Python path of Model.simulate on the same networks.
+
+Each block and coupling kind that lowers (beams with gravity and chambers, isothermal/polytropic/regulated
+reservoirs, constant or StateMap volumes, output couplings, StateMap input couplings, Schedule controllers) is run
+on both paths: the trajectories agree to the Newton tolerance (the compiled Newton stops on a rate-based error
+estimate of the same tolerance, per connected component, so the two differ by far less than the tolerance
+``rtol |x| + atol s`` itself). Closed forms anchor the compiled path too (Boyle's law). Bad input gives clear
+errors; a failed run leaves the model usable.
+"""
+import numpy as np
+import pytest
+
+from sorofem import materials, sdf
+from sorofem.errors import ConvergenceError, DataError, ParameterError
+from soroshapes import Basis, Fluidic, Model, Shapes
+from soroshapes.network import Schedule, StateMap
+
+V0 = 1e-6
+
+
+def finger(modes=2, gravity=True):
+    mat = materials.NeoHookean(E=1e6, nu=0.45, density=1000)
+    shp = Shapes(Basis.chebyshev(modes), dofs=(0, 0, modes, 0, 0, 0), length=0.1, section=sdf.Circle(0.005),
+                 material=mat, damping=0.03, segments=6)
+    if gravity:
+        shp = shp.add_gravity((0, -9.81, 0))
+    return shp.add_chamber(area=5e-5, offset=(0.003, 0))
+
+
+def hand_like(fingers=2):
+    """Fingers, each with a regulated reservoir whose volume follows the finger (StateMap) and a periodic
+    set-point table."""
+    mdl = Model()
+    for i in range(fingers):
+        fl = Fluidic(None, V0=V0, regulator=dict(kp=2e-9, ki=2e-7, max_flow=1e-5))
+        mdl.add(finger(), f"f{i}").add(fl, f"p{i}")
+        mdl.connect(f"p{i}", f"f{i}")
+        mdl.connect(StateMap(f"f{i}", [0.1], index=0, offset=V0, scale=0.2 * V0, function="tanh"), f"p{i}",
+                    port="volume")
+    t = np.linspace(0.0, 0.5, 51)
+    mdl.set_controller(Schedule(t, {f"p{i}": 30e3 * np.sin(2 * np.pi * 2 * t + i)[:, None] for i in range(fingers)},
+                                period=0.5))
+    return mdl
+
+
+def both(make, *args, **kw):
+    a = make().simulate(*args, compiled=True, **kw)
+    b = make().simulate(*args, compiled=False, **kw)
+    assert a.stats["path"] == "compiled" and b.stats["path"] == "python"
+    return a, b
+
+
+def close(a, b, rtol, atol, scale=1.0):
+    """Agreement well inside the Newton tolerance (1e-3 of which each step's iterate is within)."""
+    err = np.abs(a - b) / (rtol * np.abs(b) + atol * scale)
+    return float(np.max(err))
+
+
+@pytest.mark.parametrize("method", ["trapezoidal", "midpoint", "bdf2"])
+def test_beams_reservoirs_statemaps_and_schedules_compiled_equal_python(method):
+    rtol, atol = 1e-7, 1e-9
+    a, b = both(hand_like, 0.4, 2e-3, method, rtol=rtol, atol=atol)
+    for i in range(2):
+        # beam states O(1..100): a few tolerances after 200 steps of error propagation
+        assert close(a[f"f{i}"].x, b[f"f{i}"].x, rtol, atol) < 10
+        assert np.max(np.abs(a[f"p{i}"].pressure - b[f"p{i}"].pressure)) < 1e-5 * 30e3
+        assert np.allclose(a[f"p{i}"].volume, b[f"p{i}"].volume, rtol=1e-9)
+    assert np.allclose(a.u, b.u, rtol=1e-5, atol=1e-3)
+    assert a["f0"].q.shape == b["f0"].q.shape and np.array_equal(a.t, b.t)
+
+
+def test_evaluation_paths_say_which_path_runs_and_why():
+    mdl = hand_like(1)
+    assert mdl.evaluation_paths["network"] == "compiled"
+    assert mdl.evaluation_paths["controller"] == "compiled"
+    mdl.set_controller(lambda m: {"p0": [1e3]})
+    why = mdl.evaluation_paths["network"]
+    assert why.startswith("python:") and "Python controller" in why
+    with pytest.raises(ParameterError, match="no compiled form.*Python controller"):
+        mdl.simulate(0.01, 1e-3, compiled=True)
+    # still runs, on the Python path
+    assert mdl.simulate(0.01, 2e-3).stats["path"] == "python"
+
+
+def test_a_contact_beam_or_statespace_keeps_the_python_path():
+    shp = finger().add_contact(sdf.Sphere(0.01).translate((0.05, -0.1, 0.0)), stiffness=1e4)
+    assert "beam" in Model().add(shp, "f").evaluation_paths["network"]
+    from soroshapes import StateSpace
+    ss = StateSpace(lambda x, u, t: -x, 1, 0)
+    assert "StateSpace" in Model().add(ss, "s").evaluation_paths["network"]
+
+
+@pytest.mark.parametrize("polytropic", [1.0, 1.4])
+def test_reservoir_with_a_statemap_volume_of_a_beam(polytropic):
+    """An unregulated reservoir fed by a scheduled mass flow, its volume a linear map of a beam's state."""
+    def make():
+        fl = Fluidic(None, V0=V0, polytropic=polytropic, filter_gain=200.0)
+        mdl = Model().add(finger(), "f").add(fl, "p").connect("p", "f")
+        mdl.connect(StateMap("f", [[1e-8, 0.0]], index=[0, 1], offset=V0), "p", port="volume")
+        return mdl.set_controller(Schedule([0.0, 0.1, 0.2], {"p": [[0.0], [2e-7], [0.0]]}))
+    rtol, atol = 1e-8, 1e-10
+    a, b = both(make, 0.3, 1e-3, "bdf2", rtol=rtol, atol=atol)
+    assert close(a["f"].x, b["f"].x, rtol, atol) < 10
+    assert np.max(np.abs(a["p"].pressure - b["p"].pressure)) < 1e-6 * np.max(np.abs(b["p"].pressure))
+    assert np.max(np.abs(b["p"].pressure)) > 1e3            # something happened
+
+
+def test_compiled_closed_reservoir_follows_boyles_law():
+    """A closed isothermal reservoir whose volume is a StateMap of a beam: pV = mRT = const on the compiled
+    path (the state is the mass: exact to round-off whatever the beam does)."""
+    fl = Fluidic(None, V0=V0)
+    mdl = Model().add(finger(gravity=True), "f").add(fl, "p")
+    mdl.connect(StateMap("f", [[0.05, 0.0]], index=[0, 1], offset=V0, scale=0.5 * V0, function="tanh"), "p",
+                port="volume")
+    tr = mdl.simulate(0.3, 1e-3, "bdf2", compiled=True, rtol=1e-8)
+    pabs = tr["p"].pressure + fl.p0
+    assert np.ptp(tr["p"].volume) > 1e-3 * V0                 # the beam sags under gravity: the volume moves
+    assert np.max(np.abs(pabs * tr["p"].volume / (fl.p0 * tr["p"].volume[0]) - 1)) < 1e-12
+
+
+def test_statemap_input_coupling_and_beam_output_coupling():
+    """A beam's state mapped into another beam's chamber pressure (StateMap input), and a beam's full state as
+    the output of a named system into a reservoir-free chain."""
+    def make():
+        mdl = Model().add(finger(), "a").add(finger(), "b")
+        mdl.connect(StateMap("a", [2e5], index=0), "b")
+        return mdl.set_controller(Schedule([0.0, 0.2], {"a": [[0.0], [20e3]]}))
+    rtol, atol = 1e-8, 1e-10
+    a, b = both(make, 0.2, 1e-3, "trapezoidal", rtol=rtol, atol=atol)
+    assert close(a["b"].x, b["b"].x, rtol, atol) < 10
+    assert np.allclose(a["b"].u[:, 0], 2e5 * a["a"].q[:, 0])
+    assert np.max(np.abs(a["b"].q)) > 1e-3
+
+
+def test_schedule_tables_interpolate_and_repeat():
+    s = Schedule([0.0, 1.0, 2.0], [[0.0, 1.0], [2.0, 1.0], [0.0, 1.0]], period=2.0)
+    assert np.allclose(s.at(0.5), [1.0, 1.0]) and np.allclose(s.at(2.5), [1.0, 1.0]) and np.allclose(s.at(-1.0),
+                                                                                                     [2.0, 1.0])
+    held = Schedule([0.0, 1.0], [[1.0], [3.0]])
+    assert held.at(-1.0)[0] == 1.0 and held.at(5.0)[0] == 3.0
+    sampled = Schedule.sample(lambda t: [np.sin(t)], None, 1e-3, period=2 * np.pi)
+    assert abs(sampled.at(1.0)[0] - np.sin(1.0)) < 1e-6 / 8 * 1.01
+    with pytest.raises(ParameterError, match="increasing"):
+        Schedule([0.0, 0.0], [[1.0], [2.0]])
+    with pytest.raises(ParameterError, match="period"):
+        Schedule([0.0, 1.0], [[1.0], [2.0]], period=2.0)
+    with pytest.raises(ParameterError, match="finite"):
+        Schedule([0.0, 1.0], [[1.0], [np.nan]])
+    with pytest.raises(ParameterError, match="function"):
+        StateMap("f", [1.0], function="sin")
+    with pytest.raises(ParameterError, match="columns"):
+        StateMap("f", [[1.0, 2.0]], index=0)
+
+
+def test_schedule_of_the_wrong_width_names_the_system():
+    mdl = Model().add(finger(), "f").set_controller(Schedule([0.0, 1.0], {"f": [[0.0, 1.0], [0.0, 1.0]]}))
+    with pytest.raises(ParameterError, match="'f'"):
+        mdl.simulate(0.01, 1e-3)
+
+
+def test_non_finite_initial_state_and_a_failed_run_leave_the_model_usable():
+    mdl = hand_like(1)
+    x0 = mdl.initial_state()
+    bad = x0.copy()
+    bad[0] = np.nan
+    with pytest.raises(DataError, match="NaN"):
+        mdl.simulate(0.01, 1e-3, x0=bad)
+    huge = x0.copy()
+    huge[0] = 1e200                     # frames overflow: the start is checked before the kernel runs
+    with pytest.raises(DataError, match="overflow"):
+        mdl.simulate(0.01, 1e-3, x0=huge, compiled=True)
+    ref = hand_like(1).simulate(0.05, 1e-3, compiled=True)
+    again = mdl.simulate(0.05, 1e-3, compiled=True)
+    assert np.array_equal(ref.x, again.x)
+
+
+def test_a_volume_map_that_turns_negative_is_a_clear_error():
+    fl = Fluidic(None, V0=V0)
+    mdl = Model().add(finger(), "f").add(fl, "p").connect("p", "f")
+    mdl.connect(StateMap("f", [1.0], index=0, offset=V0, scale=-2 * V0, function="tanh"), "p", port="volume")
+    with pytest.raises((ConvergenceError, DataError), match="t = |volume"):
+        mdl.simulate(0.5, 1e-3, x0=np.r_[5.0, 0, 0, 0, fl.initial_state(V0)], compiled=True)
