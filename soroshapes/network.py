@@ -786,7 +786,8 @@ TRAPEZOIDAL, MIDPOINT, BDF2 = 0, 1, 2
 @njit(cache=True)
 def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, x1):
     """One implicit step from (t, x0) into x1; True on success. ``ws``: work arrays; ``st``: statistics and the
-    state of the reused iteration matrix (st[4] = 1 when Jac is valid, st[5] the c of the factors)."""
+    state of the reused iteration matrix (st[4] = 1 when the Jacobian is valid; st[5] = 1 when the quadratic
+    BDF2 predictor may use ``ws[12]``, the state before ``xprev``)."""
     (w, f0, fp, xp, r, guess, Jac, JF, LUc, pivc, rc, fx0, pp) = ws
     N = x0.shape[0]
     nb = net[0].shape[0]
@@ -858,6 +859,9 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
                 if good:
                     for i in range(N):
                         r[i] = x1[i] - 4.0 / 3.0 * x0[i] + xprev[i] / 3.0 - c * r[i]
+            for bb in range(nb):
+                if only[bb]:
+                    st[8] += 1
             if not good:
                 break
             if it == 0 and not _iteration_matrix(c, net, JF, Jac, LUc, pivc):   # M at the first iterate
@@ -931,7 +935,8 @@ def integrate(x, t0, h, nsteps, method, record_every, min_dt, net, scale, rtol, 
     """Fixed-step integration of the network from (t0, x) with ``nsteps`` steps of ``h`` [s] (``method`` a code:
     0 trapezoidal, 1 midpoint, 2 BDF2 with a trapezoidal first step and after a split). Records (t, x, w) every
     ``record_every`` steps and at the end into out_t, out_x, out_w from row 1 (row 0: the caller's start).
-    ``st``: steps, rejected, newton_iterations, jacobians, (matrix valid, factor c), cut_steps, failure time.
+    ``st``: steps, rejected, newton_iterations, jacobians, matrix valid, quadratic predictor valid, cut_steps,
+    failure time, system evaluations in Newton iterations.
     Returns the number of recorded rows, or -1 when Newton failed down to ``min_dt`` (the time in st[7])."""
     N = x.shape[0]
     NW = out_w.shape[1]
