@@ -715,6 +715,51 @@ def jacobian(t, x, net, scale, w, f0, fp, xp, Jac, JF):
 
 
 @njit(cache=True)
+def _cheap_rows(t, x, net, scale, w, f0, fp, xp, JF):
+    """Refresh the rows of JF that belong to systems other than beams (reservoirs: cheap to evaluate, and
+    non-smooth where a valve saturates, so a stale row makes Newton contract slowly) by the grouped forward
+    differences of :func:`jacobian`, evaluating only those systems. False if an evaluation fails."""
+    table, groups, dep, col_block = net[0], net[15], net[16], net[17]
+    nb = table.shape[0]
+    N = x.shape[0]
+    cheap = np.zeros(nb, np.bool_)
+    for b in range(nb):
+        cheap[b] = table[b, 0] != BEAM
+    if not rhs(t, x, net, w, f0, cheap):
+        return False
+    sel = np.zeros(nb, np.bool_)
+    for g in range(groups.shape[0]):
+        for i in range(N):
+            xp[i] = x[i]
+        any_row = False
+        for b in range(nb):
+            sel[b] = False
+        for c in range(groups.shape[1]):
+            j = groups[g, c]
+            if j < 0:
+                break
+            xp[j] = x[j] + FD_STEP * max(abs(x[j]), scale[j])
+            for b in range(nb):
+                if cheap[b] and dep[b, col_block[j]]:
+                    sel[b] = True
+                    any_row = True
+        if not any_row:
+            continue
+        if not rhs(t, xp, net, w, fp, sel):
+            return False
+        for c in range(groups.shape[1]):
+            j = groups[g, c]
+            if j < 0:
+                break
+            d = xp[j] - x[j]
+            for b in range(nb):
+                if cheap[b] and dep[b, col_block[j]]:
+                    for i in range(table[b, 1], table[b, 1] + table[b, 2]):
+                        JF[i, j] = (fp[i] - f0[i]) / d
+    return True
+
+
+@njit(cache=True)
 def _iteration_matrix(c, net, JF, Jac, LUc, pivc):
     r"""Factor :math:`I - cJ` per connected component, with the acceleration rows of every beam taken as
     :math:`M(q)^{-1}` (current, from the last evaluation) times the force Jacobian ``JF``: a stale Jacobian then
@@ -864,9 +909,15 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
                     st[8] += 1
             if not good:
                 break
-            if it == 0 and not _iteration_matrix(c, net, JF, Jac, LUc, pivc):   # M at the first iterate
-                st[4] = 0.0
-                return False
+            if it == 0:                 # M at the first iterate, the reservoirs' rows there
+                xj = x1.copy()
+                if method == MIDPOINT:
+                    for i in range(N):
+                        xj[i] = 0.5 * (x0[i] + x1[i])
+                if not (_cheap_rows(tj, xj, net, scale, w, f0, fp, xp, JF)
+                        and _iteration_matrix(c, net, JF, Jac, LUc, pivc)):
+                    st[4] = 0.0
+                    return False
             st[2] += 1
             finite, slow, done = True, False, True
             for k in range(nc):
