@@ -1033,9 +1033,9 @@ class Model:
         return self._trajectory(np.array(rec_t), np.array(rec_x), np.array(rec_w))
 
     def _simulate_compiled(self, net, x, t0, t_end, dt, method, record_every, min_dt, w0):
-        """Fixed steps by :func:`soroshapes.network.integrate` (the same steps, Newton test and splitting as
-        the Python path)."""
-        from . import network
+        """Fixed steps by :func:`soroshapes.integrate.integrate` (the methods, refresh rule and splitting of the
+        Python path; Newton per connected component with a rate-based stopping estimate)."""
+        from . import integrate as itg
         nsteps = int(np.ceil(t_end / dt - 1e-9))
         h = t_end / nsteps
         min_dt = h / 1024 if min_dt is None else float(min_dt)
@@ -1044,9 +1044,9 @@ class Model:
         out_t, out_x, out_w = np.zeros(rows), np.zeros((rows, self._N)), np.zeros((rows, self._NW))
         out_t[0], out_x[0], out_w[0] = t0, x, w0
         st = np.zeros(9)
-        code = {"trapezoidal": network.TRAPEZOIDAL, "midpoint": network.MIDPOINT, "bdf2": network.BDF2}[method]
+        code = {"trapezoidal": itg.TRAPEZOIDAL, "midpoint": itg.MIDPOINT, "bdf2": itg.BDF2}[method]
         wall = _time.perf_counter()
-        got = network.integrate(x.copy(), t0, h, nsteps, code, record_every, min_dt, net.arrays, self._scale,
+        got = itg.integrate(x.copy(), t0, h, nsteps, code, record_every, min_dt, net.arrays, self._scale,
                                 self._rtol, self._atol, self._maxit, 1e-3, out_t, out_x, out_w, st)
         self._stats.update(steps=int(st[0]), newton_iterations=int(st[2]), jacobians=int(st[3]),
                            cut_steps=int(st[6]), system_evaluations=int(st[8]), wall_time=_time.perf_counter() - wall, method=method,
