@@ -183,6 +183,38 @@ class StateSpace:
         """:math:`y = h(x, u, t)` (default the state)."""
         return x.copy() if self._out is None else _vec(self._out(x, u, t), "output")
 
+    #: (A, B, C, D) of a linear system made by :meth:`linear` (None otherwise): what a compiled network runs
+    matrices = None
+
+    @classmethod
+    def linear(cls, A, B, C=None, D=None, name=None, *, x0=None, scale=1.0):
+        r"""The linear system :math:`\dot x = Ax + Bu`, :math:`y = Cx + Du` (C default the identity, D default
+        zero), A (n, n), B (n, m), C (p, n), D (p, m), in the units of the states, inputs and outputs. It runs
+        compiled inside a network (:mod:`soroshapes.network`).
+
+        Examples
+        --------
+        >>> lag = StateSpace.linear([[-10.0]], [[10.0]])        # first-order lag, time constant 0.1 s
+        >>> float(lag.rhs(np.zeros(1), np.ones(1), 0.0)[0])
+        10.0
+        """
+        A = np.atleast_2d(np.asarray(A, dtype=float))
+        n = A.shape[0]
+        B = np.asarray(B, dtype=float).reshape(n, -1) if np.size(B) else np.zeros((n, 0))
+        m = B.shape[1]
+        C = np.eye(n) if C is None else np.atleast_2d(np.asarray(C, dtype=float))
+        D = np.zeros((C.shape[0], m)) if D is None else np.asarray(D, dtype=float).reshape(C.shape[0], m)
+        if A.shape != (n, n) or C.shape[1] != n:
+            raise ParameterError(f"StateSpace.linear needs A (n, n), B (n, m), C (p, n), D (p, m); got A {A.shape}, "
+                                 f"B {B.shape}, C {C.shape}, D {D.shape}")
+        if not all(np.all(np.isfinite(M)) for M in (A, B, C, D)):
+            raise ParameterError("StateSpace.linear: the matrices must be finite")
+        sys = cls(lambda x, u, t: A @ x + B @ u, n, m, jacobian=lambda x, u, t: (A, B),
+                  output=lambda x, u, t: C @ x + D @ u, name=name, x0=x0, scale=scale,
+                  feedthrough=bool(np.any(D != 0)))
+        sys.matrices = (A, B, C, D)
+        return sys
+
 
 class Fluidic:
     r"""An enclosed ideal-gas reservoir (eq. (25)-(29) of the Sorotoki paper; see the module docstring).

@@ -8,9 +8,9 @@ when every part of it has a compiled form:
 * systems: :class:`~soroshapes.shapes.Shapes` beams whose loads run compiled (gravity, chambers and linear
   actuators: ``Shapes.evaluation_path == "compiled"``, no point loads), every :class:`~soroshapes.model.Fluidic`
   reservoir (isothermal or polytropic, regulated or not) whose volume is constant or given by a
-  :class:`StateMap`;
-* couplings: the output of a named system (a beam's state, a reservoir's gauge pressure) into inputs of
-  another, and :class:`StateMap` (an affine map of one system's state through an optional ``tanh``), as an
+  :class:`StateMap`, and linear systems (:meth:`StateSpace.linear <soroshapes.model.StateSpace.linear>`);
+* couplings: the output of a named system (a beam's state, a reservoir's gauge pressure, a linear system's
+  :math:`Cx + Du`) into inputs of another, and :class:`StateMap` (an affine map of one system's state through an optional ``tanh``), as an
   input or as a reservoir's volume;
 * the controller: none, or a :class:`Schedule` (a piecewise-linear table of the free inputs against time,
   optionally periodic).
@@ -209,7 +209,7 @@ class Schedule:
 # ------------------------------------------------------------------------------------------------------------
 # lowering: the network as flat arrays
 # ------------------------------------------------------------------------------------------------------------
-BEAM, FLUIDIC = 0, 1
+BEAM, FLUIDIC, LINEAR = 0, 1, 2
 # per-beam integer parameters (rows of ``bint``)
 _B_N, _B_M, _B_P, _B_NG, _B_ORDER, _B_FO, _B_WO, _B_IO, _B_PO = range(9)
 
@@ -251,6 +251,7 @@ def lower(blocks, links, volumes, controller, free):
     bint, bflt, bwork, bintb = [], [], [], []
     fpar = []
     maps, mapint = [], []
+    lint, lflt = [], []
 
     def add_map(smap):
         if not isinstance(smap, StateMap):
@@ -307,8 +308,14 @@ def lower(blocks, links, volumes, controller, free):
             fpar.append([float(fl.isothermal), fl.R, fl.T, fl.p0, fl.polytropic, fl.leak, fl.filter_gain,
                          float(fl.regulator is not None), reg[0], reg[1], reg[2], float(fl.filtered), vkind, vval])
             kind[i], table[i, 5] = FLUIDIC, len(fpar) - 1
+        elif getattr(b["system"], "matrices", None) is not None:
+            A, B, C, D = b["system"].matrices
+            lint.append([A.shape[0], B.shape[1], C.shape[0], sum(len(v) for v in lflt)])
+            lflt.append(np.concatenate([A.reshape(-1), B.reshape(-1), C.reshape(-1), D.reshape(-1)]))
+            kind[i], table[i, 5] = LINEAR, len(lint) - 1
         else:
-            raise NotImplementedError(f"system {b['name']!r} (a StateSpace with a Python f)")
+            raise NotImplementedError(f"system {b['name']!r} (a StateSpace with a Python f; StateSpace.linear "
+                                      "runs compiled)")
         table[i, 0] = kind[i]
     link_rows, link_tab = [], []
     for src, tname, idx in links:
@@ -316,7 +323,8 @@ def lower(blocks, links, volumes, controller, free):
         rows = [tb["woff"] + k for k in idx]
         if isinstance(src, str):
             sb = blocks[index[src]]
-            size = sb["n"] if sb["kind"] == "shapes" else 1
+            size = (sb["n"] if sb["kind"] == "shapes" else 1 if sb["kind"] == "fluidic"
+                    else sb["system"].matrices[2].shape[0])
             lk, ls = 0, index[src]
         else:
             ls = add_map(src)
@@ -352,8 +360,9 @@ def lower(blocks, links, volumes, controller, free):
         for i in range(nb):
             more = set()
             for s in feeds[i]:
-                if blocks[s]["kind"] == "fluidic":          # a pressure output depends on the volume input
-                    more |= feeds[s]
+                if blocks[s]["kind"] == "fluidic" or (blocks[s]["kind"] == "statespace" and
+                                                      blocks[s]["system"].feedthrough):
+                    more |= feeds[s]                        # an output that depends on the source's inputs
             if not more <= feeds[i]:
                 feeds[i] |= more
                 changed = True
@@ -415,7 +424,8 @@ def lower(blocks, links, volumes, controller, free):
               np.array(fpar, float).reshape(-1, 14), np.array(mapint, np.int64).reshape(-1, 4), cat(maps),
               np.array(link_tab, np.int64).reshape(-1, 4), np.array(link_rows, np.int64),
               np.int64(ckind), np.ascontiguousarray(ctimes, float), np.ascontiguousarray(cvals, float).reshape(
-                  len(ctimes), -1), float(cper), np.asarray(free_rows, np.int64), G, dep, col_block, comps, block_comp)
+                  len(ctimes), -1), float(cper), np.asarray(free_rows, np.int64), G, dep, col_block, comps, block_comp,
+              np.array(lint, np.int64).reshape(-1, 4), cat(lflt))
     return Lowered(arrays, N, NW, groups, dep)
 
 
@@ -469,7 +479,7 @@ def assemble(t, x, net, w):
     """w = W(t, x): reservoir volumes, scheduled free inputs, couplings in declaration order. Returns False when a
     volume is not positive and finite."""
     (table, bint, bflt, bwork, bintb, fpar, mapint, maps, link_tab, link_rows, ckind, ctimes, cvals, cper,
-     free_rows, groups, dep, col_block, comps, block_comp) = net
+     free_rows, groups, dep, col_block, comps, block_comp, lint, lflt) = net
     for j in range(w.shape[0]):
         w[j] = 0.0
     ok = True
@@ -497,6 +507,16 @@ def assemble(t, x, net, w):
                 fi = table[src, 5]
                 V = w[table[src, 3] + 1]
                 v = _pressure(fpar, fi, x[table[src, 1]], V) - fpar[fi, 3]
+            elif table[src, 0] == LINEAR:                  # y = C x + D u
+                li = table[src, 5]
+                n, m, o = lint[li, 0], lint[li, 1], lint[li, 3]
+                oc = o + n * n + n * m
+                od = oc + lint[li, 2] * n
+                v = 0.0
+                for c in range(n):
+                    v += lflt[oc + r * n + c] * x[table[src, 1] + c]
+                for c in range(m):
+                    v += lflt[od + r * m + c] * w[table[src, 3] + c]
             else:
                 v = x[table[src, 1] + r]
             w[link_rows[ro + r]] = v
@@ -629,6 +649,20 @@ def _fluidic_rhs(fi, x, xo, nx, w, wo, fpar, out):
 
 
 @njit(cache=True)
+def _linear_rhs(li, x, xo, w, wo, lint, lflt, out):
+    """xdot = A x + B u of linear system li."""
+    n, m, o = lint[li, 0], lint[li, 1], lint[li, 3]
+    ob = o + n * n
+    for r in range(n):
+        s = 0.0
+        for c in range(n):
+            s += lflt[o + r * n + c] * x[xo + c]
+        for c in range(m):
+            s += lflt[ob + r * m + c] * w[wo + c]
+        out[xo + r] = s
+
+
+@njit(cache=True)
 def rhs(t, x, net, w, out, only):
     """F(t, x) into out (the blocks with ``only[i]`` True; inputs assembled into w). False if a state is out of
     range or a volume is not positive."""
@@ -642,8 +676,10 @@ def rhs(t, x, net, w, out, only):
         if table[i, 0] == BEAM:
             if not _beam_rhs(table[i, 5], x, xo, w, wo, net, out):
                 return False
-        else:
+        elif table[i, 0] == FLUIDIC:
             _fluidic_rhs(table[i, 5], x, xo, nx, w, wo, fpar, out)
+        else:
+            _linear_rhs(table[i, 5], x, xo, w, wo, net[20], net[21], out)
     for i in range(table.shape[0]):
         if only[i]:
             for j in range(table[i, 1], table[i, 1] + table[i, 2]):

@@ -132,6 +132,30 @@ def test_statemap_input_coupling_and_beam_output_coupling():
     assert np.max(np.abs(a["b"].q)) > 1e-3
 
 
+@pytest.mark.parametrize("feedthrough", [False, True])
+def test_linear_statespace_blocks_compiled_equal_python(feedthrough):
+    """A first-order pressure lag (StateSpace.linear) between a scheduled set point and a beam's chamber, and a
+    second linear system filtering the beam's first coordinate (StateMap input): both compiled."""
+    from soroshapes import StateSpace
+
+    def make():
+        D = [[0.5]] if feedthrough else None
+        lag = StateSpace.linear([[-50.0]], [[50.0]], [[1.0 if not feedthrough else 0.5]], D)
+        filt = StateSpace.linear([[-20.0, 0.0], [1.0, 0.0]], [[20.0], [0.0]])
+        mdl = Model().add(finger(), "f").add(lag, "lag").add(filt, "filt")
+        mdl.connect("lag", "f").connect(StateMap("f", [1.0], index=0), "filt")
+        return mdl.set_controller(Schedule([0.0, 0.05, 0.3], {"lag": [[0.0], [20e3], [20e3]]}))
+    assert make().evaluation_paths["network"] == "compiled"
+    rtol, atol = 1e-8, 1e-10
+    a, b = both(make, 0.3, 1e-3, "bdf2", rtol=rtol, atol=atol)
+    assert close(a["f"].x, b["f"].x, rtol, atol) < 10
+    assert close(a["filt"].x, b["filt"].x, rtol, atol) < 10
+    assert np.max(np.abs(a["lag"].x - b["lag"].x)) < 1e-6 * 20e3
+    # the filter's second state integrates its first: x1(t) = int x0 (a closed-form check of the wiring)
+    x0, x1 = a["filt"].x[:, 0], a["filt"].x[:, 1]
+    assert abs(x1[-1] - np.trapz(x0, a.t)) < 1e-3 * np.max(np.abs(x1))
+
+
 def test_schedule_tables_interpolate_and_repeat():
     s = Schedule([0.0, 1.0, 2.0], [[0.0, 1.0], [2.0, 1.0], [0.0, 1.0]], period=2.0)
     assert np.allclose(s.at(0.5), [1.0, 1.0]) and np.allclose(s.at(2.5), [1.0, 1.0]) and np.allclose(s.at(-1.0),
