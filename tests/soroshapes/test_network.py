@@ -69,6 +69,19 @@ def test_beams_reservoirs_statemaps_and_schedules_compiled_equal_python(method):
     assert a["f0"].q.shape == b["f0"].q.shape and np.array_equal(a.t, b.t)
 
 
+def test_recording_and_continuing_from_t0_on_the_compiled_path():
+    full = hand_like(1).simulate(0.2, 2e-3, "trapezoidal", compiled=True)
+    sparse = hand_like(1).simulate(0.2, 2e-3, "trapezoidal", compiled=True, record_every=7)
+    assert np.allclose(sparse.t, np.r_[full.t[::7], full.t[-1]])
+    assert np.array_equal(sparse.x, np.vstack([full.x[::7], full.x[-1:]]))
+    # a run continued from t0 (the periodic schedule sees the absolute time) equals one run
+    mdl = hand_like(1)
+    first = mdl.simulate(0.1, 2e-3, "trapezoidal", compiled=True)
+    second = mdl.simulate(0.1, 2e-3, "trapezoidal", compiled=True, x0=first.x[-1], t0=0.1)
+    assert second.t[0] == pytest.approx(0.1) and second.t[-1] == pytest.approx(0.2)
+    assert np.allclose(second.x[-1], full.x[-1], rtol=1e-6, atol=1e-9)
+
+
 def test_evaluation_paths_say_which_path_runs_and_why():
     mdl = hand_like(1)
     assert mdl.evaluation_paths["network"] == "compiled"
