@@ -661,9 +661,11 @@ class Model:
     @property
     def evaluation_paths(self):
         """How each system, the couplings and the controller are evaluated at every stage of a step: a dict of
-        ``"compiled"`` (numba, no Python in the loop: beams with gravity, inputs and point loads only) or
-        ``"python..."`` (Fluidic, StateSpace and rigid-body right-hand sides, beams with contact, tendons or user
-        forces, and every callable coupling and controller). Also in a trajectory's ``stats``."""
+        ``"compiled"`` (numba, no Python in the loop) or ``"python..."``. When the whole network lowers
+        (:attr:`evaluation_path` is ``"compiled"``) every entry is ``"compiled"``; otherwise beams with gravity,
+        inputs and point loads still evaluate in one compiled call each, and reservoirs, StateSpace and
+        rigid-body right-hand sides, beams with contact, tendons or user forces, and every coupling and the
+        controller run in Python. Also in a trajectory's ``stats``."""
         paths = {name: getattr(b.system, "evaluation_path", "python") for name, b in self._blocks.items()}
         net = self._lowered()
         compiled = not isinstance(net, str)
@@ -673,8 +675,16 @@ class Model:
             paths["controller"] = "compiled" if compiled else "python"
         if compiled:
             paths.update({name: "compiled" for name in self._blocks})
-        paths["network"] = "compiled" if compiled else f"python: {net}"
         return paths
+
+    @property
+    def evaluation_path(self):
+        """How :meth:`simulate` runs the network (fixed steps): ``"compiled"`` (one numba kernel,
+        :mod:`soroshapes.network`) or ``"python: ..."`` naming the first part that has no compiled form (a Python
+        callable coupling or controller, a StateSpace with a Python f, a beam with contact, tendons or user
+        forces). Also in a trajectory's ``stats``."""
+        net = self._lowered()
+        return f"python: {net}" if isinstance(net, str) else "compiled"
 
     def _lowered(self):
         """The network lowered for the compiled kernel (:func:`soroshapes.network.lower`), or a str saying which
@@ -990,7 +1000,7 @@ class Model:
         :math:`I - cJ` is factorized dense (LAPACK) or sparse (SuperLU on the block-sparse :meth:`jacobian`);
         ``"auto"`` takes sparse from 200 states on. ``compiled``: None runs the network in one compiled kernel
         (:mod:`soroshapes.network`, fixed steps, dense LU) when every part of it has a compiled form and on the
-        Python path otherwise (:attr:`evaluation_paths` says which and why); True requires the compiled kernel (a
+        Python path otherwise (:attr:`evaluation_path` says which and why); True requires the compiled kernel (a
         :class:`~sorofem.errors.ParameterError` names the part that has none); False forces the Python path.
         Returns a :class:`ModelTrajectory`.
         """
@@ -1213,6 +1223,7 @@ class Model:
 
     def _trajectory(self, t, X, W):
         self._stats["evaluation_paths"] = self.evaluation_paths
+        self._stats["evaluation_path"] = self.evaluation_path
         systems, U = {}, []
         for b in self._blocks.values():
             x, w = X[:, b.sl], W[:, b.wsl]

@@ -51,7 +51,7 @@ def test_bench_soft_hand_realtime_factor(record):
     mdl.simulate(0.02, dt, method=method, rtol=rtol, atol=atol)          # warm up (numba)
 
     # 1. the plain run, as in the demo (compiled network)
-    assert mdl.evaluation_paths["network"] == "compiled"
+    assert mdl.evaluation_path == "compiled"
     wall = np.inf
     for _ in range(2):
         t0 = time.perf_counter()

@@ -84,10 +84,10 @@ def test_recording_and_continuing_from_t0_on_the_compiled_path():
 
 def test_evaluation_paths_say_which_path_runs_and_why():
     mdl = hand_like(1)
-    assert mdl.evaluation_paths["network"] == "compiled"
+    assert mdl.evaluation_path == "compiled"
     assert mdl.evaluation_paths["controller"] == "compiled"
     mdl.set_controller(lambda m: {"p0": [1e3]})
-    why = mdl.evaluation_paths["network"]
+    why = mdl.evaluation_path
     assert why.startswith("python:") and "Python controller" in why
     with pytest.raises(ParameterError, match="no compiled form.*Python controller"):
         mdl.simulate(0.01, 1e-3, compiled=True)
@@ -97,10 +97,10 @@ def test_evaluation_paths_say_which_path_runs_and_why():
 
 def test_a_contact_beam_or_statespace_keeps_the_python_path():
     shp = finger().add_contact(sdf.Sphere(0.01).translate((0.05, -0.1, 0.0)), stiffness=1e4)
-    assert "beam" in Model().add(shp, "f").evaluation_paths["network"]
+    assert "beam" in Model().add(shp, "f").evaluation_path
     from soroshapes import StateSpace
     ss = StateSpace(lambda x, u, t: -x, 1, 0)
-    assert "StateSpace" in Model().add(ss, "s").evaluation_paths["network"]
+    assert "StateSpace" in Model().add(ss, "s").evaluation_path
 
 
 @pytest.mark.parametrize("polytropic", [1.0, 1.4])
@@ -158,7 +158,7 @@ def test_linear_statespace_blocks_compiled_equal_python(feedthrough):
         mdl = Model().add(finger(), "f").add(lag, "lag").add(filt, "filt")
         mdl.connect("lag", "f").connect(StateMap("f", [1.0], index=0), "filt")
         return mdl.set_controller(Schedule([0.0, 0.05, 0.3], {"lag": [[0.0], [20e3], [20e3]]}))
-    assert make().evaluation_paths["network"] == "compiled"
+    assert make().evaluation_path == "compiled"
     rtol, atol = 1e-8, 1e-10
     a, b = both(make, 0.3, 1e-3, "bdf2", rtol=rtol, atol=atol)
     assert close(a["f"].x, b["f"].x, rtol, atol) < 10
