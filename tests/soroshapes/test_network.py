@@ -217,3 +217,8 @@ def test_a_volume_map_that_turns_negative_is_a_clear_error():
     mdl.connect(StateMap("f", [1.0], index=0, offset=V0, scale=-2 * V0, function="tanh"), "p", port="volume")
     with pytest.raises((ConvergenceError, DataError), match="t = |volume"):
         mdl.simulate(0.5, 1e-3, x0=np.r_[5.0, 0, 0, 0, fl.initial_state(V0)], compiled=True)
+
+
+def test_warm_up_runs_every_kind():
+    from soroshapes.network import warm_up
+    assert warm_up() > 0
