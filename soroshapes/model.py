@@ -1095,8 +1095,11 @@ class Model:
                            path="compiled")
         if got < 0:
             raise ConvergenceError(f"Model.simulate: Newton failed at t = {st[7]:.6g} s down to dt = {min_dt:.3g} s "
-                                   f"({method}, compiled network); use a smaller dt, check the couplings and "
-                                   "controller for discontinuities, or loosen rtol")
+                                   f"({method}, compiled network: Newton did not converge, or an evaluation failed "
+                                   "because a beam state overflowed or a reservoir volume was not positive); use a "
+                                   "smaller dt, check the couplings and schedule for discontinuities and volume maps "
+                                   "for their range, or loosen rtol (compiled=False gives the failing system's own "
+                                   "message)")
         out_t[-1] = t0 + t_end
         return self._trajectory(out_t[:got], out_x[:got], out_w[:got])
 
