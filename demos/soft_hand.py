@@ -40,12 +40,16 @@ pressure loop's time constant) and :math:`k_i = k_p / 1` s (integral time 1 s: t
 integrator, so the P part alone tracks; the slow I part only removes the offset from the volume change and
 keeps the step overshoot at ~2 %).
 
-*Oscillators (controller callback).* The seed's :math:`p_{d,i} = 80\,\mathrm{sign}(\sin(7t + \phi_i))` kPa,
+*Oscillators (a set-point table).* The seed's :math:`p_{d,i} = 80\,\mathrm{sign}(\sin(7t + \phi_i))` kPa,
 :math:`\phi_i = i\pi/6`, is smoothed to :math:`p_{d,i} = 80\,\tanh(k \sin(7t + \phi_i))/\tanh k` kPa with
 :math:`k = 8` (10-90 % rise in ~40 ms, the plateaus reach exactly 80 kPa): a sign function has an infinite
 slope at the switch, which an implicit solver with a reused Jacobian meets as a step in :math:`F` (Newton
 failures, step cuts); a smooth switch of 40 ms is faster than the valve (~70 ms for the 160 kPa swing at
-5 g/s), so the hand sees the same square wave.
+5 g/s), so the hand sees the same square wave. The controller plays one period of it as a periodic table
+(:class:`soroshapes.network.Schedule`, samples every 0.1 ms: linear interpolation is within 0.3 Pa of the
+formula), and the volume coupling is the declarative :class:`soroshapes.network.StateMap`
+:math:`V_0 + V_0\tanh(\alpha)`: with them the whole network runs as one compiled kernel
+(``mdl.evaluation_path == "compiled"``; the key figures equal those of the Python callables to 1e-6 deg).
 
 *Integration.* ``Model.simulate`` with BDF2 (L-stable: the stiff, overdamped high Chebyshev modes and the
 20 ms pressure loop are damped, not ringing as with the trapezoidal rule), fixed ``dt`` = 2 ms, rtol 1e-4, atol 1e-6 (the
