@@ -25,7 +25,13 @@ user forces, from one kinematic pass).
 
 Integration (``Model.simulate``)
 --------------------------------
-Implicit, with Newton's method on the global residual, step :math:`h`:
+Two paths, one family of methods. A network whose every part has a compiled form (beams with gravity and
+chambers, reservoirs, :meth:`StateSpace.linear` systems, output couplings, :class:`~soroshapes.network.StateMap`
+couplings and a :class:`~soroshapes.network.Schedule` controller) runs with fixed steps in one compiled kernel
+(:mod:`soroshapes.network`, :mod:`soroshapes.integrate`: Newton per connected component, the beams' iteration
+rows re-scaled by the current mass matrix); :attr:`Model.evaluation_path` says which path runs and, for the
+Python path, which part forces it. The Python path, described here, runs any network:
+implicit, with Newton's method on the global residual, step :math:`h`:
 
 * ``"trapezoidal"`` (Sorotoki's default, like ``ode23t``): :math:`x_{k+1} = x_k + \tfrac h2 (F_k + F_{k+1})`;
 * ``"midpoint"``: :math:`x_{k+1} = x_k + h F(t_k + \tfrac h2, \tfrac12(x_k + x_{k+1}))`;
