@@ -860,3 +860,8 @@ def warm_up():
            .set_controller(Schedule([0.0, 1.0], {"lag": [[0.0], [1e3]]})))
     mdl.simulate(4e-3, 1e-3, "bdf2", compiled=True)
     return time.perf_counter() - t0
+
+
+if __name__ == "__main__":          # `python -m soroshapes.network`: the bootstrap's precompile step
+    from soroshapes.network import warm_up as _warm_up     # the package's module, not this __main__ copy
+    print(f"network kernels ready in {_warm_up():.1f} s")
