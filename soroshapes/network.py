@@ -8,7 +8,9 @@ when every part of it has a compiled form:
 * systems: :class:`~soroshapes.shapes.Shapes` beams whose loads run compiled (gravity, chambers and linear
   actuators: ``Shapes.evaluation_path == "compiled"``, no point loads), every :class:`~soroshapes.model.Fluidic`
   reservoir (isothermal or polytropic, regulated or not) whose volume is constant or given by a
-  :class:`StateMap`, and linear systems (:meth:`StateSpace.linear <soroshapes.model.StateSpace.linear>`);
+  :class:`StateMap`, linear systems (:meth:`StateSpace.linear <soroshapes.model.StateSpace.linear>`, and
+  :class:`~soroshapes.rigid.SpinningBody`, which is one) and free rigid bodies (:class:`~soroshapes.rigid.RigidBody`,
+  its ``rigid_parameters``);
 * couplings: the output of a named system (a beam's state, a reservoir's gauge pressure, a linear system's
   :math:`Cx + Du`) into inputs of another, and :class:`StateMap` (an affine map of one system's state through an optional ``tanh``), as an
   input or as a reservoir's volume;
@@ -209,7 +211,10 @@ class Schedule:
 # ------------------------------------------------------------------------------------------------------------
 # lowering: the network as flat arrays
 # ------------------------------------------------------------------------------------------------------------
-BEAM, FLUIDIC, LINEAR = 0, 1, 2
+BEAM, FLUIDIC, LINEAR, RIGID = 0, 1, 2, 3
+#: floats per rigid body (rows of ``rflt``): mass, inertia (9), its inverse (9), gravity (3), linear and angular
+#: damping, normalization gain
+_RIGID_FLOATS = 25
 # per-beam integer parameters (rows of ``bint``)
 _B_N, _B_M, _B_P, _B_NG, _B_ORDER, _B_FO, _B_WO, _B_IO, _B_PO = range(9)
 
@@ -252,6 +257,7 @@ def lower(blocks, links, volumes, controller, free):
     fpar = []
     maps, mapint = [], []
     lint, lflt = [], []
+    rflt = []
 
     def add_map(smap):
         if not isinstance(smap, StateMap):
@@ -308,6 +314,12 @@ def lower(blocks, links, volumes, controller, free):
             fpar.append([float(fl.isothermal), fl.R, fl.T, fl.p0, fl.polytropic, fl.leak, fl.filter_gain,
                          float(fl.regulator is not None), reg[0], reg[1], reg[2], float(fl.filtered), vkind, vval])
             kind[i], table[i, 5] = FLUIDIC, len(fpar) - 1
+        elif getattr(b["system"], "rigid_parameters", None) is not None:
+            par = np.asarray(b["system"].rigid_parameters, dtype=float)
+            if par.shape != (_RIGID_FLOATS,):
+                raise ParameterError(f"rigid body {b['name']!r}: rigid_parameters must have {_RIGID_FLOATS} entries")
+            rflt.append(par)
+            kind[i], table[i, 5] = RIGID, len(rflt) - 1
         elif getattr(b["system"], "matrices", None) is not None:
             A, B, C, D = b["system"].matrices
             lint.append([A.shape[0], B.shape[1], C.shape[0], sum(len(v) for v in lflt)])
@@ -323,8 +335,8 @@ def lower(blocks, links, volumes, controller, free):
         rows = [tb["woff"] + k for k in idx]
         if isinstance(src, str):
             sb = blocks[index[src]]
-            size = (sb["n"] if sb["kind"] == "shapes" else 1 if sb["kind"] == "fluidic"
-                    else sb["system"].matrices[2].shape[0])
+            size = (1 if sb["kind"] == "fluidic" else sb["system"].matrices[2].shape[0]
+                    if getattr(sb["system"], "matrices", None) is not None else sb["n"])
             lk, ls = 0, index[src]
         else:
             ls = add_map(src)
@@ -425,7 +437,7 @@ def lower(blocks, links, volumes, controller, free):
               np.array(link_tab, np.int64).reshape(-1, 4), np.array(link_rows, np.int64),
               np.int64(ckind), np.ascontiguousarray(ctimes, float), np.ascontiguousarray(cvals, float).reshape(
                   len(ctimes), -1), float(cper), np.asarray(free_rows, np.int64), G, dep, col_block, comps, block_comp,
-              np.array(lint, np.int64).reshape(-1, 4), cat(lflt))
+              np.array(lint, np.int64).reshape(-1, 4), cat(lflt), np.array(rflt, float).reshape(-1, _RIGID_FLOATS))
     return Lowered(arrays, N, NW, groups, dep)
 
 
@@ -479,7 +491,7 @@ def assemble(t, x, net, w):
     """w = W(t, x): reservoir volumes, scheduled free inputs, couplings in declaration order. Returns False when a
     volume is not positive and finite."""
     (table, bint, bflt, bwork, bintb, fpar, mapint, maps, link_tab, link_rows, ckind, ctimes, cvals, cper,
-     free_rows, groups, dep, col_block, comps, block_comp, lint, lflt) = net
+     free_rows, groups, dep, col_block, comps, block_comp, lint, lflt, rflt) = net
     for j in range(w.shape[0]):
         w[j] = 0.0
     ok = True
@@ -663,6 +675,39 @@ def _linear_rhs(li, x, xo, w, wo, lint, lflt, out):
 
 
 @njit(cache=True)
+def _rigid_rhs(ri, x, xo, w, wo, rflt, out):
+    """Newton-Euler derivative of free rigid body ri (:meth:`soroshapes.rigid.RigidBody.rhs`): state
+    (p, R row by row, omega, v), input the body wrench (m, f) at w[wo:wo+6]."""
+    par = rflt[ri]
+    mass, cv, cw, kappa = par[0], par[22], par[23], par[24]
+    R = x[xo + 3:xo + 12].reshape((3, 3))
+    om, v = x[xo + 12:xo + 15], x[xo + 15:xo + 18]
+    for i in range(3):
+        out[xo + i] = R[i, 0] * v[0] + R[i, 1] * v[1] + R[i, 2] * v[2]
+    # dR = R hat(omega) + kappa/2 (R - R R^T R)
+    RtR = R.T @ R
+    for i in range(3):
+        for j in range(3):
+            a = R[i, (j + 1) % 3] * om[(j + 2) % 3] - R[i, (j + 2) % 3] * om[(j + 1) % 3]
+            if kappa != 0.0:
+                a += 0.5 * kappa * (R[i, j] - (R[i, 0] * RtR[0, j] + R[i, 1] * RtR[1, j] + R[i, 2] * RtR[2, j]))
+            out[xo + 3 + 3 * i + j] = a
+    Iw = np.empty(3)
+    for i in range(3):
+        Iw[i] = par[1 + 3 * i] * om[0] + par[2 + 3 * i] * om[1] + par[3 + 3 * i] * om[2]
+    mom = np.empty(3)
+    force = np.empty(3)
+    for i in range(3):
+        i1, i2 = (i + 1) % 3, (i + 2) % 3
+        mom[i] = -(om[i1] * Iw[i2] - om[i2] * Iw[i1]) - cw * om[i] + w[wo + i]      # v x m v = 0
+        force[i] = -mass * (om[i1] * v[i2] - om[i2] * v[i1]) \
+            + mass * (R[0, i] * par[19] + R[1, i] * par[20] + R[2, i] * par[21]) - cv * v[i] + w[wo + 3 + i]
+    for i in range(3):
+        out[xo + 12 + i] = par[10 + 3 * i] * mom[0] + par[11 + 3 * i] * mom[1] + par[12 + 3 * i] * mom[2]
+        out[xo + 15 + i] = force[i] / mass
+
+
+@njit(cache=True)
 def rhs(t, x, net, w, out, only):
     """F(t, x) into out (the blocks with ``only[i]`` True; inputs assembled into w). False if a state is out of
     range or a volume is not positive."""
@@ -678,6 +723,8 @@ def rhs(t, x, net, w, out, only):
                 return False
         elif table[i, 0] == FLUIDIC:
             _fluidic_rhs(table[i, 5], x, xo, nx, w, wo, fpar, out)
+        elif table[i, 0] == RIGID:
+            _rigid_rhs(table[i, 5], x, xo, w, wo, net[22], out)
         else:
             _linear_rhs(table[i, 5], x, xo, w, wo, net[20], net[21], out)
     for i in range(table.shape[0]):

@@ -233,6 +233,14 @@ class RigidBody(StateSpace):
         self.state_names = ["x", "y", "z"] + [f"R{i}{j}" for i in range(3) for j in range(3)] \
             + ["omega_x", "omega_y", "omega_z", "v_x", "v_y", "v_z"]
 
+    @property
+    def rigid_parameters(self):
+        """The body's parameters as the compiled network reads them (:mod:`soroshapes.network`), (25,): mass [kg],
+        inertia (9) [kg m^2] and its inverse (9) row by row, gravity (3) [m/s^2], damping (linear [N s/m],
+        angular [N m s/rad]), normalization [1/s]."""
+        return np.concatenate([[self.mass], self.inertia.reshape(9), self._Iinv.reshape(9), self.gravity,
+                               self.damping, [self.normalization]])
+
     @classmethod
     def spinning(cls, axis, inertia, damping=0.0, shape=None, **kw):
         """A :class:`SpinningBody`: a body that only turns about ``axis`` (see there for the keywords)."""
@@ -359,6 +367,7 @@ class SpinningBody(StateSpace):
                          x0=[float(angle0), float(rate0)])
         self.input_names = list(_WRENCH)
         self.state_names = ["angle", "rate"]
+        self.matrices = (A, B, np.eye(2), np.zeros((2, 6)))     # a linear system: runs compiled in a network
 
     def _f(self, x, u, t):
         u = _wrench(u)
