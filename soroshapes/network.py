@@ -258,6 +258,7 @@ def lower(blocks, links, volumes, controller, free):
     maps, mapint = [], []
     lint, lflt = [], []
     rflt = []
+    wsum, wterm, wflt = [], [], []                  # body wrench sums: [first term, count, body]; terms; floats
 
     def add_map(smap):
         if not isinstance(smap, StateMap):
@@ -333,7 +334,20 @@ def lower(blocks, links, volumes, controller, free):
     for src, tname, idx in links:
         tb = blocks[index[tname]]
         rows = [tb["woff"] + k for k in idx]
-        if isinstance(src, str):
+        if getattr(src, "compiled_terms", False) is not False:       # a body's WrenchSum (soroshapes.rigid)
+            terms = src.compiled_terms
+            if terms is None:
+                raise NotImplementedError(f"a Python wrench on body {tname!r}")
+            if kind[index[tname]] != RIGID:
+                raise NotImplementedError(f"contact on body {tname!r} (compiled for free rigid bodies)")
+            wsum.append([len(wterm), len(terms), index[tname]])
+            for tk, par in terms:
+                if tk != "ground":
+                    raise NotImplementedError(f"a {tk} wrench on body {tname!r}")
+                wterm.append([_GROUND, sum(len(v) for v in wflt), len(par)])
+                wflt.append(np.asarray(par, dtype=float))
+            lk, ls, size = 2, len(wsum) - 1, 6
+        elif isinstance(src, str):
             sb = blocks[index[src]]
             size = (1 if sb["kind"] == "fluidic" else sb["system"].matrices[2].shape[0]
                     if getattr(sb["system"], "matrices", None) is not None else sb["n"])
@@ -361,7 +375,7 @@ def lower(blocks, links, volumes, controller, free):
     feeds = [set() for _ in range(nb)]              # blocks whose state feeds block i's inputs
     for src, tname, _ in links:
         t = index[tname]
-        s = index[src] if isinstance(src, str) else index[src.system]
+        s = index[src] if isinstance(src, str) else index[src.system]       # StateMap or WrenchSum
         feeds[t].add(s)
     for name, vol in volumes.items():
         if vol is not None:
@@ -437,7 +451,8 @@ def lower(blocks, links, volumes, controller, free):
               np.array(link_tab, np.int64).reshape(-1, 4), np.array(link_rows, np.int64),
               np.int64(ckind), np.ascontiguousarray(ctimes, float), np.ascontiguousarray(cvals, float).reshape(
                   len(ctimes), -1), float(cper), np.asarray(free_rows, np.int64), G, dep, col_block, comps, block_comp,
-              np.array(lint, np.int64).reshape(-1, 4), cat(lflt), np.array(rflt, float).reshape(-1, _RIGID_FLOATS))
+              np.array(lint, np.int64).reshape(-1, 4), cat(lflt), np.array(rflt, float).reshape(-1, _RIGID_FLOATS),
+              np.array(wsum, np.int64).reshape(-1, 3), np.array(wterm, np.int64).reshape(-1, 3), cat(wflt))
     return Lowered(arrays, N, NW, groups, dep)
 
 
@@ -491,7 +506,7 @@ def assemble(t, x, net, w):
     """w = W(t, x): reservoir volumes, scheduled free inputs, couplings in declaration order. Returns False when a
     volume is not positive and finite."""
     (table, bint, bflt, bwork, bintb, fpar, mapint, maps, link_tab, link_rows, ckind, ctimes, cvals, cper,
-     free_rows, groups, dep, col_block, comps, block_comp, lint, lflt, rflt) = net
+     free_rows, groups, dep, col_block, comps, block_comp, lint, lflt, rflt, wsum, wterm, wflt) = net
     for j in range(w.shape[0]):
         w[j] = 0.0
     ok = True
@@ -512,6 +527,12 @@ def assemble(t, x, net, w):
             w[free_rows[j]] = u[j]
     for li in range(link_tab.shape[0]):
         lk, src, ro, nr = link_tab[li, 0], link_tab[li, 1], link_tab[li, 2], link_tab[li, 3]
+        if lk == 2:
+            W = np.zeros(6)
+            _wrench_sum(wsum, wterm, wflt, table, src, x, W)
+            for r in range(6):
+                w[link_rows[ro + r]] = W[r]
+            continue
         for r in range(nr):
             if lk == 1:
                 v = _map_eval(mapint, maps, table, x, src, r)
@@ -672,6 +693,77 @@ def _linear_rhs(li, x, xo, w, wo, lint, lflt, out):
         for c in range(m):
             s += lflt[ob + r * m + c] * w[wo + c]
         out[xo + r] = s
+
+
+_GROUND = 0
+
+
+@njit(cache=True)
+def _polar3(A):
+    """The rotation nearest to A (3, 3): the polar factor U V^T of its SVD, det +1 (as RigidBody.pose)."""
+    U, _, Vt = np.linalg.svd(A)
+    Q = U @ Vt
+    if np.linalg.det(Q) < 0.0:
+        for i in range(3):
+            U[i, 2] = -U[i, 2]
+        Q = U @ Vt
+    return Q
+
+
+@njit(cache=True)
+def _ground(par, R, p, eta, W):
+    """Add the wrench of soroshapes.rigid.ground_contact (a plane pushing on body points; penalty, damping,
+    regularized Coulomb friction) on the body at pose (R, p) with twist eta to W (body coordinates)."""
+    k, c, mu, eps = par[0], par[1], par[2], par[3]
+    npt = int(par[10])
+    for j in range(npt):
+        r = par[11 + 3 * j:14 + 3 * j]
+        wr = np.empty(3)                                  # v + omega x r (body), then R (...) spatial
+        wr[0] = eta[3] + eta[1] * r[2] - eta[2] * r[1]
+        wr[1] = eta[4] + eta[2] * r[0] - eta[0] * r[2]
+        wr[2] = eta[5] + eta[0] * r[1] - eta[1] * r[0]
+        P = np.empty(3)
+        v = np.empty(3)
+        for i in range(3):
+            P[i] = p[i] + R[i, 0] * r[0] + R[i, 1] * r[1] + R[i, 2] * r[2]
+            v[i] = R[i, 0] * wr[0] + R[i, 1] * wr[1] + R[i, 2] * wr[2]
+        d = 0.0
+        vn = 0.0
+        for i in range(3):
+            d += (P[i] - par[4 + i]) * par[7 + i]
+            vn += v[i] * par[7 + i]
+        if d >= 0.0:
+            continue
+        fn = max(0.0, -k * d - c * vn)
+        vt = np.empty(3)
+        for i in range(3):
+            vt[i] = v[i] - vn * par[7 + i]
+        slip = math.sqrt(vt[0] * vt[0] + vt[1] * vt[1] + vt[2] * vt[2] + eps * eps)
+        F = np.empty(3)
+        for i in range(3):
+            F[i] = fn * par[7 + i] - mu * fn / slip * vt[i]
+        fb = np.empty(3)
+        for i in range(3):
+            fb[i] = R[0, i] * F[0] + R[1, i] * F[1] + R[2, i] * F[2]
+        W[0] += r[1] * fb[2] - r[2] * fb[1]
+        W[1] += r[2] * fb[0] - r[0] * fb[2]
+        W[2] += r[0] * fb[1] - r[1] * fb[0]
+        for i in range(3):
+            W[3 + i] += fb[i]
+
+
+@njit(cache=True)
+def _wrench_sum(wsum, wterm, wflt, table, si, x, W):
+    """The summed wrench (body coordinates) of wrench sum si on its (free rigid) body at the state x."""
+    first, count, body = wsum[si, 0], wsum[si, 1], wsum[si, 2]
+    xo = table[body, 1]
+    R = _polar3(np.ascontiguousarray(x[xo + 3:xo + 12]).reshape((3, 3)))
+    p = x[xo:xo + 3]
+    eta = x[xo + 12:xo + 18]
+    for t in range(first, first + count):
+        o, m = wterm[t, 1], wterm[t, 2]
+        if wterm[t, 0] == _GROUND:
+            _ground(wflt[o:o + m], R, p, eta, W)
 
 
 @njit(cache=True)

@@ -91,7 +91,7 @@ from sorofem.errors import ParameterError
 from .model import Model, StateSpace
 
 __all__ = ["RigidBody", "SpinningBody", "beam_contact", "couple_contact", "ground_contact", "couple_ground",
-           "grasp_force", "couple_grasp"]
+           "grasp_force", "couple_grasp", "WrenchSum"]
 
 _WRENCH = ["moment_x", "moment_y", "moment_z", "force_x", "force_y", "force_z"]
 
@@ -492,14 +492,51 @@ def couple_contact(model, beam, body, stiffness, damping=0.0, friction=0.0, regu
     return model
 
 
+class WrenchSum:
+    """The sum of the wrenches [N m, N] (body coordinates) that contacts and couplings put on one body: a
+    callable of the model (the Python path) that the compiled network lowers when every term has a compiled
+    form (``compiled_terms``)."""
+
+    def __init__(self, body):
+        self.system, self.terms = body, []
+
+    def __call__(self, model):
+        return sum(w(model) for w in self.terms)
+
+    @property
+    def compiled_terms(self):
+        """[(kind, floats)] of the terms (:mod:`soroshapes.network`), or None if one is a Python callable."""
+        out = [getattr(w, "compiled", None) for w in self.terms]
+        return None if any(c is None for c in out) else out
+
+
+class _GroundTerm:
+    """:func:`ground_contact` on a body of a model, with its parameters as data for the compiled network."""
+
+    def __init__(self, body, system, points, stiffness, damping, friction, regularization, plane):
+        self.body, self.system, self.points = body, system, np.asarray(points, dtype=float).reshape(-1, 3)
+        self.args = (stiffness, damping, friction, regularization)
+        self.plane = tuple(np.asarray(v, dtype=float) for v in plane)
+        c, n = self.plane
+        self.compiled = None
+        if isinstance(system, RigidBody):
+            self.compiled = ("ground", np.concatenate([[float(v) for v in self.args], c, n / np.linalg.norm(n),
+                                                       [len(self.points)], self.points.reshape(-1)]))
+
+    def __call__(self, model):
+        return ground_contact(self.system, np.array(model.state(self.body)), self.points, *self.args,
+                              plane=self.plane)
+
+
 def _add_body_wrench(model, body, wrench):
     """Add ``wrench(model) -> (6,)`` (body coordinates) to the wrench inputs of ``body``: the first call
-    connects the sum of all of them, so that several contacts and couplings act on one body."""
+    connects the sum of all of them (a :class:`WrenchSum`), so that several contacts and couplings act on one
+    body."""
     registry = model.__dict__.setdefault("_contact_wrenches", {})
     if body not in registry:
-        registry[body] = []
-        model.connect(lambda mdl: sum(w(mdl) for w in registry[body]), body)
-    registry[body].append(wrench)
+        registry[body] = WrenchSum(body)
+        model.connect(registry[body], body)
+    registry[body].terms.append(wrench)
 
 
 def _check_pair(model, beam, body):
@@ -549,8 +586,8 @@ def couple_ground(model, body, points, stiffness, damping=0.0, friction=0.0, reg
     _check_pair(model, None, body)
     bdy = model[body].system
     ground_contact(bdy, bdy.x0, points, stiffness, damping, friction, regularization, plane=plane)   # validate
-    _add_body_wrench(model, body, lambda mdl: ground_contact(bdy, np.array(mdl.state(body)), points, stiffness,
-                                                             damping, friction, regularization, plane=plane))
+    _add_body_wrench(model, body, _GroundTerm(body, bdy, points, stiffness, damping, friction, regularization,
+                                              plane))
     return model
 
 

@@ -282,3 +282,45 @@ def test_spinning_body_runs_compiled_and_matches_its_closed_form():
     exact = 1e-3 / 5e-4 * (1.0 - np.exp(-25.0 * a.t))
     assert np.allclose(a["bolt"].x[:, 1], exact, rtol=0, atol=1e-4 * exact.max())
     assert np.allclose(a["bolt"].x, b["bolt"].x, rtol=1e-7, atol=1e-10)
+
+
+def cylinder_on_table():
+    """The cylinder of demos/manipulator_pick standing on the table on its rim (12 points, penalty, damping,
+    regularized Coulomb friction), launched with a sideways velocity and a spin: it slides, rocks and comes to
+    rest."""
+    from soroshapes import RigidBody
+    from soroshapes.rigid import couple_ground
+
+    r, h, m = 0.02, 0.04, 0.045
+    pose = np.eye(4)
+    pose[:3, 3] = (0.0, 0.0, h / 2 - m * 9.81 / (12 * 3e3))          # on the table, at its static sinkage
+    cyl = RigidBody(m, [m * (3 * r * r + h * h) / 12] * 2 + [m * r * r / 2], pose0=pose,
+                    twist0=[0.3, -0.2, 2.0, 0.05, 0.02, 0.0], damping=(0.05, 1e-4), normalization=20.0)
+    ang = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    rim = np.column_stack([r * np.cos(ang), r * np.sin(ang), np.full(12, -h / 2)])
+    mdl = Model().add(cyl, "cylinder")
+    return couple_ground(mdl, "cylinder", rim, stiffness=3e3, damping=6.0, friction=0.5, regularization=1e-3)
+
+
+def test_ground_contact_compiled_equals_python():
+    """couple_ground on a free rigid body runs compiled (its parameters as data) and agrees with the Python path
+    (ground_contact) through impact, sliding and sticking; the body comes to rest on the table."""
+    rtol, atol = 1e-7, 1e-9
+    assert cylinder_on_table().evaluation_path == "compiled"
+    # dt = 0.2 ms: the regularized friction (mu f_n / eps ~ 220 N s/m on 45 g, a rate of ~5000 1/s) needs no
+    # step splitting on either path, so both solve the same discrete equations (at 1 ms the Python path splits
+    # steps where the compiled one does not, and the two then differ by a discretization error)
+    a, b = both(cylinder_on_table, 0.1, 2e-4, "bdf2", rtol=rtol, atol=atol)
+    assert a.stats["cut_steps"] == b.stats["cut_steps"] == 0
+    assert close(a["cylinder"].x, b["cylinder"].x, rtol, atol) < 10
+    assert abs(a["cylinder"].x[-1, 2] - 0.02) < 1e-4                 # on the table (sinkage m g / (12 k) = 12 um)
+    assert np.abs(a["cylinder"].x[-1, 12:]).max() < 1e-6              # stuck by friction: at rest
+
+
+def test_a_coupling_without_compiled_form_keeps_the_python_path():
+    """A grasp (no compiled form yet) on the body that also stands on the table: the network runs in Python."""
+    from soroshapes.rigid import couple_grasp
+
+    mdl = cylinder_on_table().add(finger(), "arm")
+    couple_grasp(mdl, "arm", "cylinder", anchor=(0.0, 0.0, 0.02), stiffness=400.0, damping=4.0)
+    assert mdl.evaluation_path.startswith("python: ")
