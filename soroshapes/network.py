@@ -700,7 +700,28 @@ _GROUND = 0
 
 @njit(cache=True)
 def _polar3(A):
-    """The rotation nearest to A (3, 3): the polar factor U V^T of its SVD, det +1 (as RigidBody.pose)."""
+    """The rotation nearest to A (3, 3): the polar factor U V^T of its SVD, det +1 (as RigidBody.pose). Near a
+    rotation (the integrated R is one to the Newton tolerance) by Higham's iteration Q <- (Q + Q^-T)/2, which
+    converges quadratically to the same factor in a few 3 x 3 steps (cofactors, no allocation); otherwise by
+    the SVD."""
+    Q = A.copy()
+    C = np.empty((3, 3))
+    for _ in range(20):
+        for i in range(3):                             # cofactor matrix: Q^-T = C / det Q
+            for j in range(3):
+                i1, i2, j1, j2 = (i + 1) % 3, (i + 2) % 3, (j + 1) % 3, (j + 2) % 3
+                C[i, j] = Q[i1, j1] * Q[i2, j2] - Q[i1, j2] * Q[i2, j1]
+        det = Q[0, 0] * C[0, 0] + Q[0, 1] * C[0, 1] + Q[0, 2] * C[0, 2]
+        if not det > 0.0:
+            break
+        d = 0.0
+        for i in range(3):
+            for j in range(3):
+                v = 0.5 * (Q[i, j] + C[i, j] / det)
+                d = max(d, abs(v - Q[i, j]))
+                Q[i, j] = v
+        if d < 1e-15:
+            return Q
     U, _, Vt = np.linalg.svd(A)
     Q = U @ Vt
     if np.linalg.det(Q) < 0.0:
@@ -715,41 +736,39 @@ def _ground(par, R, p, eta, W):
     """Add the wrench of soroshapes.rigid.ground_contact (a plane pushing on body points; penalty, damping,
     regularized Coulomb friction) on the body at pose (R, p) with twist eta to W (body coordinates)."""
     k, c, mu, eps = par[0], par[1], par[2], par[3]
+    n0, n1, n2 = par[7], par[8], par[9]
     npt = int(par[10])
     for j in range(npt):
-        r = par[11 + 3 * j:14 + 3 * j]
-        wr = np.empty(3)                                  # v + omega x r (body), then R (...) spatial
-        wr[0] = eta[3] + eta[1] * r[2] - eta[2] * r[1]
-        wr[1] = eta[4] + eta[2] * r[0] - eta[0] * r[2]
-        wr[2] = eta[5] + eta[0] * r[1] - eta[1] * r[0]
-        P = np.empty(3)
-        v = np.empty(3)
-        for i in range(3):
-            P[i] = p[i] + R[i, 0] * r[0] + R[i, 1] * r[1] + R[i, 2] * r[2]
-            v[i] = R[i, 0] * wr[0] + R[i, 1] * wr[1] + R[i, 2] * wr[2]
+        r0, r1, r2 = par[11 + 3 * j], par[12 + 3 * j], par[13 + 3 * j]
+        b0 = eta[3] + eta[1] * r2 - eta[2] * r1           # v + omega x r (body)
+        b1 = eta[4] + eta[2] * r0 - eta[0] * r2
+        b2 = eta[5] + eta[0] * r1 - eta[1] * r0
         d = 0.0
         vn = 0.0
         for i in range(3):
-            d += (P[i] - par[4 + i]) * par[7 + i]
-            vn += v[i] * par[7 + i]
+            Pi = p[i] + R[i, 0] * r0 + R[i, 1] * r1 + R[i, 2] * r2
+            vi = R[i, 0] * b0 + R[i, 1] * b1 + R[i, 2] * b2
+            d += (Pi - par[4 + i]) * par[7 + i]
+            vn += vi * par[7 + i]
         if d >= 0.0:
             continue
         fn = max(0.0, -k * d - c * vn)
-        vt = np.empty(3)
-        for i in range(3):
-            vt[i] = v[i] - vn * par[7 + i]
-        slip = math.sqrt(vt[0] * vt[0] + vt[1] * vt[1] + vt[2] * vt[2] + eps * eps)
-        F = np.empty(3)
-        for i in range(3):
-            F[i] = fn * par[7 + i] - mu * fn / slip * vt[i]
-        fb = np.empty(3)
-        for i in range(3):
-            fb[i] = R[0, i] * F[0] + R[1, i] * F[1] + R[2, i] * F[2]
-        W[0] += r[1] * fb[2] - r[2] * fb[1]
-        W[1] += r[2] * fb[0] - r[0] * fb[2]
-        W[2] += r[0] * fb[1] - r[1] * fb[0]
-        for i in range(3):
-            W[3 + i] += fb[i]
+        if fn == 0.0:
+            continue
+        v0 = R[0, 0] * b0 + R[0, 1] * b1 + R[0, 2] * b2 - vn * n0
+        v1 = R[1, 0] * b0 + R[1, 1] * b1 + R[1, 2] * b2 - vn * n1
+        v2 = R[2, 0] * b0 + R[2, 1] * b1 + R[2, 2] * b2 - vn * n2
+        g = mu * fn / math.sqrt(v0 * v0 + v1 * v1 + v2 * v2 + eps * eps)
+        F0, F1, F2 = fn * n0 - g * v0, fn * n1 - g * v1, fn * n2 - g * v2
+        f0 = R[0, 0] * F0 + R[1, 0] * F1 + R[2, 0] * F2    # R^T F
+        f1 = R[0, 1] * F0 + R[1, 1] * F1 + R[2, 1] * F2
+        f2 = R[0, 2] * F0 + R[1, 2] * F1 + R[2, 2] * F2
+        W[0] += r1 * f2 - r2 * f1
+        W[1] += r2 * f0 - r0 * f2
+        W[2] += r0 * f1 - r1 * f0
+        W[3] += f0
+        W[4] += f1
+        W[5] += f2
 
 
 @njit(cache=True)

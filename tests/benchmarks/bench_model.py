@@ -179,3 +179,44 @@ def test_bench_block_sparse_newton(record):
            speedup=round(times["dense"] / times["sparse"], 2), jacobians_dense=runs["dense"].stats["jacobians"],
            jacobians_sparse=runs["sparse"].stats["jacobians"], fd_evaluations_per_jacobian_dense=399,
            fd_evaluations_per_jacobian_sparse=len(mdls["sparse"]._fd_groups))
+
+
+def _cylinder_on_table():
+    """The cylinder of demos/manipulator_pick (45 g, R 20 mm, H 40 mm, BDF2 normalization 20 1/s) standing on the
+    table on 12 rim points (couple_ground: 3 kN/m, 6 N s/m, friction 0.5 at 1 mm/s), launched sideways with a
+    spin: the rigid-body and ground-contact part of the contact scenes, which lowers to the compiled kernel."""
+    from soroshapes import Model, RigidBody
+    from soroshapes.rigid import couple_ground
+
+    r, h, m = 0.02, 0.04, 0.045
+    pose = np.eye(4)
+    pose[:3, 3] = (0.0, 0.0, h / 2 - m * 9.81 / (12 * 3e3))
+    cyl = RigidBody(m, [m * (3 * r * r + h * h) / 12] * 2 + [m * r * r / 2], pose0=pose,
+                    twist0=[0.3, -0.2, 2.0, 0.05, 0.02, 0.0], damping=(0.05, 1e-4), normalization=20.0)
+    ang = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    rim = np.column_stack([r * np.cos(ang), r * np.sin(ang), np.full(12, -h / 2)])
+    return couple_ground(Model().add(cyl, "cylinder"), "cylinder", rim, stiffness=3e3, damping=6.0, friction=0.5,
+                         regularization=1e-3)
+
+
+def test_bench_rigid_body_on_the_ground(record):
+    """The compiled rigid body + ground contact against the Python path, same run, same steps (dt = 0.2 ms,
+    where neither path splits steps): real-time factors, the speed-up and the largest state difference."""
+    t_sim, dt, method, rtol, atol = 0.5, 2e-4, "bdf2", 1e-7, 1e-9
+    assert _cylinder_on_table().evaluation_path == "compiled"
+    _cylinder_on_table().simulate(0.01, dt, method, rtol=rtol, atol=atol)            # warm up (numba)
+    walls, runs = {}, {}
+    for label, compiled in (("compiled", True), ("python", False)):
+        t0 = time.perf_counter()
+        runs[label] = _cylinder_on_table().simulate(t_sim, dt, method, rtol=rtol, atol=atol, compiled=compiled)
+        walls[label] = time.perf_counter() - t0
+    diff = float(np.max(np.abs(runs["compiled"].x - runs["python"].x)))
+    assert runs["compiled"].stats["cut_steps"] == runs["python"].stats["cut_steps"] == 0
+    assert diff < 1e-6, diff                            # the same discrete equations, Newton tolerance rtol 1e-7
+    record(simulated_s=t_sim, dt_s=dt, compiled_wall_s=round(walls["compiled"], 4),
+           python_wall_s=round(walls["python"], 3),
+           realtime_factor_compiled=round(t_sim / walls["compiled"], 2),
+           realtime_factor_python=round(t_sim / walls["python"], 3),
+           speedup=round(walls["python"] / walls["compiled"], 1), max_state_difference=diff,
+           newton_iterations_compiled=runs["compiled"].stats["newton_iterations"],
+           newton_iterations_python=runs["python"].stats["newton_iterations"])
