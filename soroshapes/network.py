@@ -45,6 +45,8 @@ from sorofem.errors import ParameterError
 
 from ._beam import _lu, _lu_solve
 from ._beam import forward_dynamics as _fd
+from ._beam import kinematics as _kinematics
+from ._beam import mass_coriolis_gravity as _mcg
 from .numerics import FD_STEP
 
 __all__ = ["StateMap", "Schedule", "lower", "assemble", "rhs", "jacobian", "warm_up"]
@@ -231,6 +233,37 @@ def _beam_work(n, P):
             n)
 
 
+def _lower_impedance(spec, blocks, index, free_rows):
+    """The set-point table and the integer and float data of a Cartesian impedance controller
+    (:func:`soroshapes.control.impedance`), or NotImplementedError."""
+    name = spec["system"]
+    if name not in index:
+        raise ParameterError(f"the impedance controller acts on system {name!r}, which is not in the model")
+    b = blocks[index[name]]
+    if b["kind"] != "shapes":
+        raise NotImplementedError(f"an impedance controller on {name!r}, which is not a beam")
+    shp = b["system"]
+    n, k = shp.n, len(spec["axes"])
+    pdes = spec["setpoint"]
+    if isinstance(pdes, Schedule) and not isinstance(pdes.values, dict):
+        ctimes, cvals, cper = pdes.times, pdes.values, pdes.period or 0.0
+    elif callable(pdes):
+        raise NotImplementedError(f"the impedance set-point {getattr(pdes, '__name__', pdes)!r} (a Python callable; "
+                                  "a Schedule of the set-point runs compiled)")
+    else:
+        ctimes, cvals, cper = np.array([0.0, 1.0]), np.vstack([pdes, pdes]), 0.0
+    if cvals.shape[1] != k:
+        raise ParameterError(f"the impedance set-point gives {cvals.shape[1]} values for {k} axes")
+    rows = [r for r in free_rows if b["woff"] <= r < b["woff"] + b["nw"]]
+    if len(rows) != b["m"]:
+        raise NotImplementedError(f"an impedance controller on beam {name!r} whose inputs are also coupled")
+    Kn, Dn, qn, null = spec["null"](n)
+    cint = [index[name], k, shp.node(spec["at"]) * shp.model.stride, int(spec["coriolis"]), int(spec["gravity"]),
+            int(spec["elastic"]), int(null), len(rows), *spec["axes"], *rows]
+    cflt = np.concatenate([np.ravel(spec["stiffness"]), np.ravel(spec["damping"]), Kn.ravel(), Dn.ravel(), qn])
+    return ctimes, np.ascontiguousarray(cvals, float), cper, cint, cflt
+
+
 class Lowered:
     """The network as the kernel's arrays (see :func:`lower`); ``arrays`` is the argument tuple."""
 
@@ -360,12 +393,16 @@ def lower(blocks, links, volumes, controller, free):
                                  "connected inputs")
         link_tab.append([lk, ls, len(link_rows), len(rows)])
         link_rows.extend(rows)
+    cint, cflt = np.zeros(0, np.int64), np.zeros(0)
     if controller is None:
         ctimes, cvals, cper = np.zeros(2), np.zeros((2, len(free_rows))), 0.0
         ckind = 0
     elif isinstance(controller, Schedule):
         ctimes, cvals = controller.times, np.ascontiguousarray(controller.table(free_list))
         cper, ckind = (controller.period or 0.0), 1
+    elif getattr(controller, "compiled", None) is not None:     # a controller of soroshapes.control
+        ckind = 2
+        ctimes, cvals, cper, cint, cflt = _lower_impedance(controller.compiled, blocks, index, free_rows)
     else:
         raise NotImplementedError(f"the Python controller {getattr(controller, '__name__', controller)!r}")
 
@@ -452,7 +489,8 @@ def lower(blocks, links, volumes, controller, free):
               np.int64(ckind), np.ascontiguousarray(ctimes, float), np.ascontiguousarray(cvals, float).reshape(
                   len(ctimes), -1), float(cper), np.asarray(free_rows, np.int64), G, dep, col_block, comps, block_comp,
               np.array(lint, np.int64).reshape(-1, 4), cat(lflt), np.array(rflt, float).reshape(-1, _RIGID_FLOATS),
-              np.array(wsum, np.int64).reshape(-1, 3), np.array(wterm, np.int64).reshape(-1, 3), cat(wflt))
+              np.array(wsum, np.int64).reshape(-1, 3), np.array(wterm, np.int64).reshape(-1, 3), cat(wflt),
+              np.asarray(cint, np.int64), np.asarray(cflt, float))
     return Lowered(arrays, N, NW, groups, dep)
 
 
@@ -506,7 +544,7 @@ def assemble(t, x, net, w):
     """w = W(t, x): reservoir volumes, scheduled free inputs, couplings in declaration order. Returns False when a
     volume is not positive and finite."""
     (table, bint, bflt, bwork, bintb, fpar, mapint, maps, link_tab, link_rows, ckind, ctimes, cvals, cper,
-     free_rows, groups, dep, col_block, comps, block_comp, lint, lflt, rflt, wsum, wterm, wflt) = net
+     free_rows, groups, dep, col_block, comps, block_comp, lint, lflt, rflt, wsum, wterm, wflt, cint, cflt) = net
     for j in range(w.shape[0]):
         w[j] = 0.0
     ok = True
@@ -520,7 +558,10 @@ def assemble(t, x, net, w):
             if not (V > 0.0 and math.isfinite(V)):
                 ok = False
             w[table[i, 3] + 1] = V
-    if ckind == 1 and free_rows.shape[0] > 0:
+    if ckind == 2:
+        if not _impedance(t, x, net, w):
+            ok = False
+    elif ckind == 1 and free_rows.shape[0] > 0:
         u = np.empty(free_rows.shape[0])
         _interp_row(ctimes, cvals, cper, t, u)
         for j in range(free_rows.shape[0]):
@@ -557,9 +598,9 @@ def assemble(t, x, net, w):
 
 
 @njit(cache=True)
-def _beam_rhs(bi, x, xo, w, wo, net, out):
-    """Derivative (qd, qdd) of beam bi into out[xo:xo+2n]; False if the state is out of range."""
-    table, bint, bflt, bwork, bintb = net[0], net[1], net[2], net[3], net[4]
+def _beam_views(bi, net):
+    """Views of beam bi's model arrays (in the float buffer) and work arrays (in the beam workspace)."""
+    bint, bflt, bwork, bintb = net[1], net[2], net[3], net[4]
     n, m, P, ng, order, fo, wko, io, po = (bint[bi, 0], bint[bi, 1], bint[bi, 2], bint[bi, 3], bint[bi, 4],
                                            bint[bi, 5], bint[bi, 6], bint[bi, 7], bint[bi, 8])
     Np = P + 1
@@ -620,6 +661,16 @@ def _beam_rhs(bi, x, xo, w, wo, net, out):
     o += n
     f_in = bwork[o:o + n]
     end = o + n
+    return (n, m, order, K, D, Gin, h, B, X0, base, wts, Md, ag, rows, piv, G, J, Jd, eta, etad, S, E, V, Op, AJ,
+            W, M, C, fg, R, qdd, f_in, wko, end)
+
+
+@njit(cache=True)
+def _beam_rhs(bi, x, xo, w, wo, net, out):
+    """Derivative (qd, qdd) of beam bi into out[xo:xo+2n]; False if the state is out of range."""
+    bwork = net[3]
+    (n, m, order, K, D, Gin, h, B, X0, base, wts, Md, ag, rows, piv, G, J, Jd, eta, etad, S, E, V, Op, AJ, W, M, C,
+     fg, R, qdd, f_in, wko, end) = _beam_views(bi, net)
     for k in range(n):
         s = 0.0
         for j in range(m):
@@ -642,6 +693,83 @@ def _beam_rhs(bi, x, xo, w, wo, net, out):
     for k in range(n):
         out[xo + k] = qd[k]
         out[xo + n + k] = qdd[k]
+    return True
+
+
+@njit(cache=True)
+def _impedance(t, x, net, w):
+    """The inputs of the Cartesian impedance controller (:func:`soroshapes.control.impedance`, the same
+    equations) at (t, x) into w; False if the beam's state is out of range."""
+    table, ctimes, cvals, cper, cint, cflt = net[0], net[11], net[12], net[13], net[26], net[27]
+    blk, k, node, cor, grav, elas, null, m = cint[0], cint[1], cint[2], cint[3], cint[4], cint[5], cint[6], cint[7]
+    bi, xo = table[blk, 5], table[blk, 1]
+    (n, _, order, K, D, Gin, h, B, X0, base, wts, Md, ag, brows, piv, G, J, Jd, eta, etad, S, E, V, Op, AJ, W, M, C,
+     fg, R, qdd, f_in, wko, end) = _beam_views(bi, net)
+    q = np.ascontiguousarray(x[xo:xo + n])
+    qd = np.ascontiguousarray(x[xo + n:xo + 2 * n])
+    dOp = np.zeros((6, n))
+    Mc, Cc, fgc = np.empty((n, n)), np.empty((n, n)), np.empty(n)
+    _kinematics(q, qd, True, order, h, B, brows, X0, base, G, J, Jd, eta, S, E, V, Op, dOp, AJ)
+    _mcg(J, Jd, eta, G, wts, Md, ag, Mc, Cc, fgc, True, S, V, AJ)
+    s = 0.0
+    for i in range(n):
+        s += fgc[i] + Mc[i, i]
+    if not math.isfinite(s):
+        return False
+    # the task: the spatial velocity of the node's origin, pdot = R v = R J_v qd, and its rate
+    Rn = G[node, :3, :3]
+    Jb = J[node]
+    Jbd = Jd[node]
+    om = Jb[:3] @ qd
+    Jt, Jdt, p = np.empty((k, n)), np.empty((k, n)), np.empty(k)
+    for a in range(k):
+        r = cint[8 + a]
+        p[a] = G[node, r, 3]
+        for c in range(n):
+            sj = 0.0
+            sd = 0.0
+            for l in range(3):
+                l1, l2 = (l + 1) % 3, (l + 2) % 3
+                sj += Rn[r, l] * Jb[3 + l, c]
+                sd += Rn[r, l] * (om[l1] * Jb[3 + l2, c] - om[l2] * Jb[3 + l1, c] + Jbd[3 + l, c])
+            Jt[a, c] = sj
+            Jdt[a, c] = sd
+    MinvJT = np.linalg.solve(Mc, np.ascontiguousarray(Jt.T))
+    A = Jt @ MinvJT
+    ev, U = np.linalg.eigh(A)                         # pinv (hermitian), rcond 1e-9: finite at singularities
+    cut = 1e-9 * np.max(np.abs(ev))
+    Lam = np.zeros((k, k))
+    for e in range(k):
+        if abs(ev[e]) > cut:
+            for a in range(k):
+                for b2 in range(k):
+                    Lam[a, b2] += U[a, e] * U[b2, e] / ev[e]
+    pd = np.empty(k)
+    _interp_row(ctimes, cvals, cper, t, pd)
+    Kc = cflt[:k * k].reshape((k, k))
+    Dc = cflt[k * k:2 * k * k].reshape((k, k))
+    force = Kc @ (pd - p) - Dc @ (Jt @ qd)
+    if cor:
+        force += Lam @ (Jt @ np.linalg.solve(Mc, Cc @ qd) - Jdt @ qd)
+    tau = Jt.T @ force
+    if elas:
+        tau += K @ q
+    if grav:
+        tau -= fgc
+    if null:
+        o = 2 * k * k
+        Kn = cflt[o:o + n * n].reshape((n, n))
+        Dn = cflt[o + n * n:o + 2 * n * n].reshape((n, n))
+        qn = cflt[o + 2 * n * n:o + 2 * n * n + n]
+        tau0 = Kn @ (qn - q) - Dn @ qd
+        Jbar = MinvJT @ Lam
+        tau += tau0 - Jt.T @ (Jbar.T @ tau0)
+    if Gin.shape[0] == Gin.shape[1] and abs(np.linalg.det(Gin)) > 0.0:
+        u = np.linalg.solve(np.ascontiguousarray(Gin), tau)
+    else:
+        u = np.linalg.lstsq(np.ascontiguousarray(Gin), tau, rcond=1e-10)[0]
+    for j in range(m):
+        w[cint[8 + k + j]] = u[j]
     return True
 
 

@@ -324,3 +324,46 @@ def test_a_coupling_without_compiled_form_keeps_the_python_path():
     mdl = cylinder_on_table().add(finger(), "arm")
     couple_grasp(mdl, "arm", "cylinder", anchor=(0.0, 0.0, 0.02), stiffness=400.0, damping=4.0)
     assert mdl.evaluation_path.startswith("python: ")
+
+
+def impedance_arm(setpoint):
+    """The arm of demos/manipulator_pick (three PCC segments, one generalized torque each, gravity) under the
+    Cartesian impedance controller of soroshapes.control, starting bent (IK to a point off its set-point)."""
+    from soroshapes.control import impedance
+
+    down = np.eye(4)
+    down[:3, :3] = [[0, 0, 1], [0, 1, 0], [-1, 0, 0]]
+    down[2, 3] = 0.32
+    shp = Shapes(Basis.pcc(3), (0, 3, 0, 0, 0, 0), length=0.3, section=sdf.Circle(0.012),
+                 material=materials.DragonSkin30(), base=down, segments=12).add_gravity((0.0, 0.0, -9.81))
+    for i in range(3):
+        shp.add_actuator(np.eye(3)[i], name=f"segment{i}")
+    start = shp.inverse_kinematics(np.array([0.10, 0.0, 0.06]), q0=np.array([-2.0, -1.0, -1.0]))
+    ctrl = impedance("arm", stiffness=150.0, damping=12.0, setpoint=setpoint, axes=(0, 2), null_damping=2e-3)
+    return Model().add(shp, "arm", x0=np.concatenate([start.q, np.zeros(3)])).set_controller(ctrl)
+
+
+@pytest.mark.parametrize("kind", ["constant", "schedule"])
+def test_impedance_controller_compiled_equals_python(kind):
+    """Cartesian impedance (task Jacobian and its rate, Cartesian inertia by a pseudo-inverse, Coriolis term,
+    gravity/elastic compensation, null-space damping) compiled against soroshapes.control.impedance; the tip
+    converges to the set-point."""
+    t = np.linspace(0.0, 0.6, 13)
+    sp = (np.array([0.08, 0.09]) if kind == "constant" else
+          Schedule(t, np.column_stack([0.10 - 0.05 * t, 0.06 + 0.05 * t])))
+    rtol, atol = 1e-7, 1e-9
+    assert impedance_arm(sp).evaluation_path == "compiled"
+    a, b = both(lambda: impedance_arm(sp), 0.6, 2e-3, "bdf2", rtol=rtol, atol=atol)
+    assert close(a["arm"].x, b["arm"].x, rtol, atol) < 10
+    assert np.allclose(a.u, b.u, rtol=1e-5, atol=1e-7)
+    mdl = impedance_arm(sp)
+    tip = mdl["arm"].system.positions(a["arm"].q[-1])[-1]
+    goal = sp if kind == "constant" else sp.at(0.6)
+    # a moving set-point (0.07 m/s) is followed with the lag D_c v / K_c = 12 x 0.07 / 150 = 5.7 mm
+    lag = 0.0 if kind == "constant" else 12.0 * 0.05 * np.sqrt(2) / 150.0
+    assert np.hypot(tip[0] - goal[0], tip[2] - goal[1]) < lag + 5e-3
+
+
+def test_impedance_with_a_python_setpoint_keeps_the_python_path():
+    mdl = impedance_arm(lambda t: np.array([0.1, 0.06]))
+    assert mdl.evaluation_path.startswith("python: the impedance set-point")
