@@ -292,6 +292,7 @@ def lower(blocks, links, volumes, controller, free):
     lint, lflt = [], []
     rflt = []
     wsum, wterm, wflt = [], [], []                  # body wrench sums: [first term, count, body]; terms; floats
+    extra_feeds = []                                # (block, block whose state it reads) through contact terms
 
     def add_map(smap):
         if not isinstance(smap, StateMap):
@@ -310,12 +311,13 @@ def lower(blocks, links, volumes, controller, free):
         table[i, 1:5] = b["xoff"], b["n"], b["woff"], b["nw"]
         if b["kind"] == "shapes":
             shp = b["system"]
-            path = shp.evaluation_path
-            if path != "compiled":
-                raise NotImplementedError(f"beam {b['name']!r} ({path})")
             from .beam import LoadPlan
             mdl = shp.model
-            plan = LoadPlan.of(mdl, shp.loads, shp.damping)
+            # forces that a coupling puts on the beam and that the network evaluates itself (a grasp)
+            own = [ld for ld in shp.loads if not getattr(getattr(ld, "fn", None), "network_term", False)]
+            plan = LoadPlan.of(mdl, own, shp.damping)
+            if not plan.compiled:
+                raise NotImplementedError(f"beam {b['name']!r} ({shp.evaluation_path})")
             if len(plan.point_loads):
                 raise NotImplementedError(f"beam {b['name']!r} (point loads)")
             if plan.input_matrix is None:
@@ -374,10 +376,18 @@ def lower(blocks, links, volumes, controller, free):
             if kind[index[tname]] != RIGID:
                 raise NotImplementedError(f"contact on body {tname!r} (compiled for free rigid bodies)")
             wsum.append([len(wterm), len(terms), index[tname]])
-            for tk, par in terms:
-                if tk != "ground":
+            for tk, par, beam in terms:
+                if tk not in _TERMS:
                     raise NotImplementedError(f"a {tk} wrench on body {tname!r}")
-                wterm.append([_GROUND, sum(len(v) for v in wflt), len(par)])
+                bb = -1
+                if beam is not None:
+                    if beam not in index or blocks[index[beam]]["kind"] != "shapes":
+                        raise ParameterError(f"a {tk} coupling on body {tname!r} names beam {beam!r}, which is not a "
+                                             "beam of the model")
+                    bb = index[beam]
+                    extra_feeds.append((index[tname], bb))          # the body's wrench reads the beam,
+                    extra_feeds.append((bb, index[tname]))          # the beam's force reads the body
+                wterm.append([_TERMS[tk], sum(len(v) for v in wflt), len(par), bb])
                 wflt.append(np.asarray(par, dtype=float))
             lk, ls, size = 2, len(wsum) - 1, 6
         elif isinstance(src, str):
@@ -417,6 +427,8 @@ def lower(blocks, links, volumes, controller, free):
     for name, vol in volumes.items():
         if vol is not None:
             feeds[index[name]].add(index[vol.system])
+    for t, s in extra_feeds:
+        feeds[t].add(s)
     changed = True
     while changed:
         changed = False
@@ -489,8 +501,8 @@ def lower(blocks, links, volumes, controller, free):
               np.int64(ckind), np.ascontiguousarray(ctimes, float), np.ascontiguousarray(cvals, float).reshape(
                   len(ctimes), -1), float(cper), np.asarray(free_rows, np.int64), G, dep, col_block, comps, block_comp,
               np.array(lint, np.int64).reshape(-1, 4), cat(lflt), np.array(rflt, float).reshape(-1, _RIGID_FLOATS),
-              np.array(wsum, np.int64).reshape(-1, 3), np.array(wterm, np.int64).reshape(-1, 3), cat(wflt),
-              np.asarray(cint, np.int64), np.asarray(cflt, float))
+              np.array(wsum, np.int64).reshape(-1, 3), np.array(wterm, np.int64).reshape(-1, 4), cat(wflt),
+              np.asarray(cint, np.int64), np.asarray(cflt, float), np.zeros(N))
     return Lowered(arrays, N, NW, groups, dep)
 
 
@@ -544,9 +556,12 @@ def assemble(t, x, net, w):
     """w = W(t, x): reservoir volumes, scheduled free inputs, couplings in declaration order. Returns False when a
     volume is not positive and finite."""
     (table, bint, bflt, bwork, bintb, fpar, mapint, maps, link_tab, link_rows, ckind, ctimes, cvals, cper,
-     free_rows, groups, dep, col_block, comps, block_comp, lint, lflt, rflt, wsum, wterm, wflt, cint, cflt) = net
+     free_rows, groups, dep, col_block, comps, block_comp, lint, lflt, rflt, wsum, wterm, wflt, cint, cflt,
+     bext) = net
     for j in range(w.shape[0]):
         w[j] = 0.0
+    for j in range(bext.shape[0]):
+        bext[j] = 0.0
     ok = True
     for i in range(table.shape[0]):
         if table[i, 0] == FLUIDIC:
@@ -570,7 +585,8 @@ def assemble(t, x, net, w):
         lk, src, ro, nr = link_tab[li, 0], link_tab[li, 1], link_tab[li, 2], link_tab[li, 3]
         if lk == 2:
             W = np.zeros(6)
-            _wrench_sum(wsum, wterm, wflt, table, src, x, W)
+            if not _wrench_sum(t, net, src, x, W):
+                ok = False
             for r in range(6):
                 w[link_rows[ro + r]] = W[r]
             continue
@@ -671,8 +687,9 @@ def _beam_rhs(bi, x, xo, w, wo, net, out):
     bwork = net[3]
     (n, m, order, K, D, Gin, h, B, X0, base, wts, Md, ag, rows, piv, G, J, Jd, eta, etad, S, E, V, Op, AJ, W, M, C,
      fg, R, qdd, f_in, wko, end) = _beam_views(bi, net)
+    bext = net[28]
     for k in range(n):
-        s = 0.0
+        s = bext[xo + k]                            # forces of couplings (a grasp)
         for j in range(m):
             s += Gin[k, j] * w[wo + j]
         f_in[k] = s
@@ -823,7 +840,8 @@ def _linear_rhs(li, x, xo, w, wo, lint, lflt, out):
         out[xo + r] = s
 
 
-_GROUND = 0
+_GROUND, _GRASP = 0, 1
+_TERMS = {"ground": _GROUND, "grasp": _GRASP}
 
 
 @njit(cache=True)
@@ -900,17 +918,70 @@ def _ground(par, R, p, eta, W):
 
 
 @njit(cache=True)
-def _wrench_sum(wsum, wterm, wflt, table, si, x, W):
-    """The summed wrench (body coordinates) of wrench sum si on its (free rigid) body at the state x."""
+def _grasp(t, net, par, bb, R, p, eta, x, W):
+    """soroshapes.rigid.grasp_force scaled by the engagement table: a spring-damper between node par[0] of beam
+    block bb and the body point par[1:4]; adds the body wrench to W and the beam's generalized force to the
+    network's external-force buffer. False if the beam's state is out of range."""
+    table, bext = net[0], net[28]
+    K = int(par[6])
+    e = np.empty(1)
+    _interp_row(par[8:8 + K], par[8 + K:8 + 2 * K].reshape((K, 1)), par[7], t, e)
+    if e[0] == 0.0:
+        return True
+    xo = table[bb, 1]
+    (n, _, order, Kb, D, Gin, h, B, X0, base, wts, Md, ag, brows, piv, G, J, Jd, eta_b, etad, S, E, V, Op, AJ, Wb,
+     M, C, fg, Rr, qdd, f_in, wko, end) = _beam_views(table[bb, 5], net)
+    q = np.ascontiguousarray(x[xo:xo + n])
+    qd = np.ascontiguousarray(x[xo + n:xo + 2 * n])
+    dOp = np.zeros((6, n))
+    _kinematics(q, qd, False, order, h, B, brows, X0, base, G, J, Jd, eta_b, S, E, V, Op, dOp, AJ)
+    i = int(par[0])
+    a0, a1, a2 = par[1], par[2], par[3]
+    k, c = par[4], par[5]
+    b0 = eta[3] + eta[1] * a2 - eta[2] * a1               # v + omega x a (body)
+    b1 = eta[4] + eta[2] * a0 - eta[0] * a2
+    b2 = eta[5] + eta[0] * a1 - eta[1] * a0
+    F = np.empty(3)
+    for r in range(3):
+        Pa = p[r] + R[r, 0] * a0 + R[r, 1] * a1 + R[r, 2] * a2
+        Va = R[r, 0] * b0 + R[r, 1] * b1 + R[r, 2] * b2
+        Vb = G[i, r, 0] * eta_b[i, 3] + G[i, r, 1] * eta_b[i, 4] + G[i, r, 2] * eta_b[i, 5]
+        F[r] = e[0] * (k * (G[i, r, 3] - Pa) + c * (Vb - Va))
+    if not (math.isfinite(F[0]) and math.isfinite(F[1]) and math.isfinite(F[2])):
+        return False
+    f0 = R[0, 0] * F[0] + R[1, 0] * F[1] + R[2, 0] * F[2]      # R^T F on the body
+    f1 = R[0, 1] * F[0] + R[1, 1] * F[1] + R[2, 1] * F[2]
+    f2 = R[0, 2] * F[0] + R[1, 2] * F[1] + R[2, 2] * F[2]
+    W[0] += a1 * f2 - a2 * f1
+    W[1] += a2 * f0 - a0 * f2
+    W[2] += a0 * f1 - a1 * f0
+    W[3] += f0
+    W[4] += f1
+    W[5] += f2
+    for r in range(3):                                      # -F on the beam: -J_v^T R_i^T F
+        fl = G[i, 0, r] * F[0] + G[i, 1, r] * F[1] + G[i, 2, r] * F[2]
+        for j in range(n):
+            bext[xo + j] -= J[i, 3 + r, j] * fl
+    return True
+
+
+@njit(cache=True)
+def _wrench_sum(t, net, si, x, W):
+    """The summed wrench (body coordinates) of wrench sum si on its (free rigid) body at the state x (and the
+    beams' share of its grasp terms into the external-force buffer). False if a beam's state is out of range."""
+    table, wsum, wterm, wflt = net[0], net[23], net[24], net[25]
     first, count, body = wsum[si, 0], wsum[si, 1], wsum[si, 2]
     xo = table[body, 1]
     R = _polar3(np.ascontiguousarray(x[xo + 3:xo + 12]).reshape((3, 3)))
     p = x[xo:xo + 3]
     eta = x[xo + 12:xo + 18]
-    for t in range(first, first + count):
-        o, m = wterm[t, 1], wterm[t, 2]
-        if wterm[t, 0] == _GROUND:
+    for tt in range(first, first + count):
+        o, m = wterm[tt, 1], wterm[tt, 2]
+        if wterm[tt, 0] == _GROUND:
             _ground(wflt[o:o + m], R, p, eta, W)
+        elif not _grasp(t, net, wflt[o:o + m], wterm[tt, 3], R, p, eta, x, W):
+            return False
+    return True
 
 
 @njit(cache=True)

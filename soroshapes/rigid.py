@@ -505,7 +505,8 @@ class WrenchSum:
 
     @property
     def compiled_terms(self):
-        """[(kind, floats)] of the terms (:mod:`soroshapes.network`), or None if one is a Python callable."""
+        """[(kind, floats, beam name or None)] of the terms (:mod:`soroshapes.network`), or None if one is a
+        Python callable."""
         out = [getattr(w, "compiled", None) for w in self.terms]
         return None if any(c is None for c in out) else out
 
@@ -521,7 +522,7 @@ class _GroundTerm:
         self.compiled = None
         if isinstance(system, RigidBody):
             self.compiled = ("ground", np.concatenate([[float(v) for v in self.args], c, n / np.linalg.norm(n),
-                                                       [len(self.points)], self.points.reshape(-1)]))
+                                                       [len(self.points)], self.points.reshape(-1)]), None)
 
     def __call__(self, model):
         return ground_contact(self.system, np.array(model.state(self.body)), self.points, *self.args,
@@ -611,21 +612,42 @@ def couple_grasp(model, beam, body, anchor, stiffness, damping=0.0, engaged=None
     """A gripper at the node ``at`` (default the tip) of the beam ``beam`` holding the body ``body`` of
     ``model`` at its point ``anchor`` (body coordinates): :func:`grasp_force` scaled by ``engaged(t)`` in
     [0, 1] (default always 1: a closed gripper; a ramp closes it), equal and opposite on beam and body.
+    ``engaged``: None, a callable of t [s], or a one-column :class:`~soroshapes.network.Schedule`; with None or
+    a Schedule on a free :class:`RigidBody` the grasp runs compiled in a network (:mod:`soroshapes.network`).
     A reduced model of a gripper (suction cup or fingers closed on the object): it transmits force, not
     moment, so the held body hangs from the grasp point. Returns the model."""
     _check_pair(model, beam, body)
     shp, bdy, n = model[beam].system, model[body].system, model[beam].system.n
-    on = (lambda t: 1.0) if engaged is None else engaged
+    table = hasattr(engaged, "at") and not isinstance(engaged.values, dict)     # a soroshapes.network.Schedule
+    if engaged is None:
+        on = lambda t: 1.0                                                      # noqa: E731
+    elif table:
+        if engaged.values.shape[1] != 1:
+            raise ParameterError("couple_grasp: an engagement Schedule has one column (0 open .. 1 closed)")
+        on = lambda t: float(engaged.at(t)[0])                                  # noqa: E731
+    else:
+        on = engaged
     grasp_force(shp, bdy, np.zeros(n), np.zeros(n), bdy.x0, anchor, stiffness, damping, at)   # validate now
 
     def evaluate(q, qd, xb, t):
         return [on(t) * v for v in grasp_force(shp, bdy, q, qd, xb, anchor, stiffness, damping, at)]
 
-    shp.add_force(lambda s, q, qd, t: evaluate(q, qd, np.array(model.state(body)), t)[1])
+    def force(s, q, qd, t):
+        return evaluate(q, qd, np.array(model.state(body)), t)[1]
+    force.network_term = True          # the compiled network evaluates it with the body's grasp term below
+
+    shp.add_force(force)
 
     def wrench(mdl):
         xs = np.array(mdl.state(beam))
         return evaluate(xs[:n], xs[n:], np.array(mdl.state(body)), mdl.t)[2]
 
+    wrench.compiled = None
+    if isinstance(bdy, RigidBody) and (engaged is None or table):
+        times, values, period = ((np.array([0.0, 1.0]), np.ones((2, 1)), 0.0) if engaged is None else
+                                 (engaged.times, engaged.values, engaged.period or 0.0))
+        wrench.compiled = ("grasp", np.concatenate([[shp.node(at) * shp.model.stride], np.asarray(anchor, float),
+                                                    [stiffness, damping, len(times), period], times,
+                                                    values[:, 0]]), beam)
     _add_body_wrench(model, body, wrench)
     return model

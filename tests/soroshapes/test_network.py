@@ -367,3 +367,35 @@ def test_impedance_controller_compiled_equals_python(kind):
 def test_impedance_with_a_python_setpoint_keeps_the_python_path():
     mdl = impedance_arm(lambda t: np.array([0.1, 0.06]))
     assert mdl.evaluation_path.startswith("python: the impedance set-point")
+
+
+def pick(engaged):
+    """The pick of demos/manipulator_pick in short: the impedance-controlled arm holding the cylinder on the
+    table through a grasp that closes, then lifting it."""
+    from soroshapes.rigid import couple_grasp
+
+    mdl = impedance_arm(Schedule([0.0, 0.1, 0.4], [[0.10, 0.042], [0.10, 0.042], [0.10, 0.07]]))
+    cyl = cylinder_on_table()["cylinder"].system
+    mdl.add(cyl, "cylinder")
+    ang = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    rim = np.column_stack([0.02 * np.cos(ang), 0.02 * np.sin(ang), np.full(12, -0.02)])
+    from soroshapes.rigid import couple_ground
+    couple_ground(mdl, "cylinder", rim, stiffness=3e3, damping=6.0, friction=0.5, regularization=1e-3)
+    return couple_grasp(mdl, "arm", "cylinder", anchor=(0.0, 0.0, 0.02), stiffness=400.0, damping=4.0,
+                        engaged=engaged)
+
+
+def test_grasp_compiled_equals_python():
+    """couple_grasp (beam node <-> body point spring-damper, equal and opposite, scaled by an engagement table)
+    with the impedance controller and the ground: the compiled network against the Python path."""
+    rtol, atol = 1e-7, 1e-9
+    closing = Schedule([0.0, 0.05, 0.15], [[0.0], [0.0], [1.0]])
+    assert pick(closing).evaluation_path == "compiled"
+    assert pick(lambda t: 1.0).evaluation_path.startswith("python: ")
+    # dt = 0.2 ms: no split steps on either path (the table's regularized friction is stiff, see
+    # test_ground_contact_compiled_equals_python); the right-hand sides agree to round-off, the trajectories by
+    # the Newton stopping error accumulated over 1000 steps of a stiff network (observed ~60 tolerances)
+    a, b = both(lambda: pick(closing), 0.2, 2e-4, "bdf2", rtol=rtol, atol=atol)
+    assert a.stats["cut_steps"] == b.stats["cut_steps"] == 0
+    assert close(a.x, b.x, rtol, atol) < 200
+    assert a["cylinder"].x[-1, 2] > 0.02 + 0.003                # lifted by the grasp (3.5 mm at 0.2 s)
