@@ -555,6 +555,13 @@ def _pressure(fpar, fi, x0, V):
 def assemble(t, x, net, w):
     """w = W(t, x): reservoir volumes, scheduled free inputs, couplings in declaration order. Returns False when a
     volume is not positive and finite."""
+    return _assemble(t, x, net, w, np.ones(net[0].shape[0], np.bool_))
+
+
+@njit(cache=True)
+def _assemble(t, x, net, w, only):
+    """:func:`assemble` for an evaluation of the blocks with ``only[i]`` True: a feedback controller that drives
+    the inputs of a block left out is not evaluated (its inputs are not read)."""
     (table, bint, bflt, bwork, bintb, fpar, mapint, maps, link_tab, link_rows, ckind, ctimes, cvals, cper,
      free_rows, groups, dep, col_block, comps, block_comp, lint, lflt, rflt, wsum, wterm, wflt, cint, cflt,
      bext) = net
@@ -574,7 +581,7 @@ def assemble(t, x, net, w):
                 ok = False
             w[table[i, 3] + 1] = V
     if ckind == 2:
-        if not _impedance(t, x, net, w):
+        if only[cint[0]] and not _impedance(t, x, net, w):
             ok = False
     elif ckind == 1 and free_rows.shape[0] > 0:
         u = np.empty(free_rows.shape[0])
@@ -1022,7 +1029,7 @@ def rhs(t, x, net, w, out, only):
     """F(t, x) into out (the blocks with ``only[i]`` True; inputs assembled into w). False if a state is out of
     range or a volume is not positive."""
     table, fpar = net[0], net[5]
-    if not assemble(t, x, net, w):
+    if not _assemble(t, x, net, w, only):
         return False
     for i in range(table.shape[0]):
         if not only[i]:

@@ -318,11 +318,13 @@ def test_ground_contact_compiled_equals_python():
 
 
 def test_a_coupling_without_compiled_form_keeps_the_python_path():
-    """A grasp (no compiled form yet) on the body that also stands on the table: the network runs in Python."""
+    """A grasp engaged by a Python callable on the body that also stands on the table: the network runs in
+    Python, and says why."""
     from soroshapes.rigid import couple_grasp
 
     mdl = cylinder_on_table().add(finger(), "arm")
-    couple_grasp(mdl, "arm", "cylinder", anchor=(0.0, 0.0, 0.02), stiffness=400.0, damping=4.0)
+    couple_grasp(mdl, "arm", "cylinder", anchor=(0.0, 0.0, 0.02), stiffness=400.0, damping=4.0,
+                 engaged=lambda t: min(t / 0.1, 1.0))
     assert mdl.evaluation_path.startswith("python: ")
 
 
