@@ -13,12 +13,17 @@ when every part of it has a compiled form:
   its ``rigid_parameters``);
 * couplings: the output of a named system (a beam's state, a reservoir's gauge pressure, a linear system's
   :math:`Cx + Du`) into inputs of another, and :class:`StateMap` (an affine map of one system's state through an optional ``tanh``), as an
-  input or as a reservoir's volume;
-* the controller: none, or a :class:`Schedule` (a piecewise-linear table of the free inputs against time,
-  optionally periodic).
+  input or as a reservoir's volume; the wrenches on a free rigid body (a :class:`~soroshapes.rigid.WrenchSum`)
+  of ground contact (:func:`~soroshapes.rigid.couple_ground`) and of a grasp
+  (:func:`~soroshapes.rigid.couple_grasp`, engaged always or by a one-column :class:`Schedule`; its force on
+  the beam is added to the beam's inputs' force);
+* the controller: none, a :class:`Schedule` (a piecewise-linear table of the free inputs against time,
+  optionally periodic), or :func:`soroshapes.control.impedance` with a constant or :class:`Schedule`
+  set-point (its parameters as data: the same equations, from the beam's kinematics, M, C and f_g in the
+  kernel; evaluated only when the beam it drives is).
 
 Anything else (a Python callable coupling or controller, a :class:`~soroshapes.model.StateSpace` with a
-Python ``f``, beams with contact, tendons or user forces, adaptive steps) runs on the Python path of
+Python ``f``, beams with contact, tendons or user forces, beam-body contact, adaptive steps) runs on the Python path of
 :mod:`soroshapes.model`; :attr:`Model.evaluation_paths <soroshapes.model.Model.evaluation_paths>` names the
 first part that forces it. :class:`StateMap` and :class:`Schedule` are also callables of the model, so the
 same network runs on both paths (the tests compare them).
