@@ -374,14 +374,13 @@ def test_impedance_with_a_python_setpoint_keeps_the_python_path():
 def pick(engaged):
     """The pick of demos/manipulator_pick in short: the impedance-controlled arm holding the cylinder on the
     table through a grasp that closes, then lifting it."""
-    from soroshapes.rigid import couple_grasp
+    from soroshapes.rigid import couple_grasp, couple_ground
 
     mdl = impedance_arm(Schedule([0.0, 0.1, 0.4], [[0.10, 0.042], [0.10, 0.042], [0.10, 0.07]]))
     cyl = cylinder_on_table()["cylinder"].system
     mdl.add(cyl, "cylinder")
     ang = np.linspace(0, 2 * np.pi, 12, endpoint=False)
     rim = np.column_stack([0.02 * np.cos(ang), 0.02 * np.sin(ang), np.full(12, -0.02)])
-    from soroshapes.rigid import couple_ground
     couple_ground(mdl, "cylinder", rim, stiffness=3e3, damping=6.0, friction=0.5, regularization=1e-3)
     return couple_grasp(mdl, "arm", "cylinder", anchor=(0.0, 0.0, 0.02), stiffness=400.0, damping=4.0,
                         engaged=engaged)
