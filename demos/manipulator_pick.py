@@ -85,6 +85,7 @@ def schedule(quick):
 def main(out: Path, quick: bool = False) -> dict:
     from soroshapes import Model
     from soroshapes.control import impedance
+    from soroshapes.network import Schedule
     from soroshapes.rigid import couple_grasp, couple_ground, grasp_force
 
     shp, cyl = arm(), cylinder()
@@ -108,9 +109,11 @@ def main(out: Path, quick: bool = False) -> dict:
     ang = np.linspace(0, 2 * np.pi, 12, endpoint=False)
     rim = np.column_stack([R_CYL * np.cos(ang), R_CYL * np.sin(ang), np.full(12, -H_CYL / 2)])
     couple_ground(mdl, "cylinder", rim, stiffness=3e3, damping=6.0, friction=0.5, regularization=1e-3)
-    couple_grasp(mdl, "arm", "cylinder", anchor=(0.0, 0.0, H_CYL / 2), stiffness=400.0, damping=4.0, engaged=engaged)
-    mdl.set_controller(impedance("arm", stiffness=150.0, damping=12.0, setpoint=setpoint, axes=(0, 2),
-                                 null_damping=2e-3))
+    # the set-point and the gripper as tables (10 ms; the kinks fall on samples): the network runs compiled
+    couple_grasp(mdl, "arm", "cylinder", anchor=(0.0, 0.0, H_CYL / 2), stiffness=400.0, damping=4.0,
+                 engaged=Schedule.sample(engaged, T, 0.01))
+    mdl.set_controller(impedance("arm", stiffness=150.0, damping=12.0, setpoint=Schedule.sample(setpoint, T, 0.01),
+                                 axes=(0, 2), null_damping=2e-3))
     t0 = time.perf_counter()
     tr = mdl.simulate(T, 2e-3, "bdf2", rtol=1e-5, atol=1e-8)
     wall = time.perf_counter() - t0

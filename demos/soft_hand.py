@@ -40,12 +40,16 @@ pressure loop's time constant) and :math:`k_i = k_p / 1` s (integral time 1 s: t
 integrator, so the P part alone tracks; the slow I part only removes the offset from the volume change and
 keeps the step overshoot at ~2 %).
 
-*Oscillators (controller callback).* The seed's :math:`p_{d,i} = 80\,\mathrm{sign}(\sin(7t + \phi_i))` kPa,
+*Oscillators (a set-point table).* The seed's :math:`p_{d,i} = 80\,\mathrm{sign}(\sin(7t + \phi_i))` kPa,
 :math:`\phi_i = i\pi/6`, is smoothed to :math:`p_{d,i} = 80\,\tanh(k \sin(7t + \phi_i))/\tanh k` kPa with
 :math:`k = 8` (10-90 % rise in ~40 ms, the plateaus reach exactly 80 kPa): a sign function has an infinite
 slope at the switch, which an implicit solver with a reused Jacobian meets as a step in :math:`F` (Newton
 failures, step cuts); a smooth switch of 40 ms is faster than the valve (~70 ms for the 160 kPa swing at
-5 g/s), so the hand sees the same square wave.
+5 g/s), so the hand sees the same square wave. The controller plays one period of it as a periodic table
+(:class:`soroshapes.network.Schedule`, samples every 0.1 ms: linear interpolation is within 0.3 Pa of the
+formula), and the volume coupling is the declarative :class:`soroshapes.network.StateMap`
+:math:`V_0 + V_0\tanh(\alpha)`: with them the whole network runs as one compiled kernel
+(``mdl.evaluation_path == "compiled"``; the key figures equal those of the Python callables to 1e-6 deg).
 
 *Integration.* ``Model.simulate`` with BDF2 (L-stable: the stiff, overdamped high Chebyshev modes and the
 20 ms pressure loop are damped, not ringing as with the trapezoidal rule), fixed ``dt`` = 2 ms, rtol 1e-4, atol 1e-6 (the
@@ -99,6 +103,7 @@ P_AMP, OMEGA, PHASE, SHARPNESS = 80 * kPa, 7.0, np.pi / 6, 8.0
 V0 = 4 * np.pi / 3 * (35 * mm) ** 3
 ALPHA_PER_MM = 0.06          # alpha = 0.06 q1 with q1 in 1/mm (the seed's unit)
 TAU_P, T_I, MAX_FLOW = 0.02, 1.0, 5e-3
+DRIVE_TABLE_DT = 1e-4        # [s] the drive as a periodic table (interpolation error < 0.3 Pa)
 R_AIR, T_AIR = 287.05, 293.15
 
 
@@ -130,6 +135,7 @@ def build():
     """The hand: a :class:`soroshapes.Model` with fingers ``thumb``.. and reservoirs ``p_thumb``.., and the
     list of the five :class:`soroshapes.Shapes`."""
     from soroshapes import Basis, Fluidic, Model, Shapes
+    from soroshapes.network import Schedule, StateMap
 
     mat = materials.DragonSkin10()
     section = sdf.RoundedRectangle(WIDTH, THICK, CORNER)
@@ -145,9 +151,14 @@ def build():
         fingers.append(shp)
         fl = Fluidic(None, V0=V0, T=T_AIR, gas_constant=R_AIR, regulator=reg)
         mdl.add(shp, name=name).add(fl, name=f"p_{name}")
-        mdl.connect(lambda m, n=name: volume(m[n].x[0]), f"p_{name}", port="volume")
+        # volume(q1) as a declarative map of the finger's state: V0 + V0 tanh(alpha q1), compiled
+        mdl.connect(StateMap(name, [ALPHA_PER_MM * 1e-3], index=0, offset=V0, scale=V0, function="tanh"),
+                    f"p_{name}", port="volume")
         mdl.connect(f"p_{name}", name, "chamber")
-    mdl.set_controller(lambda m: {f"p_{n}": [v] for n, v in zip(NAMES, set_point(m.t))})
+    period = 2 * np.pi / OMEGA                 # set_point(t) over one period, linear between samples
+    t = np.linspace(0.0, period, int(np.ceil(period / DRIVE_TABLE_DT)) + 1)
+    pd = np.array([set_point(ti) for ti in t])
+    mdl.set_controller(Schedule(t, {f"p_{n}": pd[:, i:i + 1] for i, n in enumerate(NAMES)}, period=period))
     return mdl, fingers
 
 

@@ -10,7 +10,8 @@ description, workspace, load terms and solvers, :mod:`~soroshapes.shapes` the Co
 """
 from sorofem._lazy import lazy_attributes
 
-_SUBMODULES = ("lie", "basis", "beam", "shapes", "numerics", "render", "dvs", "model", "rigid", "control", "gym")
+_SUBMODULES = ("lie", "basis", "beam", "shapes", "numerics", "render", "dvs", "model", "rigid", "control", "gym",
+               "network", "integrate")
 _CLASSES = {"Basis": "basis", "Shapes": "shapes", "BeamTrajectory": "shapes", "IKResult": "shapes",
             "Model": "model", "StateSpace": "model", "Fluidic": "model", "RigidBody": "rigid",
             "SpinningBody": "rigid"}

@@ -100,6 +100,8 @@ def _vector(v, n, what):
 
 
 def _at(v, t):
+    if hasattr(v, "at"):                               # a soroshapes.network.Schedule table
+        return np.asarray(v.at(t), dtype=float).reshape(-1)
     return np.asarray(v(t), dtype=float).reshape(-1) if callable(v) else v
 
 
@@ -240,6 +242,15 @@ def feedforward(system, profile, *, space="inputs"):
     return control
 
 
+def _null_gains(null_stiffness, null_damping, null_posture):
+    """``n -> (K_n, D_n, q_n, active)`` of the null-space term (for the compiled network)."""
+    def gains(n):
+        qn = np.zeros(n) if null_posture is None else _vector(null_posture, n, "null_posture")
+        return (_gain(null_stiffness, n, "null_stiffness"), _gain(null_damping, n, "null_damping"), qn,
+                bool(np.any(null_stiffness) or np.any(null_damping)))
+    return gains
+
+
 def _tip_task(shp, q, qd, at, axes):
     """Tip position p (3,), position Jacobian Jp and its rate, rows ``axes`` (spatial frame)."""
     g = shp.forward_kinematics(q)
@@ -263,8 +274,10 @@ def impedance(system, stiffness, damping, setpoint, *, axes=(0, 1, 2), at=None, 
         The beam's name in the model.
     stiffness, damping : scalar, (k,) or (k, k)
         Cartesian stiffness :math:`K_c` [N/m] and damping :math:`D_c` [N s/m], k = len(axes).
-    setpoint : (k,) or callable ``t -> (k,)``
-        Desired position :math:`p_d` [m] of the selected axes, spatial frame.
+    setpoint : (k,), callable ``t -> (k,)`` or :class:`~soroshapes.network.Schedule`
+        Desired position :math:`p_d` [m] of the selected axes, spatial frame. A constant or a Schedule (its
+        values a (K, k) array) runs compiled inside a network (:mod:`soroshapes.network`, the same equations);
+        a Python callable keeps the network on the Python path.
     axes : sequence of int
         Which spatial coordinates (0 x, 1 y, 2 z) form the task: a planar arm uses the two of its plane
         (the third row of its Jacobian is zero and :math:`JM^{-1}J^\top` would be singular).
@@ -309,4 +322,8 @@ def impedance(system, stiffness, damping, setpoint, *, axes=(0, 1, 2), at=None, 
             tau += tau0 - J.T @ (Jbar.T @ tau0)
         return {system: torque_to_inputs(shp, q, tau)}
 
+    # the controller's parameters as data, for the compiled network (soroshapes.network)
+    control.compiled = dict(kind="impedance", system=system, axes=axes, stiffness=Kc, damping=Dc, setpoint=pdes,
+                            at=at, coriolis=bool(coriolis), gravity=bool(gravity), elastic=bool(elastic),
+                            null=_null_gains(null_stiffness, null_damping, null_posture))
     return control

@@ -25,7 +25,13 @@ user forces, from one kinematic pass).
 
 Integration (``Model.simulate``)
 --------------------------------
-Implicit, with Newton's method on the global residual, step :math:`h`:
+Two paths, one family of methods. A network whose every part has a compiled form (beams with gravity and
+chambers, reservoirs, :meth:`StateSpace.linear` systems, output couplings, :class:`~soroshapes.network.StateMap`
+couplings and a :class:`~soroshapes.network.Schedule` controller) runs with fixed steps in one compiled kernel
+(:mod:`soroshapes.network`, :mod:`soroshapes.integrate`: Newton per connected component, the beams' iteration
+rows re-scaled by the current mass matrix); :attr:`Model.evaluation_path` says which path runs and, for the
+Python path, which part forces it. The Python path, described here, runs any network:
+implicit, with Newton's method on the global residual, step :math:`h`:
 
 * ``"trapezoidal"`` (Sorotoki's default, like ``ode23t``): :math:`x_{k+1} = x_k + \tfrac h2 (F_k + F_{k+1})`;
 * ``"midpoint"``: :math:`x_{k+1} = x_k + h F(t_k + \tfrac h2, \tfrac12(x_k + x_{k+1}))`;
@@ -182,6 +188,38 @@ class StateSpace:
     def output(self, x, u, t):
         """:math:`y = h(x, u, t)` (default the state)."""
         return x.copy() if self._out is None else _vec(self._out(x, u, t), "output")
+
+    #: (A, B, C, D) of a linear system made by :meth:`linear` (None otherwise): what a compiled network runs
+    matrices = None
+
+    @classmethod
+    def linear(cls, A, B, C=None, D=None, name=None, *, x0=None, scale=1.0):
+        r"""The linear system :math:`\dot x = Ax + Bu`, :math:`y = Cx + Du` (C default the identity, D default
+        zero), A (n, n), B (n, m), C (p, n), D (p, m), in the units of the states, inputs and outputs. It runs
+        compiled inside a network (:mod:`soroshapes.network`).
+
+        Examples
+        --------
+        >>> lag = StateSpace.linear([[-10.0]], [[10.0]])        # first-order lag, time constant 0.1 s
+        >>> float(lag.rhs(np.zeros(1), np.ones(1), 0.0)[0])
+        10.0
+        """
+        A = np.atleast_2d(np.asarray(A, dtype=float))
+        n = A.shape[0]
+        B = np.asarray(B, dtype=float).reshape(n, -1) if np.size(B) else np.zeros((n, 0))
+        m = B.shape[1]
+        C = np.eye(n) if C is None else np.atleast_2d(np.asarray(C, dtype=float))
+        D = np.zeros((C.shape[0], m)) if D is None else np.asarray(D, dtype=float).reshape(C.shape[0], m)
+        if A.shape != (n, n) or C.shape[1] != n:
+            raise ParameterError(f"StateSpace.linear needs A (n, n), B (n, m), C (p, n), D (p, m); got A {A.shape}, "
+                                 f"B {B.shape}, C {C.shape}, D {D.shape}")
+        if not all(np.all(np.isfinite(M)) for M in (A, B, C, D)):
+            raise ParameterError("StateSpace.linear: the matrices must be finite")
+        sys = cls(lambda x, u, t: A @ x + B @ u, n, m, jacobian=lambda x, u, t: (A, B),
+                  output=lambda x, u, t: C @ x + D @ u, name=name, x0=x0, scale=scale,
+                  feedthrough=bool(np.any(D != 0)))
+        sys.matrices = (A, B, C, D)
+        return sys
 
 
 class Fluidic:
@@ -546,6 +584,8 @@ class Model:
             state. A named ``source`` declares itself.
         """
         blk = self._target(target)
+        if reads is None and callable(source):
+            reads = getattr(source, "reads", None)          # a StateMap declares what it reads
         reads = self._check_reads(reads, "connect")
         if not (callable(source) or source in self._blocks):
             raise ParameterError(f"connect: source must be a system name or a callable of the model, got {source!r}"
@@ -602,6 +642,8 @@ class Model:
         if fn is not None and not callable(fn):
             raise ParameterError("the controller must be a callable fn(model) -> inputs")
         self._controller = fn
+        if reads is None:
+            reads = getattr(fn, "reads", None)              # a Schedule reads no state
         self._controller_reads = self._check_reads(reads, "set_controller")
         self._prepared = False
         return self
@@ -625,15 +667,46 @@ class Model:
     @property
     def evaluation_paths(self):
         """How each system, the couplings and the controller are evaluated at every stage of a step: a dict of
-        ``"compiled"`` (numba, no Python in the loop: beams with gravity, inputs and point loads only) or
-        ``"python..."`` (Fluidic, StateSpace and rigid-body right-hand sides, beams with contact, tendons or user
-        forces, and every callable coupling and controller). Also in a trajectory's ``stats``."""
+        ``"compiled"`` (numba, no Python in the loop) or ``"python..."``. When the whole network lowers
+        (:attr:`evaluation_path` is ``"compiled"``) every entry is ``"compiled"``; otherwise beams with gravity,
+        inputs and point loads still evaluate in one compiled call each, and reservoirs, StateSpace and
+        rigid-body right-hand sides, beams with contact, tendons or user forces, and every coupling and the
+        controller run in Python. Also in a trajectory's ``stats``."""
         paths = {name: getattr(b.system, "evaluation_path", "python") for name, b in self._blocks.items()}
+        net = self._lowered()
+        compiled = not isinstance(net, str)
         if self._links:
-            paths["couplings"] = "python"
+            paths["couplings"] = "compiled" if compiled else "python"
         if self._controller is not None:
-            paths["controller"] = "python"
+            paths["controller"] = "compiled" if compiled else "python"
+        if compiled:
+            paths.update({name: "compiled" for name in self._blocks})
         return paths
+
+    @property
+    def evaluation_path(self):
+        """How :meth:`simulate` runs the network (fixed steps): ``"compiled"`` (one numba kernel,
+        :mod:`soroshapes.network`) or ``"python: ..."`` naming the first part that has no compiled form (a Python
+        callable coupling or controller, a StateSpace with a Python f, a beam with contact, tendons or user
+        forces). Also in a trajectory's ``stats``."""
+        net = self._lowered()
+        return f"python: {net}" if isinstance(net, str) else "compiled"
+
+    def _lowered(self):
+        """The network lowered for the compiled kernel (:func:`soroshapes.network.lower`), or a str saying which
+        part keeps it on the Python path."""
+        from . import network
+        self._prepare_layout()
+        blocks = [dict(name=b.name, kind=b.kind, system=b.system, xoff=b.sl.start, n=b.n, woff=b.wsl.start,
+                       nw=b.nw, m=b.m) for b in self._blocks.values()]
+        links = [(src if callable(src) else src, b.name, idx) for src, b, idx in self._links if idx != "volume"]
+        volumes = {b.name: src for src, b, idx in self._links if idx == "volume"}
+        free = [(b.name, sum(1 for bb, _ in self._free if bb is b)) for b in self._blocks.values()
+                if any(bb is b for bb, _ in self._free)]
+        try:
+            return network.lower(blocks, links, volumes, self._controller, (free, self._free_rows))
+        except NotImplementedError as why:
+            return f"{why} runs in Python"
 
     @property
     def n(self):
@@ -920,7 +993,7 @@ class Model:
 
     # -- integration -----------------------------------------------------------------------------------
     def simulate(self, t_end, dt, method="trapezoidal", x0=None, rtol=1e-6, atol=1e-9, adaptive=False, *,
-                 max_iterations=12, record_every=1, min_dt=None, t0=0.0, linear_solver="auto"):
+                 max_iterations=12, record_every=1, min_dt=None, t0=0.0, linear_solver="auto", compiled=None):
         """Integrate the network from ``t0`` to ``t0 + t_end`` [s] with step ``dt`` [s] (fixed:
         ``t_end/ceil(t_end/dt)``; adaptive: the first step) by the implicit ``method`` ("trapezoidal",
         "midpoint", "bdf2"); ``t0`` lets a simulation continue from a state reached earlier (time-dependent
@@ -931,7 +1004,11 @@ class Model:
         tolerance. A step whose Newton iterations fail is split (down to ``min_dt``, default dt/1024), then a
         :class:`~sorofem.errors.ConvergenceError` gives the time. ``linear_solver``: the Newton matrix
         :math:`I - cJ` is factorized dense (LAPACK) or sparse (SuperLU on the block-sparse :meth:`jacobian`);
-        ``"auto"`` takes sparse from 200 states on. Returns a :class:`ModelTrajectory`.
+        ``"auto"`` takes sparse from 200 states on. ``compiled``: None runs the network in one compiled kernel
+        (:mod:`soroshapes.network`, fixed steps, dense LU) when every part of it has a compiled form and on the
+        Python path otherwise (:attr:`evaluation_path` says which and why); True requires the compiled kernel (a
+        :class:`~sorofem.errors.ParameterError` names the part that has none); False forces the Python path.
+        Returns a :class:`ModelTrajectory`.
         """
         if method not in ("trapezoidal", "midpoint", "bdf2"):
             raise ParameterError(f"method must be 'trapezoidal', 'midpoint' or 'bdf2', got {method!r}")
@@ -958,6 +1035,16 @@ class Model:
         self._J, self._lu_key, self._stats = None, None, {"steps": 0, "rejected": 0, "newton_iterations": 0,
                                                          "jacobians": 0, "cut_steps": 0}
         rec_t, rec_x, rec_w = [t0], [x.copy()], [self._assemble(t0, x).copy()]
+        if compiled or compiled is None:
+            net = self._lowered()
+            if compiled and isinstance(net, str):
+                raise ParameterError(f"simulate(compiled=True): the network has no compiled form: {net}; use "
+                                     "StateMap couplings and a Schedule controller (soroshapes.network), or "
+                                     "compiled=None for the Python path")
+            if compiled and adaptive:
+                raise ParameterError("simulate(compiled=True) runs fixed steps: use adaptive=False")
+            if not isinstance(net, str) and not adaptive:
+                return self._simulate_compiled(net, x, t0, t_end, dt, method, record_every, min_dt, rec_w[0])
         wall = _time.perf_counter()
         if adaptive:
             self._run_adaptive(x, t0, t0 + t_end, dt, method, rec_t, rec_x, rec_w)
@@ -990,7 +1077,37 @@ class Model:
                     rec_w.append(self._assemble(tt, x).copy())
         self._stats["wall_time"] = _time.perf_counter() - wall
         self._stats["method"] = method
+        self._stats["path"] = "python"
         return self._trajectory(np.array(rec_t), np.array(rec_x), np.array(rec_w))
+
+    def _simulate_compiled(self, net, x, t0, t_end, dt, method, record_every, min_dt, w0):
+        """Fixed steps by :func:`soroshapes.integrate.integrate` (the methods, refresh rule and splitting of the
+        Python path; Newton per connected component with a rate-based stopping estimate)."""
+        from . import integrate as itg
+        nsteps = int(np.ceil(t_end / dt - 1e-9))
+        h = t_end / nsteps
+        min_dt = h / 1024 if min_dt is None else float(min_dt)
+        record_every = max(1, int(record_every))
+        rows = 1 + nsteps // record_every + (1 if nsteps % record_every else 0)
+        out_t, out_x, out_w = np.zeros(rows), np.zeros((rows, self._N)), np.zeros((rows, self._NW))
+        out_t[0], out_x[0], out_w[0] = t0, x, w0
+        st = np.zeros(9)
+        code = {"trapezoidal": itg.TRAPEZOIDAL, "midpoint": itg.MIDPOINT, "bdf2": itg.BDF2}[method]
+        wall = _time.perf_counter()
+        got = itg.integrate(x.copy(), t0, h, nsteps, code, record_every, min_dt, net.arrays, self._scale,
+                                self._rtol, self._atol, self._maxit, 1e-3, out_t, out_x, out_w, st)
+        self._stats.update(steps=int(st[0]), newton_iterations=int(st[2]), jacobians=int(st[3]),
+                           cut_steps=int(st[6]), system_evaluations=int(st[8]), wall_time=_time.perf_counter() - wall, method=method,
+                           path="compiled")
+        if got < 0:
+            raise ConvergenceError(f"Model.simulate: Newton failed at t = {st[7]:.6g} s down to dt = {min_dt:.3g} s "
+                                   f"({method}, compiled network: Newton did not converge, or an evaluation failed "
+                                   "because a beam state overflowed or a reservoir volume was not positive); use a "
+                                   "smaller dt, check the couplings and schedule for discontinuities and volume maps "
+                                   "for their range, or loosen rtol (compiled=False gives the failing system's own "
+                                   "message)")
+        out_t[-1] = t0 + t_end
+        return self._trajectory(out_t[:got], out_x[:got], out_w[:got])
 
     def _split(self, method, t, x, h, hh, min_dt):
         """Cover [t, t+h] with steps of hh (halved on failure) after a failed step."""
@@ -1115,6 +1232,7 @@ class Model:
 
     def _trajectory(self, t, X, W):
         self._stats["evaluation_paths"] = self.evaluation_paths
+        self._stats["evaluation_path"] = self.evaluation_path
         systems, U = {}, []
         for b in self._blocks.values():
             x, w = X[:, b.sl], W[:, b.wsl]
@@ -1125,6 +1243,8 @@ class Model:
                 extra = {"q": x[:, :b.nq], "qd": x[:, b.nq:]}
             elif b.kind == "fluidic":
                 V = w[:, 1]
-                extra = {"volume": V, "pressure": np.array([b.system.pressure(xi, Vi) for xi, Vi in zip(x, V)])}
+                fl = b.system             # gauge pressure, vectorized (Fluidic.pressure for each row)
+                p = x[:, 0] * fl.R * fl.T / V if fl.isothermal else x[:, 0]
+                extra = {"volume": V, "pressure": p - fl.p0}
             systems[b.name] = SystemTrajectory(b.name, t, x, u, extra)
         return ModelTrajectory(t, X, np.hstack(U) if U else np.zeros((len(t), 0)), systems, dict(self._stats))

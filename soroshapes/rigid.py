@@ -91,7 +91,7 @@ from sorofem.errors import ParameterError
 from .model import Model, StateSpace
 
 __all__ = ["RigidBody", "SpinningBody", "beam_contact", "couple_contact", "ground_contact", "couple_ground",
-           "grasp_force", "couple_grasp"]
+           "grasp_force", "couple_grasp", "WrenchSum"]
 
 _WRENCH = ["moment_x", "moment_y", "moment_z", "force_x", "force_y", "force_z"]
 
@@ -233,6 +233,14 @@ class RigidBody(StateSpace):
         self.state_names = ["x", "y", "z"] + [f"R{i}{j}" for i in range(3) for j in range(3)] \
             + ["omega_x", "omega_y", "omega_z", "v_x", "v_y", "v_z"]
 
+    @property
+    def rigid_parameters(self):
+        """The body's parameters as the compiled network reads them (:mod:`soroshapes.network`), (25,): mass [kg],
+        inertia (9) [kg m^2] and its inverse (9) row by row, gravity (3) [m/s^2], damping (linear [N s/m],
+        angular [N m s/rad]), normalization [1/s]."""
+        return np.concatenate([[self.mass], self.inertia.reshape(9), self._Iinv.reshape(9), self.gravity,
+                               self.damping, [self.normalization]])
+
     @classmethod
     def spinning(cls, axis, inertia, damping=0.0, shape=None, **kw):
         """A :class:`SpinningBody`: a body that only turns about ``axis`` (see there for the keywords)."""
@@ -359,6 +367,7 @@ class SpinningBody(StateSpace):
                          x0=[float(angle0), float(rate0)])
         self.input_names = list(_WRENCH)
         self.state_names = ["angle", "rate"]
+        self.matrices = (A, B, np.eye(2), np.zeros((2, 6)))     # a linear system: runs compiled in a network
 
     def _f(self, x, u, t):
         u = _wrench(u)
@@ -483,14 +492,52 @@ def couple_contact(model, beam, body, stiffness, damping=0.0, friction=0.0, regu
     return model
 
 
+class WrenchSum:
+    """The sum of the wrenches [N m, N] (body coordinates) that contacts and couplings put on one body: a
+    callable of the model (the Python path) that the compiled network lowers when every term has a compiled
+    form (``compiled_terms``)."""
+
+    def __init__(self, body):
+        self.system, self.terms = body, []
+
+    def __call__(self, model):
+        return sum(w(model) for w in self.terms)
+
+    @property
+    def compiled_terms(self):
+        """[(kind, floats, beam name or None)] of the terms (:mod:`soroshapes.network`), or None if one is a
+        Python callable."""
+        out = [getattr(w, "compiled", None) for w in self.terms]
+        return None if any(c is None for c in out) else out
+
+
+class _GroundTerm:
+    """:func:`ground_contact` on a body of a model, with its parameters as data for the compiled network."""
+
+    def __init__(self, body, system, points, stiffness, damping, friction, regularization, plane):
+        self.body, self.system, self.points = body, system, np.asarray(points, dtype=float).reshape(-1, 3)
+        self.args = (stiffness, damping, friction, regularization)
+        self.plane = tuple(np.asarray(v, dtype=float) for v in plane)
+        c, n = self.plane
+        self.compiled = None
+        if isinstance(system, RigidBody):
+            self.compiled = ("ground", np.concatenate([[float(v) for v in self.args], c, n / np.linalg.norm(n),
+                                                       [len(self.points)], self.points.reshape(-1)]), None)
+
+    def __call__(self, model):
+        return ground_contact(self.system, np.array(model.state(self.body)), self.points, *self.args,
+                              plane=self.plane)
+
+
 def _add_body_wrench(model, body, wrench):
     """Add ``wrench(model) -> (6,)`` (body coordinates) to the wrench inputs of ``body``: the first call
-    connects the sum of all of them, so that several contacts and couplings act on one body."""
+    connects the sum of all of them (a :class:`WrenchSum`), so that several contacts and couplings act on one
+    body."""
     registry = model.__dict__.setdefault("_contact_wrenches", {})
     if body not in registry:
-        registry[body] = []
-        model.connect(lambda mdl: sum(w(mdl) for w in registry[body]), body)
-    registry[body].append(wrench)
+        registry[body] = WrenchSum(body)
+        model.connect(registry[body], body)
+    registry[body].terms.append(wrench)
 
 
 def _check_pair(model, beam, body):
@@ -540,8 +587,8 @@ def couple_ground(model, body, points, stiffness, damping=0.0, friction=0.0, reg
     _check_pair(model, None, body)
     bdy = model[body].system
     ground_contact(bdy, bdy.x0, points, stiffness, damping, friction, regularization, plane=plane)   # validate
-    _add_body_wrench(model, body, lambda mdl: ground_contact(bdy, np.array(mdl.state(body)), points, stiffness,
-                                                             damping, friction, regularization, plane=plane))
+    _add_body_wrench(model, body, _GroundTerm(body, bdy, points, stiffness, damping, friction, regularization,
+                                              plane))
     return model
 
 
@@ -565,21 +612,42 @@ def couple_grasp(model, beam, body, anchor, stiffness, damping=0.0, engaged=None
     """A gripper at the node ``at`` (default the tip) of the beam ``beam`` holding the body ``body`` of
     ``model`` at its point ``anchor`` (body coordinates): :func:`grasp_force` scaled by ``engaged(t)`` in
     [0, 1] (default always 1: a closed gripper; a ramp closes it), equal and opposite on beam and body.
+    ``engaged``: None, a callable of t [s], or a one-column :class:`~soroshapes.network.Schedule`; with None or
+    a Schedule on a free :class:`RigidBody` the grasp runs compiled in a network (:mod:`soroshapes.network`).
     A reduced model of a gripper (suction cup or fingers closed on the object): it transmits force, not
     moment, so the held body hangs from the grasp point. Returns the model."""
     _check_pair(model, beam, body)
     shp, bdy, n = model[beam].system, model[body].system, model[beam].system.n
-    on = (lambda t: 1.0) if engaged is None else engaged
+    table = hasattr(engaged, "at") and not isinstance(engaged.values, dict)     # a soroshapes.network.Schedule
+    if engaged is None:
+        on = lambda t: 1.0                                                      # noqa: E731
+    elif table:
+        if engaged.values.shape[1] != 1:
+            raise ParameterError("couple_grasp: an engagement Schedule has one column (0 open .. 1 closed)")
+        on = lambda t: float(engaged.at(t)[0])                                  # noqa: E731
+    else:
+        on = engaged
     grasp_force(shp, bdy, np.zeros(n), np.zeros(n), bdy.x0, anchor, stiffness, damping, at)   # validate now
 
     def evaluate(q, qd, xb, t):
         return [on(t) * v for v in grasp_force(shp, bdy, q, qd, xb, anchor, stiffness, damping, at)]
 
-    shp.add_force(lambda s, q, qd, t: evaluate(q, qd, np.array(model.state(body)), t)[1])
+    def force(s, q, qd, t):
+        return evaluate(q, qd, np.array(model.state(body)), t)[1]
+    force.network_term = True          # the compiled network evaluates it with the body's grasp term below
+
+    shp.add_force(force)
 
     def wrench(mdl):
         xs = np.array(mdl.state(beam))
         return evaluate(xs[:n], xs[n:], np.array(mdl.state(body)), mdl.t)[2]
 
+    wrench.compiled = None
+    if isinstance(bdy, RigidBody) and (engaged is None or table):
+        times, values, period = ((np.array([0.0, 1.0]), np.ones((2, 1)), 0.0) if engaged is None else
+                                 (engaged.times, engaged.values, engaged.period or 0.0))
+        wrench.compiled = ("grasp", np.concatenate([[shp.node(at) * shp.model.stride], np.asarray(anchor, float),
+                                                    [stiffness, damping, len(times), period], times,
+                                                    values[:, 0]]), beam)
     _add_body_wrench(model, body, wrench)
     return model

@@ -1,0 +1,1236 @@
+r"""Compiled networks: a :class:`~soroshapes.model.Model` lowered to flat arrays and integrated by one numba kernel.
+
+What is lowered
+---------------
+:meth:`Model.simulate <soroshapes.model.Model.simulate>` runs a network here, with no Python in the step loop,
+when every part of it has a compiled form:
+
+* systems: :class:`~soroshapes.shapes.Shapes` beams whose loads run compiled (gravity, chambers and linear
+  actuators: ``Shapes.evaluation_path == "compiled"``, no point loads), every :class:`~soroshapes.model.Fluidic`
+  reservoir (isothermal or polytropic, regulated or not) whose volume is constant or given by a
+  :class:`StateMap`, linear systems (:meth:`StateSpace.linear <soroshapes.model.StateSpace.linear>`, and
+  :class:`~soroshapes.rigid.SpinningBody`, which is one) and free rigid bodies (:class:`~soroshapes.rigid.RigidBody`,
+  its ``rigid_parameters``);
+* couplings: the output of a named system (a beam's state, a reservoir's gauge pressure, a linear system's
+  :math:`Cx + Du`) into inputs of another, and :class:`StateMap` (an affine map of one system's state through an optional ``tanh``), as an
+  input or as a reservoir's volume; the wrenches on a free rigid body (a :class:`~soroshapes.rigid.WrenchSum`)
+  of ground contact (:func:`~soroshapes.rigid.couple_ground`) and of a grasp
+  (:func:`~soroshapes.rigid.couple_grasp`, engaged always or by a one-column :class:`Schedule`; its force on
+  the beam is added to the beam's inputs' force);
+* the controller: none, a :class:`Schedule` (a piecewise-linear table of the free inputs against time,
+  optionally periodic), or :func:`soroshapes.control.impedance` with a constant or :class:`Schedule`
+  set-point (its parameters as data: the same equations, from the beam's kinematics, M, C and f_g in the
+  kernel; evaluated only when the beam it drives is).
+
+Anything else (a Python callable coupling or controller, a :class:`~soroshapes.model.StateSpace` with a
+Python ``f``, beams with contact, tendons or user forces, beam-body contact, adaptive steps) runs on the Python path of
+:mod:`soroshapes.model`; :attr:`Model.evaluation_paths <soroshapes.model.Model.evaluation_paths>` names the
+first part that forces it. :class:`StateMap` and :class:`Schedule` are also callables of the model, so the
+same network runs on both paths (the tests compare them).
+
+The kernel
+----------
+The network's right-hand side :math:`F(t, x)` is assembled as on the Python path: reservoir volumes, the
+controller's free inputs, then the couplings in declaration order, then every system's derivative (a beam by
+:func:`soroshapes._beam.forward_dynamics`, its input force :math:`G u` with the constant input matrix). The
+Jacobian :math:`J = \partial F/\partial x` (:func:`jacobian`) is taken by forward differences of :math:`F` whose
+columns are grouped (Curtis-Powell-Reid) over the block dependency pattern (a column of system :math:`j` changes
+only the derivatives of the systems that read :math:`j`). The implicit steps, Newton and the step splitting are
+:mod:`soroshapes.integrate`; many steps run in one compiled call, recording states and inputs every
+``record_every`` steps. The two paths agree to the Newton tolerance (tests/soroshapes/test_network.py).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sorofem._numba import njit
+from sorofem.errors import ParameterError
+
+from ._beam import _lu, _lu_solve
+from ._beam import forward_dynamics as _fd
+from ._beam import kinematics as _kinematics
+from ._beam import mass_coriolis_gravity as _mcg
+from .numerics import FD_STEP
+
+__all__ = ["StateMap", "Schedule", "lower", "assemble", "rhs", "jacobian", "warm_up"]
+
+_FUNCTIONS = {"identity": 0, "tanh": 1}
+
+
+# ------------------------------------------------------------------------------------------------------------
+# declarative couplings and controllers (callables of the model for the Python path, tables for the kernel)
+# ------------------------------------------------------------------------------------------------------------
+class StateMap:
+    r"""A coupling :math:`y = o + s \odot \phi(A\,x_{[index]})` of one system's state :math:`x`.
+
+    Parameters
+    ----------
+    system : str
+        Name of the system whose state is read.
+    matrix : (k, len(index)) or (len(index),) array
+        :math:`A` (units: those of :math:`y/s` per state unit).
+    index : int, sequence of int or None
+        The state entries read (default all).
+    offset, scale : float or (k,)
+        :math:`o` and :math:`s` (units of :math:`y`).
+    function : "identity" or "tanh"
+        :math:`\phi`, applied entrywise.
+
+    Use it as ``model.connect(StateMap(...), target, port="volume")`` (a reservoir's volume [m^3]) or as an input
+    coupling; it runs compiled (see the module docstring) and, as a callable of the model, on the Python path.
+
+    Examples
+    --------
+    >>> V = StateMap("finger", [2e-5], index=0, offset=1e-4, scale=1e-4, function="tanh")
+    >>> V.reads
+    ('finger',)
+    """
+
+    def __init__(self, system, matrix, *, index=None, offset=0.0, scale=1.0, function="identity"):
+        if not isinstance(system, str):
+            raise ParameterError(f"StateMap reads a system by its name (a str), got {system!r}")
+        if function not in _FUNCTIONS:
+            raise ParameterError(f"StateMap function must be one of {sorted(_FUNCTIONS)}, got {function!r}")
+        A = np.atleast_2d(np.asarray(matrix, dtype=float))
+        self.index = None if index is None else np.atleast_1d(np.asarray(index, dtype=np.int64)).reshape(-1)
+        if self.index is not None and A.shape[1] != len(self.index):
+            raise ParameterError(f"StateMap matrix has {A.shape[1]} columns for {len(self.index)} indices")
+        self.offset = np.broadcast_to(np.asarray(offset, dtype=float), (A.shape[0],)).copy()
+        self.scale = np.broadcast_to(np.asarray(scale, dtype=float), (A.shape[0],)).copy()
+        for what, v in (("matrix", A), ("offset", self.offset), ("scale", self.scale)):
+            if not np.all(np.isfinite(v)):
+                raise ParameterError(f"StateMap {what} must be finite, got {v}")
+        self.system, self.matrix, self.function = system, A, function
+        self.reads = (system,)
+
+    @property
+    def size(self):
+        """Number of outputs k."""
+        return self.matrix.shape[0]
+
+    def full_matrix(self, n):
+        """:math:`A` scattered onto all ``n`` states of the system (k, n)."""
+        idx = np.arange(n) if self.index is None else self.index
+        if idx.size != self.matrix.shape[1] or (idx.size and (idx.min() < 0 or idx.max() >= n)):
+            raise ParameterError(f"StateMap of system {self.system!r}: indices {idx.tolist()} / matrix with "
+                                 f"{self.matrix.shape[1]} columns do not fit its {n} states")
+        A = np.zeros((self.size, n))
+        A[:, idx] = self.matrix
+        return A
+
+    def __call__(self, model):
+        x = model.state(self.system)
+        a = self.full_matrix(len(x)) @ x
+        return self.offset + self.scale * (np.tanh(a) if self.function == "tanh" else a)
+
+
+class Schedule:
+    r"""A controller that plays a piecewise-linear table of the free inputs against time.
+
+    Parameters
+    ----------
+    times : (K,) increasing [s]
+    values : (K, m) array in the order of :attr:`Model.inputs <soroshapes.model.Model.inputs>`, or a dict
+        ``{system name: (K, m_system)}`` (a system left out gets 0)
+    period : float [s], optional
+        Repeat the table with this period (then ``times`` must run from 0 to ``period``); otherwise the
+        first and last rows hold before and after the table.
+
+    Set it with ``model.set_controller(Schedule(...))``: it runs compiled and, as a callable of the model,
+    on the Python path (it reads no state).
+
+    Examples
+    --------
+    >>> s = Schedule([0.0, 1.0], {"cup": [[0.0], [2.0]]})
+    >>> float(s.at(0.25)["cup"][0])
+    0.5
+    """
+
+    reads = ()
+
+    def __init__(self, times, values, *, period=None):
+        t = np.asarray(times, dtype=float).reshape(-1)
+        if t.size < 2 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+            raise ParameterError("Schedule times must be at least 2 finite, strictly increasing times [s]")
+        if isinstance(values, dict):
+            self.values = {k: np.asarray(v, dtype=float).reshape(t.size, -1) for k, v in values.items()}
+            arrays = self.values.values()
+        else:
+            self.values = np.asarray(values, dtype=float).reshape(t.size, -1)
+            arrays = (self.values,)
+        if not all(np.all(np.isfinite(v)) for v in arrays):
+            raise ParameterError("Schedule values must be finite")
+        if period is not None:
+            period = float(period)
+            if not (period > 0 and abs(t[0]) <= 1e-12 * period and abs(t[-1] - period) <= 1e-9 * period):
+                raise ParameterError(f"a periodic Schedule needs times from 0 to the period {period!r} s, got "
+                                     f"{t[0]:g} .. {t[-1]:g} s")
+        self.times, self.period = t, period
+
+    @classmethod
+    def sample(cls, fn, t_end, dt, *, period=None):
+        """The table of ``fn(t) -> (m,)`` sampled every ``dt`` [s] (or so: a whole number of intervals) on [0,
+        ``t_end``] (with ``period``: on one period). Linear interpolation between samples is within
+        :math:`\\tfrac{dt^2}{8}\\max|\\ddot u|` of ``fn``."""
+        span = float(period if period is not None else t_end)
+        k = max(1, int(math.ceil(span / float(dt) - 1e-9)))
+        t = np.linspace(0.0, span, k + 1)
+        return cls(t, np.array([np.asarray(fn(ti), dtype=float).reshape(-1) for ti in t]), period=period)
+
+    def _phase(self, t):
+        return t % self.period if self.period is not None else t
+
+    def at(self, t):
+        """The table's values at time ``t`` [s] (an array or a dict, like ``values``)."""
+        tt = self._phase(float(t))
+        if isinstance(self.values, dict):
+            return {k: np.array([np.interp(tt, self.times, v[:, j]) for j in range(v.shape[1])])
+                    for k, v in self.values.items()}
+        return np.array([np.interp(tt, self.times, self.values[:, j]) for j in range(self.values.shape[1])])
+
+    def __call__(self, model):
+        return self.at(model.t)
+
+    def table(self, free):
+        """The (K, m) table in the order of the free inputs ``free``, a list of (system name, count)."""
+        if not isinstance(self.values, dict):
+            m = sum(c for _, c in free)
+            if self.values.shape[1] != m:
+                raise ParameterError(f"Schedule has {self.values.shape[1]} columns, the model has {m} free inputs")
+            return self.values
+        cols = []
+        for name, count in free:
+            v = self.values.get(name)
+            if v is None:
+                v = np.zeros((self.times.size, count))
+            if v.shape[1] != count:
+                raise ParameterError(f"Schedule gives {v.shape[1]} inputs for system {name!r}, which has {count} "
+                                     "free inputs")
+            cols.append(v)
+        unknown = set(self.values) - {name for name, _ in free}
+        if unknown:
+            raise ParameterError(f"Schedule gives inputs for systems without free inputs: {sorted(unknown)}")
+        return np.hstack(cols) if cols else np.zeros((self.times.size, 0))
+
+
+# ------------------------------------------------------------------------------------------------------------
+# lowering: the network as flat arrays
+# ------------------------------------------------------------------------------------------------------------
+BEAM, FLUIDIC, LINEAR, RIGID = 0, 1, 2, 3
+#: floats per rigid body (rows of ``rflt``): mass, inertia (9), its inverse (9), gravity (3), linear and angular
+#: damping, normalization gain
+_RIGID_FLOATS = 25
+# per-beam integer parameters (rows of ``bint``)
+_B_N, _B_M, _B_P, _B_NG, _B_ORDER, _B_FO, _B_WO, _B_IO, _B_PO = range(9)
+
+
+def _beam_floats(n, m, P, ng):
+    """Sizes of the model arrays of one beam in the float buffer: K, D, Gin, h, B, X0, base, weights, Md, g."""
+    return (n * n, n * n, n * m, P, P * ng * n, P * ng * 6, 16, P + 1, (P + 1) * 6, 3)
+
+
+def _beam_work(n, P):
+    """Sizes of the work arrays of one beam: G, J, Jd, eta, etad, S, E, V, Op, AJ, W, M, C, fg, R, qdd, f_in."""
+    Np = P + 1
+    return (Np * 16, Np * 6 * n, Np * 6 * n, Np * 6, Np * 6, 216, 16, 48, 6 * n, 6 * n, 48, n * n, n * n, n, n, n,
+            n)
+
+
+def _lower_impedance(spec, blocks, index, free_rows):
+    """The set-point table and the integer and float data of a Cartesian impedance controller
+    (:func:`soroshapes.control.impedance`), or NotImplementedError."""
+    name = spec["system"]
+    if name not in index:
+        raise ParameterError(f"the impedance controller acts on system {name!r}, which is not in the model")
+    b = blocks[index[name]]
+    if b["kind"] != "shapes":
+        raise NotImplementedError(f"an impedance controller on {name!r}, which is not a beam")
+    shp = b["system"]
+    n, k = shp.n, len(spec["axes"])
+    pdes = spec["setpoint"]
+    if isinstance(pdes, Schedule) and not isinstance(pdes.values, dict):
+        ctimes, cvals, cper = pdes.times, pdes.values, pdes.period or 0.0
+    elif callable(pdes):
+        raise NotImplementedError(f"the impedance set-point {getattr(pdes, '__name__', pdes)!r} (a Python callable; "
+                                  "a Schedule of the set-point runs compiled)")
+    else:
+        ctimes, cvals, cper = np.array([0.0, 1.0]), np.vstack([pdes, pdes]), 0.0
+    if cvals.shape[1] != k:
+        raise ParameterError(f"the impedance set-point gives {cvals.shape[1]} values for {k} axes")
+    rows = [r for r in free_rows if b["woff"] <= r < b["woff"] + b["nw"]]
+    if len(rows) != b["m"]:
+        raise NotImplementedError(f"an impedance controller on beam {name!r} whose inputs are also coupled")
+    Kn, Dn, qn, null = spec["null"](n)
+    cint = [index[name], k, shp.node(spec["at"]) * shp.model.stride, int(spec["coriolis"]), int(spec["gravity"]),
+            int(spec["elastic"]), int(null), len(rows), *spec["axes"], *rows]
+    cflt = np.concatenate([np.ravel(spec["stiffness"]), np.ravel(spec["damping"]), Kn.ravel(), Dn.ravel(), qn])
+    return ctimes, np.ascontiguousarray(cvals, float), cper, cint, cflt
+
+
+class Lowered:
+    """The network as the kernel's arrays (see :func:`lower`); ``arrays`` is the argument tuple."""
+
+    def __init__(self, arrays, N, NW, groups, dep):
+        self.arrays, self.N, self.NW, self.groups, self.dep = arrays, N, NW, groups, dep
+
+
+def lower(blocks, links, volumes, controller, free):
+    """Lower a network description to the kernel's arrays, or raise ``NotImplementedError(reason)``.
+
+    Parameters
+    ----------
+    blocks : list of dict(name, kind, system, xoff, n, woff, nw, m)
+    links : list of (source, target name, input indices); ``source`` a system name or a :class:`StateMap`
+    volumes : dict {fluidic name: None (constant) or StateMap}
+    controller : None or :class:`Schedule`
+    free : list of (system name, count of free inputs) and ``free_rows`` positions in w, as (free, rows)
+    """
+    free_list, free_rows = free
+    index = {b["name"]: i for i, b in enumerate(blocks)}
+    kind = np.zeros(len(blocks), np.int64)
+    table = np.zeros((len(blocks), 6), np.int64)         # kind, xoff, n, woff, nw, aux
+    bint, bflt, bwork, bintb = [], [], [], []
+    fpar = []
+    maps, mapint = [], []
+    lint, lflt = [], []
+    rflt = []
+    wsum, wterm, wflt = [], [], []                  # body wrench sums: [first term, count, body]; terms; floats
+    extra_feeds = []                                # (block, block whose state it reads) through contact terms
+
+    def add_map(smap):
+        if not isinstance(smap, StateMap):
+            raise NotImplementedError(f"the Python callable {getattr(smap, '__name__', smap)!r}")
+        if smap.system not in index:
+            raise ParameterError(f"StateMap reads system {smap.system!r}, which is not in the model")
+        src = blocks[index[smap.system]]
+        A = smap.full_matrix(src["n"])
+        k = smap.size
+        mapint.append([index[smap.system], k, _FUNCTIONS[smap.function], sum(len(v) for v in maps)])
+        maps.append(np.concatenate([A.reshape(-1), smap.offset, smap.scale]))
+        return len(mapint) - 1
+
+    fo = wo = io = 0
+    for i, b in enumerate(blocks):
+        table[i, 1:5] = b["xoff"], b["n"], b["woff"], b["nw"]
+        if b["kind"] == "shapes":
+            shp = b["system"]
+            from .beam import LoadPlan
+            mdl = shp.model
+            # forces that a coupling puts on the beam and that the network evaluates itself (a grasp)
+            own = [ld for ld in shp.loads if not getattr(getattr(ld, "fn", None), "network_term", False)]
+            plan = LoadPlan.of(mdl, own, shp.damping)
+            if not plan.compiled:
+                raise NotImplementedError(f"beam {b['name']!r} ({shp.evaluation_path})")
+            if len(plan.point_loads):
+                raise NotImplementedError(f"beam {b['name']!r} (point loads)")
+            if plan.input_matrix is None:
+                raise NotImplementedError(f"beam {b['name']!r} (a nonlinear actuator)")
+            n, m, P, ng = mdl.n, b["m"], mdl.h.shape[0], mdl.B.shape[1]
+            arrays = [mdl.K, plan.D, plan.input_matrix, mdl.h, mdl.B, mdl.X0, mdl.base, mdl.weights, mdl.Md,
+                      plan.gravity]
+            for a, size in zip(arrays, _beam_floats(n, m, P, ng)):
+                a = np.ascontiguousarray(a, dtype=float).reshape(-1)
+                if a.size != size:
+                    raise ParameterError(f"beam {b['name']!r}: unexpected model array size {a.size} != {size}")
+                bflt.append(a)
+            bintb.append(np.asarray(mdl.rows, dtype=np.int64))
+            bint.append([n, m, P, ng, mdl.order, fo, wo, io, io + n])
+            fo += sum(_beam_floats(n, m, P, ng))
+            wo += sum(_beam_work(n, P))
+            bintb.append(np.zeros(n, np.int64))             # pivots
+            io += 2 * n
+            kind[i], table[i, 5] = BEAM, len(bint) - 1
+        elif b["kind"] == "fluidic":
+            fl = b["system"]
+            reg = fl.regulator or (1.0, 0.0, 0.0)
+            vol = volumes.get(b["name"])
+            if vol is None:
+                if not fl.constant:
+                    raise NotImplementedError(f"reservoir {b['name']!r} (a Python volume V(t))")
+                vkind, vval = 0, fl.volume
+            else:
+                vkind, vval = 1, float(add_map(vol))
+            fpar.append([float(fl.isothermal), fl.R, fl.T, fl.p0, fl.polytropic, fl.leak, fl.filter_gain,
+                         float(fl.regulator is not None), reg[0], reg[1], reg[2], float(fl.filtered), vkind, vval])
+            kind[i], table[i, 5] = FLUIDIC, len(fpar) - 1
+        elif getattr(b["system"], "rigid_parameters", None) is not None:
+            par = np.asarray(b["system"].rigid_parameters, dtype=float)
+            if par.shape != (_RIGID_FLOATS,):
+                raise ParameterError(f"rigid body {b['name']!r}: rigid_parameters must have {_RIGID_FLOATS} entries")
+            rflt.append(par)
+            kind[i], table[i, 5] = RIGID, len(rflt) - 1
+        elif getattr(b["system"], "matrices", None) is not None:
+            A, B, C, D = b["system"].matrices
+            lint.append([A.shape[0], B.shape[1], C.shape[0], sum(len(v) for v in lflt)])
+            lflt.append(np.concatenate([A.reshape(-1), B.reshape(-1), C.reshape(-1), D.reshape(-1)]))
+            kind[i], table[i, 5] = LINEAR, len(lint) - 1
+        else:
+            raise NotImplementedError(f"system {b['name']!r} (a StateSpace with a Python f; StateSpace.linear "
+                                      "runs compiled)")
+        table[i, 0] = kind[i]
+    link_rows, link_tab = [], []
+    for src, tname, idx in links:
+        tb = blocks[index[tname]]
+        rows = [tb["woff"] + k for k in idx]
+        if getattr(src, "compiled_terms", False) is not False:       # a body's WrenchSum (soroshapes.rigid)
+            terms = src.compiled_terms
+            if terms is None:
+                raise NotImplementedError(f"a Python wrench on body {tname!r}")
+            if kind[index[tname]] != RIGID:
+                raise NotImplementedError(f"contact on body {tname!r} (compiled for free rigid bodies)")
+            wsum.append([len(wterm), len(terms), index[tname]])
+            for tk, par, beam in terms:
+                if tk not in _TERMS:
+                    raise NotImplementedError(f"a {tk} wrench on body {tname!r}")
+                bb = -1
+                if beam is not None:
+                    if beam not in index or blocks[index[beam]]["kind"] != "shapes":
+                        raise ParameterError(f"a {tk} coupling on body {tname!r} names beam {beam!r}, which is not a "
+                                             "beam of the model")
+                    bb = index[beam]
+                    extra_feeds.append((index[tname], bb))          # the body's wrench reads the beam,
+                    extra_feeds.append((bb, index[tname]))          # the beam's force reads the body
+                wterm.append([_TERMS[tk], sum(len(v) for v in wflt), len(par), bb])
+                wflt.append(np.asarray(par, dtype=float))
+            lk, ls, size = 2, len(wsum) - 1, 6
+        elif isinstance(src, str):
+            sb = blocks[index[src]]
+            size = (1 if sb["kind"] == "fluidic" else sb["system"].matrices[2].shape[0]
+                    if getattr(sb["system"], "matrices", None) is not None else sb["n"])
+            lk, ls = 0, index[src]
+        else:
+            ls = add_map(src)
+            lk, size = 1, src.size
+        if size != len(rows):
+            raise ParameterError(f"coupling into system {tname!r}: the source gives {size} values for {len(rows)} "
+                                 "connected inputs")
+        link_tab.append([lk, ls, len(link_rows), len(rows)])
+        link_rows.extend(rows)
+    cint, cflt = np.zeros(0, np.int64), np.zeros(0)
+    if controller is None:
+        ctimes, cvals, cper = np.zeros(2), np.zeros((2, len(free_rows))), 0.0
+        ckind = 0
+    elif isinstance(controller, Schedule):
+        ctimes, cvals = controller.times, np.ascontiguousarray(controller.table(free_list))
+        cper, ckind = (controller.period or 0.0), 1
+    elif getattr(controller, "compiled", None) is not None:     # a controller of soroshapes.control
+        ckind = 2
+        ctimes, cvals, cper, cint, cflt = _lower_impedance(controller.compiled, blocks, index, free_rows)
+    else:
+        raise NotImplementedError(f"the Python controller {getattr(controller, '__name__', controller)!r}")
+
+    # dependency of each block's derivative on the blocks' states (closed over sources fed by their inputs)
+    nb = len(blocks)
+    reads = [{i} for i in range(nb)]
+    feeds = [set() for _ in range(nb)]              # blocks whose state feeds block i's inputs
+    for src, tname, _ in links:
+        t = index[tname]
+        s = index[src] if isinstance(src, str) else index[src.system]       # StateMap or WrenchSum
+        feeds[t].add(s)
+    for name, vol in volumes.items():
+        if vol is not None:
+            feeds[index[name]].add(index[vol.system])
+    for t, s in extra_feeds:
+        feeds[t].add(s)
+    changed = True
+    while changed:
+        changed = False
+        for i in range(nb):
+            more = set()
+            for s in feeds[i]:
+                if blocks[s]["kind"] == "fluidic" or (blocks[s]["kind"] == "statespace" and
+                                                      blocks[s]["system"].feedthrough):
+                    more |= feeds[s]                        # an output that depends on the source's inputs
+            if not more <= feeds[i]:
+                feeds[i] |= more
+                changed = True
+    dep = np.zeros((nb, nb), np.bool_)               # dep[i, j]: block i's derivative reads block j's state
+    for i in range(nb):
+        for j in reads[i] | feeds[i]:
+            dep[i, j] = True
+    # Curtis-Powell-Reid: blocks that no block reads together share a perturbation
+    colors = []
+    for j in range(nb):
+        readers = set(np.nonzero(dep[:, j])[0])
+        for members, seen in colors:
+            if not (readers & seen):
+                members.append(j)
+                seen |= readers
+                break
+        else:
+            colors.append(([j], set(readers)))
+    groups = []
+    for members, _ in colors:
+        width = max(blocks[j]["n"] for j in members)
+        for k in range(width):
+            groups.append([blocks[j]["xoff"] + k for j in members if k < blocks[j]["n"]])
+    N = sum(b["n"] for b in blocks)
+    NW = sum(b["nw"] for b in blocks)
+    G = np.full((len(groups), max(len(g) for g in groups)), -1, np.int64)
+    for gi, g in enumerate(groups):
+        G[gi, :len(g)] = g
+    col_block = np.zeros(N, np.int64)
+    for i, b in enumerate(blocks):
+        col_block[b["xoff"]:b["xoff"] + b["n"]] = i
+    # connected components of the dependency graph: the iteration matrix is block diagonal over them
+    comp = list(range(nb))
+
+    def root(i):
+        while comp[i] != i:
+            i = comp[i]
+        return i
+    for i in range(nb):
+        for j in range(nb):
+            if dep[i, j]:
+                comp[root(i)] = root(j)
+    members = {}
+    for i in range(nb):
+        members.setdefault(root(i), []).append(i)
+    cols = [np.concatenate([np.arange(blocks[i]["xoff"], blocks[i]["xoff"] + blocks[i]["n"]) for i in mem])
+            for mem in members.values()]
+    comps = np.full((len(cols), max(len(c) for c in cols)), -1, np.int64)
+    for k, c in enumerate(cols):
+        comps[k, :len(c)] = c
+    block_comp = np.zeros(nb, np.int64)
+    for k, mem in enumerate(members.values()):
+        block_comp[mem] = k
+
+    def cat(parts, dtype=float):
+        return np.concatenate(parts).astype(dtype) if parts else np.zeros(0, dtype)
+
+    arrays = (table, np.array(bint, np.int64).reshape(-1, 9), cat(bflt), np.zeros(wo), cat(bintb, np.int64),
+              np.array(fpar, float).reshape(-1, 14), np.array(mapint, np.int64).reshape(-1, 4), cat(maps),
+              np.array(link_tab, np.int64).reshape(-1, 4), np.array(link_rows, np.int64),
+              np.int64(ckind), np.ascontiguousarray(ctimes, float), np.ascontiguousarray(cvals, float).reshape(
+                  len(ctimes), -1), float(cper), np.asarray(free_rows, np.int64), G, dep, col_block, comps, block_comp,
+              np.array(lint, np.int64).reshape(-1, 4), cat(lflt), np.array(rflt, float).reshape(-1, _RIGID_FLOATS),
+              np.array(wsum, np.int64).reshape(-1, 3), np.array(wterm, np.int64).reshape(-1, 4), cat(wflt),
+              np.asarray(cint, np.int64), np.asarray(cflt, float), np.zeros(N))
+    return Lowered(arrays, N, NW, groups, dep)
+
+
+# ------------------------------------------------------------------------------------------------------------
+# the kernel
+# ------------------------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _interp_row(times, vals, period, t, out):
+    """Row-wise linear interpolation of the table at t (periodic if period > 0, else held at the ends)."""
+    K = times.shape[0]
+    tt = t
+    if period > 0.0:
+        tt = t - period * math.floor(t / period)
+    if tt <= times[0]:
+        for j in range(out.shape[0]):
+            out[j] = vals[0, j]
+        return
+    if tt >= times[K - 1]:
+        for j in range(out.shape[0]):
+            out[j] = vals[K - 1, j]
+        return
+    k = np.searchsorted(times, tt, side="right") - 1
+    a = (tt - times[k]) / (times[k + 1] - times[k])
+    for j in range(out.shape[0]):
+        out[j] = (1.0 - a) * vals[k, j] + a * vals[k + 1, j]
+
+
+@njit(cache=True)
+def _map_eval(mapint, maps, table, x, mi, r):
+    """Output r of StateMap mi at the state x."""
+    src, k, fn, o = mapint[mi, 0], mapint[mi, 1], mapint[mi, 2], mapint[mi, 3]
+    xo, n = table[src, 1], table[src, 2]
+    s = 0.0
+    for c in range(n):
+        s += maps[o + r * n + c] * x[xo + c]
+    if fn == 1:
+        s = math.tanh(s)
+    return maps[o + k * n + r] + maps[o + k * n + k + r] * s
+
+
+@njit(cache=True)
+def _pressure(fpar, fi, x0, V):
+    """Absolute pressure [Pa] of reservoir fi at its first state x0 and volume V."""
+    if fpar[fi, 0] != 0.0:
+        return x0 * fpar[fi, 1] * fpar[fi, 2] / V
+    return x0
+
+
+@njit(cache=True)
+def assemble(t, x, net, w):
+    """w = W(t, x): reservoir volumes, scheduled free inputs, couplings in declaration order. Returns False when a
+    volume is not positive and finite."""
+    return _assemble(t, x, net, w, np.ones(net[0].shape[0], np.bool_))
+
+
+@njit(cache=True)
+def _assemble(t, x, net, w, only):
+    """:func:`assemble` for an evaluation of the blocks with ``only[i]`` True: a feedback controller that drives
+    the inputs of a block left out is not evaluated (its inputs are not read)."""
+    (table, bint, bflt, bwork, bintb, fpar, mapint, maps, link_tab, link_rows, ckind, ctimes, cvals, cper,
+     free_rows, groups, dep, col_block, comps, block_comp, lint, lflt, rflt, wsum, wterm, wflt, cint, cflt,
+     bext) = net
+    for j in range(w.shape[0]):
+        w[j] = 0.0
+    for j in range(bext.shape[0]):
+        bext[j] = 0.0
+    ok = True
+    for i in range(table.shape[0]):
+        if table[i, 0] == FLUIDIC:
+            fi = table[i, 5]
+            if fpar[fi, 12] == 0.0:
+                V = fpar[fi, 13]
+            else:
+                V = _map_eval(mapint, maps, table, x, int(fpar[fi, 13]), 0)
+            if not (V > 0.0 and math.isfinite(V)):
+                ok = False
+            w[table[i, 3] + 1] = V
+    if ckind == 2:
+        if only[cint[0]] and not _impedance(t, x, net, w):
+            ok = False
+    elif ckind == 1 and free_rows.shape[0] > 0:
+        u = np.empty(free_rows.shape[0])
+        _interp_row(ctimes, cvals, cper, t, u)
+        for j in range(free_rows.shape[0]):
+            w[free_rows[j]] = u[j]
+    for li in range(link_tab.shape[0]):
+        lk, src, ro, nr = link_tab[li, 0], link_tab[li, 1], link_tab[li, 2], link_tab[li, 3]
+        if lk == 2:
+            W = np.zeros(6)
+            if not _wrench_sum(t, net, src, x, W):
+                ok = False
+            for r in range(6):
+                w[link_rows[ro + r]] = W[r]
+            continue
+        for r in range(nr):
+            if lk == 1:
+                v = _map_eval(mapint, maps, table, x, src, r)
+            elif table[src, 0] == FLUIDIC:
+                fi = table[src, 5]
+                V = w[table[src, 3] + 1]
+                v = _pressure(fpar, fi, x[table[src, 1]], V) - fpar[fi, 3]
+            elif table[src, 0] == LINEAR:                  # y = C x + D u
+                li = table[src, 5]
+                n, m, o = lint[li, 0], lint[li, 1], lint[li, 3]
+                oc = o + n * n + n * m
+                od = oc + lint[li, 2] * n
+                v = 0.0
+                for c in range(n):
+                    v += lflt[oc + r * n + c] * x[table[src, 1] + c]
+                for c in range(m):
+                    v += lflt[od + r * m + c] * w[table[src, 3] + c]
+            else:
+                v = x[table[src, 1] + r]
+            w[link_rows[ro + r]] = v
+    return ok
+
+
+@njit(cache=True)
+def _beam_views(bi, net):
+    """Views of beam bi's model arrays (in the float buffer) and work arrays (in the beam workspace)."""
+    bint, bflt, bwork, bintb = net[1], net[2], net[3], net[4]
+    n, m, P, ng, order, fo, wko, io, po = (bint[bi, 0], bint[bi, 1], bint[bi, 2], bint[bi, 3], bint[bi, 4],
+                                           bint[bi, 5], bint[bi, 6], bint[bi, 7], bint[bi, 8])
+    Np = P + 1
+    o = fo
+    K = bflt[o:o + n * n].reshape((n, n))
+    o += n * n
+    D = bflt[o:o + n * n].reshape((n, n))
+    o += n * n
+    Gin = bflt[o:o + n * m].reshape((n, m))
+    o += n * m
+    h = bflt[o:o + P]
+    o += P
+    B = bflt[o:o + P * ng * n].reshape((P, ng, n))
+    o += P * ng * n
+    X0 = bflt[o:o + P * ng * 6].reshape((P, ng, 6))
+    o += P * ng * 6
+    base = bflt[o:o + 16].reshape((4, 4))
+    o += 16
+    wts = bflt[o:o + Np]
+    o += Np
+    Md = bflt[o:o + Np * 6].reshape((Np, 6))
+    o += Np * 6
+    ag = bflt[o:o + 3]
+    rows = bintb[io:io + n]
+    piv = bintb[po:po + n]
+    o = wko
+    G = bwork[o:o + Np * 16].reshape((Np, 4, 4))
+    o += Np * 16
+    J = bwork[o:o + Np * 6 * n].reshape((Np, 6, n))
+    o += Np * 6 * n
+    Jd = bwork[o:o + Np * 6 * n].reshape((Np, 6, n))
+    o += Np * 6 * n
+    eta = bwork[o:o + Np * 6].reshape((Np, 6))
+    o += Np * 6
+    etad = bwork[o:o + Np * 6].reshape((Np, 6))
+    o += Np * 6
+    S = bwork[o:o + 216].reshape((6, 6, 6))
+    o += 216
+    E = bwork[o:o + 16].reshape((4, 4))
+    o += 16
+    V = bwork[o:o + 48].reshape((8, 6))
+    o += 48
+    Op = bwork[o:o + 6 * n].reshape((6, n))
+    o += 6 * n
+    AJ = bwork[o:o + 6 * n].reshape((6, n))
+    o += 6 * n
+    W = bwork[o:o + 48].reshape((8, 6))
+    o += 48
+    M = bwork[o:o + n * n].reshape((n, n))
+    o += n * n
+    C = bwork[o:o + n * n].reshape((n, n))
+    o += n * n
+    fg = bwork[o:o + n]
+    o += n
+    R = bwork[o:o + n]
+    o += n
+    qdd = bwork[o:o + n]
+    o += n
+    f_in = bwork[o:o + n]
+    end = o + n
+    return (n, m, order, K, D, Gin, h, B, X0, base, wts, Md, ag, rows, piv, G, J, Jd, eta, etad, S, E, V, Op, AJ,
+            W, M, C, fg, R, qdd, f_in, wko, end)
+
+
+@njit(cache=True)
+def _beam_rhs(bi, x, xo, w, wo, net, out):
+    """Derivative (qd, qdd) of beam bi into out[xo:xo+2n]; False if the state is out of range."""
+    bwork = net[3]
+    (n, m, order, K, D, Gin, h, B, X0, base, wts, Md, ag, rows, piv, G, J, Jd, eta, etad, S, E, V, Op, AJ, W, M, C,
+     fg, R, qdd, f_in, wko, end) = _beam_views(bi, net)
+    bext = net[28]
+    for k in range(n):
+        s = bext[xo + k]                            # forces of couplings (a grasp)
+        for j in range(m):
+            s += Gin[k, j] * w[wo + j]
+        f_in[k] = s
+    q = x[xo:xo + n]
+    qd = x[xo + n:xo + 2 * n]
+    nodes = np.zeros(0, np.int64)
+    pW = np.zeros((0, 6))
+    spatial = np.zeros(0, np.bool_)
+    ok = _fd(q, qd, f_in, K, D, nodes, pW, spatial, order, h, B, rows, X0, base, wts, Md, ag, G, J, Jd, eta, etad, S,
+             E, V, Op, AJ, W, M, C, fg, R, piv, qdd)
+    s = 0.0
+    for k in range(n):
+        s += qdd[k]
+    if not (ok and math.isfinite(s)):
+        for j in range(wko, end):                   # never keep a poisoned workspace (stale NaN times 0)
+            bwork[j] = 0.0
+        return False
+    for k in range(n):
+        out[xo + k] = qd[k]
+        out[xo + n + k] = qdd[k]
+    return True
+
+
+@njit(cache=True)
+def _impedance(t, x, net, w):
+    """The inputs of the Cartesian impedance controller (:func:`soroshapes.control.impedance`, the same
+    equations) at (t, x) into w; False if the beam's state is out of range."""
+    table, ctimes, cvals, cper, cint, cflt = net[0], net[11], net[12], net[13], net[26], net[27]
+    blk, k, node, cor, grav, elas, null, m = cint[0], cint[1], cint[2], cint[3], cint[4], cint[5], cint[6], cint[7]
+    bi, xo = table[blk, 5], table[blk, 1]
+    (n, _, order, K, D, Gin, h, B, X0, base, wts, Md, ag, brows, piv, G, J, Jd, eta, etad, S, E, V, Op, AJ, W, M, C,
+     fg, R, qdd, f_in, wko, end) = _beam_views(bi, net)
+    q = np.ascontiguousarray(x[xo:xo + n])
+    qd = np.ascontiguousarray(x[xo + n:xo + 2 * n])
+    dOp = np.zeros((6, n))
+    Mc, Cc, fgc = np.empty((n, n)), np.empty((n, n)), np.empty(n)
+    _kinematics(q, qd, True, order, h, B, brows, X0, base, G, J, Jd, eta, S, E, V, Op, dOp, AJ)
+    _mcg(J, Jd, eta, G, wts, Md, ag, Mc, Cc, fgc, True, S, V, AJ)
+    s = 0.0
+    for i in range(n):
+        s += fgc[i] + Mc[i, i]
+    if not math.isfinite(s):
+        return False
+    # the task: the spatial velocity of the node's origin, pdot = R v = R J_v qd, and its rate
+    Rn = G[node, :3, :3]
+    Jb = J[node]
+    Jbd = Jd[node]
+    om = Jb[:3] @ qd
+    Jt, Jdt, p = np.empty((k, n)), np.empty((k, n)), np.empty(k)
+    for a in range(k):
+        r = cint[8 + a]
+        p[a] = G[node, r, 3]
+        for c in range(n):
+            sj = 0.0
+            sd = 0.0
+            for l in range(3):
+                l1, l2 = (l + 1) % 3, (l + 2) % 3
+                sj += Rn[r, l] * Jb[3 + l, c]
+                sd += Rn[r, l] * (om[l1] * Jb[3 + l2, c] - om[l2] * Jb[3 + l1, c] + Jbd[3 + l, c])
+            Jt[a, c] = sj
+            Jdt[a, c] = sd
+    MinvJT = np.linalg.solve(Mc, np.ascontiguousarray(Jt.T))
+    A = Jt @ MinvJT
+    ev, U = np.linalg.eigh(A)                         # pinv (hermitian), rcond 1e-9: finite at singularities
+    cut = 1e-9 * np.max(np.abs(ev))
+    Lam = np.zeros((k, k))
+    for e in range(k):
+        if abs(ev[e]) > cut:
+            for a in range(k):
+                for b2 in range(k):
+                    Lam[a, b2] += U[a, e] * U[b2, e] / ev[e]
+    pd = np.empty(k)
+    _interp_row(ctimes, cvals, cper, t, pd)
+    Kc = cflt[:k * k].reshape((k, k))
+    Dc = cflt[k * k:2 * k * k].reshape((k, k))
+    force = Kc @ (pd - p) - Dc @ (Jt @ qd)
+    if cor:
+        force += Lam @ (Jt @ np.linalg.solve(Mc, Cc @ qd) - Jdt @ qd)
+    tau = Jt.T @ force
+    if elas:
+        tau += K @ q
+    if grav:
+        tau -= fgc
+    if null:
+        o = 2 * k * k
+        Kn = cflt[o:o + n * n].reshape((n, n))
+        Dn = cflt[o + n * n:o + 2 * n * n].reshape((n, n))
+        qn = cflt[o + 2 * n * n:o + 2 * n * n + n]
+        tau0 = Kn @ (qn - q) - Dn @ qd
+        Jbar = MinvJT @ Lam
+        tau += tau0 - Jt.T @ (Jbar.T @ tau0)
+    if Gin.shape[0] == Gin.shape[1] and abs(np.linalg.det(Gin)) > 0.0:
+        u = np.linalg.solve(np.ascontiguousarray(Gin), tau)
+    else:
+        u = np.linalg.lstsq(np.ascontiguousarray(Gin), tau, rcond=1e-10)[0]
+    for j in range(m):
+        w[cint[8 + k + j]] = u[j]
+    return True
+
+
+@njit(cache=True)
+def _beam_mass(bi, net):
+    """The mass matrix that the last evaluation of beam bi left in its workspace (a view)."""
+    bint, bwork = net[1], net[3]
+    n, P = bint[bi, 0], bint[bi, 2]
+    Np = P + 1
+    o = bint[bi, 6] + Np * 16 + 2 * Np * 6 * n + 2 * Np * 6 + 216 + 16 + 48 + 12 * n + 48
+    return bwork[o:o + n * n].reshape((n, n))
+
+
+@njit(cache=True)
+def _fluidic_rhs(fi, x, xo, nx, w, wo, fpar, out):
+    """Derivative of reservoir fi (see :meth:`soroshapes.model.Fluidic.rhs`)."""
+    V = w[wo + 1]
+    iso, R, T, p0, poly, leak, a = (fpar[fi, 0], fpar[fi, 1], fpar[fi, 2], fpar[fi, 3], fpar[fi, 4], fpar[fi, 5],
+                                    fpar[fi, 6])
+    reg, kp, ki, mx, filt = fpar[fi, 7], fpar[fi, 8], fpar[fi, 9], fpar[fi, 10], fpar[fi, 11]
+    p = _pressure(fpar, fi, x[xo], V)
+    if reg != 0.0:
+        e = w[wo] - (p - p0)
+        nu = kp * e + ki * x[xo + nx - 1]
+        mdot = min(max(nu, -mx), mx)
+        out[xo + nx - 1] = e + (mdot - nu) / kp
+    else:
+        mdot = w[wo]
+    mdot = mdot - leak * (p - p0)
+    if iso != 0.0:
+        out[xo] = mdot
+    else:
+        Vdot = 0.0
+        if filt != 0.0:
+            Vdot = x[xo + 1] + a * V
+            out[xo + 1] = -a * (x[xo + 1] + a * V)
+        out[xo] = poly / V * (R * T * mdot - p * Vdot)
+
+
+@njit(cache=True)
+def _linear_rhs(li, x, xo, w, wo, lint, lflt, out):
+    """xdot = A x + B u of linear system li."""
+    n, m, o = lint[li, 0], lint[li, 1], lint[li, 3]
+    ob = o + n * n
+    for r in range(n):
+        s = 0.0
+        for c in range(n):
+            s += lflt[o + r * n + c] * x[xo + c]
+        for c in range(m):
+            s += lflt[ob + r * m + c] * w[wo + c]
+        out[xo + r] = s
+
+
+_GROUND, _GRASP = 0, 1
+_TERMS = {"ground": _GROUND, "grasp": _GRASP}
+
+
+@njit(cache=True)
+def _polar3(A):
+    """The rotation nearest to A (3, 3): the polar factor U V^T of its SVD, det +1 (as RigidBody.pose). Near a
+    rotation (the integrated R is one to the Newton tolerance) by Higham's iteration Q <- (Q + Q^-T)/2, which
+    converges quadratically to the same factor in a few 3 x 3 steps (cofactors, no allocation); otherwise by
+    the SVD."""
+    Q = A.copy()
+    C = np.empty((3, 3))
+    for _ in range(20):
+        for i in range(3):                             # cofactor matrix: Q^-T = C / det Q
+            for j in range(3):
+                i1, i2, j1, j2 = (i + 1) % 3, (i + 2) % 3, (j + 1) % 3, (j + 2) % 3
+                C[i, j] = Q[i1, j1] * Q[i2, j2] - Q[i1, j2] * Q[i2, j1]
+        det = Q[0, 0] * C[0, 0] + Q[0, 1] * C[0, 1] + Q[0, 2] * C[0, 2]
+        if not det > 0.0:
+            break
+        d = 0.0
+        for i in range(3):
+            for j in range(3):
+                v = 0.5 * (Q[i, j] + C[i, j] / det)
+                d = max(d, abs(v - Q[i, j]))
+                Q[i, j] = v
+        if d < 1e-15:
+            return Q
+    U, _, Vt = np.linalg.svd(A)
+    Q = U @ Vt
+    if np.linalg.det(Q) < 0.0:
+        for i in range(3):
+            U[i, 2] = -U[i, 2]
+        Q = U @ Vt
+    return Q
+
+
+@njit(cache=True)
+def _ground(par, R, p, eta, W):
+    """Add the wrench of soroshapes.rigid.ground_contact (a plane pushing on body points; penalty, damping,
+    regularized Coulomb friction) on the body at pose (R, p) with twist eta to W (body coordinates)."""
+    k, c, mu, eps = par[0], par[1], par[2], par[3]
+    n0, n1, n2 = par[7], par[8], par[9]
+    npt = int(par[10])
+    for j in range(npt):
+        r0, r1, r2 = par[11 + 3 * j], par[12 + 3 * j], par[13 + 3 * j]
+        b0 = eta[3] + eta[1] * r2 - eta[2] * r1           # v + omega x r (body)
+        b1 = eta[4] + eta[2] * r0 - eta[0] * r2
+        b2 = eta[5] + eta[0] * r1 - eta[1] * r0
+        d = 0.0
+        vn = 0.0
+        for i in range(3):
+            Pi = p[i] + R[i, 0] * r0 + R[i, 1] * r1 + R[i, 2] * r2
+            vi = R[i, 0] * b0 + R[i, 1] * b1 + R[i, 2] * b2
+            d += (Pi - par[4 + i]) * par[7 + i]
+            vn += vi * par[7 + i]
+        if d >= 0.0:
+            continue
+        fn = max(0.0, -k * d - c * vn)
+        if fn == 0.0:
+            continue
+        v0 = R[0, 0] * b0 + R[0, 1] * b1 + R[0, 2] * b2 - vn * n0
+        v1 = R[1, 0] * b0 + R[1, 1] * b1 + R[1, 2] * b2 - vn * n1
+        v2 = R[2, 0] * b0 + R[2, 1] * b1 + R[2, 2] * b2 - vn * n2
+        g = mu * fn / math.sqrt(v0 * v0 + v1 * v1 + v2 * v2 + eps * eps)
+        F0, F1, F2 = fn * n0 - g * v0, fn * n1 - g * v1, fn * n2 - g * v2
+        f0 = R[0, 0] * F0 + R[1, 0] * F1 + R[2, 0] * F2    # R^T F
+        f1 = R[0, 1] * F0 + R[1, 1] * F1 + R[2, 1] * F2
+        f2 = R[0, 2] * F0 + R[1, 2] * F1 + R[2, 2] * F2
+        W[0] += r1 * f2 - r2 * f1
+        W[1] += r2 * f0 - r0 * f2
+        W[2] += r0 * f1 - r1 * f0
+        W[3] += f0
+        W[4] += f1
+        W[5] += f2
+
+
+@njit(cache=True)
+def _grasp(t, net, par, bb, R, p, eta, x, W):
+    """soroshapes.rigid.grasp_force scaled by the engagement table: a spring-damper between node par[0] of beam
+    block bb and the body point par[1:4]; adds the body wrench to W and the beam's generalized force to the
+    network's external-force buffer. False if the beam's state is out of range."""
+    table, bext = net[0], net[28]
+    K = int(par[6])
+    e = np.empty(1)
+    _interp_row(par[8:8 + K], par[8 + K:8 + 2 * K].reshape((K, 1)), par[7], t, e)
+    if e[0] == 0.0:
+        return True
+    xo = table[bb, 1]
+    (n, _, order, Kb, D, Gin, h, B, X0, base, wts, Md, ag, brows, piv, G, J, Jd, eta_b, etad, S, E, V, Op, AJ, Wb,
+     M, C, fg, Rr, qdd, f_in, wko, end) = _beam_views(table[bb, 5], net)
+    q = np.ascontiguousarray(x[xo:xo + n])
+    qd = np.ascontiguousarray(x[xo + n:xo + 2 * n])
+    dOp = np.zeros((6, n))
+    _kinematics(q, qd, False, order, h, B, brows, X0, base, G, J, Jd, eta_b, S, E, V, Op, dOp, AJ)
+    i = int(par[0])
+    a0, a1, a2 = par[1], par[2], par[3]
+    k, c = par[4], par[5]
+    b0 = eta[3] + eta[1] * a2 - eta[2] * a1               # v + omega x a (body)
+    b1 = eta[4] + eta[2] * a0 - eta[0] * a2
+    b2 = eta[5] + eta[0] * a1 - eta[1] * a0
+    F = np.empty(3)
+    for r in range(3):
+        Pa = p[r] + R[r, 0] * a0 + R[r, 1] * a1 + R[r, 2] * a2
+        Va = R[r, 0] * b0 + R[r, 1] * b1 + R[r, 2] * b2
+        Vb = G[i, r, 0] * eta_b[i, 3] + G[i, r, 1] * eta_b[i, 4] + G[i, r, 2] * eta_b[i, 5]
+        F[r] = e[0] * (k * (G[i, r, 3] - Pa) + c * (Vb - Va))
+    if not (math.isfinite(F[0]) and math.isfinite(F[1]) and math.isfinite(F[2])):
+        return False
+    f0 = R[0, 0] * F[0] + R[1, 0] * F[1] + R[2, 0] * F[2]      # R^T F on the body
+    f1 = R[0, 1] * F[0] + R[1, 1] * F[1] + R[2, 1] * F[2]
+    f2 = R[0, 2] * F[0] + R[1, 2] * F[1] + R[2, 2] * F[2]
+    W[0] += a1 * f2 - a2 * f1
+    W[1] += a2 * f0 - a0 * f2
+    W[2] += a0 * f1 - a1 * f0
+    W[3] += f0
+    W[4] += f1
+    W[5] += f2
+    for r in range(3):                                      # -F on the beam: -J_v^T R_i^T F
+        fl = G[i, 0, r] * F[0] + G[i, 1, r] * F[1] + G[i, 2, r] * F[2]
+        for j in range(n):
+            bext[xo + j] -= J[i, 3 + r, j] * fl
+    return True
+
+
+@njit(cache=True)
+def _wrench_sum(t, net, si, x, W):
+    """The summed wrench (body coordinates) of wrench sum si on its (free rigid) body at the state x (and the
+    beams' share of its grasp terms into the external-force buffer). False if a beam's state is out of range."""
+    table, wsum, wterm, wflt = net[0], net[23], net[24], net[25]
+    first, count, body = wsum[si, 0], wsum[si, 1], wsum[si, 2]
+    xo = table[body, 1]
+    R = _polar3(np.ascontiguousarray(x[xo + 3:xo + 12]).reshape((3, 3)))
+    p = x[xo:xo + 3]
+    eta = x[xo + 12:xo + 18]
+    for tt in range(first, first + count):
+        o, m = wterm[tt, 1], wterm[tt, 2]
+        if wterm[tt, 0] == _GROUND:
+            _ground(wflt[o:o + m], R, p, eta, W)
+        elif not _grasp(t, net, wflt[o:o + m], wterm[tt, 3], R, p, eta, x, W):
+            return False
+    return True
+
+
+@njit(cache=True)
+def _rigid_rhs(ri, x, xo, w, wo, rflt, out):
+    """Newton-Euler derivative of free rigid body ri (:meth:`soroshapes.rigid.RigidBody.rhs`): state
+    (p, R row by row, omega, v), input the body wrench (m, f) at w[wo:wo+6]."""
+    par = rflt[ri]
+    mass, cv, cw, kappa = par[0], par[22], par[23], par[24]
+    R = x[xo + 3:xo + 12].reshape((3, 3))
+    om, v = x[xo + 12:xo + 15], x[xo + 15:xo + 18]
+    for i in range(3):
+        out[xo + i] = R[i, 0] * v[0] + R[i, 1] * v[1] + R[i, 2] * v[2]
+    # dR = R hat(omega) + kappa/2 (R - R R^T R)
+    RtR = R.T @ R
+    for i in range(3):
+        for j in range(3):
+            a = R[i, (j + 1) % 3] * om[(j + 2) % 3] - R[i, (j + 2) % 3] * om[(j + 1) % 3]
+            if kappa != 0.0:
+                a += 0.5 * kappa * (R[i, j] - (R[i, 0] * RtR[0, j] + R[i, 1] * RtR[1, j] + R[i, 2] * RtR[2, j]))
+            out[xo + 3 + 3 * i + j] = a
+    Iw = np.empty(3)
+    for i in range(3):
+        Iw[i] = par[1 + 3 * i] * om[0] + par[2 + 3 * i] * om[1] + par[3 + 3 * i] * om[2]
+    mom = np.empty(3)
+    force = np.empty(3)
+    for i in range(3):
+        i1, i2 = (i + 1) % 3, (i + 2) % 3
+        mom[i] = -(om[i1] * Iw[i2] - om[i2] * Iw[i1]) - cw * om[i] + w[wo + i]      # v x m v = 0
+        force[i] = -mass * (om[i1] * v[i2] - om[i2] * v[i1]) \
+            + mass * (R[0, i] * par[19] + R[1, i] * par[20] + R[2, i] * par[21]) - cv * v[i] + w[wo + 3 + i]
+    for i in range(3):
+        out[xo + 12 + i] = par[10 + 3 * i] * mom[0] + par[11 + 3 * i] * mom[1] + par[12 + 3 * i] * mom[2]
+        out[xo + 15 + i] = force[i] / mass
+
+
+@njit(cache=True)
+def rhs(t, x, net, w, out, only):
+    """F(t, x) into out (the blocks with ``only[i]`` True; inputs assembled into w). False if a state is out of
+    range or a volume is not positive."""
+    table, fpar = net[0], net[5]
+    if not _assemble(t, x, net, w, only):
+        return False
+    for i in range(table.shape[0]):
+        if not only[i]:
+            continue
+        xo, nx, wo = table[i, 1], table[i, 2], table[i, 3]
+        if table[i, 0] == BEAM:
+            if not _beam_rhs(table[i, 5], x, xo, w, wo, net, out):
+                return False
+        elif table[i, 0] == FLUIDIC:
+            _fluidic_rhs(table[i, 5], x, xo, nx, w, wo, fpar, out)
+        elif table[i, 0] == RIGID:
+            _rigid_rhs(table[i, 5], x, xo, w, wo, net[22], out)
+        else:
+            _linear_rhs(table[i, 5], x, xo, w, wo, net[20], net[21], out)
+    for i in range(table.shape[0]):
+        if only[i]:
+            for j in range(table[i, 1], table[i, 1] + table[i, 2]):
+                if not math.isfinite(out[j]):
+                    return False
+    return True
+
+
+@njit(cache=True)
+def jacobian(t, x, net, scale, w, f0, fp, xp, Jac, JF):
+    """:math:`\\partial F/\\partial x` by grouped forward differences (steps ``FD_STEP max(|x_j|, scale_j)``)
+    into Jac, and into JF the same with the acceleration rows of every beam multiplied by its mass matrix at x
+    (the force Jacobian, which changes slowly with the configuration; see :func:`_iteration_matrix`). False if
+    an evaluation fails."""
+    table, groups, dep, col_block = net[0], net[15], net[16], net[17]
+    nb = table.shape[0]
+    N = x.shape[0]
+    alls = np.ones(nb, np.bool_)
+    if not rhs(t, x, net, w, f0, alls):
+        return False
+    for i in range(N):
+        for j in range(N):
+            Jac[i, j] = 0.0
+    sel = np.zeros(nb, np.bool_)
+    for g in range(groups.shape[0]):
+        for i in range(N):
+            xp[i] = x[i]
+        for b in range(nb):
+            sel[b] = False
+        for c in range(groups.shape[1]):
+            j = groups[g, c]
+            if j < 0:
+                break
+            xp[j] = x[j] + FD_STEP * max(abs(x[j]), scale[j])
+            for b in range(nb):
+                if dep[b, col_block[j]]:
+                    sel[b] = True
+        if not rhs(t, xp, net, w, fp, sel):
+            return False
+        for c in range(groups.shape[1]):
+            j = groups[g, c]
+            if j < 0:
+                break
+            d = xp[j] - x[j]
+            for b in range(nb):
+                if dep[b, col_block[j]]:
+                    for i in range(table[b, 1], table[b, 1] + table[b, 2]):
+                        Jac[i, j] = (fp[i] - f0[i]) / d
+    if not rhs(t, x, net, w, f0, alls):               # the workspaces at x again (their mass matrices)
+        return False
+    for i in range(N):
+        for j in range(N):
+            JF[i, j] = Jac[i, j]
+    for b in range(nb):
+        if table[b, 0] == BEAM:
+            n = table[b, 2] // 2
+            r0 = table[b, 1] + n
+            M = _beam_mass(table[b, 5], net)
+            for k in range(n):
+                for j in range(N):
+                    s = 0.0
+                    for l in range(n):
+                        s += M[k, l] * Jac[r0 + l, j]
+                    JF[r0 + k, j] = s
+    return True
+
+
+@njit(cache=True)
+def _cheap_rows(t, x, net, scale, w, f0, fp, xp, JF):
+    """Refresh the rows of JF that belong to systems other than beams (reservoirs: cheap to evaluate, and
+    non-smooth where a valve saturates, so a stale row makes Newton contract slowly) by the grouped forward
+    differences of :func:`jacobian`, evaluating only those systems. False if an evaluation fails."""
+    table, groups, dep, col_block = net[0], net[15], net[16], net[17]
+    nb = table.shape[0]
+    N = x.shape[0]
+    cheap = np.zeros(nb, np.bool_)
+    for b in range(nb):
+        cheap[b] = table[b, 0] != BEAM
+    if not rhs(t, x, net, w, f0, cheap):
+        return False
+    sel = np.zeros(nb, np.bool_)
+    for g in range(groups.shape[0]):
+        for i in range(N):
+            xp[i] = x[i]
+        any_row = False
+        for b in range(nb):
+            sel[b] = False
+        for c in range(groups.shape[1]):
+            j = groups[g, c]
+            if j < 0:
+                break
+            xp[j] = x[j] + FD_STEP * max(abs(x[j]), scale[j])
+            for b in range(nb):
+                if cheap[b] and dep[b, col_block[j]]:
+                    sel[b] = True
+                    any_row = True
+        if not any_row:
+            continue
+        if not rhs(t, xp, net, w, fp, sel):
+            return False
+        for c in range(groups.shape[1]):
+            j = groups[g, c]
+            if j < 0:
+                break
+            d = xp[j] - x[j]
+            for b in range(nb):
+                if cheap[b] and dep[b, col_block[j]]:
+                    for i in range(table[b, 1], table[b, 1] + table[b, 2]):
+                        JF[i, j] = (fp[i] - f0[i]) / d
+    return True
+
+
+@njit(cache=True)
+def _iteration_matrix(c, net, JF, Jac, LUc, pivc):
+    r"""Factor :math:`I - cJ` per connected component, with the acceleration rows of every beam taken as
+    :math:`M(q)^{-1}` (current, from the last evaluation) times the force Jacobian ``JF``: a stale Jacobian then
+    misses only the slow change of the forces, not that of the inertia (the configuration dependence of
+    :math:`M` is what makes a beam's stale iteration matrix contract slowly). False if singular."""
+    table, comps, block_comp = net[0], net[18], net[19]
+    N = JF.shape[0]
+    for i in range(N):
+        for j in range(N):
+            Jac[i, j] = JF[i, j]
+    for b in range(table.shape[0]):
+        if table[b, 0] == BEAM:
+            n = table[b, 2] // 2
+            r0 = table[b, 1] + n
+            Mf = _beam_mass(table[b, 5], net).copy()
+            piv = np.zeros(n, np.int64)
+            if not _lu(Mf, piv):
+                return False
+            col = np.empty(n)
+            k = block_comp[b]
+            for cc in range(comps.shape[1]):
+                j = comps[k, cc]
+                if j < 0:
+                    break
+                for l in range(n):
+                    col[l] = JF[r0 + l, j]
+                _lu_solve(Mf, piv, col)
+                for l in range(n):
+                    Jac[r0 + l, j] = col[l]
+    for k in range(comps.shape[0]):
+        s = 0
+        while s < comps.shape[1] and comps[k, s] >= 0:
+            s += 1
+        A = LUc[k, :s, :s]
+        for a in range(s):
+            for b2 in range(s):
+                A[a, b2] = -c * Jac[comps[k, a], comps[k, b2]]
+            A[a, a] += 1.0
+        if not _lu(A, pivc[k, :s]):
+            return False
+    return True
+
+
+def warm_up():
+    """Compile (or load from numba's cache) every kernel of the compiled network path by running a tiny network
+    of each system and coupling kind for a few steps: what a bootstrap or precompile step calls so that the first
+    compiled simulation of a fresh process does not wait for numba (about 30 s with an empty cache). Returns the
+    wall time [s]."""
+    import time
+
+    from sorofem import materials, sdf
+
+    from .basis import Basis
+    from .model import Fluidic, Model, StateSpace
+    from .shapes import Shapes
+
+    t0 = time.perf_counter()
+    shp = Shapes(Basis.chebyshev(2), dofs=(0, 2, 0, 0, 0, 0), length=0.05, section=sdf.Circle(0.004),
+                 material=materials.NeoHookean(E=1e6, nu=0.45, density=1000.0), segments=2)
+    shp.add_gravity().add_chamber(1e-5, (0.0, 0.002))
+    mdl = (Model().add(shp, "beam").add(Fluidic(None, V0=1e-6, regulator=dict(kp=1e-9, ki=1e-8, max_flow=1e-4)), "p")
+           .add(StateSpace.linear([[-10.0]], [[10.0]]), "lag")
+           .connect("p", "beam").connect("lag", "p")
+           .connect(StateMap("beam", [1e-8], index=0, offset=1e-6), "p", port="volume")
+           .set_controller(Schedule([0.0, 1.0], {"lag": [[0.0], [1e3]]})))
+    mdl.simulate(4e-3, 1e-3, "bdf2", compiled=True)
+    return time.perf_counter() - t0
+
+
+if __name__ == "__main__":          # `python -m soroshapes.network`: the bootstrap's precompile step
+    from soroshapes.network import warm_up as _warm_up     # the package's module, not this __main__ copy
+    print(f"network kernels ready in {_warm_up():.1f} s")

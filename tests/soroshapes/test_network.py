@@ -1,0 +1,402 @@
+"""The compiled network (soroshapes.network) against the Python path of Model.simulate on the same networks.
+
+Each block and coupling kind that lowers (beams with gravity and chambers, isothermal/polytropic/regulated
+reservoirs, constant or StateMap volumes, output couplings, StateMap input couplings, Schedule controllers) is run
+on both paths: the trajectories agree to the Newton tolerance (the compiled Newton stops on a rate-based error
+estimate of the same tolerance, per connected component, so the two differ by far less than the tolerance
+``rtol |x| + atol s`` itself). Closed forms anchor the compiled path too (Boyle's law). Bad input gives clear
+errors; a failed run leaves the model usable.
+"""
+import numpy as np
+import pytest
+
+from sorofem import materials, sdf
+from sorofem.errors import ConvergenceError, DataError, ParameterError
+from soroshapes import Basis, Fluidic, Model, Shapes, StateSpace
+from soroshapes.network import Schedule, StateMap
+
+V0 = 1e-6
+
+
+def finger(modes=2, gravity=True):
+    mat = materials.NeoHookean(E=1e6, nu=0.45, density=1000)
+    shp = Shapes(Basis.chebyshev(modes), dofs=(0, 0, modes, 0, 0, 0), length=0.1, section=sdf.Circle(0.005),
+                 material=mat, damping=0.03, segments=6)
+    if gravity:
+        shp = shp.add_gravity((0, -9.81, 0))
+    return shp.add_chamber(area=5e-5, offset=(0.003, 0))
+
+
+def hand_like(fingers=2):
+    """Fingers, each with a regulated reservoir whose volume follows the finger (StateMap) and a periodic
+    set-point table."""
+    mdl = Model()
+    for i in range(fingers):
+        fl = Fluidic(None, V0=V0, regulator=dict(kp=2e-9, ki=2e-7, max_flow=1e-5))
+        mdl.add(finger(), f"f{i}").add(fl, f"p{i}")
+        mdl.connect(f"p{i}", f"f{i}")
+        mdl.connect(StateMap(f"f{i}", [0.1], index=0, offset=V0, scale=0.2 * V0, function="tanh"), f"p{i}",
+                    port="volume")
+    t = np.linspace(0.0, 0.5, 51)
+    mdl.set_controller(Schedule(t, {f"p{i}": 30e3 * np.sin(2 * np.pi * 2 * t + i)[:, None] for i in range(fingers)},
+                                period=0.5))
+    return mdl
+
+
+def both(make, *args, **kw):
+    a = make().simulate(*args, compiled=True, **kw)
+    b = make().simulate(*args, compiled=False, **kw)
+    assert a.stats["path"] == "compiled" and b.stats["path"] == "python"
+    return a, b
+
+
+def close(a, b, rtol, atol, scale=1.0):
+    """Agreement well inside the Newton tolerance (1e-3 of which each step's iterate is within)."""
+    err = np.abs(a - b) / (rtol * np.abs(b) + atol * scale)
+    return float(np.max(err))
+
+
+@pytest.mark.parametrize("method", ["trapezoidal", "midpoint", "bdf2"])
+def test_beams_reservoirs_statemaps_and_schedules_compiled_equal_python(method):
+    rtol, atol = 1e-7, 1e-9
+    a, b = both(hand_like, 0.4, 2e-3, method, rtol=rtol, atol=atol)
+    for i in range(2):
+        # beam states O(1..100): a few tolerances after 200 steps of error propagation
+        assert close(a[f"f{i}"].x, b[f"f{i}"].x, rtol, atol) < 10
+        assert np.max(np.abs(a[f"p{i}"].pressure - b[f"p{i}"].pressure)) < 1e-5 * 30e3
+        assert np.allclose(a[f"p{i}"].volume, b[f"p{i}"].volume, rtol=1e-9)
+    assert np.allclose(a.u, b.u, rtol=1e-5, atol=1e-3)
+    assert a["f0"].q.shape == b["f0"].q.shape and np.array_equal(a.t, b.t)
+
+
+def test_recording_and_continuing_from_t0_on_the_compiled_path():
+    full = hand_like(1).simulate(0.2, 2e-3, "trapezoidal", compiled=True)
+    sparse = hand_like(1).simulate(0.2, 2e-3, "trapezoidal", compiled=True, record_every=7)
+    assert np.allclose(sparse.t, np.r_[full.t[::7], full.t[-1]])
+    assert np.array_equal(sparse.x, np.vstack([full.x[::7], full.x[-1:]]))
+    # a run continued from t0 (the periodic schedule sees the absolute time) equals one run
+    mdl = hand_like(1)
+    first = mdl.simulate(0.1, 2e-3, "trapezoidal", compiled=True)
+    second = mdl.simulate(0.1, 2e-3, "trapezoidal", compiled=True, x0=first.x[-1], t0=0.1)
+    assert second.t[0] == pytest.approx(0.1) and second.t[-1] == pytest.approx(0.2)
+    assert np.allclose(second.x[-1], full.x[-1], rtol=1e-6, atol=1e-9)
+
+
+def test_evaluation_paths_say_which_path_runs_and_why():
+    mdl = hand_like(1)
+    assert mdl.evaluation_path == "compiled"
+    assert mdl.evaluation_paths["controller"] == "compiled"
+    mdl.set_controller(lambda m: {"p0": [1e3]})
+    why = mdl.evaluation_path
+    assert why.startswith("python:") and "Python controller" in why
+    with pytest.raises(ParameterError, match="no compiled form.*Python controller"):
+        mdl.simulate(0.01, 1e-3, compiled=True)
+    # still runs, on the Python path
+    assert mdl.simulate(0.01, 2e-3).stats["path"] == "python"
+
+
+def test_a_contact_beam_or_statespace_keeps_the_python_path():
+    shp = finger().add_contact(sdf.Sphere(0.01).translate((0.05, -0.1, 0.0)), stiffness=1e4)
+    assert "beam" in Model().add(shp, "f").evaluation_path
+    from soroshapes import StateSpace
+    ss = StateSpace(lambda x, u, t: -x, 1, 0)
+    assert "StateSpace" in Model().add(ss, "s").evaluation_path
+
+
+@pytest.mark.parametrize("polytropic", [1.0, 1.4])
+def test_reservoir_with_a_statemap_volume_of_a_beam(polytropic):
+    """An unregulated reservoir fed by a scheduled mass flow, its volume a linear map of a beam's state."""
+    def make():
+        fl = Fluidic(None, V0=V0, polytropic=polytropic, filter_gain=200.0)
+        mdl = Model().add(finger(), "f").add(fl, "p").connect("p", "f")
+        mdl.connect(StateMap("f", [[1e-8, 0.0]], index=[0, 1], offset=V0), "p", port="volume")
+        return mdl.set_controller(Schedule([0.0, 0.1, 0.2], {"p": [[0.0], [2e-7], [0.0]]}))
+    rtol, atol = 1e-8, 1e-10
+    a, b = both(make, 0.3, 1e-3, "bdf2", rtol=rtol, atol=atol)
+    assert close(a["f"].x, b["f"].x, rtol, atol) < 10
+    assert np.max(np.abs(a["p"].pressure - b["p"].pressure)) < 1e-6 * np.max(np.abs(b["p"].pressure))
+    assert np.max(np.abs(b["p"].pressure)) > 1e3            # something happened
+
+
+def test_compiled_closed_reservoir_follows_boyles_law():
+    """A closed isothermal reservoir whose volume is a StateMap of a beam: pV = mRT = const on the compiled
+    path (the state is the mass: exact to round-off whatever the beam does)."""
+    fl = Fluidic(None, V0=V0)
+    mdl = Model().add(finger(gravity=True), "f").add(fl, "p")
+    mdl.connect(StateMap("f", [[0.05, 0.0]], index=[0, 1], offset=V0, scale=0.5 * V0, function="tanh"), "p",
+                port="volume")
+    tr = mdl.simulate(0.3, 1e-3, "bdf2", compiled=True, rtol=1e-8)
+    pabs = tr["p"].pressure + fl.p0
+    assert np.ptp(tr["p"].volume) > 1e-3 * V0                 # the beam sags under gravity: the volume moves
+    assert np.max(np.abs(pabs * tr["p"].volume / (fl.p0 * tr["p"].volume[0]) - 1)) < 1e-12
+
+
+def test_statemap_input_coupling_and_beam_output_coupling():
+    """A beam's state mapped into another beam's chamber pressure (StateMap input), and a beam's full state as
+    the output of a named system into a reservoir-free chain."""
+    def make():
+        mdl = Model().add(finger(), "a").add(finger(), "b")
+        mdl.connect(StateMap("a", [2e5], index=0), "b")
+        return mdl.set_controller(Schedule([0.0, 0.2], {"a": [[0.0], [20e3]]}))
+    rtol, atol = 1e-8, 1e-10
+    a, b = both(make, 0.2, 1e-3, "trapezoidal", rtol=rtol, atol=atol)
+    assert close(a["b"].x, b["b"].x, rtol, atol) < 10
+    assert np.allclose(a["b"].u[:, 0], 2e5 * a["a"].q[:, 0])
+    assert np.max(np.abs(a["b"].q)) > 1e-3
+
+
+@pytest.mark.parametrize("feedthrough", [False, True])
+def test_linear_statespace_blocks_compiled_equal_python(feedthrough):
+    """A first-order pressure lag (StateSpace.linear) between a scheduled set point and a beam's chamber, and a
+    second linear system filtering the beam's first coordinate (StateMap input): both compiled."""
+    from soroshapes import StateSpace
+
+    def make():
+        D = [[0.5]] if feedthrough else None
+        lag = StateSpace.linear([[-50.0]], [[50.0]], [[1.0 if not feedthrough else 0.5]], D)
+        filt = StateSpace.linear([[-20.0, 0.0], [1.0, 0.0]], [[20.0], [0.0]])
+        mdl = Model().add(finger(), "f").add(lag, "lag").add(filt, "filt")
+        mdl.connect("lag", "f").connect(StateMap("f", [1.0], index=0), "filt")
+        return mdl.set_controller(Schedule([0.0, 0.05, 0.3], {"lag": [[0.0], [20e3], [20e3]]}))
+    assert make().evaluation_path == "compiled"
+    rtol, atol = 1e-8, 1e-10
+    a, b = both(make, 0.3, 1e-3, "bdf2", rtol=rtol, atol=atol)
+    assert close(a["f"].x, b["f"].x, rtol, atol) < 10
+    assert close(a["filt"].x, b["filt"].x, rtol, atol) < 10
+    assert np.max(np.abs(a["lag"].x - b["lag"].x)) < 1e-6 * 20e3
+    # the filter's second state integrates its first: x1(t) = int x0 (a closed-form check of the wiring)
+    x0, x1 = a["filt"].x[:, 0], a["filt"].x[:, 1]
+    assert abs(x1[-1] - np.trapz(x0, a.t)) < 1e-3 * np.max(np.abs(x1))
+
+
+def test_schedule_tables_interpolate_and_repeat():
+    s = Schedule([0.0, 1.0, 2.0], [[0.0, 1.0], [2.0, 1.0], [0.0, 1.0]], period=2.0)
+    assert np.allclose(s.at(0.5), [1.0, 1.0]) and np.allclose(s.at(2.5), [1.0, 1.0]) and np.allclose(s.at(-1.0),
+                                                                                                     [2.0, 1.0])
+    held = Schedule([0.0, 1.0], [[1.0], [3.0]])
+    assert held.at(-1.0)[0] == 1.0 and held.at(5.0)[0] == 3.0
+    sampled = Schedule.sample(lambda t: [np.sin(t)], None, 1e-3, period=2 * np.pi)
+    assert abs(sampled.at(1.0)[0] - np.sin(1.0)) < 1e-6 / 8 * 1.01
+    with pytest.raises(ParameterError, match="increasing"):
+        Schedule([0.0, 0.0], [[1.0], [2.0]])
+    with pytest.raises(ParameterError, match="period"):
+        Schedule([0.0, 1.0], [[1.0], [2.0]], period=2.0)
+    with pytest.raises(ParameterError, match="finite"):
+        Schedule([0.0, 1.0], [[1.0], [np.nan]])
+    with pytest.raises(ParameterError, match="function"):
+        StateMap("f", [1.0], function="sin")
+    with pytest.raises(ParameterError, match="columns"):
+        StateMap("f", [[1.0, 2.0]], index=0)
+
+
+def test_schedule_of_the_wrong_width_names_the_system():
+    mdl = Model().add(finger(), "f").set_controller(Schedule([0.0, 1.0], {"f": [[0.0, 1.0], [0.0, 1.0]]}))
+    with pytest.raises(ParameterError, match="'f'"):
+        mdl.simulate(0.01, 1e-3)
+
+
+def test_non_finite_initial_state_and_a_failed_run_leave_the_model_usable():
+    mdl = hand_like(1)
+    x0 = mdl.initial_state()
+    bad = x0.copy()
+    bad[0] = np.nan
+    with pytest.raises(DataError, match="NaN"):
+        mdl.simulate(0.01, 1e-3, x0=bad)
+    huge = x0.copy()
+    huge[0] = 1e200                     # frames overflow: the start is checked before the kernel runs
+    with pytest.raises(DataError, match="overflow"):
+        mdl.simulate(0.01, 1e-3, x0=huge, compiled=True)
+    ref = hand_like(1).simulate(0.05, 1e-3, compiled=True)
+    again = mdl.simulate(0.05, 1e-3, compiled=True)
+    assert np.array_equal(ref.x, again.x)
+
+
+def test_a_volume_map_that_turns_negative_is_a_clear_error():
+    fl = Fluidic(None, V0=V0)
+    mdl = Model().add(finger(), "f").add(fl, "p").connect("p", "f")
+    mdl.connect(StateMap("f", [1.0], index=0, offset=V0, scale=-2 * V0, function="tanh"), "p", port="volume")
+    with pytest.raises((ConvergenceError, DataError), match="t = |volume"):
+        mdl.simulate(0.5, 1e-3, x0=np.r_[5.0, 0, 0, 0, fl.initial_state(V0)], compiled=True)
+
+
+def test_warm_up_runs_every_kind():
+    from soroshapes.network import warm_up
+    assert warm_up() > 0
+
+
+def test_module_entry_warms_the_kernels():
+    """`python -m soroshapes.network` (the bootstrap's precompile step) runs warm_up in a fresh process."""
+    import subprocess
+    import sys
+
+    run = subprocess.run([sys.executable, "-m", "soroshapes.network"], capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr
+    assert "network kernels ready" in run.stdout
+
+
+
+def rigid_network(normalization=0.0):
+    """A free rigid body with a full inertia matrix, gravity, damping and an initial tumbling twist; a scheduled
+    wrench on four of its inputs and a linear lag (output coupling) on the other two."""
+    from soroshapes import RigidBody
+
+    inertia = np.array([[2.0, 0.3, -0.1], [0.3, 1.5, 0.2], [-0.1, 0.2, 1.0]]) * 1e-4
+    body = RigidBody(0.2, inertia, twist0=[3.0, -1.0, 5.0, 0.1, 0.0, -0.2], damping=(0.05, 1e-5),
+                     normalization=normalization)
+    lag = StateSpace.linear([[-20.0, 0.0], [0.0, -5.0]], np.eye(2))
+    t = np.linspace(0.0, 0.4, 9)
+    mdl = Model().add(body, "top").add(lag, "lag")
+    mdl.connect("lag", "top", ["moment_z", "force_x"])
+    # free inputs of the body: moment_x, moment_y, force_y, force_z
+    wrench = np.column_stack([1e-4 * np.sin(10 * t), np.zeros_like(t), 0.5 * np.cos(7 * t), np.full_like(t, 0.3)])
+    return mdl.set_controller(Schedule(t, {"top": wrench, "lag": np.column_stack([np.full_like(t, 2e-4), t])}))
+
+
+@pytest.mark.parametrize("method,normalization", [("trapezoidal", 0.0), ("midpoint", 0.0), ("bdf2", 20.0)])
+def test_rigid_body_compiled_equals_python(method, normalization):
+    """Newton-Euler on SE(3) (Euler's equations with a full inertia, gravity, damping, the normalization pulling
+    R onto SO(3)) compiled against RigidBody.rhs on the Python path."""
+    rtol, atol = 1e-8, 1e-10
+    assert rigid_network().evaluation_path == "compiled"
+    a, b = both(lambda: rigid_network(normalization), 0.4, 2e-3, method, rtol=rtol, atol=atol)
+    assert close(a["top"].x, b["top"].x, rtol, atol) < 10
+    assert close(a["lag"].x, b["lag"].x, rtol, atol) < 10
+    # the midpoint rule keeps R^T R = I to the Newton tolerance; trapezoidal and BDF2 (normalized) to an
+    # O((h |omega|)^2) bound, (2 ms x 6 rad/s)^2 ~ 1.4e-4
+    R = a["top"].x[-1, 3:12].reshape(3, 3)
+    assert np.allclose(R.T @ R, np.eye(3), atol=1e-6 if method == "midpoint" else 1e-3)
+
+
+def test_spinning_body_runs_compiled_and_matches_its_closed_form():
+    r"""A SpinningBody is linear: :math:`I\ddot\theta = -c\dot\theta + m_z` from rest under a constant moment gives
+    :math:`\dot\theta = (m_z/c)(1 - e^{-ct/I})`; the trapezoidal rule's error at dt = 1 ms and c/I = 25 1/s is
+    O((c h / I)^2 / 12) ~ 5e-5 relative."""
+    from soroshapes import RigidBody
+
+    def make():
+        bolt = RigidBody.spinning((0.0, 0.0, 1.0), 2e-5, 5e-4)
+        return Model().add(bolt, "bolt").set_controller(Schedule([0.0, 1.0], {"bolt": [[0, 0, 1e-3, 0, 0, 0]] * 2}))
+
+    assert make().evaluation_path == "compiled"
+    a, b = both(make, 0.2, 1e-3, "trapezoidal", rtol=1e-9, atol=1e-12)
+    exact = 1e-3 / 5e-4 * (1.0 - np.exp(-25.0 * a.t))
+    assert np.allclose(a["bolt"].x[:, 1], exact, rtol=0, atol=1e-4 * exact.max())
+    assert np.allclose(a["bolt"].x, b["bolt"].x, rtol=1e-7, atol=1e-10)
+
+
+def cylinder_on_table():
+    """The cylinder of demos/manipulator_pick standing on the table on its rim (12 points, penalty, damping,
+    regularized Coulomb friction), launched with a sideways velocity and a spin: it slides, rocks and comes to
+    rest."""
+    from soroshapes import RigidBody
+    from soroshapes.rigid import couple_ground
+
+    r, h, m = 0.02, 0.04, 0.045
+    pose = np.eye(4)
+    pose[:3, 3] = (0.0, 0.0, h / 2 - m * 9.81 / (12 * 3e3))          # on the table, at its static sinkage
+    cyl = RigidBody(m, [m * (3 * r * r + h * h) / 12] * 2 + [m * r * r / 2], pose0=pose,
+                    twist0=[0.3, -0.2, 2.0, 0.05, 0.02, 0.0], damping=(0.05, 1e-4), normalization=20.0)
+    ang = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    rim = np.column_stack([r * np.cos(ang), r * np.sin(ang), np.full(12, -h / 2)])
+    mdl = Model().add(cyl, "cylinder")
+    return couple_ground(mdl, "cylinder", rim, stiffness=3e3, damping=6.0, friction=0.5, regularization=1e-3)
+
+
+def test_ground_contact_compiled_equals_python():
+    """couple_ground on a free rigid body runs compiled (its parameters as data) and agrees with the Python path
+    (ground_contact) through impact, sliding and sticking; the body comes to rest on the table."""
+    rtol, atol = 1e-7, 1e-9
+    assert cylinder_on_table().evaluation_path == "compiled"
+    # dt = 0.2 ms: the regularized friction (mu f_n / eps ~ 220 N s/m on 45 g, a rate of ~5000 1/s) needs no
+    # step splitting on either path, so both solve the same discrete equations (at 1 ms the Python path splits
+    # steps where the compiled one does not, and the two then differ by a discretization error)
+    a, b = both(cylinder_on_table, 0.1, 2e-4, "bdf2", rtol=rtol, atol=atol)
+    assert a.stats["cut_steps"] == b.stats["cut_steps"] == 0
+    assert close(a["cylinder"].x, b["cylinder"].x, rtol, atol) < 10
+    assert abs(a["cylinder"].x[-1, 2] - 0.02) < 1e-4                 # on the table (sinkage m g / (12 k) = 12 um)
+    assert np.abs(a["cylinder"].x[-1, 12:]).max() < 1e-6              # stuck by friction: at rest
+
+
+def test_a_coupling_without_compiled_form_keeps_the_python_path():
+    """A grasp engaged by a Python callable on the body that also stands on the table: the network runs in
+    Python, and says why."""
+    from soroshapes.rigid import couple_grasp
+
+    mdl = cylinder_on_table().add(finger(), "arm")
+    couple_grasp(mdl, "arm", "cylinder", anchor=(0.0, 0.0, 0.02), stiffness=400.0, damping=4.0,
+                 engaged=lambda t: min(t / 0.1, 1.0))
+    assert mdl.evaluation_path.startswith("python: ")
+
+
+def impedance_arm(setpoint):
+    """The arm of demos/manipulator_pick (three PCC segments, one generalized torque each, gravity) under the
+    Cartesian impedance controller of soroshapes.control, starting bent (IK to a point off its set-point)."""
+    from soroshapes.control import impedance
+
+    down = np.eye(4)
+    down[:3, :3] = [[0, 0, 1], [0, 1, 0], [-1, 0, 0]]
+    down[2, 3] = 0.32
+    shp = Shapes(Basis.pcc(3), (0, 3, 0, 0, 0, 0), length=0.3, section=sdf.Circle(0.012),
+                 material=materials.DragonSkin30(), base=down, segments=12).add_gravity((0.0, 0.0, -9.81))
+    for i in range(3):
+        shp.add_actuator(np.eye(3)[i], name=f"segment{i}")
+    start = shp.inverse_kinematics(np.array([0.10, 0.0, 0.06]), q0=np.array([-2.0, -1.0, -1.0]))
+    ctrl = impedance("arm", stiffness=150.0, damping=12.0, setpoint=setpoint, axes=(0, 2), null_damping=2e-3)
+    return Model().add(shp, "arm", x0=np.concatenate([start.q, np.zeros(3)])).set_controller(ctrl)
+
+
+@pytest.mark.parametrize("kind", ["constant", "schedule"])
+def test_impedance_controller_compiled_equals_python(kind):
+    """Cartesian impedance (task Jacobian and its rate, Cartesian inertia by a pseudo-inverse, Coriolis term,
+    gravity/elastic compensation, null-space damping) compiled against soroshapes.control.impedance; the tip
+    converges to the set-point."""
+    t = np.linspace(0.0, 0.6, 13)
+    sp = (np.array([0.08, 0.09]) if kind == "constant" else
+          Schedule(t, np.column_stack([0.10 - 0.05 * t, 0.06 + 0.05 * t])))
+    rtol, atol = 1e-7, 1e-9
+    assert impedance_arm(sp).evaluation_path == "compiled"
+    a, b = both(lambda: impedance_arm(sp), 0.6, 2e-3, "bdf2", rtol=rtol, atol=atol)
+    assert close(a["arm"].x, b["arm"].x, rtol, atol) < 10
+    assert np.allclose(a.u, b.u, rtol=1e-5, atol=1e-7)
+    mdl = impedance_arm(sp)
+    tip = mdl["arm"].system.positions(a["arm"].q[-1])[-1]
+    goal = sp if kind == "constant" else sp.at(0.6)
+    # a moving set-point (0.07 m/s) is followed with the lag D_c v / K_c = 12 x 0.07 / 150 = 5.7 mm
+    lag = 0.0 if kind == "constant" else 12.0 * 0.05 * np.sqrt(2) / 150.0
+    assert np.hypot(tip[0] - goal[0], tip[2] - goal[1]) < lag + 5e-3
+
+
+def test_impedance_with_a_python_setpoint_keeps_the_python_path():
+    mdl = impedance_arm(lambda t: np.array([0.1, 0.06]))
+    assert mdl.evaluation_path.startswith("python: the impedance set-point")
+
+
+def pick(engaged):
+    """The pick of demos/manipulator_pick in short: the impedance-controlled arm holding the cylinder on the
+    table through a grasp that closes, then lifting it."""
+    from soroshapes.rigid import couple_grasp, couple_ground
+
+    mdl = impedance_arm(Schedule([0.0, 0.1, 0.4], [[0.10, 0.042], [0.10, 0.042], [0.10, 0.07]]))
+    cyl = cylinder_on_table()["cylinder"].system
+    mdl.add(cyl, "cylinder")
+    ang = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    rim = np.column_stack([0.02 * np.cos(ang), 0.02 * np.sin(ang), np.full(12, -0.02)])
+    couple_ground(mdl, "cylinder", rim, stiffness=3e3, damping=6.0, friction=0.5, regularization=1e-3)
+    return couple_grasp(mdl, "arm", "cylinder", anchor=(0.0, 0.0, 0.02), stiffness=400.0, damping=4.0,
+                        engaged=engaged)
+
+
+def test_grasp_compiled_equals_python():
+    """couple_grasp (beam node <-> body point spring-damper, equal and opposite, scaled by an engagement table)
+    with the impedance controller and the ground: the compiled network against the Python path."""
+    rtol, atol = 1e-7, 1e-9
+    closing = Schedule([0.0, 0.05, 0.15], [[0.0], [0.0], [1.0]])
+    assert pick(closing).evaluation_path == "compiled"
+    assert pick(lambda t: 1.0).evaluation_path.startswith("python: ")
+    # dt = 0.2 ms: no split steps on either path (the table's regularized friction is stiff, see
+    # test_ground_contact_compiled_equals_python); the right-hand sides agree to round-off, the trajectories by
+    # the Newton stopping error accumulated over 1000 steps of a stiff network (observed ~60 tolerances)
+    a, b = both(lambda: pick(closing), 0.2, 2e-4, "bdf2", rtol=rtol, atol=atol)
+    assert a.stats["cut_steps"] == b.stats["cut_steps"] == 0
+    assert close(a.x, b.x, rtol, atol) < 200
+    assert a["cylinder"].x[-1, 2] > 0.02 + 0.003                # lifted by the grasp (3.5 mm at 0.2 s)
