@@ -10,6 +10,12 @@ index that survives can then name the data file of the other signature, and ever
 entry runs machine code compiled for other argument types (wrong results, or a segmentation fault when array
 ranks or layouts differ). See :func:`install` for the remedy.
 
+numba also judges a cached kernel fresh by its own source file only (its modification time and size): a kernel
+that calls a kernel of another module keeps the old callee's machine code after that module changed (seen: edits
+to ``soroshapes/network.py`` ran with the old code inlined in the cached ``soroshapes/integrate.py`` step). The
+stamp of every kernel of the platform therefore also covers the sources of its package and of ``sorofem``
+(:func:`source_digest`); after an edit or a ``git pull`` the kernels of that package compile again once.
+
 Import ``njit`` from here instead of from numba::
 
     from sorofem._numba import njit
@@ -19,12 +25,70 @@ Import ``njit`` from here instead of from numba::
 """
 import fcntl
 import functools
+import hashlib
 import os
 
 import numba
 from numba.core import caching
 
-__all__ = ["njit", "install"]
+__all__ = ["njit", "install", "source_digest", "generated_kernels_in"]
+
+_HERE = os.path.dirname(os.path.abspath(__file__))          # .../sorofem
+_ROOT = os.path.dirname(_HERE)                               # the folder that holds the packages
+
+
+@functools.lru_cache(maxsize=None)
+def source_digest(package_dir):
+    """SHA-1 over the path, modification time [ns] and size of every ``.py`` file under ``package_dir``
+    (``__pycache__`` excluded), computed once per process: the part of a kernel's cache stamp that changes when
+    any module it may call changes."""
+    h = hashlib.sha1()
+    for dirpath, dirnames, filenames in os.walk(package_dir):
+        dirnames[:] = sorted(d for d in dirnames if d != "__pycache__")
+        for name in sorted(filenames):
+            if name.endswith(".py"):
+                path = os.path.join(dirpath, name)
+                try:
+                    st = os.stat(path)
+                except OSError:
+                    continue
+                h.update(f"{os.path.relpath(path, package_dir)}:{st.st_mtime_ns}:{st.st_size};".encode())
+    return h.hexdigest()
+
+
+def _top_package(path):
+    """The top-level package folder that holds ``path`` (walking up while ``__init__.py`` exists), or None."""
+    folder, top = os.path.dirname(os.path.abspath(path)), None
+    while os.path.exists(os.path.join(folder, "__init__.py")):
+        top, folder = folder, os.path.dirname(folder)
+    return top
+
+
+_GENERATED = set()
+
+
+def generated_kernels_in(folder):
+    """Declare ``folder`` as holding generated kernel modules that call the platform's kernels (the SDF code
+    generator's cache): their stamps then also cover ``sorofem``'s sources."""
+    _GENERATED.add(os.path.join(os.path.abspath(str(folder)), ""))
+
+
+def _stamped(get_source_stamp):
+    """numba's stamp (mtime, size of the kernel's own file) extended by :func:`source_digest` of the kernel's
+    top-level package and of ``sorofem`` for our packages and generated SDF kernels; other libraries' kernels
+    keep numba's stamp."""
+    @functools.wraps(get_source_stamp)
+    def stamp(self):
+        own = get_source_stamp(self)
+        path = os.path.abspath(getattr(self, "_py_file", "") or "")
+        top = _top_package(path) if path else None
+        if top is not None and os.path.dirname(top) == _ROOT:
+            return own, source_digest(top), source_digest(_HERE)
+        if path and path.startswith(tuple(_GENERATED)):
+            return own, source_digest(_HERE)
+        return own
+    stamp.soro_locked = True
+    return stamp
 
 
 def _under_lock(method, mode):
@@ -87,7 +151,13 @@ def install():
     A process that may not write the source tree's ``__pycache__`` (another user) still loads the kernels
     compiled there (``scripts/bootstrap.sh`` precompiles the common ones) before trying its own user-wide cache,
     and a save it may not make is skipped instead of failing the compile.
+
+    A kernel's cache is fresh only while its own file and every source of its package and of ``sorofem`` are
+    unchanged (see the module docstring).
     """
+    mixin = caching._SourceFileBackedLocatorMixin
+    if not getattr(mixin.get_source_stamp, "soro_locked", False):
+        mixin.get_source_stamp = _stamped(mixin.get_source_stamp)
     cls = caching.IndexDataCacheFile
     if not getattr(cls.save, "soro_locked", False):
         cls.save = _tolerant(_under_lock(cls.save, fcntl.LOCK_EX))

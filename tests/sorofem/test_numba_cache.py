@@ -136,3 +136,49 @@ def _read_as_another_user(tmp_path):
                            capture_output=True, text=True, timeout=300)
     assert other.returncode == 0, other.stderr
     assert other.stdout.split() == ["6.0", "6.0", "1"]       # results right, and total() came from the cache
+
+
+CALLER = textwrap.dedent("""
+    import sys
+    import sorofem._numba as nb
+    nb._ROOT = sys.argv[1]              # the probe package's folder stands for the folder of the platform's packages
+    from probepkg.a import f
+    print(f(1.0), len(f.stats.cache_hits))
+""")
+
+
+@pytest.mark.parametrize("stamped", [True, False], ids=["package stamp", "numba's own stamp (control)"])
+def test_a_changed_callee_module_recompiles_its_cached_callers(tmp_path, python, subprocess_env, stamped):
+    """numba judges a cached kernel by its own file only: ``a.f`` calls ``b.g``, ``b.py`` changes, and numba alone
+    still runs the old ``g`` compiled into ``f``'s cache. With the package's sources in the stamp, ``f`` compiles
+    again. The control runs the same steps with numba's stamp and shows the stale result."""
+    import os
+    pkg = tmp_path / "probepkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("from sorofem._numba import njit\nfrom .b import g\n\n\n"
+                              "@njit(cache=True)\ndef f(x):\n    return g(x) * 10.0\n")
+    (pkg / "b.py").write_text("from sorofem._numba import njit\n\n\n@njit(cache=True)\ndef g(x):\n    return x + 1.0\n")
+    script = CALLER if stamped else CALLER.replace("nb._ROOT = sys.argv[1]", "nb._ROOT = '/nonexistent'")
+    (tmp_path / "caller.py").write_text(script)
+    env = dict(subprocess_env, PYTHONPATH=os.pathsep.join([str(tmp_path), os.getcwd()]))
+    env.pop("NUMBA_CACHE_DIR", None)
+
+    def run():
+        res = subprocess.run([python, "caller.py", str(tmp_path)], cwd=tmp_path, env=env, capture_output=True,
+                             text=True, timeout=300)
+        assert res.returncode == 0, res.stderr
+        value, hits = res.stdout.split()
+        return float(value), int(hits)
+
+    assert run() == (20.0, 0)                 # compiled and cached
+    assert run() == (20.0, 1)                 # loaded from the cache
+    b = pkg / "b.py"
+    b.write_text(b.read_text().replace("x + 1.0", "x + 2.0"))
+    st = b.stat()
+    os.utime(b, ns=(st.st_atime_ns, st.st_mtime_ns + 5_000_000_000))
+    value, hits = run()
+    if stamped:
+        assert (value, hits) == (30.0, 0)     # f compiled again with the new g
+    else:
+        assert (value, hits) == (20.0, 1)     # numba alone: the stale g inside f's cache
