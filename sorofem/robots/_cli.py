@@ -38,6 +38,7 @@ def run(args, stream=None):
     ok = all(p["watertight"] and p["shells"] == 1 and all(v["closed"] and v["inlet_open"]
                                                            for v in p.get("networks", {}).values())
              for p in rep["parts"].values())
-    print(f"{args.out}/{args.name}.json" + (f", {args.out}/{rep['preview']}" if "preview" in rep else ""),
-          file=stream)
+    print(f"{args.out}/{args.name}.json, {args.out}/{rep['board_profile']} (board profile; safety limits "
+          f"{rep['board_limits_kPa'][0]:g}..{rep['board_limits_kPa'][1]:g} kPa for every channel)"
+          + (f", {args.out}/{rep['preview']}" if "preview" in rep else ""), file=stream)
     return 0 if ok else 1

@@ -186,6 +186,9 @@ def test_cli_lists_and_exports(tmp_path, capsys):
     import json
     rep = json.loads((tmp_path / "bending_actuator.json").read_text())
     assert rep["params"]["length"] == pytest.approx(70) and rep["channels_kPa"]["bend"] == [-10, 100]
+    from sorocontrol.drivers import BoardProfile
+    assert rep["board_profile"] == "bending_actuator_board.toml" and rep["board_limits_kPa"] == [-10, 100]
+    assert [c.name for c in BoardProfile.load(tmp_path / rep["board_profile"]).channels] == ["bend"]
     assert cli.main(["robot", "export", "hand", "--param", "wall=9", "--out", str(tmp_path)]) == 2
     assert "'wall' = 9 mm is outside" in capsys.readouterr().err
 
@@ -237,3 +240,48 @@ def test_twins_bend_the_right_way():
         tilt = _tip(shp, u)[:2] - top0[:2]
         direction = np.asarray(c.offset) / np.linalg.norm(c.offset)     # body (y, z) = global (x, y)
         assert tilt @ direction < -0.9 * np.linalg.norm(tilt)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_board_profile_loads_with_the_boards_loader(tmp_path, name):
+    """The generated profile is read by the board's own loader: one channel per network, in order, with a
+    calibration that contains the seed's range; the safety limits are the seed's ranges per channel, and the
+    board.env pair is inside every channel's range (the intersection: never wider than any network allows)."""
+    import tomllib
+
+    from sorocontrol.drivers import BoardProfile
+    d = robots.design(name)
+    path = tmp_path / f"{name}_board.toml"
+    path.write_text(robots.board_profile(d))
+    prof = BoardProfile.load(path)
+    assert [c.name for c in prof.channels] == list(d.channels)
+    limits = tomllib.loads(path.read_text())["safety_limits"]
+    assert {k: tuple(v) for k, v in limits.items()} == d.channels
+    lo, hi = robots.board_limits(d)
+    for c in prof.channels:
+        s_lo, s_hi = c.signal_range
+        assert s_lo <= limits[c.name][0] <= lo <= 0 <= hi <= limits[c.name][1] <= s_hi
+        assert c.code(0.0) == c.vent_code
+    # the per-channel limits are what a board server takes: it accepts them against this calibration (a
+    # stub driver with the profile's calibrated ranges stands in for the I2C driver)
+    import os
+
+    from sorocontrol.drivers import MockDriver
+    from sorocontrol.server import BoardServer
+
+    class Calibrated(MockDriver):
+        @property
+        def p_range(self):
+            return tuple(np.array([c.signal_range[i] for c in prof.channels]) for i in (0, 1))
+
+    srv = BoardServer(Calibrated(len(prof.channels)), os.urandom(32), p_min=[v[0] for v in limits.values()],
+                      p_max=[v[1] for v in limits.values()])
+    assert np.allclose(srv.p_max, [d.channels[k][1] for k in d.channels])
+    assert np.allclose(srv.p_min, [d.channels[k][0] for k in d.channels])
+    if name == "manipulator":     # bellows -10..30 kPa, gripper -30..60 kPa: the common range is the bellows'
+        assert (lo, hi) == (-10 * kPa, 30 * kPa)
+
+
+def test_board_profile_refuses_a_calibration_that_misses_the_range():
+    with pytest.raises(GeometryError, match="'bend'.*signal range"):
+        robots.board_profile(robots.design("bending_actuator"), signal_range=(-50e3, 50e3))
