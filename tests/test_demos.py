@@ -43,6 +43,17 @@ def check_sdf_gallery(report, out):
     assert report["seed2d_area_error_rel"] < 1e-3
     assert report["stl_files"] == len(list(out.glob("*.stl"))) >= 4
     assert report["png_files"] == len(list(out.glob("*.png"))) >= 4
+    # the PneuNet finger is one printable solid (it was six loose pieces): read back in mm, watertight,
+    # consistently oriented, positive volume, one shell; its chambers are one network open only at the inlet
+    from sorofem import sdf
+    assert sdf.stl_units(out / "finger.stl") == "mm"
+    chk = sdf.surface_check(sdf.read_stl(out / "finger.stl")[0])
+    assert chk["watertight"] and chk["shells"] == 1 and chk["volume"] > 0, chk
+    assert chk["volume"] / 1e-9 == pytest.approx(report["finger_volume_mm3"], rel=0.05)
+    size_mm = (chk["hi"] - chk["lo"]) * 1e3
+    assert size_mm == pytest.approx([80, 16.5, 15], rel=0.05)
+    net = report["finger_network"]
+    assert net["connected"] and net["closed"] and net["inlet_open"], net
 
 
 def check_mesh_gallery(report, out):
