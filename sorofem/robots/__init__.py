@@ -30,10 +30,11 @@ from ..errors import GeometryError
 from ..units import mm
 from ._board import VEAB_SIGNAL_RANGE, board_limits, board_profile
 from ._core import UNITS, Chamber, Design, Network, Param, Part, Robot, Twin, chamber_check
+from ._scene import Channel, Scene, twin_shapes
 from .designs import ROBOTS
 
 __all__ = ["names", "get", "design", "parse_params", "export", "export_part", "preview_png", "chamber_check",
-           "board_profile", "board_limits", "VEAB_SIGNAL_RANGE",
+           "board_profile", "board_limits", "VEAB_SIGNAL_RANGE", "Scene", "Channel", "twin_shapes", "scene",
            "Param", "Network", "Part", "Chamber", "Twin", "Design", "Robot", "ROBOTS", "UNITS"]
 
 
@@ -52,6 +53,12 @@ def get(name):
 def design(name, **params):
     """Build robot ``name`` with ``params`` in SI (m, Pa; counts as integers)."""
     return get(name).design(**params)
+
+
+def scene(name, E=None, **params):
+    """The ``soro play`` scene of robot ``name`` built with ``params`` in SI (:meth:`Design.scene`); ``soro play``
+    lists it as ``robot:NAME``."""
+    return design(name, **params).scene(E=E)
 
 
 def parse_params(name, items):

@@ -128,6 +128,15 @@ class Design:
     twins: tuple
     size: tuple | None
 
+    def scene(self, E=None):
+        """The twin as a ``soro play`` scene: a :class:`~sorofem.robots.Scene` holding a
+        :class:`soroshapes.Shapes` (one soft body) or :class:`soroshapes.Model` (several) and its board
+        channels (names, limits [Pa] from ``channels``, the model inputs each sets). Imports soroshapes.
+        ``E`` [Pa] overrides the material's modulus of every beam (the solid-section beams are far stiffer
+        than bellows)."""
+        from ._scene import scene
+        return scene(self, E=E)
+
     def part(self, name):
         for p in self.parts:
             if p.name == name:

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from sorofem import robots, sdf
-from sorofem.errors import GeometryError
+from sorofem.errors import GeometryError, ParameterError
 from sorofem.units import kPa, mm
 
 NAMES = ["bending_actuator", "planar_actuator", "hand", "manipulator"]
@@ -193,16 +193,9 @@ def test_cli_lists_and_exports(tmp_path, capsys):
     assert "'wall' = 9 mm is outside" in capsys.readouterr().err
 
 
-def _beam(twin, dofs=(0, 3, 3, 1, 0, 0)):
-    """The reduced model of a twin, as its docstring says to build it."""
-    from soroshapes import Basis, Shapes
-
-    from sorofem import materials
-    shp = Shapes(Basis.chebyshev(3), dofs, twin.length, twin.section, materials.PRESETS[twin.material](),
-                 base=twin.base)
-    for c in twin.chambers:
-        shp.add_chamber(c.area, c.offset, name=c.name)
-    return shp
+def _beam(twin):
+    """The reduced model of a twin (the solid-section beam the scene uses)."""
+    return robots.twin_shapes(twin)
 
 
 def _tip(shp, u):
@@ -285,3 +278,43 @@ def test_board_profile_loads_with_the_boards_loader(tmp_path, name):
 def test_board_profile_refuses_a_calibration_that_misses_the_range():
     with pytest.raises(GeometryError, match="'bend'.*signal range"):
         robots.board_profile(robots.design("bending_actuator"), signal_range=(-50e3, 50e3))
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_scene_has_the_boards_channels(name):
+    """The soro play scene: the twin as Shapes (one body) or Model (several), one channel per board channel
+    with the seed's limits in Pa, each driving the chambers of its network."""
+    from soroshapes import Model, Shapes
+    d = robots.design(name)
+    sc = d.scene()
+    assert isinstance(sc.model, Shapes if len(d.twins) == 1 else Model)
+    assert [c.name for c in sc.channels] == list(d.channels)
+    assert all(c.limits == d.channels[c.name] and c.unit == "Pa" for c in sc.channels)
+    inputs = list(sc.model.inputs)
+    assert sorted(i for c in sc.channels for i in c.inputs) == sorted(inputs)   # every input, once
+    ch = sc.channels[-1]
+    u = sc.inputs({ch.name: ch.limits[1]})
+    assert [inputs[k] for k in np.flatnonzero(u)] == list(ch.inputs) and np.all(u[u != 0] == ch.limits[1])
+    with pytest.raises(ParameterError, match=f"channel '{ch.name}'.*outside its limits"):
+        sc.inputs({ch.name: ch.limits[1] + 1.0})
+    with pytest.raises(ParameterError, match="no channel"):
+        sc.inputs({"nozzle": 0.0})
+    if name == "manipulator":     # one gripper channel feeds the three fingers
+        assert sc.channel("gripper").inputs == ("gripper1.gripper", "gripper2.gripper", "gripper3.gripper")
+
+
+def test_scene_moves_the_right_way():
+    """(a)'s scene bends towards its base layer under its channel's top pressure."""
+    sc = robots.scene("bending_actuator")
+    shp = sc.model
+    rest = shp.positions(shp.statics(u=sc.inputs({})))[-1]
+    tip = shp.positions(shp.statics(u=sc.inputs({"bend": 100 * kPa})))[-1]
+    assert tip[2] < rest[2] - 1e-3
+
+
+def test_robots_import_does_not_load_soroshapes():
+    import subprocess
+    import sys
+    code = "import sys, sorofem.robots as r; r.design('hand'); print('soroshapes' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "False"

@@ -1,0 +1,119 @@
+"""A robot's digital twin as a scene for ``soro play``: the reduced beams of :attr:`Design.twins` as a
+:class:`soroshapes.Shapes` (one soft body) or a :class:`soroshapes.Model` (several), and the board channels
+that drive them (names, limits [Pa] from :attr:`Design.channels`, the model inputs each one sets).
+
+``sorofem`` sits below ``soroshapes`` in the layering: ``soroshapes`` is imported inside the functions only,
+so that ``import sorofem.robots`` never loads it.
+
+The beams are the solid-section twins (the printed cross-section through a bellows, chambers as axial forces
+off the axis): they bend the right way but are far stiffer than bellows, whose walls fold. A data-driven beam
+from 3D FEM of the printed geometry is made by ``soro demo robot_twin`` for (a) and (b).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ParameterError
+
+__all__ = ["Channel", "Scene", "twin_shapes", "scene"]
+
+
+@dataclass(frozen=True)
+class Channel:
+    """A board channel of a scene: ``name``, safety ``limits`` (lo, hi) [Pa], ``unit`` ("Pa") and the model
+    ``inputs`` it sets (one channel may feed several chambers, e.g. the gripper's three fingers)."""
+
+    name: str
+    limits: tuple
+    unit: str
+    inputs: tuple
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A robot's twin for interactive use: ``model`` (a :class:`soroshapes.Shapes` or :class:`soroshapes.Model`)
+    and its ``channels`` (tuple of :class:`Channel`) in board order."""
+
+    robot: str
+    model: object
+    channels: tuple
+
+    def channel(self, name):
+        """The :class:`Channel` called ``name``."""
+        for c in self.channels:
+            if c.name == name:
+                return c
+        raise ParameterError(f"{self.robot} has no channel {name!r}; its channels are "
+                             f"{[c.name for c in self.channels]}")
+
+    def inputs(self, pressures):
+        """The model's input vector ``u`` (in the order of ``model.inputs``) for channel pressures [Pa].
+
+        Parameters
+        ----------
+        pressures : dict
+            Channel name -> gauge pressure [Pa]; channels left out are at 0 Pa (vented). A value outside the
+            channel's limits is refused (ParameterError naming it), as the board would clamp it.
+        """
+        names = list(self.model.inputs)
+        u = np.zeros(len(names))
+        for name, p in pressures.items():
+            ch = self.channel(name)
+            p = float(p)
+            if not (np.isfinite(p) and ch.limits[0] <= p <= ch.limits[1]):
+                raise ParameterError(f"channel {name!r}: {p:g} Pa is outside its limits "
+                                     f"[{ch.limits[0]:g}, {ch.limits[1]:g}] Pa")
+            for inp in ch.inputs:
+                u[names.index(inp)] = p
+        return u
+
+
+def twin_shapes(twin, dofs=(0, 3, 3, 1, 0, 0), modes=3, E=None):
+    """The solid-section beam of a :class:`Twin` (Chebyshev strain basis, ``modes`` per active strain) with
+    one chamber input per twin chamber, named after its board channel.
+
+    Parameters
+    ----------
+    twin : Twin
+    dofs : 6 ints
+        Active strains (torsion, bending y, bending z, stretch, shear y, shear z) as for ``Shapes``.
+    modes : int
+        Order of the Chebyshev basis.
+    E : float, optional
+        Young's modulus [Pa] in place of the material preset's small-strain modulus.
+    """
+    from soroshapes import Basis, Shapes
+
+    from .. import materials
+    shp = Shapes(Basis.chebyshev(modes), dofs, twin.length, twin.section, materials.PRESETS[twin.material](),
+                 base=twin.base, E=E)
+    for c in twin.chambers:
+        shp.add_chamber(c.area, c.offset, name=c.channel)
+    return shp
+
+
+def scene(design, E=None):
+    """The :class:`Scene` of a :class:`Design`: one ``Shapes`` for a single soft body ((a), (b)), else a
+    ``Model`` with one beam per twin named after it ((c) the five fingers, (d) the manipulator and the
+    gripper's three fingers, the gripper on the top plate's rest pose: beams in a Model have fixed bases).
+    ``E`` [Pa] overrides the material's modulus of every beam."""
+    if len(design.twins) == 1:
+        model = twin_shapes(design.twins[0], E=E)
+        by_channel = {name: tuple(i for i in model.inputs if i == name) for name in design.channels}
+    else:
+        from soroshapes import Model
+        model = Model()
+        by_channel = {name: [] for name in design.channels}
+        for tw in design.twins:
+            model.add(twin_shapes(tw, E=E), name=tw.name)
+            for c in tw.chambers:
+                by_channel[c.channel].append(f"{tw.name}.{c.channel}")
+        by_channel = {k: tuple(v) for k, v in by_channel.items()}
+    missing = [k for k, v in by_channel.items() if not v]
+    if missing:
+        raise ParameterError(f"{design.robot}: channels {missing} drive no chamber of the twin")
+    chans = tuple(Channel(name, tuple(float(v) for v in design.channels[name]), "Pa", by_channel[name])
+                  for name in design.channels)
+    return Scene(design.robot, model, chans)
