@@ -17,7 +17,12 @@ import numpy as np
 
 from ..errors import ParameterError
 
-__all__ = ["Channel", "Scene", "twin_shapes", "scene"]
+__all__ = ["Channel", "Scene", "twin_shapes", "scene", "reach", "BELLOWS_E_FACTOR"]
+
+#: Ratio of the bellows' effective Young's modulus to the material's, for the solid-section beams: the 3D FEM
+#: of the printed actuator (a) (``soro demo robot_twin``, full mode: 88.8 deg tip angle at 100 kPa) against its
+#: solid-section beam (3.11 deg): 3.11 / 88.8. A stand-in for FEM of each robot, which only (a) and (b) have.
+BELLOWS_E_FACTOR = 3.11 / 88.8
 
 
 @dataclass(frozen=True)
@@ -117,3 +122,38 @@ def scene(design, E=None):
     chans = tuple(Channel(name, tuple(float(v) for v in design.channels[name]), "Pa", by_channel[name])
                   for name in design.channels)
     return Scene(design.robot, model, chans)
+
+
+def reach(shapes, limits, samples=7, point=(0.0, 0.0, 0.0)):
+    """The sampled reach of a beam: the position [m] of ``point`` (fixed in the tip frame, [m]) at the static
+    equilibrium for every input vector of the grid of ``samples`` values per input over its ``limits``.
+
+    Parameters
+    ----------
+    shapes : soroshapes.Shapes
+        A beam whose inputs are pressures (chambers or identified actuators), in the order of ``limits``.
+    limits : sequence of (lo, hi)
+        Range [Pa] of each input (the board channel's safety limits).
+    samples : int
+        Values per input (>= 2; the grid has ``samples ** len(limits)`` points, both ends included).
+    point : 3 floats
+        The point in the tip frame whose reach is sampled [m] (e.g. the tip plate's centre).
+
+    Returns
+    -------
+    (N, 3) ndarray [m]
+    """
+    import itertools
+
+    limits = [tuple(float(v) for v in lim) for lim in limits]
+    if len(limits) != len(shapes.inputs):
+        raise ParameterError(f"reach: {len(limits)} limits for a beam with inputs {shapes.inputs}")
+    samples = int(samples)
+    if samples < 2:
+        raise ParameterError("reach: samples must be >= 2 (both ends of every range)")
+    p = np.append(np.asarray(point, float), 1.0)
+    out, q = [], None
+    for u in itertools.product(*[np.linspace(lo, hi, samples) for lo, hi in limits]):
+        q = shapes.statics(u=list(u), q0=q)
+        out.append((shapes.forward_kinematics(q)[-1] @ p)[:3])
+    return np.array(out)
