@@ -326,10 +326,12 @@ SEED_WORKSPACE_TOL = 25 * mm
 
 
 def _bellows_twin(d):
-    """The solid-section beam with the bellows' effective modulus (calibrated on the 3D FEM of (a))."""
+    """The solid-section beam with the bellows' effective modulus: calibrated on the 3D FEM of (a) for a single
+    chain, of (b) for chains side by side ((b), (d))."""
     from sorofem import materials
     tw = d.twins[0]
-    return robots.twin_shapes(tw, E=materials.PRESETS[tw.material]().E * robots.BELLOWS_E_FACTOR)
+    f = robots.BELLOWS_E_FACTOR if d.robot == "bending_actuator" else robots.PARALLEL_BELLOWS_E_FACTOR
+    return robots.twin_shapes(tw, E=materials.PRESETS[tw.material]().E * f)
 
 
 def _workspace(name, samples=5):
@@ -348,20 +350,24 @@ def test_reach_samples_the_pressure_box():
     # the grid's (0, 0) is not sampled with samples=3 over [-10, 50] kPa; the mirror pairs are
     i = {(a, b): 3 * a + b for a in range(3) for b in range(3)}
     assert pts[i[2, 0], 1] == pytest.approx(-pts[i[0, 2], 1], rel=1e-3)    # left alone vs right alone
-    assert pts[i[2, 0], 1] < -5 * mm and abs(pts[i[2, 2], 1]) < 1e-6      # bends away; both: straight
+    assert pts[i[2, 0], 1] < -2 * mm and abs(pts[i[2, 2], 1]) < 1e-6      # bends away; both: straight
     assert pts[i[2, 2], 0] > pts[i[1, 1], 0] > pts[i[0, 0], 0]           # pressure lengthens it, vacuum shortens
     with pytest.raises(ParameterError, match="limits"):
         robots.reach(shp, [(0, 1)])
-    # the bellows factor: the solid-section beam of (a) with it reproduces the FEM's 88.8 deg at 100 kPa
+    # the bellows factors: the solid-section beams reproduce the FEM they were calibrated on (soro demo
+    # robot_twin, full mode): (a) 88.8 deg at 100 kPa, (b) 6.12 mm lateral tip at 50 kPa in one network
     a = robots.design("bending_actuator")
     T = _bellows_twin(a).forward_kinematics(_bellows_twin(a).statics(u=[100 * kPa]))[-1]
     assert math.degrees(math.atan2(-T[2, 0], T[0, 0])) == pytest.approx(88.8, rel=0.05)
+    tip = shp.positions(shp.statics(u=[50 * kPa, 0.0]))[-1]
+    assert tip[1] == pytest.approx(-6.12 * mm, rel=0.06)    # the factor is a ratio: 1/E scaling holds to 5 %
 
 
-@pytest.mark.xfail(strict=True, reason="the twins fall far short of the seed's workspaces: (b) 18 x 50 mm of "
-                   "~100 x 100 mm, (d) 64 x 73 x 16 mm of ~150 mm cubed (bellows twins calibrated on the FEM of "
-                   "(a); the DVS twin of (b) from its own FEM: see soro demo robot_twin). The designs' defaults "
-                   "(86 mm and 80 mm long chains at the seed's pressures) are shorter than the seed's robots.")
+@pytest.mark.xfail(strict=True, reason="the twins fall far short of the seed's workspaces: (b) 5 x 14 mm of "
+                   "~100 x 100 mm (its FEM-made DVS beam: 4.5 x 13.7 mm, soro demo robot_twin), (d) 18 x 21 x 4 mm "
+                   "of ~150 mm cubed (beams calibrated on the FEM of (b)): the default chains (70 and 80 mm, "
+                   "2 mm Elastic 80A walls, side by side so that each resists the other's bending) bend only "
+                   "~9 deg at the seed's top pressures; the seed's robots are softer or longer.")
 @pytest.mark.parametrize("name", ["planar_actuator", "manipulator"])
 def test_twin_reaches_the_seed_workspace(name):
     d, _, pts = _workspace(name)
