@@ -245,7 +245,7 @@ def planar(out, quick):
 
     fig, axs = plt.subplots(1, 2, figsize=(10, 4))
     s = np.asarray(data.times)
-    for ax, k, lab in ((axs[0], 1, "tip y [mm]"), (axs[1], 0, "tip x displacement [mm]")):
+    for ax, k, lab in ((axs[0], 1, "left chain's tip: y [mm]"), (axs[1], 0, "left chain's tip: x displacement [mm]")):
         ax.plot(s, tip_fem[:, k] / mm, "k-", lw=0.8)
         ax.plot(s[tr], tip_fem[tr, k] / mm, "ko", label="3D FEM, training")
         ax.plot(s[ho], tip_fem[ho, k] / mm, "kD", mfc="w", label="3D FEM, held out")
