@@ -30,12 +30,12 @@ from ..errors import GeometryError
 from ..units import mm
 from ._board import VEAB_SIGNAL_RANGE, board_limits, board_profile
 from ._core import UNITS, Chamber, Design, Network, Param, Part, Robot, Twin, chamber_check
-from ._scene import BELLOWS_E_FACTOR, PARALLEL_BELLOWS_E_FACTOR, Channel, Scene, reach, twin_shapes
+from ._scene import BELLOWS_E_FACTOR, PARALLEL_BELLOWS_E_FACTOR, Channel, Scene, bellows_modulus, reach, twin_shapes
 from .designs import ROBOTS
 
 __all__ = ["names", "get", "design", "parse_params", "export", "export_part", "preview_png", "chamber_check",
            "board_profile", "board_limits", "VEAB_SIGNAL_RANGE", "Scene", "Channel", "twin_shapes", "scene",
-           "reach", "BELLOWS_E_FACTOR", "PARALLEL_BELLOWS_E_FACTOR",
+           "reach", "bellows_modulus", "BELLOWS_E_FACTOR", "PARALLEL_BELLOWS_E_FACTOR",
            "Param", "Network", "Part", "Chamber", "Twin", "Design", "Robot", "ROBOTS", "UNITS"]
 
 
@@ -56,10 +56,10 @@ def design(name, **params):
     return get(name).design(**params)
 
 
-def scene(name, E=None, **params):
+def scene(name, stiffness="bellows", **params):
     """The ``soro play`` scene of robot ``name`` built with ``params`` in SI (:meth:`Design.scene`); ``soro play``
     lists it as ``robot:NAME``."""
-    return design(name, **params).scene(E=E)
+    return design(name, **params).scene(stiffness=stiffness)
 
 
 def parse_params(name, items):

@@ -130,14 +130,14 @@ class Design:
     size: tuple | None
     workspace: tuple | None = None
 
-    def scene(self, E=None):
+    def scene(self, stiffness="bellows"):
         """The twin as a ``soro play`` scene: a :class:`~sorofem.robots.Scene` holding a
         :class:`soroshapes.Shapes` (one soft body) or :class:`soroshapes.Model` (several) and its board
         channels (names, limits [Pa] from ``channels``, the model inputs each sets). Imports soroshapes.
-        ``E`` [Pa] overrides the material's modulus of every beam (the solid-section beams are far stiffer
-        than bellows)."""
+        ``stiffness``: ``"bellows"`` (the effective modulus calibrated on FEM), ``"section"`` or a modulus [Pa]
+        (:func:`sorofem.robots.scene`)."""
         from ._scene import scene
-        return scene(self, E=E)
+        return scene(self, stiffness=stiffness)
 
     def part(self, name):
         for p in self.parts:

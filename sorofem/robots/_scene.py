@@ -6,8 +6,9 @@ that drive them (names, limits [Pa] from :attr:`Design.channels`, the model inpu
 so that ``import sorofem.robots`` never loads it.
 
 The beams are the solid-section twins (the printed cross-section through a bellows, chambers as axial forces
-off the axis): they bend the right way but are far stiffer than bellows, whose walls fold. A data-driven beam
-from 3D FEM of the printed geometry is made by ``soro demo robot_twin`` for (a) and (b).
+off the axis) with the bellows' effective modulus, calibrated on the 3D FEM of (a) and (b) (a solid section is
+28x resp. 8x too stiff: bellows walls fold). A data-driven beam from 3D FEM of the printed geometry is made by
+``soro demo robot_twin`` for (a) and (b).
 """
 from __future__ import annotations
 
@@ -17,7 +18,8 @@ import numpy as np
 
 from ..errors import ParameterError
 
-__all__ = ["Channel", "Scene", "twin_shapes", "scene", "reach", "BELLOWS_E_FACTOR", "PARALLEL_BELLOWS_E_FACTOR"]
+__all__ = ["Channel", "Scene", "twin_shapes", "scene", "reach", "bellows_modulus", "BELLOWS_E_FACTOR",
+           "PARALLEL_BELLOWS_E_FACTOR"]
 
 #: Ratio of the bellows' effective Young's modulus to the material's, for the solid-section beams: the 3D FEM
 #: of the printed actuator (a) (``soro demo robot_twin``, full mode: 88.8 deg tip angle at 100 kPa) against its
@@ -106,20 +108,47 @@ def twin_shapes(twin, dofs=(0, 3, 3, 1, 0, 0), modes=3, E=None):
     return shp
 
 
-def scene(design, E=None):
+def bellows_modulus(twin):
+    """The effective Young's modulus [Pa] of a twin's bellows: the material's times
+    :data:`PARALLEL_BELLOWS_E_FACTOR` for chains side by side (several chambers in the section: (b), (d)), else
+    :data:`BELLOWS_E_FACTOR` (one chain on a strain-limiting layer: (a), the hand's and the gripper's fingers)."""
+    from .. import materials
+    f = PARALLEL_BELLOWS_E_FACTOR if len(twin.chambers) > 1 else BELLOWS_E_FACTOR
+    return materials.PRESETS[twin.material]().E * f
+
+
+def scene(design, stiffness="bellows"):
     """The :class:`Scene` of a :class:`Design`: one ``Shapes`` for a single soft body ((a), (b)), else a
     ``Model`` with one beam per twin named after it ((c) the five fingers, (d) the manipulator and the
     gripper's three fingers, the gripper on the top plate's rest pose: beams in a Model have fixed bases).
-    ``E`` [Pa] overrides the material's modulus of every beam."""
+
+    Parameters
+    ----------
+    design : Design
+    stiffness : "bellows", "section" or float
+        The beams' Young's modulus: ``"bellows"`` (default) the bellows' effective modulus calibrated on the 3D
+        FEM of (a) and (b) (:func:`bellows_modulus`), ``"section"`` the material's (a solid section: far too
+        stiff for bellows), or a number [Pa].
+    """
+    def modulus(tw):
+        if isinstance(stiffness, str):
+            if stiffness not in ("bellows", "section"):
+                raise ParameterError(f"stiffness must be 'bellows', 'section' or a modulus in Pa, got {stiffness!r}")
+            return bellows_modulus(tw) if stiffness == "bellows" else None
+        E = float(stiffness)
+        if not (np.isfinite(E) and E > 0):
+            raise ParameterError(f"stiffness must be a positive modulus [Pa], got {stiffness!r}")
+        return E
+
     if len(design.twins) == 1:
-        model = twin_shapes(design.twins[0], E=E)
+        model = twin_shapes(design.twins[0], E=modulus(design.twins[0]))
         by_channel = {name: tuple(i for i in model.inputs if i == name) for name in design.channels}
     else:
         from soroshapes import Model
         model = Model()
         by_channel = {name: [] for name in design.channels}
         for tw in design.twins:
-            model.add(twin_shapes(tw, E=E), name=tw.name)
+            model.add(twin_shapes(tw, E=modulus(tw)), name=tw.name)
             for c in tw.chambers:
                 by_channel[c.channel].append(f"{tw.name}.{c.channel}")
         by_channel = {k: tuple(v) for k, v in by_channel.items()}
