@@ -28,13 +28,13 @@ import numpy as np
 
 from ..errors import GeometryError
 from ..units import mm
-from ._board import VEAB_SIGNAL_RANGE, board_limits, board_profile
+from ._board import VEAB_SIGNAL_RANGE, board_profile
 from ._core import UNITS, Chamber, Design, Network, Param, Part, Robot, Twin, chamber_check
 from ._scene import BELLOWS_E_FACTOR, PARALLEL_BELLOWS_E_FACTOR, Channel, Scene, bellows_modulus, reach, twin_shapes
 from .designs import ROBOTS
 
 __all__ = ["names", "get", "design", "parse_params", "export", "export_part", "preview_png", "chamber_check",
-           "board_profile", "board_limits", "VEAB_SIGNAL_RANGE", "Scene", "Channel", "twin_shapes", "scene",
+           "board_profile", "VEAB_SIGNAL_RANGE", "Scene", "Channel", "twin_shapes", "scene",
            "reach", "bellows_modulus", "BELLOWS_E_FACTOR", "PARALLEL_BELLOWS_E_FACTOR",
            "Param", "Network", "Part", "Chamber", "Twin", "Design", "Robot", "ROBOTS", "UNITS"]
 
@@ -196,7 +196,6 @@ def export(name, out, units="mm", params=None, resolution=None, preview=True, ch
     with atomic_path(out / f"{name}_board.toml") as tmp:
         tmp.write_text(board_profile(dsg))
     report["board_profile"] = f"{name}_board.toml"
-    report["board_limits_kPa"] = [v / 1e3 for v in board_limits(dsg)]
     if preview:
         preview_png(meshes, out / f"{name}.png", title=robot.title)
         report["preview"] = f"{name}.png"

@@ -2,12 +2,10 @@
 by :meth:`sorocontrol.drivers.BoardProfile.load`) with one channel per pneumatic network, and the seed's
 pressure ranges as the board's safety limits.
 
-The profile format keeps calibration and limits apart (calibration is not a limit): each ``[[channels]]``
-table holds only the wiring and the regulator's ``signal_range``. The safety limits are written twice:
-per channel in a top-level ``[safety_limits]`` table (``name = [lo, hi]`` in Pa; the data a server with
-per-channel limits takes, :class:`sorocontrol.server.BoardServer` ``p_min``/``p_max`` arrays), and as the
-``--p-min/--p-max`` pair of ``board.env`` that every channel can live with: the tightest common range
-(intersection), never wider than any channel's own range.
+Calibration is not a limit: each ``[[channels]]`` table holds the wiring, the regulator's ``signal_range``
+(the calibration) and, apart from it, the channel's safety limits ``p_min``/``p_max`` [Pa], the seed's range
+of that network. The board server enforces them per channel (a set-point beyond a channel's limit is clamped
+to it); a ``--p-min/--p-max`` pair in ``board.env`` can only narrow them.
 
 ``sorofem`` does not import ``sorocontrol`` (layering): this module writes text; the tests read it back with
 the board's own loader.
@@ -16,20 +14,10 @@ from __future__ import annotations
 
 from ..errors import GeometryError
 
-__all__ = ["board_profile", "board_limits", "VEAB_SIGNAL_RANGE"]
+__all__ = ["board_profile", "VEAB_SIGNAL_RANGE"]
 
 #: Calibration of the seed's regulators (Festo VEAB, -100..100 kPa gauge over the DAC's range) [Pa].
 VEAB_SIGNAL_RANGE = (-100e3, 100e3)
-
-
-def board_limits(design):
-    """The ``--p-min``/``--p-max`` pair [Pa] that is safe for every channel of ``design``: the intersection
-    of the channels' ranges (it contains 0 Pa, the vent pressure)."""
-    lo = max(r[0] for r in design.channels.values())
-    hi = min(r[1] for r in design.channels.values())
-    if not lo <= 0.0 <= hi:
-        raise GeometryError(f"{design.robot}: the channels' pressure ranges have no common range around 0 Pa")
-    return float(lo), float(hi)
 
 
 def _pa(v):
@@ -61,24 +49,20 @@ def board_profile(design, signal_range=VEAB_SIGNAL_RANGE):
         if not lo_s <= lo <= 0.0 <= hi <= hi_s:
             raise GeometryError(f"{design.robot}: channel {name!r} range [{lo:g}, {hi:g}] Pa is not inside the "
                                 f"regulators' signal range [{lo_s:g}, {hi_s:g}] Pa: use regulators that cover it")
-    p_min, p_max = board_limits(design)
     lines = [
         f"# Board profile of the robot {design.robot!r} (written by `soro robot export`; hardware/README.md).",
         "# Copy to /etc/soro-board/profile.toml; check the wiring against your board (channel i: valve i % 2 of",
         "# VEAB board i // 2, boards beyond the first behind an I2C multiplexer; ADS1015 0x48 + i // 4, input i % 4).",
-        "# The safety limits are the seed's pressure ranges: [safety_limits] per channel (the board server's",
-        "# command line takes one pair for all channels, so this table is data for a server with per-channel",
-        "# limits), and for board.env the range every channel can live with (put it there):",
-        f"#   SORO_BOARD_ARGS=--p-min {_pa(p_min)} --p-max {_pa(p_max)}",
+        "# p_min/p_max: each channel's safety limits, the seed's pressure range of its network; the board server",
+        "# clamps every set-point to them. Drop --p-min/--p-max from board.env's SORO_BOARD_ARGS (a pair there",
+        "# only narrows these limits, on every channel).",
         'format = "soro-board-profile"',
         "version = 1",
         f'name = "{design.robot}: {len(names)} channel(s)"',
         "i2c_bus = 1",
-        "",
-        "[safety_limits]                     # [Pa] per channel: the seed's pressure range (lo, hi)",
     ]
-    lines += [f'"{n}" = [{_pa(lo)}, {_pa(hi)}]' for n, (lo, hi) in design.channels.items()]
     for i, name in enumerate(names):
+        lo, hi = design.channels[name]
         lines += [
             "",
             "[[channels]]",
@@ -89,5 +73,7 @@ def board_profile(design, signal_range=VEAB_SIGNAL_RANGE):
             "sensor_gain = 20e3",
             "sensor_offset = 5.0",
             "divider = 3.0",
+            f"p_min = {_pa(lo)}                      # safety limits [Pa]: the seed's range of this network",
+            f"p_max = {_pa(hi)}",
         ]
     return "\n".join(lines) + "\n"

@@ -187,8 +187,9 @@ def test_cli_lists_and_exports(tmp_path, capsys):
     rep = json.loads((tmp_path / "bending_actuator.json").read_text())
     assert rep["params"]["length"] == pytest.approx(70) and rep["channels_kPa"]["bend"] == [-10, 100]
     from sorocontrol.drivers import BoardProfile
-    assert rep["board_profile"] == "bending_actuator_board.toml" and rep["board_limits_kPa"] == [-10, 100]
-    assert [c.name for c in BoardProfile.load(tmp_path / rep["board_profile"]).channels] == ["bend"]
+    assert rep["board_profile"] == "bending_actuator_board.toml"
+    prof = BoardProfile.load(tmp_path / rep["board_profile"])
+    assert [c.name for c in prof.channels] == ["bend"] and prof.limits == ((-10e3, 100e3),)
     assert cli.main(["robot", "export", "hand", "--param", "wall=9", "--out", str(tmp_path)]) == 2
     assert "'wall' = 9 mm is outside" in capsys.readouterr().err
 
@@ -238,41 +239,38 @@ def test_twins_bend_the_right_way():
 @pytest.mark.parametrize("name", NAMES)
 def test_board_profile_loads_with_the_boards_loader(tmp_path, name):
     """The generated profile is read by the board's own loader: one channel per network, in order, with a
-    calibration that contains the seed's range; the safety limits are the seed's ranges per channel, and the
-    board.env pair is inside every channel's range (the intersection: never wider than any network allows)."""
-    import tomllib
-
+    calibration that contains the seed's range, and each channel's safety limits (p_min/p_max) the seed's range
+    of its network; a board server on that profile enforces them per channel."""
     from sorocontrol.drivers import BoardProfile
     d = robots.design(name)
     path = tmp_path / f"{name}_board.toml"
     path.write_text(robots.board_profile(d))
     prof = BoardProfile.load(path)
     assert [c.name for c in prof.channels] == list(d.channels)
-    limits = tomllib.loads(path.read_text())["safety_limits"]
-    assert {k: tuple(v) for k, v in limits.items()} == d.channels
-    lo, hi = robots.board_limits(d)
-    for c in prof.channels:
-        s_lo, s_hi = c.signal_range
-        assert s_lo <= limits[c.name][0] <= lo <= 0 <= hi <= limits[c.name][1] <= s_hi
+    assert prof.limits == tuple(d.channels.values())
+    for c, (lo, hi) in zip(prof.channels, prof.limits):
+        assert c.signal_range[0] <= lo <= 0 <= hi <= c.signal_range[1]
         assert c.code(0.0) == c.vent_code
-    # the per-channel limits are what a board server takes: it accepts them against this calibration (a
-    # stub driver with the profile's calibrated ranges stands in for the I2C driver)
+    # the board server takes the profile's per-channel limits from the driver (a stub driver with the
+    # profile's calibration and limits stands in for the I2C driver; tests/sorocontrol/test_board_i2c.py
+    # checks the DAC codes on the stub bus)
     import os
 
     from sorocontrol.drivers import MockDriver
     from sorocontrol.server import BoardServer
 
-    class Calibrated(MockDriver):
-        @property
-        def p_range(self):
-            return tuple(np.array([c.signal_range[i] for c in prof.channels]) for i in (0, 1))
+    class Profiled(MockDriver):
+        p_range = property(lambda self: tuple(np.array([c.signal_range[i] for c in prof.channels]) for i in (0, 1)))
+        safety_limits = property(lambda self: (prof.p_min, prof.p_max))
 
-    srv = BoardServer(Calibrated(len(prof.channels)), os.urandom(32), p_min=[v[0] for v in limits.values()],
-                      p_max=[v[1] for v in limits.values()])
-    assert np.allclose(srv.p_max, [d.channels[k][1] for k in d.channels])
-    assert np.allclose(srv.p_min, [d.channels[k][0] for k in d.channels])
-    if name == "manipulator":     # bellows -10..30 kPa, gripper -30..60 kPa: the common range is the bellows'
-        assert (lo, hi) == (-10 * kPa, 30 * kPa)
+    srv = BoardServer(Profiled(len(prof.channels)), os.urandom(32), port=0)
+    try:
+        assert np.allclose(srv.p_max, [d.channels[k][1] for k in d.channels])
+        assert np.allclose(srv.p_min, [d.channels[k][0] for k in d.channels])
+    finally:
+        srv.stop()
+    if name == "manipulator":     # bellows -10..30 kPa, gripper -30..60 kPa: each channel keeps its own
+        assert srv.p_max.tolist() == [30e3, 30e3, 30e3, 60e3]
 
 
 def test_board_profile_refuses_a_calibration_that_misses_the_range():
