@@ -203,6 +203,10 @@ class BoardServer:
             hi = given["p_max"] if given["p_max"] is not None else np.full(n, 100e3)
             return lo, hi
         own_lo, own_hi = (per_channel(v, "the driver's safety limits") for v in own)
+        if not (np.all(np.isfinite(own_lo)) and np.all(np.isfinite(own_hi)) and np.all(own_lo <= 0)
+                and np.all(own_hi >= 0)):
+            raise ParameterError("the driver's safety limits (board profile p_min/p_max) must be finite with "
+                                 "p_min <= 0 <= p_max [Pa]: fix the profile")
         lo = own_lo if given["p_min"] is None else np.maximum(given["p_min"], own_lo)
         hi = own_hi if given["p_max"] is None else np.minimum(given["p_max"], own_hi)
         for what, arg, own_v, used in (("p_min", given["p_min"], own_lo, lo), ("p_max", given["p_max"], own_hi, hi)):

@@ -299,6 +299,12 @@ def test_profile_limits_checked_when_built_in_python_and_profile_refused_by_simu
         BoardProfile((cal,), limits=((-10e3, 150e3),))
     with pytest.raises(ParameterError, match="every channel or none"):
         BoardProfile((cal, cal), limits=((0.0, 150e3),))
+    from sorocontrol.drivers import MockDriver
+
+    class BadLimits(MockDriver):
+        safety_limits = property(lambda self: (np.array([5e3]), np.array([50e3])))
+    with pytest.raises(ParameterError, match="driver's safety limits"):
+        BoardServer(BadLimits(1), SECRET, port=0)
     r = subprocess.run([sys.executable, "-m", "sorocontrol.server", "--driver", "mock", "--profile", "x.toml",
                         "--secret", SECRET, "--port", "0"], capture_output=True, text=True, timeout=60)
     assert r.returncode != 0 and "does not read it" in r.stderr and "Traceback" not in r.stderr
