@@ -375,8 +375,9 @@ def test_reach_samples_the_pressure_box():
                    "x needs ~100 mm of stretch), (d) 139 x 155 x 55 mm at k = 8 and 222 x 225 x 152 mm "
                    "at k = 16 (z, the stretch, lags the tilt that the 47 mm gripper offset amplifies). A redesign "
                    "needs bellows ~10x softer with ~1.6x more stretch per unit of bending, confirmed by FEM: the "
-                   "FEM of the softest printable bellows tried (1.5 mm walls, 30 mm section) failed every first "
-                   "step down to 0.8 kPa on the 2.5 mm mesh, which does not resolve 1.5 mm walls.")
+                   "FEM of (b) with larger flat-walled bellows (30 mm section with 1.5 mm walls, 28 mm with 2 mm) "
+                   "failed its first load steps down to 0.8 resp. 1.6 kPa on the 2.5 mm mesh (inverted elements, "
+                   "diverging Newton): flat 25 mm walls need a finer mesh, or rounded convolutions.")
 @pytest.mark.parametrize("name", ["planar_actuator", "manipulator"])
 def test_twin_reaches_the_seed_workspace(name):
     d, _, pts = _workspace(name)
