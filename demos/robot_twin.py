@@ -1,34 +1,48 @@
-"""Digital twin of the soft bending actuator (a) from its printed geometry (`soro demo robot_twin`)
-===============================================================================================
+"""Digital twins of the soft actuators (a) and (b) from their printed geometry (`soro demo robot_twin`)
+=====================================================================================================
 
 Purpose
 -------
-The seed's robot (a), a bellows bending actuator on an inextensible base layer in Elastic 80A, is inflated
-by 3D FEM *of the geometry that is printed* (:mod:`sorofem.robots`, the same parameters, its port plugged so
-the chamber network is one closed cavity), and a data-driven (DVS) Cosserat beam is made from the snapshots:
-the bending strain recovered along a backbone in the base layer, its POD modes, and the actuation identified
-on the pressure ramp. The tip angle against pressure from FEM and from the beam is the figure.
+The seed's robots (a), a bellows bending actuator on an inextensible base layer, and (b), a planar actuator
+of two bellows networks in parallel, both in Elastic 80A, are inflated by 3D FEM *of the geometry that is
+printed* (:mod:`sorofem.robots`, the same parameters, its ports plugged so that each network is one closed
+cavity), and a data-driven (DVS) Cosserat beam is made from the snapshots: the strains recovered along a
+backbone, their POD modes, and the actuation identified from the inputs. The beam is made from the even load
+steps only and checked on the odd ones: pressures it has not seen (held out).
 
 Model
 -----
-3D finite strain, the Elastic 80A preset (Neo-Hookean), the mount block's back face (x = 0) clamped, a
-follower pressure ramp 0 .. ``p_max`` on the chamber network's surface (``cavity_0``). The tip angle is the
-rotation about y of the backbone's tangent at the tip (the recovered FEM frame; the beam's tip frame),
-positive when the actuator curls towards its base layer. The beam is identified on the same ramp it is
-compared with (no held-out pressure).
+3D finite strain, the Elastic 80A preset (Neo-Hookean), the mount block's back face (x = 0) clamped,
+follower pressures on the chamber networks' surfaces.
+
+(a) One network, a ramp 0 .. ``p_max``. Backbone: the base layer's mid-plane; the beam bends about its y axis
+    (curvature modes only). The tip angle is the rotation about y of the backbone's tangent at the tip,
+    positive when the actuator curls towards its base layer.
+(b) Two networks ``left`` (+y) and ``right`` (-y), each 0 .. ``p_max`` (the top of the seed's -10..50 kPa):
+    one load path (pL, pR) = (0, 0) -> (P, 0) -> (P, P) -> (0, P) passes through the left network alone, both
+    together and the right one alone. Backbone: the left chain's bridge above its feed channel, sampled at the
+    gaps between bellows (the only material on a straight line through a chain: the chambers are hollow);
+    the beam bends in the plane (about body z) and stretches. Pressure in one chain lengthens it: the
+    actuator bends away from it (left -> -y); both together lengthen the actuator (+x).
 
 Parameters
 ----------
 out : pathlib.Path
-    Output directory: ``train.h5`` (snapshots), ``tip_angle.png`` (FEM and beam), ``report.json``.
+    Output directory: ``a/`` and ``b/`` with ``train.h5`` (snapshots), figures, ``report.json`` at the top.
 quick : bool
-    Three bellows (50 mm), 3 mm tetrahedra, P1, 40 kPa in 4 steps (CI); otherwise the default actuator's
-    eight bellows (100 mm), 2.5 mm P2 tetrahedra, 100 kPa in 8 steps.
+    Three bellows (50 mm) for (a), four (56 mm) for (b), 3 mm P1 tetrahedra (locking: far too stiff; it exercises the pipeline) and few
+    steps (CI); otherwise the default actuators, 2.5 mm P2 tetrahedra.
+robot : str
+    ``"all"`` (default), ``"bending_actuator"`` or ``"planar_actuator"``.
 
 Figures
 -------
-``tip_angle_fem_deg`` and ``tip_angle_beam_deg`` (per load step), ``tip_error_top`` (beam vs FEM tip
-distance at the top pressure, % of the backbone length), ``fem_cells``, ``fem_s``, ``dvs_energy``.
+(a) ``tip_angle_fem_deg`` / ``tip_angle_beam_deg`` (per load step; ``train`` marks the training steps),
+``tip_error_top`` (beam vs FEM tip distance at the top pressure, % of the backbone length), ``tip_error_heldout``
+(the largest over the held-out pressures); (b) under ``planar``: the same at the three corners of the path
+and on the held-out steps, tip displacements, ``fem_cells``, ``fem_s``, and the planar workspace
+``workspace_mm`` (x and y extent of the tip plate's centre over -10..50 kPa per network, sampled 7 x 7 on the
+DVS beam) against the seed's ``seed_workspace_mm`` (~100 x 100 mm).
 """
 import time
 from pathlib import Path
@@ -45,21 +59,48 @@ def tip_angle(frames):
     return np.arctan2(-t[:, 2], t[:, 0])
 
 
-def main(out: Path, quick: bool = False) -> dict:
-    import matplotlib
-    matplotlib.use("Agg")
+def plane_angle(frames):
+    """In-plane tip angle [rad] of (b): the rotation of the tangent about z (positive towards +y)."""
+    t = np.asarray(frames)[:, :3, 0]
+    return np.arctan2(t[:, 1], t[:, 0])
+
+
+def split(n_snapshots):
+    """Training (even) and held-out (odd) snapshot indices."""
+    k = np.arange(n_snapshots)
+    return k[k % 2 == 0], k[k % 2 == 1]
+
+
+def dvs_twin(train_file, backbone, dofs, section, base, inputs, degree, samples):
+    """Recover strains, make the DVS beam from the even steps, identify its actuation there, and compare it
+    with every step. Returns (beam, data, comparison, identification, kept modes, info, training indices)."""
+    from soroshapes import Shapes
+    from soroshapes.dvs import compare, dvs_basis, identify, recover_strains
+    from sorofem import materials
+
+    data = recover_strains(train_file, backbone, samples=samples)
+    tr, _ = split(len(data.times))
+    train = data.select(tr)
+    bases, kept, info = dvs_basis([train], dofs)
+    shp = Shapes(bases, kept, length=backbone.length, section=section, material=materials.Elastic80A(),
+                 base=np.asarray(base, float), damping=0.0, segments=30)
+    ident = identify(shp, train, inputs=inputs, degree=degree)
+    cmp = compare(shp, data, inputs, repeats=1)
+    return shp, data, cmp, ident, kept, info, tr
+
+
+def bending(out, quick):
+    """(a): FEM ramp, DVS beam, held-out check. Returns the report dict."""
     import matplotlib.pyplot as plt
 
-    from soroshapes import Shapes
-    from soroshapes.dvs import Backbone, compare, dvs_basis, identify, recover_strains
+    from soroshapes.dvs import Backbone
     from sorofem import materials, robots, sdf
     from sorofem.fem import Fem
     from sorofem.mesh import Mesh
 
-    out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     if quick:
-        params, size, degree, p_max, steps = dict(n_bellows=3, length=50 * mm), 3.0 * mm, 1, 40 * kPa, 4
+        params, size, degree, p_max, steps = dict(n_bellows=3, length=50 * mm), 3.0 * mm, 1, 40 * kPa, 6
     else:
         params, size, degree, p_max, steps = {}, 2.5 * mm, 2, 100 * kPa, 8
     # the printed design with sharp edges (fillet 0: an exact OpenCASCADE rebuild of the tree) and the port
@@ -82,19 +123,18 @@ def main(out: Path, quick: bool = False) -> dict:
     # backbone: the base layer's mid-plane, from the block's front face to the tip
     blk, base, L = p["block"], p["base"], p["length"]
     backbone = Backbone.line([blk, 0.0, base / 2], [L - 0.3 * mm, 0.0, base / 2], normal=[0.0, 1.0, 0.0])
-    train = recover_strains(out / "train.h5", backbone, samples=61)
-    bases, kept, info = dvs_basis([train], (0, 3, 0, 0, 0, 0))
-    shp = Shapes(bases, kept, length=backbone.length, section=twin.section, material=materials.Elastic80A(),
-                 base=np.array([blk, 0.0, base / 2]), damping=0.0, segments=30)
     inputs = ["pressure/cavity_0"]
-    ident = identify(shp, train, inputs=inputs)
-    cmp = compare(shp, train, inputs)
-    pressures = np.asarray(train.inputs[inputs[0]])
-    a_fem = tip_angle(train.frames[:, -1])
+    shp, data, cmp, ident, kept, info, tr = dvs_twin(out / "train.h5", backbone, (0, 3, 0, 0, 0, 0),
+                                                     twin.section, [blk, 0.0, base / 2], inputs, 3, 61)
+    ho = np.setdiff1d(np.arange(len(data.times)), tr)
+    pressures = np.asarray(data.inputs[inputs[0]])
+    a_fem = tip_angle(data.frames[:, -1])
     a_beam = tip_angle(np.array([shp.forward_kinematics(q)[-1] for q in cmp["q"]]))
 
     fig, ax = plt.subplots(figsize=(6, 4))
-    ax.plot(pressures / kPa, np.degrees(a_fem), "ko-", label="3D FEM of the printed geometry")
+    ax.plot(pressures / kPa, np.degrees(a_fem), "k-", lw=0.8)
+    ax.plot(pressures[tr] / kPa, np.degrees(a_fem[tr]), "ko", label="3D FEM, training pressures")
+    ax.plot(pressures[ho] / kPa, np.degrees(a_fem[ho]), "kD", mfc="w", label="3D FEM, held-out pressures")
     ax.plot(pressures / kPa, np.degrees(a_beam), "C1s--", label=f"DVS beam ({kept[1]} bending modes)")
     ax.set_xlabel("pressure [kPa]")
     ax.set_ylabel("tip angle [deg] (towards the base layer)")
@@ -104,11 +144,147 @@ def main(out: Path, quick: bool = False) -> dict:
     fig.tight_layout()
     fig.savefig(out / "tip_angle.png", dpi=120)
     plt.close(fig)
+    err = 100 * cmp["tip_error"]
     return {
         "n_bellows": int(p["n_bellows"]), "length_mm": L / mm, "p_max_kPa": p_max / kPa,
         "fem_cells": int(msh.num_cells), "fem_degree": degree, "fem_s": t_fem,
-        "pressures_kPa": (pressures / kPa).tolist(),
+        "pressures_kPa": (pressures / kPa).tolist(), "train": tr.tolist(),
         "tip_angle_fem_deg": np.degrees(a_fem).tolist(), "tip_angle_beam_deg": np.degrees(a_beam).tolist(),
-        "tip_error_top": 100 * float(cmp["tip_error"][-1]), "tip_error_max": 100 * float(cmp["tip_error"].max()),
+        "tip_error_top": float(err[-1]), "tip_error_max": float(err.max()),
+        "tip_error_heldout": float(err[ho].max()), "heldout_kPa": (pressures[ho] / kPa).tolist(),
         "dvs_modes": int(kept[1]), "dvs_energy": info[1]["energy"], "fit_error": ident.fit_error,
     }
+
+
+def _cavity_y(msh, name):
+    """The y centroid [m] of a cavity's surface (which network it is)."""
+    import dolfinx.fem
+    import ufl
+
+    m = msh.dolfinx
+    ds = ufl.ds(domain=m, subdomain_data=msh.meshtags(name), subdomain_id=msh.regions[name],
+                metadata={"quadrature_degree": 2})
+    x = ufl.SpatialCoordinate(m)
+    one = dolfinx.fem.Constant(m, 1.0)
+    a = dolfinx.fem.assemble_scalar(dolfinx.fem.form(x[1] * ds))
+    b = dolfinx.fem.assemble_scalar(dolfinx.fem.form(one * ds))
+    return float(m.comm.allreduce(a) / m.comm.allreduce(b))
+
+
+def planar_path(p_max, side):
+    """Pressure [Pa] of network ``side`` ("left"/"right") at load parameter t in [0, 3] on the path
+    (0, 0) -> (P, 0) -> (P, P) -> (0, P) of (left, right)."""
+    if side == "left":
+        return lambda t: p_max * float(np.clip(min(t, 3.0 - t), 0.0, 1.0))
+    return lambda t: p_max * float(np.clip(t - 1.0, 0.0, 1.0))
+
+
+def planar(out, quick):
+    """(b): FEM of both networks along one load path, DVS beam, held-out check. Returns the report dict."""
+    import matplotlib.pyplot as plt
+
+    from soroshapes.dvs import Backbone
+    from sorofem import materials, robots, sdf
+    from sorofem.fem import Fem
+    from sorofem.mesh import Mesh
+
+    out.mkdir(parents=True, exist_ok=True)
+    if quick:
+        params, size, degree, per_leg = dict(n_bellows=4, length=56 * mm), 3.0 * mm, 1, 4
+    else:
+        params, size, degree, per_leg = {}, 2.5 * mm, 2, 4
+    dsg = robots.design("planar_actuator", fillet=0.0, **params)
+    p_max = dsg.channels["left"][1]
+    part, twin = dsg.parts[0], dsg.twins[0]
+    p = dsg.params
+    H, W = p["height"], 2 * p["width"] + p["separation"]
+    ports = part.networks[0].port | part.networks[1].port
+    plug = ports & sdf.Box((2 * p["port_depth"], W, H), (p["port_depth"], 0, H / 2))
+    t0 = time.perf_counter()
+    msh = Mesh.from_sdf(part.shape | plug, size=size, method="csg")
+    if len(msh.cavities) != 2:
+        raise RuntimeError(f"expected two closed chamber networks, the mesh has cavities {msh.cavities}")
+    side = {("left" if _cavity_y(msh, c) > 0 else "right"): c for c in msh.cavities}
+    if sorted(side) != ["left", "right"]:
+        raise RuntimeError("the two cavities are not on either side of the mid-plane")
+    fem = Fem(msh, material=materials.Elastic80A(), degree=degree)
+    fem.add_support("left")
+    for s in ("left", "right"):
+        fem.add_pressure(side[s], planar_path(p_max, s))
+    steps = 3 * per_leg
+    fem.solve(t_end=3.0, steps=steps, max_step=3.0 / steps).save(out / "train.h5")
+    t_fem = time.perf_counter() - t0
+
+    # backbone: the left chain's bridge, 2 mm above its feed channel (inside the bridge's top wall), sampled
+    # at the middle of every gap between bellows and in the tip plate: one sample per pitch
+    blk, gap, n = p["block"], p["gap"], p["n_bellows"]
+    pitch = (p["length"] - blk - p["tip"]) / n
+    yc, zb = p["width"] / 2 + p["separation"] / 2, H / 2 + p["channel"] / 2 + p["wall"] / 2
+    x0 = blk + gap / 2
+    backbone = Backbone.line([x0, yc, zb], [x0 + n * pitch, yc, zb], normal=[0.0, 1.0, 0.0])
+    inputs = [f"pressure/{side['left']}", f"pressure/{side['right']}"]
+    shp, data, cmp, ident, kept, info, tr = dvs_twin(out / "train.h5", backbone, (0, 0, 2, 2, 0, 0),
+                                                     twin.section, [x0, yc, zb], inputs, 2, n + 1)
+    ho = np.setdiff1d(np.arange(len(data.times)), tr)
+    pl, pr = (np.asarray(data.inputs[k]) for k in inputs)
+    tip_fem = data.frames[:, -1, :3, 3] - data.frames[0, -1, :3, 3]
+    beam_frames = np.array([shp.forward_kinematics(q)[-1] for q in cmp["q"]])
+    tip_beam = beam_frames[:, :3, 3] - data.frames[0, -1, :3, 3]
+    a_fem, a_beam = plane_angle(data.frames[:, -1]), plane_angle(beam_frames)
+    err = 100 * cmp["tip_error"]
+    corners = [int(np.argmin(np.abs(data.times - t))) for t in (1.0, 2.0, 3.0)]
+    # the planar workspace: the tip plate's centre (the backbone's tip frame, -yc along body y) over the
+    # board's pressure box, -10..50 kPa per network (below 0 Pa the identified actuation is extrapolated: the
+    # FEM path has no vacuum) and over the trained box 0..50 kPa
+    centre = (0.0, -yc, 0.0)
+    lims = [dsg.channels["left"], dsg.channels["right"]]
+    pts = robots.reach(shp, lims, samples=7, point=centre)
+    pts_trained = robots.reach(shp, [(0.0, hi) for _, hi in lims], samples=7, point=centre)
+    fem_centre = np.array([(data.frames[k, -1] @ np.append(centre, 1.0))[:3] for k in range(len(data.times))])
+    seed = dsg.workspace
+
+    fig, axs = plt.subplots(1, 2, figsize=(10, 4))
+    s = np.asarray(data.times)
+    for ax, k, lab in ((axs[0], 1, "left chain's tip: y [mm]"), (axs[1], 0, "left chain's tip: x displacement [mm]")):
+        ax.plot(s, tip_fem[:, k] / mm, "k-", lw=0.8)
+        ax.plot(s[tr], tip_fem[tr, k] / mm, "ko", label="3D FEM, training")
+        ax.plot(s[ho], tip_fem[ho, k] / mm, "kD", mfc="w", label="3D FEM, held out")
+        ax.plot(s, tip_beam[:, k] / mm, "C1s--", label=f"DVS beam ({kept[2]}+{kept[3]} modes)")
+        ax.set_xlabel("load path: (0,0) -> (P,0) -> (P,P) -> (0,P), P = %g kPa" % (p_max / kPa))
+        ax.set_ylabel(lab)
+        ax.grid(alpha=0.3)
+    axs[0].legend()
+    fig.suptitle(f"planar actuator (b), {n} bellows per network, {p['length'] / mm:g} mm")
+    fig.tight_layout()
+    fig.savefig(out / "tip.png", dpi=120)
+    plt.close(fig)
+    return {
+        "n_bellows": int(n), "length_mm": p["length"] / mm, "backbone_mm": backbone.length / mm,
+        "p_max_kPa": p_max / kPa, "fem_cells": int(msh.num_cells), "fem_degree": degree, "fem_s": t_fem,
+        "p_left_kPa": (pl / kPa).tolist(), "p_right_kPa": (pr / kPa).tolist(), "train": tr.tolist(),
+        "corners": corners, "tip_fem_mm": (tip_fem / mm).tolist(), "tip_beam_mm": (tip_beam / mm).tolist(),
+        "angle_fem_deg": np.degrees(a_fem).tolist(), "angle_beam_deg": np.degrees(a_beam).tolist(),
+        "tip_error": err.tolist(), "tip_error_corners": [float(err[c]) for c in corners],
+        "tip_error_heldout": float(err[ho].max()), "dvs_modes": [int(kept[2]), int(kept[3])],
+        "fit_error": ident.fit_error,
+        "workspace_mm": (np.ptp(pts, axis=0)[:2] / mm).tolist(),
+        "workspace_trained_mm": (np.ptp(pts_trained, axis=0)[:2] / mm).tolist(),
+        "workspace_lo_mm": (pts.min(axis=0) / mm).tolist(), "workspace_hi_mm": (pts.max(axis=0) / mm).tolist(),
+        "fem_tip_centre_mm": (fem_centre / mm).tolist(),
+        "seed_workspace_mm": [v / mm for v in seed],
+    }
+
+
+def main(out: Path, quick: bool = False, robot: str = "all") -> dict:
+    import matplotlib
+    matplotlib.use("Agg")
+
+    out = Path(out)
+    if robot not in ("all", "bending_actuator", "planar_actuator"):
+        raise ValueError(f"robot must be 'all', 'bending_actuator' or 'planar_actuator', got {robot!r}")
+    report = {}
+    if robot in ("all", "bending_actuator"):
+        report.update(bending(out / "a", quick))
+    if robot in ("all", "planar_actuator"):
+        report["planar"] = planar(out / "b", quick)
+    return report

@@ -12,8 +12,10 @@ Shapes
 ------
 - ``seed2d``: ``Rectangle(20 mm, 10 mm).rotate(45 deg) - Circle(3 mm)`` (the paper's 2D example).
 - ``seed3d``: ``(Cube - Sphere_1) & Sphere_2`` (the paper's 3D example, cube edge 10 mm).
-- ``pneunet``: the side section of a PneuNet bending actuator, 80 mm x 17 mm, 7 chambers (6 x 10 mm) over a
-  5 mm strain-limiting base with a 1.5 mm feed channel; extruded to 15 mm for the ``finger`` STL.
+- ``pneunet``: the side section of a PneuNet bending actuator, 80 mm x 17 mm, 7 chambers (8.4 x 10 mm) over a
+  5 mm strain-limiting base with a 1.5 mm feed channel inside it and a riser into each chamber; the
+  ``finger`` STL is the 15 mm thick printable actuator: chambers and channel closed by 2 mm side walls, one
+  network open only at its inlet (the channel's mouth on the left end face), one watertight shell.
 - ``bellows``: a revolved zig-zag wall (1.5 mm thick, outer radius 12 mm, 6 folds) closed by two end caps.
 - ``lattice``: a 20 mm porous block (spherical voids of 1.8 mm radius on a 4 mm pitch, ``repeat``).
 - ``sphere``: radius 10 mm, exported at the default resolution for the volume check.
@@ -31,6 +33,8 @@ Figures
 The returned dict holds ``shapes``, ``stl_files``, ``png_files``, ``sphere_volume_error_rel``,
 ``pneunet_section_area_mm2``, ``pneunet_section_Iy_mm4``, ``pneunet_section_Iz_mm4``, ``seed2d_area_mm2``,
 ``seed2d_area_error_rel`` (numerical vs closed form 200 - 9 pi mm^2), ``finger_volume_mm3``,
+``finger_check`` (the STL's watertightness, shells, volume; :func:`sorofem.sdf.surface_check`),
+``finger_network`` (the flood fill of its chambers, :func:`sorofem.robots.chamber_check`),
 ``lattice_porosity`` and ``bellows_triangles``.
 """
 import math
@@ -38,20 +42,52 @@ from pathlib import Path
 
 import numpy as np
 
-from sorofem import sdf
+from sorofem import robots, sdf
 from sorofem.units import mm
 
 
-def pneunet_section():
-    """Side section of a PneuNet actuator in the (x, y) plane [m]: base layer + chamber walls - chambers."""
+PNEUNET_DEPTH = 15 * mm       # the finger's thickness (z)
+PNEUNET_SIDE = 2 * mm         # side walls closing the chambers and the channel (z)
+
+
+def _pneunet_2d():
+    """The PneuNet's side-view outline and voids in the (x, y) plane [m]: (outline, chambers, channel).
+
+    Base layer 80 x 5 mm, 7 blocks (pitch - 1 mm wide, 13 mm tall) each with a 10 mm chamber; the 1.5 mm feed
+    channel runs inside the base layer (y 1.75..3.25 mm) from the left end face (x = 0, the inlet) to under the
+    last chamber, with a 1.5 mm riser up into every chamber."""
     length, n = 80 * mm, 7
     pitch = length / n
     base = sdf.Rectangle(length, 5 * mm, center=(length / 2, 2.5 * mm))
     blocks = sdf.RoundedRectangle(pitch - 1 * mm, 13 * mm, 1.5 * mm,
                                   center=(pitch / 2, 10 * mm)).repeat((pitch, 0), (n, 1))
     chambers = sdf.Rectangle(pitch - 3 * mm, 10 * mm, center=(pitch / 2, 10 * mm)).repeat((pitch, 0), (n, 1))
-    channel = sdf.Rectangle(length - 6 * mm, 1.5 * mm, center=(length / 2, 5.25 * mm))
-    return (base | blocks) - chambers - channel
+    x_end = length - pitch / 2 + 0.75 * mm
+    channel = (sdf.Rectangle(x_end + 1 * mm, 1.5 * mm, center=((x_end - 1 * mm) / 2, 2.5 * mm))
+               | sdf.Rectangle(1.5 * mm, 3.5 * mm, center=(pitch / 2, 4.0 * mm)).repeat((pitch, 0), (n, 1)))
+    return base | blocks, chambers, channel
+
+
+def pneunet_section():
+    """Side section of a PneuNet actuator in the (x, y) plane [m] (its mid-plane z = 0): base layer +
+    chamber walls - chambers - feed channel and risers."""
+    outline, chambers, channel = _pneunet_2d()
+    return outline - chambers - channel
+
+
+def pneunet_finger():
+    """The PneuNet as one printable solid [m], z centred on 0: the outline extruded to ``PNEUNET_DEPTH``, the
+    chambers and the channel extruded less (closed by ``PNEUNET_SIDE`` walls), so that they form one network
+    open only at its inlet on the left end face (x = 0).
+
+    Returns (solid, inlet plug (a 3D SDF filling the channel's mouth), a point inside each chamber)."""
+    outline, chambers, channel = _pneunet_2d()
+    solid = (outline.extrude(PNEUNET_DEPTH) - chambers.extrude(PNEUNET_DEPTH - 2 * PNEUNET_SIDE)
+             - channel.extrude(1.5 * mm))
+    plug = sdf.Box((2 * mm, 1.5 * mm, 1.5 * mm), (0.0, 2.5 * mm, 0.0))
+    pitch = 80 * mm / 7
+    points = [(pitch / 2 + k * pitch, 10 * mm, 0.0) for k in range(7)]
+    return solid, plug, points
 
 
 def bellows(folds=6, r_out=12 * mm, r_in=8 * mm, pitch=5 * mm, wall=1.5 * mm):
@@ -99,7 +135,7 @@ def main(out: Path, quick: bool = False) -> dict:
             section.to_png(out / "pneunet_section.png", title="PneuNet section")]
 
     # ---- 3D: solids, STL + slices
-    finger = section.extrude(15 * mm)
+    finger, plug, chamber_points = pneunet_finger()
     bel = bellows()
     lat = lattice()
     sphere = sdf.Sphere(10 * mm)
@@ -110,6 +146,9 @@ def main(out: Path, quick: bool = False) -> dict:
              lat.to_png(out / "lattice_xy.png", plane="xy", at=0.0, title="lattice, slice z = 0"),
              finger.to_png(out / "finger_xz.png", plane="xz", at=7 * mm, title="finger, slice y = 7 mm")]
 
+    chk = sdf.surface_check(sdf.read_stl(stls["finger"])[0])
+    net = robots.Network("pneunet", plug, tuple(chamber_points), (0.0, 0.0))
+    flood = robots.chamber_check(robots.Part("finger", finger, "Elastic80A", (net,), feature=1.5 * mm))
     v_sphere, _ = _stl_volume(stls["sphere"])
     v_exact = 4 / 3 * math.pi * (10 * mm) ** 3
     _, n_bellows = _stl_volume(stls["bellows"])
@@ -128,6 +167,9 @@ def main(out: Path, quick: bool = False) -> dict:
         "seed2d_area_mm2": sp_seed.area / mm**2,
         "seed2d_area_error_rel": abs(sp_seed.area - seed_area_exact) / seed_area_exact,
         "finger_volume_mm3": v_finger / mm**3,
+        "finger_check": {"watertight": bool(chk["watertight"]), "shells": int(chk["shells"]),
+                         "volume_mm3": float(chk["volume"] / mm**3)},
+        "finger_network": flood["pneunet"],
         "lattice_porosity": 1.0 - v_lat / (20 * mm) ** 3,
         "bellows_triangles": n_bellows,
     }

@@ -36,7 +36,9 @@ class Driver:
 
     ``p_range`` is the pair of per-channel arrays (lowest, highest) [Pa] of the pressures the outputs can be
     set to (a regulator's calibrated signal range; unbounded for the mock and the simulated plant); the
-    server refuses limits outside it.
+    server refuses limits outside it. ``safety_limits`` is the pair of per-channel arrays (p_min, p_max) [Pa]
+    that the hardware itself requires (the board profile's limits), or None; the server never lets a channel
+    go beyond them, whatever limits it is given.
     """
 
     channels = 0
@@ -45,6 +47,10 @@ class Driver:
     @property
     def p_range(self):
         return np.full(self.channels, -np.inf), np.full(self.channels, np.inf)
+
+    @property
+    def safety_limits(self):
+        return None
 
     def apply(self, setpoints, t):
         raise NotImplementedError
@@ -234,19 +240,76 @@ class ChannelCalibration:
         return self.code(0.0)
 
 
+def _check_limits(where, lo, hi, signal_range):
+    """Refuse per-channel safety limits ``lo``/``hi`` [Pa] (the profile's ``p_min``/``p_max``) that are not
+    finite, do not contain 0 Pa or leave the calibrated ``signal_range``; the message names the key."""
+    s_lo, s_hi = signal_range
+    for key, v in (("p_min", lo), ("p_max", hi)):
+        if not math.isfinite(v):
+            raise ParameterError(f"{where}: {key} = {v!r} must be a finite gauge pressure [Pa]")
+    if lo > 0.0:
+        raise ParameterError(f"{where}: p_min = {lo:g} Pa must be <= 0 Pa (0 Pa, the vent pressure, must be "
+                             "allowed)")
+    if hi < 0.0:
+        raise ParameterError(f"{where}: p_max = {hi:g} Pa must be >= 0 Pa (0 Pa, the vent pressure, must be "
+                             "allowed)")
+    if lo < s_lo:
+        raise ParameterError(f"{where}: p_min = {lo:g} Pa is below the calibrated signal_range [{s_lo:g}, "
+                             f"{s_hi:g}] Pa: the regulator cannot deliver it; raise p_min or fix the calibration")
+    if hi > s_hi:
+        raise ParameterError(f"{where}: p_max = {hi:g} Pa is above the calibrated signal_range [{s_lo:g}, "
+                             f"{s_hi:g}] Pa: the regulator cannot deliver it; lower p_max or fix the calibration")
+
+
 @dataclass(frozen=True)
 class BoardProfile:
-    """A board's wiring and calibration: one :class:`ChannelCalibration` per channel and the I²C ``bus``.
+    """A board's wiring and calibration: one :class:`ChannelCalibration` per channel and the I²C ``bus``, and
+    optionally the safety limits of every channel.
 
     Read from a TOML file with :meth:`load` (format in ``hardware/README.md``, example
-    ``hardware/profiles/veab-2ch.toml``)."""
+    ``hardware/profiles/veab-2ch.toml``).
+
+    Attributes
+    ----------
+    channels : tuple of ChannelCalibration
+    bus : int
+    name : str
+    limits : tuple of (float, float) [Pa], or None
+        Per channel, the safety limits ``(p_min, p_max)`` (gauge; the ``p_min``/``p_max`` keys of its
+        ``[[channels]]`` table): inside the channel's ``signal_range``, containing 0 Pa; given for every
+        channel or for none. A :class:`BoardServer` driving this board never lets a channel beyond them.
+    """
     channels: tuple
     bus: int = 1
     name: str = ""
+    limits: tuple = None
 
     FORMAT = "soro-board-profile"
     VERSION = 1
-    _KEYS = {"dac", "adc", "signal_range", "sensor_gain", "sensor_offset", "divider", "name"}
+    _TOP_KEYS = {"format", "version", "name", "i2c_bus", "channels"}
+    _KEYS = {"dac", "adc", "signal_range", "sensor_gain", "sensor_offset", "divider", "name", "p_min", "p_max"}
+
+    def __post_init__(self):
+        if self.limits is None:
+            return
+        limits = tuple((float(lo), float(hi)) for lo, hi in self.limits)
+        if len(limits) != len(self.channels):
+            raise ParameterError(f"board profile {self.name!r}: {len(limits)} pairs of safety limits for "
+                                 f"{len(self.channels)} channels: give p_min/p_max for every channel or none")
+        for i, ((lo, hi), cal) in enumerate(zip(limits, self.channels)):
+            _check_limits(f"board profile {self.name!r}: channel {i} ({cal.name or hex(cal.dac)})", lo, hi,
+                          cal.signal_range)
+        object.__setattr__(self, "limits", limits)
+
+    @property
+    def p_min(self):
+        """Per-channel lower safety limits [Pa] (array), or None without limits."""
+        return None if self.limits is None else np.array([lo for lo, _ in self.limits])
+
+    @property
+    def p_max(self):
+        """Per-channel upper safety limits [Pa] (array), or None without limits."""
+        return None if self.limits is None else np.array([hi for _, hi in self.limits])
 
     @classmethod
     def load(cls, path):
@@ -268,11 +331,18 @@ class BoardProfile:
         """The profile of a parsed TOML document ``doc`` (dict)."""
         if doc.get("format") != cls.FORMAT or doc.get("version") != cls.VERSION:
             raise ParameterError(f"{source}: expected format = \"{cls.FORMAT}\" and version = {cls.VERSION} at the top")
+        unknown = sorted(set(doc) - cls._TOP_KEYS)
+        if unknown:
+            hint = (" (safety limits go into each [[channels]] table as p_min/p_max [Pa])"
+                    if any("limit" in k for k in unknown) else "")
+            raise ParameterError(f"{source}: unknown top-level keys {unknown}{hint} (known: {sorted(cls._TOP_KEYS)})")
         chans = doc.get("channels")
         if not isinstance(chans, list) or not chans:
             raise ParameterError(f"{source}: no [[channels]] tables (one per regulator channel)")
-        out = []
+        out, limits = [], []
         for i, ch in enumerate(chans):
+            if not isinstance(ch, dict):
+                raise ParameterError(f"{source}: channels must be [[channels]] tables")
             unknown = set(ch) - cls._KEYS
             missing = {"dac", "adc", "signal_range"} - set(ch)
             if unknown or missing:
@@ -288,8 +358,34 @@ class BoardProfile:
                 raise ParameterError(f"{source}: channel {i}: adc = [address, input 0-3], signal_range = [lo, hi]")
             kw = {k: float(ch[k]) for k in ("sensor_gain", "sensor_offset", "divider") if k in ch}
             out.append(ChannelCalibration(int(ch["dac"]), adc, sr, name=str(ch.get("name", f"channel {i}")), **kw))
+            limits.append(cls._channel_limits(ch, f"{source}: channel {i} ({out[-1].name})", sr))
         _channels(len(out))
-        return cls(tuple(out), bus=int(doc.get("i2c_bus", 1)), name=str(doc.get("name", source)))
+        given = [i for i, lim in enumerate(limits) if lim is not None]
+        if given and len(given) != len(limits):
+            bare = [i for i, lim in enumerate(limits) if lim is None]
+            raise ParameterError(f"{source}: channels {given} have safety limits (p_min/p_max) and channels {bare} "
+                                 "do not: give p_min and p_max in every [[channels]] table, or in none")
+        return cls(tuple(out), bus=int(doc.get("i2c_bus", 1)), name=str(doc.get("name", source)),
+                   limits=tuple(limits) if given else None)
+
+    @staticmethod
+    def _channel_limits(ch, where, signal_range):
+        """``(p_min, p_max)`` [Pa] of the channel table ``ch``, None without; refused with the key named."""
+        present = [k for k in ("p_min", "p_max") if k in ch]
+        if not present:
+            return None
+        if len(present) == 1:
+            other = "p_max" if present[0] == "p_min" else "p_min"
+            raise ParameterError(f"{where}: {present[0]} given without {other}: a channel's safety limits are the "
+                                 "pair p_min <= 0 <= p_max [Pa]")
+        vals = []
+        for key in ("p_min", "p_max"):
+            v = ch[key]
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise ParameterError(f"{where}: {key} = {v!r} must be a number, a gauge pressure in Pa")
+            vals.append(float(v))
+        _check_limits(where, vals[0], vals[1], signal_range)
+        return tuple(vals)
 
 
 class I2CDriver(Driver):
@@ -298,7 +394,8 @@ class I2CDriver(Driver):
     Parameters
     ----------
     profile : BoardProfile or path
-        The wiring and calibration (:class:`BoardProfile`, or the path of its TOML file).
+        The wiring, calibration and optional per-channel safety limits (:class:`BoardProfile`, or the path of
+        its TOML file); the limits are :attr:`safety_limits`, which a :class:`BoardServer` always enforces.
     select : callable(channel), optional
         Called before talking to a channel's devices (multiplexer switching, e.g. a TCA9548A).
     """
@@ -326,6 +423,11 @@ class I2CDriver(Driver):
     def p_range(self):
         return (np.array([c.signal_range[0] for c in self.calibration], float),
                 np.array([c.signal_range[1] for c in self.calibration], float))
+
+    @property
+    def safety_limits(self):
+        """The profile's per-channel (p_min, p_max) arrays [Pa], or None when it sets none."""
+        return None if self.profile.limits is None else (self.profile.p_min, self.profile.p_max)
 
     def _write_dac(self, ch, code):
         # MCP4725 fast write: two bytes, upper 4 bits of the code (power-down bits 00) then the lower 8

@@ -10,7 +10,9 @@ Safety rules (all enforced here, whatever the client does):
 
 * no client logged in (or a fault) ⇒ the requested and applied pressures are 0 Pa on every channel, enforced
   by the board loop at every tick; a command from a connection that is no longer the client is refused;
-* set-points outside ``[p_min, p_max]`` are clamped (flag ``CLAMPED``), non-finite ones are an error;
+* set-points outside ``[p_min, p_max]`` are clamped per channel (flag ``CLAMPED``), non-finite ones are an
+  error; a channel's limits are the tighter of those the server is given and those of the board profile
+  (:attr:`Driver.safety_limits`), so a profile's limit is never widened;
 * the slew rate limit above (flag ``RATE_LIMITED`` while slewing);
 * the measured pressure of every channel is checked against ``[p_min - tolerance, p_max + tolerance]`` at
   each tick: a channel outside for ``excursion_time`` vents the board and refuses commands until the next
@@ -79,9 +81,13 @@ class BoardServer:
         :func:`sorocontrol.protocol.secret_bytes`).
     host, port : str, int
         Where to listen (port 0 picks a free one: see :attr:`address`). Default loopback:8888.
-    p_min, p_max : float or array [Pa]
-        Per-channel safety limits (default -100 kPa / 100 kPa). They must lie inside the driver's
-        calibrated range (:attr:`Driver.p_range`) and contain 0 Pa.
+    p_min, p_max : float or array [Pa], optional
+        Safety limits, one for all channels or one per channel. When the driver has safety limits of its own
+        (:attr:`Driver.safety_limits`: the ``p_min``/``p_max`` of each channel of the board profile), each
+        channel gets the tighter of the two (the intersection; without these arguments, the profile's);
+        otherwise these (default -100 kPa / 100 kPa). They must lie inside the driver's calibrated range
+        (:attr:`Driver.p_range`) and contain 0 Pa. The limits in force are :attr:`p_min`/:attr:`p_max`
+        (announced to the client at login).
     rate : float or array [Pa/s]
         Per-channel slew-rate limit of the applied set-point (default 1 MPa/s: 100 kPa in 0.1 s).
     watchdog : float [s]
@@ -104,7 +110,7 @@ class BoardServer:
         Monotonic time source [s] (default :func:`time.monotonic`); tests inject one and call :meth:`tick`.
     """
 
-    def __init__(self, driver, secret, host="127.0.0.1", port=8888, p_min=-100e3, p_max=100e3, rate=1e6,
+    def __init__(self, driver, secret, host="127.0.0.1", port=8888, p_min=None, p_max=None, rate=1e6,
                  watchdog=0.5, board_rate=400.0, auth_timeout=2.0, tolerance=None, excursion_time=0.02,
                  max_pending=16, backoff=(0.1, 10.0), clock=None):
         if not isinstance(driver, Driver):
@@ -116,12 +122,8 @@ class BoardServer:
             self.secret = P.secret_bytes(secret)
         except ProtocolError as e:
             raise ParameterError(str(e)) from None
-        self.p_min, self.p_max, self.rate = (np.broadcast_to(np.asarray(v, float), (n,)).copy()
-                                             for v in (p_min, p_max, rate))
-        if not (np.all(np.isfinite(self.p_min)) and np.all(np.isfinite(self.p_max))
-                and np.all(self.p_min <= 0) and np.all(self.p_max >= 0)):
-            raise ParameterError("pressure limits must be finite with p_min <= 0 <= p_max [Pa] (0 Pa, the "
-                                 "vent pressure, must be allowed)")
+        self.p_min, self.p_max = self._limits(driver, p_min, p_max)
+        self.rate = np.broadcast_to(np.asarray(rate, float), (n,)).copy()
         lo, hi = driver.p_range
         outside = np.flatnonzero((self.p_min < lo) | (self.p_max > hi))
         if outside.size:
@@ -177,6 +179,46 @@ class BoardServer:
             log.warning("listening on every interface (%s): any host that reaches the Pi can try to log in; "
                         "prefer the lab-network address", self.address[0])
         self._threads = []
+
+    @staticmethod
+    def _limits(driver, p_min, p_max):
+        """The per-channel limits in force [Pa]: the arguments (default -100/100 kPa), narrowed per channel to
+        the driver's own safety limits (the board profile's) when it has them."""
+        n = driver.channels
+
+        def per_channel(v, what):
+            try:
+                return np.broadcast_to(np.asarray(v, float), (n,)).copy()
+            except ValueError:
+                raise ParameterError(f"{what} must be one value or one per channel ({n}), got {v!r}") from None
+        given = {what: None if v is None else per_channel(v, what) for what, v in (("p_min", p_min),
+                                                                                   ("p_max", p_max))}
+        for what, v in given.items():
+            if v is not None and not (np.all(np.isfinite(v)) and np.all(v <= 0 if what == "p_min" else v >= 0)):
+                raise ParameterError("pressure limits must be finite with p_min <= 0 <= p_max [Pa] (0 Pa, the "
+                                     "vent pressure, must be allowed)")
+        own = driver.safety_limits
+        if own is None:
+            lo = given["p_min"] if given["p_min"] is not None else np.full(n, -100e3)
+            hi = given["p_max"] if given["p_max"] is not None else np.full(n, 100e3)
+            return lo, hi
+        own_lo, own_hi = (per_channel(v, "the driver's safety limits") for v in own)
+        if not (np.all(np.isfinite(own_lo)) and np.all(np.isfinite(own_hi)) and np.all(own_lo <= 0)
+                and np.all(own_hi >= 0)):
+            raise ParameterError("the driver's safety limits (board profile p_min/p_max) must be finite with "
+                                 "p_min <= 0 <= p_max [Pa]: fix the profile")
+        lo = own_lo if given["p_min"] is None else np.maximum(given["p_min"], own_lo)
+        hi = own_hi if given["p_max"] is None else np.minimum(given["p_max"], own_hi)
+        for what, arg, own_v, used in (("p_min", given["p_min"], own_lo, lo), ("p_max", given["p_max"], own_hi, hi)):
+            if arg is None:
+                continue
+            wider = np.flatnonzero(used != arg)
+            if wider.size:
+                log.info("%s of channel(s) %s: the board profile's %s kPa applies (tighter than the %s kPa "
+                         "given)", what, wider.tolist(), (own_v[wider] / 1e3).tolist(), (arg[wider] / 1e3).tolist())
+        log.info("safety limits per channel [kPa]: %s",
+                 ", ".join(f"{c}: [{a / 1e3:g}, {b / 1e3:g}]" for c, (a, b) in enumerate(zip(lo, hi))))
+        return lo, hi
 
     # ---- life cycle ---------------------------------------------------------------------------------
     def start(self, loop=True):
@@ -703,14 +745,17 @@ def main(argv=None):
     """``python -m sorocontrol.server``: run a board. Prints ``listening HOST PORT`` once ready."""
     ap = argparse.ArgumentParser(prog="python -m sorocontrol.server", description=__doc__.split("\n")[0])
     ap.add_argument("--driver", choices=["simulated", "mock", "i2c"], default="simulated")
-    ap.add_argument("--profile", help="board profile (TOML: wiring and regulator calibration), --driver i2c")
+    ap.add_argument("--profile", help="board profile (TOML: wiring, regulator calibration and the channels' "
+                                      "safety limits), --driver i2c")
     ap.add_argument("--channels", type=int, default=12, help="simulated/mock boards")
     ap.add_argument("--host", default="127.0.0.1", help="address to listen on (the Pi's lab-network address)")
     ap.add_argument("--port", type=int, default=8888)
     ap.add_argument("--secret-file")
     ap.add_argument("--secret")
-    ap.add_argument("--p-min", type=float, default=-100e3, help="safety limit, Pa")
-    ap.add_argument("--p-max", type=float, default=100e3, help="safety limit, Pa")
+    ap.add_argument("--p-min", type=float, help="safety limit of every channel, Pa (default: the profile's "
+                                                "per-channel limits, else -100e3; with both, the tighter applies)")
+    ap.add_argument("--p-max", type=float, help="safety limit of every channel, Pa (default: the profile's "
+                                                "per-channel limits, else 100e3; with both, the tighter applies)")
     ap.add_argument("--tolerance", type=float, help="read-back margin beyond the limits before venting, Pa")
     ap.add_argument("--rate", type=float, default=1e6, help="slew-rate limit, Pa/s")
     ap.add_argument("--watchdog", type=float, default=0.5, help="s")
@@ -742,6 +787,9 @@ def main(argv=None):
                 raise SystemExit("--driver i2c needs --profile FILE: the board profile with the wiring and the "
                                  "regulators' calibration (hardware/README.md)")
             driver = I2CDriver(args.profile)
+        elif args.profile:
+            raise SystemExit(f"--profile is the board profile of the real board (--driver i2c); the {args.driver} "
+                             "board does not read it: drop --profile or use --driver i2c")
         elif args.driver == "mock":
             driver = MockDriver(args.channels)
         else:

@@ -43,6 +43,17 @@ def check_sdf_gallery(report, out):
     assert report["seed2d_area_error_rel"] < 1e-3
     assert report["stl_files"] == len(list(out.glob("*.stl"))) >= 4
     assert report["png_files"] == len(list(out.glob("*.png"))) >= 4
+    # the PneuNet finger is one printable solid (it was six loose pieces): read back in mm, watertight,
+    # consistently oriented, positive volume, one shell; its chambers are one network open only at the inlet
+    from sorofem import sdf
+    assert sdf.stl_units(out / "finger.stl") == "mm"
+    chk = sdf.surface_check(sdf.read_stl(out / "finger.stl")[0])
+    assert chk["watertight"] and chk["shells"] == 1 and chk["volume"] > 0, chk
+    assert chk["volume"] / 1e-9 == pytest.approx(report["finger_volume_mm3"], rel=0.05)
+    size_mm = (chk["hi"] - chk["lo"]) * 1e3
+    assert size_mm == pytest.approx([80, 16.5, 15], rel=0.05)
+    net = report["finger_network"]
+    assert net["connected"] and net["closed"] and net["inlet_open"], net
 
 
 def check_mesh_gallery(report, out):
@@ -245,12 +256,37 @@ def check_manipulator_pick(report, out):
 def check_robot_twin(report, out):
     import numpy as np
     a_fem, a_beam = np.array(report["tip_angle_fem_deg"]), np.array(report["tip_angle_beam_deg"])
-    # 3D FEM of the printed actuator (a): inflation curls it towards its base layer, more with more pressure
+    # (a) 3D FEM of the printed actuator: inflation curls it towards its base layer, more with more pressure
     assert a_fem[0] == pytest.approx(0, abs=1e-9) and np.all(np.diff(a_fem) > 0) and a_fem[-1] > 1.0
-    # the DVS beam made from those snapshots: tip within 5 % of the length (the bound), angles within 15 %
-    assert report["tip_error_top"] < 5.0
+    # the DVS beam made from the even steps: tip within 5 % of the length (the bound) at the top
+    # pressure and at the held-out (odd-step) pressures, angles within 15 %
+    assert report["train"] == list(range(0, len(a_fem), 2)) and len(report["heldout_kPa"]) >= 2
+    assert report["tip_error_top"] < 5.0 and report["tip_error_heldout"] < 5.0
     assert np.all(np.abs(a_beam - a_fem) <= 0.15 * np.abs(a_fem) + 0.05)
-    assert (out / "tip_angle.png").stat().st_size > 0 and (out / "train.h5").is_file()
+    assert (out / "a" / "tip_angle.png").stat().st_size > 0 and (out / "a" / "train.h5").is_file()
+    # (b) the load path (0,0) -> (P,0) -> (P,P) -> (0,P) of (left, right), P = 50 kPa (the seed's top)
+    b = report["planar"]
+    assert b["p_max_kPa"] == 50.0
+    tip = np.array(b["tip_fem_mm"])
+    i_l, i_b, i_r = b["corners"]
+    assert b["p_left_kPa"][i_l] == b["p_right_kPa"][i_r] == 50.0 and b["p_right_kPa"][i_l] == 0.0
+    # left alone bends away from it (-y) and lengthens; right alone mirrors it; both together elongate it
+    # (the backbone is the left chain's: its tip moves +x most when the left chain is inflated)
+    assert tip[i_l, 1] < -0.2 and tip[i_r, 1] > 0.2 and tip[i_l, 0] > 0.2
+    assert abs(tip[i_b, 1]) < 0.1 * abs(tip[i_l, 1]) and tip[i_b, 0] > tip[i_l, 0]
+    # the DVS beam: within 5 % of the backbone length at the three top-pressure states and held out
+    assert max(b["tip_error_corners"]) < 5.0 and b["tip_error_heldout"] < 5.0
+    beam = np.array(b["tip_beam_mm"])
+    assert np.all(np.sign(beam[[i_l, i_r], 1]) == np.sign(tip[[i_l, i_r], 1])) and beam[i_b, 0] > 0
+    assert (out / "b" / "tip.png").stat().st_size > 0
+    # the planar workspace of the DVS beam over -10..50 kPa per network: it holds the FEM's tip-plate centre
+    # at the path's corners (within the 5 % bound) and is mirror-symmetric in y (two equal networks)
+    lo, hi = np.array(b["workspace_lo_mm"])[:2], np.array(b["workspace_hi_mm"])[:2]
+    fem_c = np.array(b["fem_tip_centre_mm"])[b["corners"], :2]
+    tol = 0.05 * b["backbone_mm"]
+    assert np.all(fem_c >= lo - tol) and np.all(fem_c <= hi + tol)
+    assert hi[1] == pytest.approx(-lo[1], rel=0.1) and np.all(np.array(b["workspace_mm"]) > 0)
+    assert b["seed_workspace_mm"] == [100.0, 100.0]
 
 
 CHECKS = {

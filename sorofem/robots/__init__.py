@@ -8,15 +8,17 @@
 (['actuator'], (-10000.0, 100000.0))
 
 ``export(name, out)`` writes one binary STL per printed part (millimetres by default, the unit in the header;
-through :func:`sorofem.sdf.write_stl`), a 3D preview PNG (surface render, axes in mm) and ``NAME.json``
-(parameters, board channels with their pressure limits, per-part bounding box, watertightness, shells,
-volume, the flood-fill check of each pneumatic network, and the twins' reduced-model data).
+through :func:`sorofem.sdf.write_stl`), a 3D preview PNG (surface render, axes in mm), the board profile
+``NAME_board.toml`` (:func:`board_profile`: one channel per network, the seed's pressure ranges as the safety
+limits) and ``NAME.json`` (parameters, board channels with their pressure limits, per-part bounding box,
+watertightness, shells, volume, the flood-fill check of each pneumatic network, and the twins' reduced-model
+data).
 
 The designs live in this package (not in ``hardware/``) because the ``soro robot`` command must find them in
 an installed copy; they use only :mod:`sorofem.sdf`, so they sit on the foundation of the layering. The twins
 are data (section SDF, material preset name, chamber areas and offsets, base pose) from which
 :class:`soroshapes.Shapes` builds the beam; ``sorofem`` never imports ``soroshapes``. The board channels
-with their limits are data too (``Design.channels``) until the board profile file format exists.
+with their limits are data too (``Design.channels``); :func:`board_profile` writes them as a board profile.
 """
 from __future__ import annotations
 
@@ -26,10 +28,14 @@ import numpy as np
 
 from ..errors import GeometryError
 from ..units import mm
+from ._board import VEAB_SIGNAL_RANGE, board_profile
 from ._core import UNITS, Chamber, Design, Network, Param, Part, Robot, Twin, chamber_check
+from ._scene import BELLOWS_E_FACTOR, PARALLEL_BELLOWS_E_FACTOR, Channel, Scene, bellows_modulus, reach, twin_shapes
 from .designs import ROBOTS
 
 __all__ = ["names", "get", "design", "parse_params", "export", "export_part", "preview_png", "chamber_check",
+           "board_profile", "VEAB_SIGNAL_RANGE", "Scene", "Channel", "twin_shapes", "scene",
+           "reach", "bellows_modulus", "BELLOWS_E_FACTOR", "PARALLEL_BELLOWS_E_FACTOR",
            "Param", "Network", "Part", "Chamber", "Twin", "Design", "Robot", "ROBOTS", "UNITS"]
 
 
@@ -48,6 +54,12 @@ def get(name):
 def design(name, **params):
     """Build robot ``name`` with ``params`` in SI (m, Pa; counts as integers)."""
     return get(name).design(**params)
+
+
+def scene(name, stiffness="bellows", **params):
+    """The ``soro play`` scene of robot ``name`` built with ``params`` in SI (:meth:`Design.scene`); ``soro play``
+    lists it as ``robot:NAME``."""
+    return design(name, **params).scene(stiffness=stiffness)
 
 
 def parse_params(name, items):
@@ -128,7 +140,8 @@ def preview_png(meshes, path, title=None, view=(25, -60)):
 
 
 def export(name, out, units="mm", params=None, resolution=None, preview=True, check=True):
-    """Export robot ``name``: ``NAME_PART.stl`` per printed part, ``NAME.png`` and ``NAME.json`` in ``out``.
+    """Export robot ``name``: ``NAME_PART.stl`` per printed part, ``NAME.png``, ``NAME_board.toml`` (the board
+    profile) and ``NAME.json`` in ``out``.
 
     Parameters
     ----------
@@ -149,7 +162,7 @@ def export(name, out, units="mm", params=None, resolution=None, preview=True, ch
     dict
         The report written to ``NAME.json``.
     """
-    from ..io import write_json
+    from ..io import atomic_path, write_json
     from ..sdf import surface_check
     out = Path(out)
     dsg = design(name, **(params or {}))
@@ -180,6 +193,9 @@ def export(name, out, units="mm", params=None, resolution=None, preview=True, ch
                                       "offset_mm": [o / mm for o in c.offset], "channel": c.channel}
                                      for c in t.chambers],
                         "base": np.asarray(t.base).round(6).tolist()} for t in dsg.twins]
+    with atomic_path(out / f"{name}_board.toml") as tmp:
+        tmp.write_text(board_profile(dsg))
+    report["board_profile"] = f"{name}_board.toml"
     if preview:
         preview_png(meshes, out / f"{name}.png", title=robot.title)
         report["preview"] = f"{name}.png"

@@ -38,6 +38,7 @@ def run(args, stream=None):
     ok = all(p["watertight"] and p["shells"] == 1 and all(v["closed"] and v["inlet_open"]
                                                            for v in p.get("networks", {}).values())
              for p in rep["parts"].values())
-    print(f"{args.out}/{args.name}.json" + (f", {args.out}/{rep['preview']}" if "preview" in rep else ""),
-          file=stream)
+    print(f"{args.out}/{args.name}.json, {args.out}/{rep['board_profile']} (board profile: each channel's "
+          f"safety limits p_min/p_max are the seed's range of its network, enforced by the board server)"
+          + (f", {args.out}/{rep['preview']}" if "preview" in rep else ""), file=stream)
     return 0 if ok else 1

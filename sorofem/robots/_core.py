@@ -119,7 +119,8 @@ class Design:
     """A robot built from one set of parameters: printed parts, the board's channels, reduced-model twins.
 
     ``channels`` maps a board channel name to its safety limits (lo, hi) [Pa] (the seed's ranges);
-    ``size`` is the seed's stated overall size [m] (None when the seed states none)."""
+    ``size`` is the seed's stated overall size [m] (None when the seed states none); ``workspace`` the seed's
+    stated workspace [m] (x, y) planar or (x, y, z), None when it states none."""
 
     robot: str
     params: dict
@@ -127,6 +128,16 @@ class Design:
     channels: dict
     twins: tuple
     size: tuple | None
+    workspace: tuple | None = None
+
+    def scene(self, stiffness="bellows"):
+        """The twin as a ``soro play`` scene: a :class:`~sorofem.robots.Scene` holding a
+        :class:`soroshapes.Shapes` (one soft body) or :class:`soroshapes.Model` (several) and its board
+        channels (names, limits [Pa] from ``channels``, the model inputs each sets). Imports soroshapes.
+        ``stiffness``: ``"bellows"`` (the effective modulus calibrated on FEM), ``"section"`` or a modulus [Pa]
+        (:func:`sorofem.robots.scene`)."""
+        from ._scene import scene
+        return scene(self, stiffness=stiffness)
 
     def part(self, name):
         for p in self.parts:

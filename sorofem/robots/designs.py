@@ -10,14 +10,16 @@ chambers are closed otherwise (:func:`sorofem.robots.chamber_check` verifies it 
 (a) ``bending_actuator``: a bellows chain on an inextensible base layer (strain limiter), Elastic 80A,
     -10..100 kPa. Inflation lengthens the bellows side: the actuator bends towards the base layer.
 (b) ``planar_actuator``: two bellows chains side by side between a common mount block and a tip plate,
-    two networks (left, right), -10..50 kPa: together they elongate, one at a time they bend in the plane.
+    two networks (left, right), -10..50 kPa: together they elongate, one at a time they bend in the plane;
+    the seed states a ~100 x 100 mm planar workspace (``Design.workspace``).
 (c) ``hand``: a PLA palm (pockets, M3 holes, tube passages) and five separate Elastic 80A fingers (bending
     actuators, 90 mm; thumb 80 mm, rolled to close towards the fingers), -10..60 kPa per finger;
     overall about 190 x 100 x 40 mm.
 (d) ``manipulator``: three bellows chains at 120 degrees about a hollow central axis (bores through both
     plates for tubes and cables) between a base plate and a top plate, -10..30 kPa; and a three-finger
     gripper (hub with one inlet and a manifold, fingers around a 40 mm object), -30..60 kPa, that bolts to
-    the top plate; the gripper's tube runs through the hollow axis.
+    the top plate; the gripper's tube runs through the hollow axis. The seed states a ~150 x 150 x 150 mm
+    workspace (``Design.workspace``).
 
 Coordinates are in metres (SI); x is the length direction of (a)-(c), z the axis of (d).
 """
@@ -236,7 +238,8 @@ class PlanarActuator(Robot):
         cavs = [cav.translate((yc, -H / 2)), cav.translate((-yc, -H / 2))]
         sec = sec - cavs[0] - cavs[1]
         twin = _centred_twin("actuator", ch.length, sec, cavs, "Elastic80A", _pose(t=(blk, 0, H / 2)), names)
-        return Design(self.name, p, (part,), {n: self.PRESSURE for n in names}, (twin,), None)
+        return Design(self.name, p, (part,), {n: self.PRESSURE for n in names}, (twin,), None,
+                      workspace=(100 * mm, 100 * mm))
 
 
 # --------------------------------------------------------------------------------------------------- (c)
@@ -384,7 +387,8 @@ class Manipulator(Robot):
         gripper, gtwins = self._gripper(p, Tb + L + Tt)
         channels = {nm: self.PRESSURE for nm in names}
         channels["gripper"] = self.GRIPPER_PRESSURE
-        return Design(self.name, p, (body_part, gripper), channels, (twin, *gtwins), None)
+        return Design(self.name, p, (body_part, gripper), channels, (twin, *gtwins), None,
+                      workspace=(150 * mm, 150 * mm, 150 * mm))
 
     def _gripper(self, p, z0):
         """The gripper: a hub z in [z0, z0 + hub] with the port at the bottom centre (under the hollow axis),

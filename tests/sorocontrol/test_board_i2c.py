@@ -43,7 +43,8 @@ SETTINGS = {
 }
 
 
-def write_profile(path, signal_range):
+def write_profile(path, signal_range, limits=None):
+    """A two-channel profile; ``limits``: per channel ``(p_min, p_max)`` [Pa] written as its keys, or None."""
     chans = "".join(textwrap.dedent(f"""
         [[channels]]
         dac = {dac:#x}
@@ -52,7 +53,8 @@ def write_profile(path, signal_range):
         sensor_gain = 20e3
         sensor_offset = 5.0
         divider = 3.0
-        """) for i, dac in enumerate(DACS))
+        """) + (f"p_min = {limits[i][0]!r}\np_max = {limits[i][1]!r}\n" if limits else "")
+        for i, dac in enumerate(DACS))
     path.write_text(f'format = "soro-board-profile"\nversion = 1\ni2c_bus = 1\n{chans}')
     return path
 
@@ -171,6 +173,141 @@ def test_limits_outside_the_calibration_and_bad_profiles_are_refused(stub, tmp_p
     with pytest.raises(ParameterError, match="contain 0 Pa"):
         ChannelCalibration(0x60, (0x48, 0), (10e3, 100e3))
     assert BoardProfile.load(ROOT / "hardware" / "profiles" / "veab-2ch.toml").channels[1].dac == 0x61
+
+
+# ---- per-channel safety limits in the profile ---------------------------------------------------------------
+
+# the manipulator's (d) bellows and gripper: -10..30 kPa and -30..60 kPa on VEAB regulators
+PER_CHANNEL = ((-10e3, 30e3), (-30e3, 60e3))
+
+
+@pytest.mark.parametrize("given", [None, (-100e3, 100e3), (-20e3, 45e3)],
+                         ids=["profile_only", "wider_pair_given", "narrower_pair_given"])
+def test_per_channel_limits_of_the_profile_are_enforced(stub, tmp_path, given):
+    """A set-point above one channel's limit but below the other's is clamped on that channel only (flag
+    CLAMPED), and its DAC never receives a code beyond that channel's limit; a --p-min/--p-max pair given to
+    the server only narrows the profile's limits, never widens them."""
+    signal_range = (-100e3, 100e3)
+    stub.reset(regulators(signal_range))
+    profile = BoardProfile.load(write_profile(tmp_path / "profile.toml", signal_range, PER_CHANNEL))
+    assert profile.limits == PER_CHANNEL
+    cal = profile.channels[0]
+    zero = cal.vent_code
+    kw = {} if given is None else dict(p_min=given[0], p_max=given[1])
+    lo = np.array([lim[0] for lim in PER_CHANNEL]) if given is None else np.maximum(given[0], [-10e3, -30e3])
+    hi = np.array([lim[1] for lim in PER_CHANNEL]) if given is None else np.minimum(given[1], [30e3, 60e3])
+    clock = Clock()
+    srv = BoardServer(I2CDriver(profile), SECRET, port=0, rate=1e9, board_rate=100.0, clock=clock,
+                      **kw).start(loop=False)
+    np.testing.assert_array_equal(srv.p_min, lo)
+    np.testing.assert_array_equal(srv.p_max, hi)
+
+    def tick():
+        clock.t += 0.01
+        srv.tick()
+    try:
+        with Board.connect(url(srv), secret=SECRET, keepalive=False) as brd:
+            np.testing.assert_array_equal(brd.p_max, hi)         # announced at login
+            for request in ([40e3, 40e3], [55e3, 55e3], [90e3, 90e3], [-25e3, -25e3], [-60e3, -60e3],
+                            [20e3, -5e3]):
+                state = brd.set_pressure(request)
+                tick()
+                expected = np.clip(request, lo, hi)
+                np.testing.assert_array_equal(brd.read().requested, expected)
+                assert state.flagged(P.Flag.CLAMPED).tolist() == np.flatnonzero(expected != request).tolist()
+                assert codes(stub) == [cal.code(e) for e in expected], request
+            brd.vent()
+            assert codes(stub) == [zero, zero]
+    finally:
+        srv.stop()
+    for c, dac in enumerate(DACS):       # never a code beyond the channel's own limits, at any write
+        written = [code for addr, code in stub.WRITES if addr == dac]
+        assert max(written) == cal.code(hi[c]) and min(written) == cal.code(lo[c])
+        assert lo[c] <= cal.pressure(min(written)) and cal.pressure(max(written)) <= hi[c]
+    assert cal.code(hi[0]) < cal.code(hi[1]), "the test must tell the channels apart"
+
+
+def test_the_units_server_takes_the_limits_from_the_profile(tmp_path):
+    """The server as the unit starts it (--driver i2c --profile, board.env's pair dropped, then a wider pair
+    given): each DAC is capped at its channel's limit from the profile."""
+    signal_range = (-100e3, 100e3)
+    profile = write_profile(tmp_path / "profile.toml", signal_range, PER_CHANNEL)
+    cal = BoardProfile.load(profile).channels[0]
+    for extra in ([], ["--p-min", "-100000", "--p-max", "100000"]):
+        log = tmp_path / "i2c.log"
+        log.write_text("")
+        argv = unit_command("ExecStart", profile)
+        argv = [a for a in argv if a not in ("${SORO_BOARD_HOST}", "$SORO_BOARD_ARGS")]
+        argv = [a for a, prev in zip(argv, [None] + argv) if prev != "--secret-file" and a != "--secret-file"]
+        argv[argv.index("--host") + 1:argv.index("--host") + 1] = ["127.0.0.1"]
+        argv[argv.index("--port") + 1] = "0"
+        proc = subprocess.Popen(argv + ["--board-rate", "100"] + extra, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True, env=stub_env(log, signal_range))
+        try:
+            line = proc.stdout.readline()
+            assert line.startswith("listening"), proc.stderr.read() if proc.poll() is not None else line
+            with Board.connect(f"tcp://127.0.0.1:{line.split()[2]}", secret=SECRET) as brd:
+                np.testing.assert_array_equal(brd.p_max, [30e3, 60e3])
+                brd.set_pressure([50e3, 50e3])
+                wait_until(lambda: logged_codes(log) == [cal.code(30e3), cal.code(50e3)])
+        finally:
+            proc.terminate()
+            proc.wait(DEADLINE)
+            proc.stdout.close()
+            proc.stderr.close()
+        assert logged_codes(log) == [cal.vent_code] * 2
+        assert max(int(ln.split()[1]) for ln in log.read_text().splitlines() if ln.split()[0] == str(DACS[0])) \
+            == cal.code(30e3)
+
+
+CHANNEL = """
+[[channels]]
+dac = 0x60
+adc = [0x48, 0]
+signal_range = [-100e3, 100e3]
+"""
+
+
+@pytest.mark.parametrize("text, message", [
+    (CHANNEL + "p_max = 30e3\n", "channel 0 \\(channel 0\\): p_max given without p_min"),
+    (CHANNEL + "p_min = -10e3\n", "p_min given without p_max"),
+    (CHANNEL + "p_min = 5e3\np_max = 30e3\n", "p_min = 5000 Pa must be <= 0 Pa"),
+    (CHANNEL + "p_min = -10e3\np_max = -5e3\n", "p_max = -5000 Pa must be >= 0 Pa"),
+    (CHANNEL + "p_min = -10e3\np_max = 150e3\n", "p_max = 150000 Pa is above the calibrated signal_range"),
+    (CHANNEL + "p_min = -150e3\np_max = 10e3\n", "p_min = -150000 Pa is below the calibrated signal_range"),
+    (CHANNEL + 'p_min = -10e3\np_max = "30 kPa"\n', "p_max = '30 kPa' must be a number"),
+    (CHANNEL + "p_min = -10e3\np_max = nan\n", "p_max = nan must be a finite"),
+    (CHANNEL + "p_min = -10e3\np_max = 30e3\n" + CHANNEL.replace("0x60", "0x61"),
+     "channels \\[0\\] have safety limits \\(p_min/p_max\\) and channels \\[1\\] do not"),
+    ('[safety_limits]\n"channel 0" = [-10e3, 30e3]\n' + CHANNEL,
+     "unknown top-level keys \\['safety_limits'\\] \\(safety limits go into each \\[\\[channels\\]\\] table as p_min/p_max"),
+    ("p_max = 30e3\n" + CHANNEL, "unknown top-level keys \\['p_max'\\]"),
+], ids=["p_max_alone", "p_min_alone", "p_min_positive", "p_max_negative", "p_max_beyond_calibration",
+        "p_min_beyond_calibration", "not_a_number", "nan", "some_channels_only", "safety_limits_table",
+        "top_level_pair"])
+def test_inconsistent_or_misplaced_limits_are_refused_naming_the_key(tmp_path, text, message):
+    path = tmp_path / "profile.toml"
+    path.write_text('format = "soro-board-profile"\nversion = 1\n' + text)
+    with pytest.raises(ParameterError, match=message):
+        BoardProfile.load(path)
+
+
+def test_profile_limits_checked_when_built_in_python_and_profile_refused_by_simulated_boards():
+    cal = ChannelCalibration(0x60, (0x48, 0), (0.0, 200e3))
+    assert BoardProfile((cal,), limits=((0.0, 150e3),)).limits == ((0.0, 150e3),)
+    with pytest.raises(ParameterError, match="p_min = -10000 Pa is below"):
+        BoardProfile((cal,), limits=((-10e3, 150e3),))
+    with pytest.raises(ParameterError, match="every channel or none"):
+        BoardProfile((cal, cal), limits=((0.0, 150e3),))
+    from sorocontrol.drivers import MockDriver
+
+    class BadLimits(MockDriver):
+        safety_limits = property(lambda self: (np.array([5e3]), np.array([50e3])))
+    with pytest.raises(ParameterError, match="driver's safety limits"):
+        BoardServer(BadLimits(1), SECRET, port=0)
+    r = subprocess.run([sys.executable, "-m", "sorocontrol.server", "--driver", "mock", "--profile", "x.toml",
+                        "--secret", SECRET, "--port", "0"], capture_output=True, text=True, timeout=60)
+    assert r.returncode != 0 and "does not read it" in r.stderr and "Traceback" not in r.stderr
 
 
 # ---- the server as the unit runs it: SIGTERM, SIGKILL + ExecStopPost ---------------------------------------
