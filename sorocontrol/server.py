@@ -290,11 +290,12 @@ class BoardServer:
         del self.events[:-200]
         log.warning("board: %s", text)
 
-    def _vent(self, why, conn=None, release=None):
+    def _vent(self, why, conn=None, release=None, fault=None):
         """All channels to 0 Pa at once and the driver's vent, in one critical section with the state, so
         that nobody sees the slot free and the DAC still pressurized. With ``conn``: only if it is still the
         client (else :class:`_NotClient`). With ``release``: that connection loses the slot in the same
-        section (no vent if it did not hold it); returns whether it held it."""
+        section (no vent if it did not hold it); returns whether it held it. With ``fault``: the board's fault
+        is set in the same section after the outputs, so nobody sees the fault with them still pressurized."""
         with self._driver_lock:
             with self._lock:
                 if conn is not None and self._client is not conn:
@@ -308,6 +309,8 @@ class BoardServer:
                     self.driver.vent()
                 except Exception as e:  # noqa: BLE001 - a vent must not raise; say it loudly
                     log.error("driver vent failed: %s", e)
+                if fault is not None:     # after the outputs are at 0 Pa: whoever sees the fault sees them vented
+                    self._fault = fault
         self._event(f"vented ({why})")
         return True
 
@@ -362,9 +365,8 @@ class BoardServer:
             self._event("vented (no client logged in: every channel held at 0 Pa)")
         if driver_error is not None:
             if self._fault != driver_error:
-                self._fault = driver_error
                 self._event(driver_error)
-                self._vent("driver error")
+                self._vent("driver error", fault=driver_error)
             return
         measured, faults = np.asarray(measured, float), np.asarray(faults, bool)
         with self._lock:
@@ -384,11 +386,12 @@ class BoardServer:
                f"{self.p_max[c] / 1e3:g}] kPa (tolerance {self.tolerance[c] / 1e3:g} kPa) with "
                f"{self.requested[c] / 1e3:g} kPa requested: check the regulator, its supply and the calibration "
                "in the board profile")
-        self._fault = why
         if not self._tripped:
             self._tripped = True
             self._event(why)
-            self._vent(f"read-back outside the limits on channel(s) {tripped.tolist()}")
+            self._vent(f"read-back outside the limits on channel(s) {tripped.tolist()}", fault=why)
+        else:
+            self._fault = why
 
     def _board_loop(self):
         dt = 1.0 / self.board_rate
