@@ -202,9 +202,12 @@ def test_soro_trade_files_with_a_tolerance(tmp_path, capsys):
 @pytest.mark.slow
 def test_soro_trade_quick_selects_as_its_table_says_twice_in_a_row(tmp_path, subprocess_env):
     """`soro trade --quick` (the PneuNet demo, with contact) and `--tolerance 0.01`, each run twice: the verdict,
-    the `selected:` line and the table's marked row agree, the tolerance is printed as given, and the two runs
-    select the same model (medians of repeated solves; times within 10 % are a tie)."""
-    picks = {}
+    the `selected:` line and the table's marked row agree, the tolerance is printed as given, and the marked row is
+    what the rule selects from the table's own figures (within the tolerance; the fastest median time per solve up
+    to the 10 % tie band). Which model is fastest is a timing, so two runs on a loaded machine may select
+    differently (seen: dvs once, chebyshev once); each run must agree with its own table."""
+    from soroshapes.dvs import TIME_BAND
+
     for tol in ("0.03", "0.01"):
         for run in range(2):
             cmd = [*SORO, "trade", "--quick", "--out", str(tmp_path / f"{tol}-{run}")]
@@ -222,6 +225,10 @@ def test_soro_trade_quick_selects_as_its_table_says_twice_in_a_row(tmp_path, sub
             text = (tmp_path / f"{tol}-{run}" / "dvs_pneunet" / "trade.txt").read_text()
             assert _selected_in_table(text) == marked    # the demo's file says the same
             row = next(ln for ln in out.splitlines() if ln.endswith("<- selected")).split()
-            assert float(row[4]) <= 100 * float(tol) and float(row[6]) <= 100 * float(tol)   # test and contact tip
-            picks.setdefault(tol, []).append(marked)
-    assert all(a == b for a, b in picks.values()), picks
+            assert float(row[3]) <= 100 * float(tol) and float(row[6]) <= 100 * float(tol)   # test and contact tip
+            rows = [ln.split() for ln in out.splitlines() if ln.split()[-1:] in (["yes"], ["no"])
+                    or ln.endswith("<- selected")]
+            ok = [r for r in rows if r[8] == "yes"]
+            assert all(float(r[3]) <= 100 * float(tol) and float(r[6]) <= 100 * float(tol) for r in ok), out
+            fastest = min(float(r[5]) for r in ok)
+            assert float(row[5]) <= (1 + TIME_BAND) * fastest + 1e-3, out     # printed to 1 us
