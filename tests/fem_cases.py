@@ -61,17 +61,19 @@ def vortex_eigenvalue(material, degree, mixed, formulation=None, n=8):
     return float(fem.eigen(1, shift=0.5 * exact).eigenvalues[0]) / exact   # the eigenvalue nearest the shift
 
 
-def thick_sphere(A, B, mu, pressure, cells_across, nu=0.4999):
+def thick_sphere(A, B, mu, pressure, cells_across, nu=0.4999, volume=False):
     """Axisymmetric quarter section (A < r < B, x, y >= 0) of a nearly incompressible Neo-Hookean sphere
     (Taylor-Hood P2/P1, order-2 geometry), symmetric about y = 0, with ``pressure`` [Pa] (times the load factor)
-    on its inner surface ``inner``."""
+    on its inner surface ``inner``; with ``volume`` the load is instead the injected volume ``pressure`` [m^3]
+    (times the load factor) under volume control."""
     from sorofem import sdf
 
     shape = (sdf.Circle(B) - sdf.Circle(A)) & sdf.Rectangle(B, B, center=(B / 2, B / 2))
     msh = Mesh.from_sdf(shape, size=(B - A) / cells_across, order=2)
     msh.add_region("inner", lambda x: np.hypot(x[0], x[1]) < A * (1 + 1e-3))
     fem = Fem(msh, materials.NeoHookean(mu=mu, nu=nu), formulation="axisymmetric", degree=2, mixed=True)
-    return fem.add_support("bottom", "y").add_pressure("inner", pressure)
+    fem.add_support("bottom", "y")
+    return fem.add_volume("inner", pressure) if volume else fem.add_pressure("inner", pressure)
 
 
 def inner_radius(traj, A):

@@ -151,8 +151,9 @@ def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, m
            max_iterations=15, monitor_stability=False, branch_switch=False, mode_sign=1.0, progress=False):
     """Follow the equilibrium path of ``fem`` by pseudo-arc-length continuation (see the module docstring).
 
-    The load factor starts at 0 and the path is followed until it reaches ``t_end``, ``until(traj)`` returns
-    True, or ``max_steps`` steps were taken (``traj.metadata["stopped"]`` says which).
+    The load factor starts at 0 and the path is followed until it reaches ``t_end`` (the step that would pass it
+    lands on it under load control), ``until(traj)`` returns True, or ``max_steps`` steps were taken
+    (``traj.metadata["stopped"]`` says which).
 
     Parameters
     ----------
@@ -217,13 +218,9 @@ def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, m
             raise ConvergenceError(f"the initial state (t = 0) did not converge: {out.reason}. Check that the "
                                    "supports prevent rigid motion and that the loads at t = 0 are reasonable")
         fem._record(traj, 0.0, out.iterations, inputs, newton, monitor_stability)
-        # the initial tangent: K u_t = -dR/dlambda (with the sign convention u <- u - K^-1 R)
-        newton.assemble_jacobian()
-        q = arc.load_vector(newton)
-        u_t = q.duplicate()
-        newton.ksp.solve(q, u_t)
-        u_t.scale(-1.0)
-        q.destroy()
+        for con, (_, load, _) in zip(controls, b["controls"]):   # volume targets move with the load factor
+            con.target_rate = lambda other, load=load: arc.rate(load) if other is arc else 0.0
+        u_t = _initial_tangent(newton, arc, controls)
         s_u = math.sqrt(max(_wdot(u_t, u_t, weight, tmp), 0.0))
         if not (math.isfinite(s_u) and s_u > 0):
             raise ParameterError("no load of the model moves the body (dR/dt = 0 at t = 0): add a pressure, "
@@ -234,8 +231,6 @@ def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, m
         state = {"x": x.copy(), "lam": 0.0, "tau_u": tau_u, "tau_l": 1 / math.sqrt(2),
                  "p": [float(c.pressure.value) for c in controls], "inject": None, "switched": False,
                  "stopped": "max_steps"}
-        for con, (_, load, _) in zip(controls, b["controls"]):   # volume targets move with the load factor
-            con.target_rate = lambda other, load=load: arc.rate(load) if other is arc else 0.0
         newton.constraints.append(arc)
         ds0 = math.sqrt(2) * t_end / int(steps)
 
@@ -243,11 +238,20 @@ def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, m
             tau_u, tau_l = (state["inject"], 0.0) if state["inject"] is not None else (state["tau_u"],
                                                                                        state["tau_l"])
             state["x"].copy(x)
+            landing = tau_l > 0 and state["lam"] + ds * tau_l >= t_end
+            if landing:   # the path reaches t_end within this step: land on it under load control
+                ds = (t_end - state["lam"]) / tau_l
             x.axpy(ds, tau_u)
             x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
-            arc.set(state["lam"] + ds * tau_l)
-            arc.set_step(state["x"], state["lam"], tau_u, tau_l, ds)
-            return newton.solve()
+            arc.set(t_end if landing else state["lam"] + ds * tau_l)
+            if not landing:
+                arc.set_step(state["x"], state["lam"], tau_u, tau_l, ds)
+                return newton.solve()
+            newton.constraints.remove(arc)
+            try:
+                return newton.solve()
+            finally:
+                newton.constraints.append(arc)
 
         def accept(s, ds, out):
             lam = arc.lam
@@ -284,7 +288,7 @@ def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, m
                 c.pressure.value = p
 
         def stop():
-            if state["lam"] >= t_end * (1 - 1e-12):
+            if state["lam"] >= t_end * (1 - 1e-12):   # (the last step landed on t_end exactly)
                 state["stopped"] = "t_end"
             elif until is not None and until(traj):
                 state["stopped"] = "until"
@@ -314,6 +318,39 @@ def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, m
         weight.destroy()
         newton.destroy()
     return traj
+
+
+def _initial_tangent(newton, arc, controls):
+    """:math:`du/d\\lambda` at the converged initial state: :math:`K\\,du + q + \\sum_j f_j\\,dp_j = 0` with
+    :math:`q = \\partial R/\\partial\\lambda`, and for each volume control :math:`g_i\\cdot du + \\partial c_i/
+    \\partial\\lambda = 0` (its pressure :math:`p_j` free): :math:`du = -K^{-1}q - \\sum_j a_j\\,dp_j`,
+    :math:`K a_j = f_j`, :math:`\\sum_j (g_i\\cdot a_j)\\,dp_j = \\partial c_i/\\partial\\lambda - g_i\\cdot K^{-1}q`."""
+    newton.assemble_jacobian()
+    q = arc.load_vector(newton)
+    u_t = q.duplicate()
+    newton.ksp.solve(q, u_t)
+    q.destroy()
+    if controls:
+        f = [c.load_vector(newton) for c in controls]
+        g = [c.gradient_vector(newton) for c in controls]
+        a = []
+        for fi in f:
+            ai = fi.duplicate()
+            newton.ksp.solve(fi, ai)
+            a.append(ai)
+        M = np.array([[gi.dot(aj) for aj in a] for gi in g])
+        rhs = np.array([c.derivative(arc) - gi.dot(u_t) for c, gi in zip(controls, g)])
+        try:
+            dp = np.linalg.solve(M, rhs)
+        except np.linalg.LinAlgError:
+            raise ConvergenceError("the volume-control border is singular at t = 0 (a cavity volume that does "
+                                   "not depend on the displacement?)") from None
+        for aj, dpj in zip(a, dp):
+            u_t.axpy(dpj, aj)
+        for vec in f + g + a:
+            vec.destroy()
+    u_t.scale(-1.0)
+    return u_t
 
 
 def _critical(fem, traj, newton, arc, weight, tmp, state, branch_switch, mode_sign):

@@ -52,6 +52,25 @@ def test_thick_sphere_is_followed_through_its_pressure_maximum_under_pressure_co
     assert max(traj.newton_iterations) <= 6
 
 
+def test_volume_control_is_followed_too_and_the_last_step_lands_on_t_end():
+    """Volume control under continuation: the load factor moves the injected volume (its pressure is the other
+    multiplier of the border); the path passes the pressure maximum with the volume exact, and the step that
+    would pass t_end lands on it."""
+    from analytic import sphere_inflation_pressure, sphere_pressure_maximum
+
+    A, B, mu = 0.01, 0.015, 100e3
+    fem = thick_sphere(A, B, mu, 2 / 3 * np.pi * (2**3 - 1) * A**3, cells_across=3, volume=True)  # to a = 2 A
+    traj = fem.follow(t_end=1.0, steps=6)
+    assert traj.metadata["stopped"] == "t_end" and traj.times[-1] == 1.0
+    np.testing.assert_allclose(traj.cavity_volumes["inner"], 2 / 3 * np.pi * A**3 * (1 + 7 * traj.times),
+                               rtol=1e-5)
+    a, p = inner_radius(traj, A), traj.inputs["pressure/inner"]
+    p_max, a_max = sphere_pressure_maximum(mu, A, B)
+    assert a[-1] > 1.2 * a_max and p[-1] < 0.95 * p.max()                  # well past the maximum
+    ref = np.array([sphere_inflation_pressure(mu, A, B, ai) for ai in a])
+    assert np.abs(p - ref).max() < 5e-4 * p_max
+
+
 # ----------------------------------------------------------------------------------------------- bifurcation
 def test_strut_buckles_onto_the_elastica_by_branch_switching():
     """Euler buckling under displacement control: the straight strut's lowest eigenvalue crosses zero at the
