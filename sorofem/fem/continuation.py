@@ -163,7 +163,8 @@ def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, m
         The first step advances the load factor by about ``t_end / steps``; the arc length of that step is
         also the largest step unless ``max_step`` is set.
     until : callable(Trajectory) -> bool, optional
-        Stop condition asked after every step (e.g. an inflation or deflection reached).
+        Stop condition asked after every step (e.g. an inflation or deflection reached); called on rank 0, where
+        the trajectory's fields are gathered, and its answer sent to every rank.
     max_steps : int
         Largest number of steps.
     min_step, max_step : float, optional
@@ -290,7 +291,7 @@ def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, m
         def stop():
             if state["lam"] >= t_end * (1 - 1e-12):   # (the last step landed on t_end exactly)
                 state["stopped"] = "t_end"
-            elif until is not None and until(traj):
+            elif until is not None and _on_root(fem.mesh.comm, lambda: bool(until(traj))):
                 state["stopped"] = "until"
             elif len(traj) > int(max_steps):
                 state["stopped"] = "max_steps"
@@ -318,6 +319,23 @@ def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, m
         weight.destroy()
         newton.destroy()
     return traj
+
+
+def _on_root(comm, fn):
+    """``fn()`` evaluated on rank 0 (where the trajectory's gathered fields are), its value on every rank; an
+    exception there is raised on every rank."""
+    value = error = None
+    if comm.rank == 0:
+        try:
+            value = fn()
+        except Exception as e:  # noqa: BLE001 - re-raised below on every rank
+            error = e
+    value, error_text = comm.bcast((value, None if error is None else f"{type(error).__name__}: {error}"), root=0)
+    if error is not None:
+        raise error
+    if error_text is not None:
+        raise ParameterError(f"the stop condition until(traj) failed on rank 0: {error_text}")
+    return value
 
 
 def _initial_tangent(newton, arc, controls):

@@ -453,7 +453,7 @@ class Fem:
         fixed = [(r, comps, None) for r, comps in self._supports] + list(self._displacements)
         if self.formulation == "axisymmetric":
             axis = dolfinx.mesh.locate_entities_boundary(msh, fdim, lambda x: np.abs(x[0]) < 1e-9 * self._size())
-            if len(axis) or msh.comm.allreduce(len(axis)):
+            if msh.comm.allreduce(len(axis)):   # collective on every rank (no short-circuit: it hung on 2 ranks)
                 fixed.append(("__axis__", [0], None))
                 self._axis_facets = axis
         for region, comps, load in fixed:

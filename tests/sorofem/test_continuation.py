@@ -117,3 +117,31 @@ def test_bad_arguments():
         fem.follow(t_end=0.0)
     with pytest.raises(ParameterError, match="no load"):
         strut(shortening=0.0).follow()
+
+
+@pytest.mark.mpi
+def test_limit_point_and_branch_switch_on_two_ranks():
+    """Under ``mpirun -n 2`` (make test's MPI stage): the sphere's path and limit point and the strut's switch
+    onto the buckled branch give the serial figures; ``until`` is asked on rank 0 (where the trajectory's fields
+    are) and its answer reaches every rank. (Before, the axisymmetric axis condition hung on two ranks.)"""
+    from mpi4py import MPI
+    from analytic import buckled_strut, sphere_inflation_pressure, sphere_pressure_maximum
+
+    assert MPI.COMM_WORLD.size == 2
+    A, B, mu = 0.01, 0.015, 100e3
+    p_max, _ = sphere_pressure_maximum(mu, A, B)
+    traj = thick_sphere(A, B, mu, p_max, cells_across=3).follow(
+        t_end=2.0, steps=8, until=lambda tr: inner_radius(tr, A)[-1] > 2.2 * A, monitor_stability=True)
+    (crit,) = traj.metadata["critical_points"]
+    assert crit["kind"] == "limit" and crit["load"] == pytest.approx(1.0, abs=2e-3)
+    traj2 = strut().follow(t_end=1.0, steps=20, until=lambda tr: abs(strut_end_offset(tr)[-1]) > 0.2 * L,
+                           monitor_stability=True, branch_switch=True)
+    assert [c["kind"] for c in traj2.metadata["critical_points"]] == ["bifurcation"]
+    if MPI.COMM_WORLD.rank == 0:
+        a, p = inner_radius(traj, A), traj.inputs["pressure/inner"]
+        assert a[-1] > 2.2 * A
+        assert np.abs(p - [sphere_inflation_pressure(mu, A, B, ai) for ai in a]).max() < 5e-4 * p_max
+        k = traj2.metadata["critical_points"][0]["step"]
+        w = strut_end_offset(traj2)[k + 1:]
+        ratio, _ = buckled_strut(w / L)
+        np.testing.assert_allclose(-traj2.reactions["right"][k + 1:, 0] / P_CR, ratio, atol=6e-3)
