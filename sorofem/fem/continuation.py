@@ -299,9 +299,10 @@ def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, m
                 return False
             return True
 
-        smax = 4 * ds0 * (int(max_steps) + 1)
+        ds_max = float(max_step or ds0)
+        smax = 2 * max(ds_max, ds0) * (int(max_steps) + 1)   # never reached: stop() ends the march first
         try:
-            march(0.0, smax, ds0, float(min_step or ds0 / 1024), float(max_step or ds0), attempt, accept, reject,
+            march(0.0, smax, ds0, float(min_step or ds0 / 1024), ds_max, attempt, accept, reject,
                   "smaller steps (steps=, max_step=), degree=2 with mixed=True for nearly incompressible "
                   "materials, or supports that remove rigid-body motion", stop=stop)
         except ConvergenceError as e:
