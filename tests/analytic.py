@@ -6,7 +6,7 @@ import numpy as np
 from scipy.integrate import quad, solve_bvp
 
 __all__ = ["cylinder_inflation_pressure", "sphere_inflation_pressure", "elastica_tip", "elastica_gravity_tip",
-           "cantilever_frequencies", "EULER_BERNOULLI_BETA_L"]
+           "cantilever_frequencies", "EULER_BERNOULLI_BETA_L", "sphere_pressure_maximum", "buckled_strut"]
 
 #: Roots of cos(bL) cosh(bL) = -1: clamped-free Euler-Bernoulli beam, first three bending modes.
 EULER_BERNOULLI_BETA_L = (1.8751040687, 4.6940911330, 7.8547574382)
@@ -125,3 +125,45 @@ def cantilever_frequencies(L, E, I, rho, A, n=3):
     """First ``n`` (<= 3) bending frequencies [Hz] of a clamped-free Euler-Bernoulli beam:
     :math:`f_k = (\\beta_k L)^2 / (2\\pi L^2) \\sqrt{EI/(\\rho A)}`."""
     return [(bl**2) / (2 * np.pi * L**2) * np.sqrt(E * I / (rho * A)) for bl in EULER_BERNOULLI_BETA_L[:n]]
+
+
+def sphere_pressure_maximum(mu, A, B):
+    """(p_max [Pa], a at p_max [m]): the limit point of :func:`sphere_inflation_pressure` (bounded search of
+    its maximum over A < a < 5 A; the curve has one maximum)."""
+    from scipy.optimize import minimize_scalar
+
+    res = minimize_scalar(lambda a: -sphere_inflation_pressure(mu, A, B, a), bounds=(1.001 * A, 5 * A),
+                          method="bounded", options={"xatol": 1e-10 * A})
+    return -res.fun, res.x
+
+
+def buckled_strut(w_over_L):
+    """Post-buckling of an inextensible Euler strut clamped at one end and guided at the other (the end slides
+    sideways and along the axis without rotating): ``(P/P_cr, shortening/L)`` for the sideways offset ``w``
+    of the guided end, ``w_over_L`` = w/L (array).
+
+    The buckled strut is antisymmetric about its midpoint, an inflection point: each half is a clamped-free
+    elastica of length :math:`\\ell = L/2` under the end load P. With :math:`k = \\sin(\\theta_0/2)`
+    (:math:`\\theta_0` the slope at the inflection point), :math:`\\sqrt{P/EI}\\,\\ell = K(k)`, the half's
+    sideways deflection :math:`2k\\ell/K(k)` and its axial length :math:`\\ell\\,(2E(k)/K(k) - 1)`, with the
+    complete elliptic integrals K, E of modulus k (scipy's ``ellipk(m)``, ``ellipe(m)`` take
+    :math:`m = k^2`). Hence, with :math:`P_{cr} = \\pi^2 EI/L^2`:
+
+    .. math:: \\frac{w}{L} = \\frac{2k}{K(k)},\\quad \\frac{P}{P_{cr}} = \\frac{4K(k)^2}{\\pi^2},\\quad
+              \\frac{\\Delta}{L} = 2 - \\frac{2E(k)}{K(k)} .
+
+    ``k`` is found from ``w/L`` by root finding (w/L = 2k/K(k) grows monotonically from 0 to 0.76 at k = 0.95).
+    """
+    from scipy.optimize import brentq
+    from scipy.special import ellipe, ellipk
+
+    ratios, shortenings = [], []
+    for wl in np.abs(np.atleast_1d(np.asarray(w_over_L, dtype=float))):
+        if wl == 0:
+            ratios.append(1.0)
+            shortenings.append(0.0)
+            continue
+        m = brentq(lambda m: 2 * np.sqrt(m) / ellipk(m) - wl, 0.0, 0.9025, xtol=1e-15)
+        ratios.append(4 * ellipk(m) ** 2 / np.pi**2)
+        shortenings.append(2 - 2 * ellipe(m) / ellipk(m))
+    return np.array(ratios), np.array(shortenings)

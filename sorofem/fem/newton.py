@@ -9,12 +9,17 @@ iteration gives up. Converged when :math:`\\|\\delta\\| \\le \\text{rtol}_u \\ma
 residual, a failed factorization or a residual that grew by ``divergence_factor``; the caller (the load
 stepper) restores the last state and cuts the step.
 
-Scalar constraints (volume control of cavities) are solved by bordering: the residual is
-:math:`R(u) + \\sum_i p_i f_i(u)` with unknown pressures :math:`p_i` and constraints
-:math:`c_i(u) = V_i(u) - V_i^* = 0`. With :math:`K\\,r = R` and :math:`K a_i = f_i` (one factorization),
-:math:`\\delta p = (G^T A)^{-1}(c - G^T r)` and :math:`\\delta u = -r - A\\,\\delta p`, where the columns
-of :math:`G` are :math:`\\partial V_i/\\partial u`. This passes limit points of pressure, where :math:`K`
-alone stays regular but the pressure-controlled path turns back.
+Scalar constraints are solved by bordering: the residual is :math:`R(u) + \\sum_i p_i f_i(u)` with unknown
+multipliers :math:`p_i` and constraints :math:`c_i(u, p) = 0`. With :math:`K\\,r = R` and :math:`K a_i = f_i`
+(one factorization, one more solve per constraint),
+:math:`\\delta p = (G^T A - H)^{-1}(c - G^T r)` and :math:`\\delta u = -r - A\\,\\delta p`, where the columns
+of :math:`G` are :math:`\\partial c_i/\\partial u` and :math:`H_{ij} = \\partial c_i/\\partial p_j`. Two kinds:
+
+* volume control of cavities (:class:`VolumeConstraint`): :math:`p_i` a cavity pressure,
+  :math:`c_i = V_i(u) - V_i^*`; this passes limit points of pressure, where :math:`K` alone stays regular but
+  the pressure-controlled path turns back;
+* arc-length continuation (:class:`sorofem.fem.continuation.ArcLength`): :math:`p` the load factor, which
+  moves every load, :math:`c` the pseudo-arc-length condition; this passes limit points of any load.
 """
 import logging
 import math
@@ -48,6 +53,10 @@ class VolumeConstraint:
     ``pressure`` is the DOLFINx Constant multiplying ``load`` (compiled vector form of the unit-pressure load
     :math:`f`), ``gradient`` the compiled vector form :math:`\\partial V/\\partial u`, ``value`` the compiled
     scalar form :math:`V(u)`, ``target`` the current :math:`V^*` and ``scale`` a volume for the tolerance.
+
+    Every bordered constraint offers ``residual(solver)`` (:math:`c`), ``gradient_vector(solver)``,
+    ``load_vector(solver)`` (PETSc vectors, new, destroyed by the caller), ``derivative(other)``
+    (:math:`\\partial c/\\partial p_{other}`), ``multiplier`` and ``update(dp)``.
     """
 
     pressure: object
@@ -56,6 +65,32 @@ class VolumeConstraint:
     value: object
     target: float = 0.0
     scale: float = 1.0
+    #: :math:`dV^*/dp` for another constraint's multiplier p (the arc-length's load factor moves the target)
+    target_rate: object = None
+
+    def residual(self, solver):
+        import dolfinx.fem
+
+        comm = solver.u.function_space.mesh.comm
+        return comm.allreduce(dolfinx.fem.assemble_scalar(self.value)) - self.target
+
+    def gradient_vector(self, solver):
+        return solver._assemble_border_vector(self.gradient)
+
+    def load_vector(self, solver):
+        return solver._assemble_border_vector(self.load)
+
+    def derivative(self, other):
+        if other is self or self.target_rate is None:
+            return 0.0
+        return -self.target_rate(other)
+
+    @property
+    def multiplier(self):
+        return float(self.pressure.value)
+
+    def update(self, dp):
+        self.pressure.value = float(self.pressure.value) + dp
 
 
 class NewtonSolver:
@@ -171,31 +206,35 @@ class NewtonSolver:
         return vec
 
     def _constraint_values(self):
-        import dolfinx.fem
+        return np.array([c.residual(self) for c in self.constraints])
 
-        comm = self.u.function_space.mesh.comm
-        return np.array([comm.allreduce(dolfinx.fem.assemble_scalar(c.value)) - c.target for c in self.constraints])
+    def _constraint_error(self):
+        """max |c_i| / scale_i (0 without constraints)."""
+        if not self.constraints:
+            return 0.0
+        return float(max(abs(v) / k.scale for v, k in zip(self._constraint_values(), self.constraints)))
 
     def _border(self):
-        """Apply the bordering correction to ``self.dx`` (holding :math:`r = K^{-1}R`); returns max |c_i|/scale."""
+        """Apply the bordering correction to ``self.dx`` (holding :math:`r = K^{-1}R`) and to the multipliers."""
         c = self._constraint_values()
-        f = [self._assemble_border_vector(k.load) for k in self.constraints]
-        g = [self._assemble_border_vector(k.gradient) for k in self.constraints]
+        f = [k.load_vector(self) for k in self.constraints]
+        g = [k.gradient_vector(self) for k in self.constraints]
         a = []
         for fi in f:
             ai = fi.duplicate()
             self.ksp.solve(fi, ai)
             a.append(ai)
         n = len(self.constraints)
-        M = np.array([[g[i].dot(a[j]) for j in range(n)] for i in range(n)])
+        M = np.array([[g[i].dot(a[j]) - self.constraints[i].derivative(self.constraints[j]) for j in range(n)]
+                      for i in range(n)])
         rhs = c - np.array([g[i].dot(self.dx) for i in range(n)])
         dp = np.linalg.solve(M, rhs)
         for j, k in enumerate(self.constraints):
             self.dx.axpy(dp[j], a[j])  # dx = r + A dp, applied as u -= dx
-            k.pressure.value = float(k.pressure.value) + dp[j]
+        for j, k in enumerate(self.constraints):
+            k.update(dp[j])
         for vec in f + g + a:
             vec.destroy()
-        return max(abs(ci) / k.scale for ci, k in zip(c, self.constraints))
 
     def assemble_jacobian(self):
         import dolfinx.fem.petsc
@@ -227,8 +266,7 @@ class NewtonSolver:
             # volume target moved), so the one after the first bordered update is the reference
             if r0 is None or (it == 2 and self.constraints):
                 r0 = rnorm
-            cons = np.abs(self._constraint_values()).max() / min(k.scale for k in self.constraints) \
-                if self.constraints else 0.0
+            cons = self._constraint_error()
             if it > 1 and rnorm <= max(self.rtol_r * r0, self.atol_r) and cons <= 1e-9:
                 return NewtonOutcome(True, it - 1, rnorm, cnorm)
             if it == 1 and rnorm <= self.atol_r and not self.constraints:
@@ -249,8 +287,8 @@ class NewtonSolver:
                 try:
                     self._border()
                 except np.linalg.LinAlgError:
-                    return NewtonOutcome(False, it, rnorm, cnorm, "singular volume-control border (the cavity "
-                                         "volume does not depend on the displacement?)")
+                    return NewtonOutcome(False, it, rnorm, cnorm, "singular border of the volume or arc-length "
+                                         "constraints (a cavity volume that does not depend on the displacement?)")
             cnorm = self.dx.norm()
             if not math.isfinite(cnorm):
                 return NewtonOutcome(False, it, rnorm, cnorm, "non-finite Newton correction (singular tangent?)")
@@ -259,9 +297,7 @@ class NewtonSolver:
             if not self.constraints:
                 trial, cnorm = self._safeguard(cnorm)
             log.debug("newton %d: |R| = %.3e, |du| = %.3e", it, rnorm, cnorm)
-            if cnorm <= self.rtol_u * max(x.norm(), self.scale) and (
-                    not self.constraints or np.abs(self._constraint_values()).max() <=
-                    1e-9 * min(k.scale for k in self.constraints)):
+            if cnorm <= self.rtol_u * max(x.norm(), self.scale) and self._constraint_error() <= 1e-9:
                 return NewtonOutcome(True, it, rnorm, cnorm)
         return NewtonOutcome(False, self.max_iterations, rnorm, cnorm,
                              f"no convergence in {self.max_iterations} iterations")

@@ -453,7 +453,7 @@ class Fem:
         fixed = [(r, comps, None) for r, comps in self._supports] + list(self._displacements)
         if self.formulation == "axisymmetric":
             axis = dolfinx.mesh.locate_entities_boundary(msh, fdim, lambda x: np.abs(x[0]) < 1e-9 * self._size())
-            if len(axis) or msh.comm.allreduce(len(axis)):
+            if msh.comm.allreduce(len(axis)):   # collective on every rank (no short-circuit: it hung on 2 ranks)
                 fixed.append(("__axis__", [0], None))
                 self._axis_facets = axis
         for region, comps, load in fixed:
@@ -741,6 +741,19 @@ class Fem:
             self._set_loads(t)
         traj.metadata["wall_time_s"] = _time.perf_counter() - wall
         return traj
+
+    def follow(self, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, max_step=None,
+               max_iterations=15, monitor_stability=False, branch_switch=False, mode_sign=1.0, progress=False):
+        """Follow the equilibrium path by pseudo-arc-length continuation, the load factor ``t`` being an
+        unknown: through limit points of pressure, force or displacement control (where :meth:`solve` stops),
+        with bifurcation detection and branch switching (``monitor_stability=True, branch_switch=True``).
+        Returns a :class:`Trajectory` whose ``times`` are the load factors along the path. See
+        :func:`sorofem.fem.continuation.follow` for the method and the parameters."""
+        from .continuation import follow
+
+        return follow(self, t_end=t_end, steps=steps, until=until, max_steps=max_steps, min_step=min_step,
+                      max_step=max_step, max_iterations=max_iterations, monitor_stability=monitor_stability,
+                      branch_switch=branch_switch, mode_sign=mode_sign, progress=progress)
 
     def _newton(self, R, J, max_iterations):
         """A Newton solver for the residual/Jacobian forms ``R``, ``J`` with this model's Dirichlet

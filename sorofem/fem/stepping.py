@@ -3,14 +3,15 @@
 A step from ``t`` to ``t + dt`` is attempted; if its Newton iteration converges the step is accepted and,
 when it was easy (at most ``easy`` iterations), the next step grows by 1.5x up to ``dt_max``. A failed step
 is undone and halved; below ``dt_min`` the march stops with :class:`ConvergenceError`, whose ``load_level``
-attribute is the last converged ``t``.
+attribute is the last converged ``t``. ``stop`` ends the march early (after an accepted step): the
+arc-length continuation marches the arc length and stops on the load or a user condition.
 """
 from ..errors import ConvergenceError
 
 __all__ = ["march"]
 
 
-def march(t0, t_end, dt, dt_min, dt_max, attempt, accept, reject, advice, easy=4):
+def march(t0, t_end, dt, dt_min, dt_max, attempt, accept, reject, advice, easy=4, stop=None):
     """Advance from ``t0`` to ``t_end``.
 
     Parameters
@@ -23,11 +24,13 @@ def march(t0, t_end, dt, dt_min, dt_max, attempt, accept, reject, advice, easy=4
         Restore the state of ``t``.
     advice : str
         What to try, appended to the error message.
+    stop : callable() -> bool, optional
+        Asked after every accepted step; True ends the march there.
 
     Returns
     -------
     float
-        The final time (``t_end``).
+        The final time (``t_end``, or where ``stop`` ended the march).
     """
     t = float(t0)
     while t < t_end - 1e-12 * max(abs(t_end), 1.0):
@@ -36,6 +39,8 @@ def march(t0, t_end, dt, dt_min, dt_max, attempt, accept, reject, advice, easy=4
         if out.converged:
             t += dt
             accept(t, dt, out)
+            if stop is not None and stop():
+                return t
             if out.iterations <= easy:
                 dt = min(1.5 * dt, dt_max)
             continue
