@@ -324,19 +324,9 @@ def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, m
 
 def _on_root(comm, fn):
     """``fn()`` evaluated on rank 0 (where the trajectory's gathered fields are), its value on every rank; an
-    exception there is raised on every rank."""
-    value = error = None
-    if comm.rank == 0:
-        try:
-            value = fn()
-        except Exception as e:  # noqa: BLE001 - re-raised below on every rank
-            error = e
-    value, error_text = comm.bcast((value, None if error is None else f"{type(error).__name__}: {error}"), root=0)
-    if error is not None:
-        raise error
-    if error_text is not None:
-        raise ParameterError(f"the stop condition until(traj) failed on rank 0: {error_text}")
-    return value
+    exception there is raised on every rank (:func:`sorofem.io.on_root`)."""
+    from ..io import on_root
+    return comm.bcast(on_root(comm, fn), root=0)
 
 
 def _initial_tangent(newton, arc, controls):
