@@ -229,14 +229,34 @@ def _import_file(path, what):
     return mod
 
 
+def robot_scene(name):
+    """The scene of the open-hardware robot ``name`` (``soro robot list``): its twin
+    (:func:`sorofem.robots.scene`) with one slider per model input, limited to its board channel's safety limits
+    (a channel that feeds several chambers, e.g. the gripper's three fingers, gives one slider per chamber)."""
+    from sorofem import robots
+    if name not in robots.names():
+        raise SceneNotFoundError(f"no robot {name!r}: the robots are {', '.join(robots.names())} (soro robot list)")
+    twin = robots.scene(name)
+    channels = []
+    for ch in twin.channels:
+        lo, hi = (float(v) for v in ch.limits)
+        for inp in ch.inputs:
+            label = ch.name if len(ch.inputs) == 1 else f"{ch.name}: {inp}"
+            channels.append(Channel(inp, lo, hi, ch.unit, label=label))
+    return Scene(twin.model, channels=tuple(channels), title=f"robot {name}")
+
+
 def load_scene(spec, quick=False):
     """Resolve ``spec`` and build the scene.
 
-    ``spec`` is a demo name (:data:`DEMO_SCENES`: calls ``demos/NAME.py:scene``), ``path/to/file.py:func``
-    (a user scene; ``func`` defaults to ``scene``), or ``package.module:func`` (an importable module).
+    ``spec`` is a demo name (:data:`DEMO_SCENES`: calls ``demos/NAME.py:scene``), ``robot:NAME`` (the twin of
+    an open-hardware robot, :func:`robot_scene`), ``path/to/file.py:func`` (a user scene; ``func`` defaults to
+    ``scene``), or ``package.module:func`` (an importable module).
     ``quick`` is passed to the callable when it accepts it. Raises :class:`SceneError` with what to fix.
     """
     spec = str(spec)
+    if spec.startswith("robot:"):
+        return robot_scene(spec.split(":", 1)[1])
     if ":" in spec and not os.path.exists(spec):
         target, func = spec.rsplit(":", 1)
     else:

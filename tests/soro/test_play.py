@@ -191,7 +191,8 @@ def test_scene_protocol_errors():
 
 
 @pytest.mark.parametrize("name", ["soft_hand", "jellyfish_gripper", "pcc_arm", "wavy_wall", "manipulator_pick",
-                                  "suzumori_gripper", "board_pick_place"])
+                                  "suzumori_gripper", "board_pick_place", "robot:bending_actuator",
+                                  "robot:planar_actuator", "robot:hand", "robot:manipulator"])
 def test_demo_scenes_build_and_step(name):
     from soro.play import load_scene
     from soro.play.backends import ModelBackend, scene_geometry
@@ -205,6 +206,19 @@ def test_demo_scenes_build_and_step(name):
     assert f["t"] == pytest.approx(2 * scn.dt)
     assert all(np.isfinite(np.array(b["p"])).all() for b in f["beams"])
     assert len(f["beams"]) == len(scn.beam_names)
+
+
+def test_robot_scenes_take_the_board_channels_limits():
+    """``soro play robot:NAME``: one slider per chamber input, limited to its board channel's safety limits (the
+    seed's ranges: the manipulator -10..30 kPa, its gripper -30..60 kPa on each of the three fingers)."""
+    from soro.play.scene import SceneNotFoundError, load_scene
+    scn = load_scene("robot:manipulator")
+    limits = {c.name: (c.low, c.high) for c in scn.channels}
+    assert sorted(v for k, v in limits.items() if "gripper" in k) == [(-30e3, 60e3)] * 3
+    assert sorted(v for k, v in limits.items() if "gripper" not in k) == [(-10e3, 30e3)] * 3
+    assert set(limits) == set(scn.system.inputs)
+    with pytest.raises(SceneNotFoundError, match="bending_actuator"):
+        load_scene("robot:nonexistent")
 
 
 def _play(*args, timeout=120):
