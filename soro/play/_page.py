@@ -187,12 +187,26 @@ function show(fr) {
   document.getElementById("recinfo").textContent = fr.recording ? "recording..." : fr.replaying ? "replaying..." : (fr.last_recording || "");
   if (fr.board) S.board = fr.board;
 }
-async function send(cmd) {
+// Commands go to the server one at a time, in the order they were made (parallel requests may arrive out of
+// order: the last position of a drag must be the one that stays); a target or slider command still waiting is
+// replaced by a newer one of the same kind, so a fast drag never builds a queue.
+let chain = Promise.resolve();
+const waiting = new Map();
+function send(cmd) {
   cmd.seq = ++S.cmdSeq;
-  const r = await fetch("/cmd", {method: "POST", headers: {"Content-Type": "application/json"}, body: JSON.stringify(cmd)});
-  const a = await r.json();
-  if (!a.ok) document.getElementById("msg").textContent = a.error;
-  return a;
+  const key = cmd.type === "target" ? "target" : cmd.type === "input" ? "input:" + cmd.name : null;
+  if (key && waiting.has(key)) { const w = waiting.get(key); w.cmd = cmd; return w.done; }
+  const w = {cmd};
+  if (key) waiting.set(key, w);
+  w.done = chain.then(async () => {
+    if (key) waiting.delete(key);
+    const r = await fetch("/cmd", {method: "POST", headers: {"Content-Type": "application/json"}, body: JSON.stringify(w.cmd)});
+    const a = await r.json();
+    if (!a.ok) document.getElementById("msg").textContent = a.error;
+    return a;
+  });
+  chain = w.done.catch(() => {});
+  return w.done;
 }
 S.send = send;
 S.setInput = function (name, value) {           // what a slider does (value in SI units)
