@@ -121,18 +121,27 @@ def test_another_user_reads_the_cache_it_may_not_write():
 
 def _read_as_another_user(tmp_path):
     import os
+    import shutil
+    import sorofem
     tmp_path.chmod(0o755)
     (tmp_path / "reader.py").write_text(READER)
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path)] + sys.path)}
+    # Debian's interpreter (numba and numpy are Debian's) and a copy of sorofem beside the kernel module: the
+    # checkout and its venv may sit in a folder user nobody cannot enter (a CI clone in a 0700 mktemp folder)
+    shutil.copytree(os.path.dirname(sorofem.__file__), tmp_path / "sorofem",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    for p in [tmp_path, *tmp_path.rglob("*")]:
+        p.chmod(0o755 if p.is_dir() else 0o644)
+    python = getattr(sys, "_base_executable", None) or sys.executable
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
     env.pop("NUMBA_CACHE_DIR", None)
-    root = subprocess.run([sys.executable, "-c", "import reader"], env=env, cwd=tmp_path, capture_output=True,
+    root = subprocess.run([python, "-c", "import reader"], env=env, cwd=tmp_path, capture_output=True,
                           text=True, timeout=300)
     assert root.returncode == 0, root.stderr
     # drop the second kernel's cache entry: nobody must compile it and fail to save it, quietly
     for f in (tmp_path / "__pycache__").glob("reader.scaled-*"):
         f.unlink()
     other = subprocess.run(["runuser", "-u", "nobody", "--", "env", f"PYTHONPATH={env['PYTHONPATH']}",
-                            "HOME=/nonexistent", sys.executable, "-c", "import reader"], cwd="/tmp",
+                            "HOME=/nonexistent", python, "-c", "import reader"], cwd="/tmp",
                            capture_output=True, text=True, timeout=300)
     assert other.returncode == 0, other.stderr
     assert other.stdout.split() == ["6.0", "6.0", "1"]       # results right, and total() came from the cache
