@@ -182,6 +182,13 @@ class _ModelPlant(_Plant):
     def step(self, h, u):
         mdl = self.scene.system
         self._u = self._full(u)
+        if self._impedance is None or self.impedance_target is None:
+            # the sliders as a constant table: a Schedule runs on the compiled network path (a Python controller
+            # would force the whole network onto the Python path, Model.evaluation_path)
+            from soroshapes.network import Schedule
+            mdl.set_controller(Schedule([0.0, 1.0], np.vstack([self._u, self._u])))
+        else:
+            mdl.set_controller(self._control)
         tr = mdl.simulate(h, min(self.scene.dt, h), method=self.scene.method, x0=self.x, t0=self.t,
                           rtol=self.scene.rtol, atol=self.scene.atol)
         self.x, self.t = tr.x[-1].copy(), self.t + h
