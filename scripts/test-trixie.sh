@@ -135,9 +135,11 @@ else
 fi
 t1=$(date +%s)
 
-# the clone's files, fresh each run
+# the clone's files, fresh each run, and the user's caches of a fresh machine (a killed earlier run can leave an
+# FFCx compile lock in ~/.cache/fenics that makes the same form time out in the next run)
 work=$ROOT/root/soro
 safe_rm "$work"
+safe_rm "$ROOT/root/.cache"
 mkdir -p "$work"
 (cd "$here" && git ls-files -z --cached --others --exclude-standard \
    | while IFS= read -r -d '' f; do [ -e "$f" ] && printf '%s\0' "$f"; done \

@@ -59,7 +59,7 @@ def test_browser_slider_moves_the_tip_and_the_tip_follows_the_dragged_target(fin
         page.keyboard.press("End")                              # the pressure slider to its maximum, 60 kPa
         wait_for(page, f"soroPlay.frame.inputs[0] === {fs.P_MAX} && soroPlay.frame.tip[2] < {z0 - 1e-3}",
                  what="the tip moves away from the chamber (-z) once the pressure arrives")
-        wait_for(page, f"Math.hypot(...soroPlay.frame.tip.map((v, i) => v - {list(ref)}[i])) < {TIP_TOL}",
+        wait_for(page, f"Math.hypot(...soroPlay.frame.tip.map((v, i) => v - {[float(v) for v in ref]}[i])) < {TIP_TOL}",
                  what=f"the tip settles at the closed-form {ref} m")
         assert page.evaluate("soroPlay.latencies.length") >= 1  # the slider's change came back in a drawn frame
         assert "model" in page.inner_text("#source")
