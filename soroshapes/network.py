@@ -1063,40 +1063,15 @@ def jacobian(t, x, net, scale, w, f0, fp, xp, Jac, JF):
     into Jac, and into JF the same with the acceleration rows of every beam multiplied by its mass matrix at x
     (the force Jacobian, which changes slowly with the configuration; see :func:`_iteration_matrix`). False if
     an evaluation fails."""
-    table, groups, dep, col_block = net[0], net[15], net[16], net[17]
+    table = net[0]
     nb = table.shape[0]
     N = x.shape[0]
     alls = np.ones(nb, np.bool_)
-    if not rhs(t, x, net, w, f0, alls):
-        return False
     for i in range(N):
         for j in range(N):
             Jac[i, j] = 0.0
-    sel = np.zeros(nb, np.bool_)
-    for g in range(groups.shape[0]):
-        for i in range(N):
-            xp[i] = x[i]
-        for b in range(nb):
-            sel[b] = False
-        for c in range(groups.shape[1]):
-            j = groups[g, c]
-            if j < 0:
-                break
-            xp[j] = x[j] + FD_STEP * max(abs(x[j]), scale[j])
-            for b in range(nb):
-                if dep[b, col_block[j]]:
-                    sel[b] = True
-        if not rhs(t, xp, net, w, fp, sel):
-            return False
-        for c in range(groups.shape[1]):
-            j = groups[g, c]
-            if j < 0:
-                break
-            d = xp[j] - x[j]
-            for b in range(nb):
-                if dep[b, col_block[j]]:
-                    for i in range(table[b, 1], table[b, 1] + table[b, 2]):
-                        Jac[i, j] = (fp[i] - f0[i]) / d
+    if not _fd_rows(t, x, net, scale, w, f0, fp, xp, alls, Jac):
+        return False
     if not rhs(t, x, net, w, f0, alls):               # the workspaces at x again (their mass matrices)
         return False
     for i in range(N):
@@ -1117,17 +1092,14 @@ def jacobian(t, x, net, scale, w, f0, fp, xp, Jac, JF):
 
 
 @njit(cache=True)
-def _cheap_rows(t, x, net, scale, w, f0, fp, xp, JF):
-    """Refresh the rows of JF that belong to systems other than beams (reservoirs: cheap to evaluate, and
-    non-smooth where a valve saturates, so a stale row makes Newton contract slowly) by the grouped forward
-    differences of :func:`jacobian`, evaluating only those systems. False if an evaluation fails."""
+def _fd_rows(t, x, net, scale, w, f0, fp, xp, rows, out):
+    """The rows of the systems marked in ``rows`` (bool per system) of :math:`\partial F/\partial x` by grouped
+    forward differences (steps ``FD_STEP max(|x_j|, scale_j)``), evaluating only those systems, into ``out``
+    (other rows untouched). False if an evaluation fails."""
     table, groups, dep, col_block = net[0], net[15], net[16], net[17]
     nb = table.shape[0]
     N = x.shape[0]
-    cheap = np.zeros(nb, np.bool_)
-    for b in range(nb):
-        cheap[b] = table[b, 0] != BEAM
-    if not rhs(t, x, net, w, f0, cheap):
+    if not rhs(t, x, net, w, f0, rows):
         return False
     sel = np.zeros(nb, np.bool_)
     for g in range(groups.shape[0]):
@@ -1142,7 +1114,7 @@ def _cheap_rows(t, x, net, scale, w, f0, fp, xp, JF):
                 break
             xp[j] = x[j] + FD_STEP * max(abs(x[j]), scale[j])
             for b in range(nb):
-                if cheap[b] and dep[b, col_block[j]]:
+                if rows[b] and dep[b, col_block[j]]:
                     sel[b] = True
                     any_row = True
         if not any_row:
@@ -1155,10 +1127,22 @@ def _cheap_rows(t, x, net, scale, w, f0, fp, xp, JF):
                 break
             d = xp[j] - x[j]
             for b in range(nb):
-                if cheap[b] and dep[b, col_block[j]]:
+                if rows[b] and dep[b, col_block[j]]:
                     for i in range(table[b, 1], table[b, 1] + table[b, 2]):
-                        JF[i, j] = (fp[i] - f0[i]) / d
+                        out[i, j] = (fp[i] - f0[i]) / d
     return True
+
+
+@njit(cache=True)
+def _cheap_rows(t, x, net, scale, w, f0, fp, xp, JF):
+    """Refresh the rows of JF that belong to systems other than beams (reservoirs: cheap to evaluate, and
+    non-smooth where a valve saturates, so a stale row makes Newton contract slowly) by :func:`_fd_rows`. False
+    if an evaluation fails."""
+    table = net[0]
+    cheap = np.zeros(table.shape[0], np.bool_)
+    for b in range(table.shape[0]):
+        cheap[b] = table[b, 0] != BEAM
+    return _fd_rows(t, x, net, scale, w, f0, fp, xp, cheap, JF)
 
 
 @njit(cache=True)
