@@ -4,8 +4,11 @@ This is the seam between the FEM layer (:mod:`sorofem.fem` writes) and the reduc
 (:mod:`soroshapes` reads, without DOLFINx). The layout is documented in ``docs/snapshot-format.md``:
 
 ``/`` attributes
-    ``format = "soro-snapshots"``, ``version = 1``, ``units = "SI"``, ``created`` (ISO time),
+    ``format = "soro-snapshots"``, ``version = 2``, ``units = "SI"``, ``created`` (ISO time),
     ``metadata`` (a JSON string: material, solver, case inputs).
+Every dataset has an attribute ``unit`` (``m``, ``Pa``, ``N``, ``J``, ``1`` for dimensionless numbers,
+``index`` for connectivity; see :func:`unit_of`). Version 1 files (no ``unit`` attributes) are still read;
+their units are the defaults of :func:`unit_of`.
 ``/mesh/vertices`` (n_vertices, gdim) float64 [m]
 ``/mesh/cells`` (n_cells, k) int64, linear connectivity; attribute ``cell_type`` (``triangle``,
     ``quadrilateral``, ``tetrahedron``, ``hexahedron``). Higher-order fields are interpolated to vertices.
@@ -13,7 +16,7 @@ This is the seam between the FEM layer (:mod:`sorofem.fem` writes) and the reduc
     boundary facets, or ``cells`` (n,) cell indices. Attribute ``/mesh.cavities`` lists the cavity names.
 ``/steps/time`` (n_steps,) float64: time [s] or load level [-] (attribute ``kind``: ``time`` or ``load``)
 ``/steps/displacement`` (n_steps, n_vertices, gdim) float64 [m], chunked one step per chunk
-``/steps/inputs/<name>``, ``/steps/cavity_volume/<name>``, ``/steps/energy/<name>`` (n_steps,) float64;
+``/steps/inputs/<name>`` (names made by :func:`input_name`: ``pressure/cavity_0``), ``/steps/cavity_volume/<name>``, ``/steps/energy/<name>`` (n_steps,) float64;
 ``/steps/reaction/<name>`` (n_steps, gdim) float64 [N]
 ``/steps/cell_field/<name>`` (n_steps, n_cells) float64, per-cell values (e.g. ``von_mises`` [Pa])
 
@@ -49,10 +52,59 @@ import numpy as np
 from .errors import DataError
 from .io import atomic_path, disk_full_error, is_disk_full
 
-__all__ = ["SnapshotWriter", "Snapshots", "FORMAT", "VERSION", "CELL_TYPES", "cell_deformation_gradients"]
+__all__ = ["SnapshotWriter", "Snapshots", "FORMAT", "VERSION", "CELL_TYPES", "INPUT_KINDS", "input_name",
+           "parse_input_name", "unit_of", "cell_deformation_gradients"]
 
 FORMAT = "soro-snapshots"
-VERSION = 1
+VERSION = 2
+#: The kinds of input a FEM case applies and their units (3D; see :func:`unit_of` for 2D).
+INPUT_KINDS = {"pressure": "Pa", "tension": "N", "expansion": "1", "added_volume": "m^3"}
+
+
+def input_name(kind, key):
+    """The name of an input series, ``"<kind>/<key>"`` (e.g. ``input_name("pressure", "cavity_0")`` is
+    ``"pressure/cavity_0"``): the one function the FEM solver (writer) and readers use to name inputs.
+
+    Parameters
+    ----------
+    kind : str
+        One of :data:`INPUT_KINDS`: ``pressure`` [Pa], ``tension`` [N], ``expansion`` [-],
+        ``added_volume`` [m^3].
+    key : str or int
+        The region (or the tendon's index).
+    """
+    if kind not in INPUT_KINDS:
+        raise DataError(f"unknown input kind {kind!r}; use one of {sorted(INPUT_KINDS)}")
+    key = str(key)
+    if not key or "/" in key:
+        raise DataError(f"an input's region or index must be a non-empty name without '/', got {key!r}")
+    return f"{kind}/{key}"
+
+
+def parse_input_name(name):
+    """``(kind, key)`` of a name made by :func:`input_name`; ``(None, name)`` for another name."""
+    kind, sep, key = str(name).partition("/")
+    return (kind, key) if sep and kind in INPUT_KINDS and key and "/" not in key else (None, str(name))
+
+
+_PER_DEPTH = {"m^3": "m^2", "N": "N/m", "J": "J/m"}
+
+
+def unit_of(group, name="", per_depth=False, time_kind="time"):
+    """The unit of a dataset: ``group`` is ``vertices``, ``cells``, ``region``, ``time``, ``displacement``,
+    ``inputs``, ``cavity_volume``, ``energy``, ``reaction`` or ``cell_field``; ``name`` the series' name.
+    ``per_depth``: a plane-strain or plane-stress case, whose volumes, forces and energies are per unit depth
+    (``m^2``, ``N/m``, ``J/m``). ``unspecified`` for series whose unit is not known."""
+    if group == "inputs":
+        unit = INPUT_KINDS.get(str(name).partition("/")[0], "unspecified")
+    elif group == "cell_field":
+        unit = {"von_mises": "Pa"}.get(str(name), "unspecified")
+    elif group == "time":
+        unit = "s" if time_kind == "time" else "1"
+    else:
+        unit = {"vertices": "m", "cells": "index", "region": "index", "displacement": "m", "cavity_volume": "m^3",
+                "energy": "J", "reaction": "N"}[group]
+    return _PER_DEPTH.get(unit, unit) if per_depth else unit
 #: Linear cell types and their (topological dimension, vertices per cell).
 CELL_TYPES = {"triangle": (2, 3), "quadrilateral": (2, 4), "tetrahedron": (3, 4), "hexahedron": (3, 8)}
 
@@ -123,10 +175,16 @@ class SnapshotWriter:
         JSON-serializable description of the case (material, solver, inputs).
     time_kind : {"time", "load"}
         Whether the step coordinate is a time [s] or a load level [-].
+    per_depth : bool
+        A plane-strain or plane-stress case: volumes, reactions and energies are per unit depth
+        (:func:`unit_of`).
+    units : dict, optional
+        ``"<group>/<name>" -> unit`` for series whose unit :func:`unit_of` does not know (e.g.
+        ``{"inputs/valve": "V"}``).
     """
 
     def __init__(self, path, vertices, cells, cell_type, regions=None, cavities=(), metadata=None,
-                 time_kind="time"):
+                 time_kind="time", per_depth=False, units=None):
         self.path = Path(path)
         vertices = _finite("vertices", vertices)
         cells = np.asarray(cells)
@@ -141,6 +199,7 @@ class SnapshotWriter:
         if time_kind not in ("time", "load"):
             raise DataError(f"time_kind must be 'time' or 'load', got {time_kind!r}")
         regions = dict(regions or {})
+        self._per_depth, self._units, self._time_kind = bool(per_depth), dict(units or {}), time_kind
         for name in cavities:
             if name not in regions:
                 raise DataError(f"cavity {name!r} is not among the regions {sorted(regions)}")
@@ -168,18 +227,24 @@ class SnapshotWriter:
                        created=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
                        metadata=json.dumps(metadata or {}, default=str))
         m = f.create_group("mesh")
-        m.create_dataset("vertices", data=vertices, fletcher32=True)
-        m.create_dataset("cells", data=cells.astype(np.int64), fletcher32=True).attrs["cell_type"] = cell_type
+        m.create_dataset("vertices", data=vertices, fletcher32=True).attrs["unit"] = self._unit("vertices")
+        d = m.create_dataset("cells", data=cells.astype(np.int64), fletcher32=True)
+        d.attrs.update(cell_type=cell_type, unit=self._unit("cells"))
         m.attrs["cavities"] = json.dumps(list(cavities))
         g = m.create_group("regions")
         for name, (kind, idx) in regions.items():
-            g.create_dataset(name, data=np.asarray(idx, dtype=np.int64), fletcher32=True).attrs["kind"] = kind
+            d = g.create_dataset(name, data=np.asarray(idx, dtype=np.int64), fletcher32=True)
+            d.attrs.update(kind=kind, unit=self._unit("region"))
         s = f.create_group("steps")
-        s.create_dataset("time", shape=(0,), maxshape=(None,), dtype="f8", fletcher32=True).attrs["kind"] = time_kind
+        d = s.create_dataset("time", shape=(0,), maxshape=(None,), dtype="f8", fletcher32=True)
+        d.attrs.update(kind=time_kind, unit=self._unit("time"))
         s.create_dataset("displacement", shape=(0, self.n_vertices, self.gdim),
                          maxshape=(None, self.n_vertices, self.gdim), chunks=(1, self.n_vertices, self.gdim),
-                         dtype="f8", fletcher32=True)
+                         dtype="f8", fletcher32=True).attrs["unit"] = self._unit("displacement")
         f.flush()
+
+    def _unit(self, group, name=""):
+        return self._units.get(f"{group}/{name}") or unit_of(group, name, self._per_depth, self._time_kind)
 
     def _room(self, nbytes):
         """Refuse to start a write that the disk cannot hold (HDF5 buffers writes and reports a full disk
@@ -271,7 +336,7 @@ class SnapshotWriter:
                 path = f"{group}/{k}"
                 if path not in s:
                     s.create_dataset(path, shape=(0, *v.shape), maxshape=(None, *v.shape), dtype="f8",
-                                     chunks=(1, *v.shape), fletcher32=True)
+                                     chunks=(1, *v.shape), fletcher32=True).attrs["unit"] = self._unit(group, k)
                 s[path].resize((n + 1, *v.shape))
                 s[path][n] = v
         self._f.flush()  # a full disk shows here, as an exception, not later from a destructor
@@ -317,7 +382,8 @@ class Snapshots:
     Attributes
     ----------
     vertices, cells, cell_type, gdim, regions (name -> (kind, indices)), cavities, metadata, times,
-    time_kind, inputs / cavity_volumes / energies / reactions / cell_fields (name -> array over steps).
+    time_kind, inputs / cavity_volumes / energies / reactions / cell_fields (name -> array over steps),
+    version (of the file), units (dataset path -> unit; for version 1 files the defaults of :func:`unit_of`).
     """
 
     def __init__(self, path):
@@ -399,6 +465,7 @@ class Snapshots:
             raise DataError(f"{self.path} has format version {version}; this reader knows up to {VERSION}: "
                             "update the package")
         self.version = version
+        self.units = {}
         self.metadata = self._json(f.attrs.get("metadata", "{}"), "/ attribute metadata")
         if not isinstance(self.metadata, dict):
             raise self._fail("/ attribute metadata", "must be a JSON object")
@@ -406,6 +473,7 @@ class Snapshots:
         # the mesh
         dv = self._dataset(f, h5, "mesh/vertices")
         self.vertices = self._finite(self._values(dv, "mesh/vertices").astype(float), "mesh/vertices")
+        self._unit(dv, "mesh/vertices", "vertices")
         if self.vertices.ndim != 2 or self.vertices.shape[1] not in (2, 3) or not len(self.vertices):
             raise self._fail("mesh/vertices", f"shape {self.vertices.shape}, expected (n_vertices > 0, 2 or 3)")
         n_vertices, self.gdim = self.vertices.shape
@@ -414,6 +482,7 @@ class Snapshots:
         if self.cell_type not in CELL_TYPES:
             raise self._fail("mesh/cells", f"unknown cell_type {self.cell_type!r}; known: {sorted(CELL_TYPES)}")
         self.cells = self._values(dc, "mesh/cells").astype(np.int64)
+        self._unit(dc, "mesh/cells", "cells")
         k = CELL_TYPES[self.cell_type][1]
         if self.cells.ndim != 2 or self.cells.shape[1] != k:
             raise self._fail("mesh/cells", f"shape {self.cells.shape}, expected (n_cells, {k}) for {self.cell_type}")
@@ -432,6 +501,7 @@ class Snapshots:
                 d = self._dataset(f, h5, where, "i")
                 kind = self._attr(d, "kind", where)
                 idx = self._values(d, where).astype(np.int64)
+                self._unit(d, where, "region")
                 if kind == "cells":
                     if idx.ndim != 1:
                         raise self._fail(where, f"shape {idx.shape}, expected (n,) cell indices")
@@ -454,6 +524,7 @@ class Snapshots:
         if self.time_kind not in ("time", "load"):
             raise self._fail("steps/time", f"kind {self.time_kind!r}, expected 'time' or 'load'")
         self.times = self._finite(self._values(dt, "steps/time").astype(float), "steps/time", steps=True)
+        self._unit(dt, "steps/time", "time")
         if self.times.ndim != 1:
             raise self._fail("steps/time", f"shape {self.times.shape}, expected (n_steps,)")
         n = len(self.times)
@@ -461,6 +532,7 @@ class Snapshots:
         if du.shape != (n, n_vertices, self.gdim):
             raise self._fail("steps/displacement", f"shape {du.shape}, expected (n_steps, n_vertices, gdim) = "
                                                    f"{(n, n_vertices, self.gdim)} (steps/time has {n} steps)")
+        self._unit(du, "steps/displacement", "displacement")
 
         def read(group, tail):  # names may contain "/" (e.g. "pressure/cavity_0"): walk the subgroups
             out = {}
@@ -478,12 +550,32 @@ class Snapshots:
                     raise self._fail(where, f"shape {d.shape}, expected {(n, *tail)} (one value per step of "
                                             "steps/time)")
                 out[k] = self._finite(self._values(d, where).astype(float), where, steps=True)
+                self._unit(d, where, group, k)
             return out
         self.inputs = read("inputs", ())
         self.cavity_volumes = read("cavity_volume", ())
         self.energies = read("energy", ())
         self.reactions = read("reaction", (self.gdim,))
         self.cell_fields = read("cell_field", (n_cells,))
+
+    def _unit(self, d, where, group, name=""):
+        """Record the unit of dataset ``where``: its ``unit`` attribute (required from version 2 on), or for a
+        version 1 file the default (:func:`unit_of`)."""
+        if self.version >= 2:
+            unit = self._attr(d, "unit", where)
+        else:
+            per_depth = self.metadata.get("formulation") in ("plane_strain", "plane_stress")
+            unit = unit_of(group, name, per_depth, getattr(self, "time_kind", "time"))
+        self.units[where] = unit
+        return unit
+
+    def input(self, kind, key):
+        """The series of input ``kind`` on ``key`` (:func:`input_name`), e.g. ``snap.input("pressure",
+        "cavity_0")`` [Pa]; a missing one is a :class:`DataError` naming the inputs the file has."""
+        name = input_name(kind, key)
+        if name not in self.inputs:
+            raise DataError(f"{self.path} has no input {name!r}; it has {sorted(self.inputs)}")
+        return self.inputs[name]
 
     def _in_range(self, idx, n, where, what):
         if idx.size and (idx.min() < 0 or idx.max() >= n):

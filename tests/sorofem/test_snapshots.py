@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from sorofem.errors import DataError
-from sorofem.snapshots import SnapshotWriter, Snapshots, cell_deformation_gradients
+from sorofem.snapshots import (VERSION, SnapshotWriter, Snapshots, cell_deformation_gradients, input_name,
+                               parse_input_name)
 
 
 def _square(n=4):
@@ -284,6 +285,71 @@ def test_version_1_files_without_checksums_still_read(tmp_path):
         f.create_dataset("steps/displacement", data=np.stack([0 * X, 0.1 * X]))
     snap = Snapshots(path)
     assert snap.n_steps == 2 and snap.deformation_gradient(1)[0, 0, 0] == pytest.approx(1.1)
+
+
+def test_input_names_come_from_one_function():
+    assert input_name("pressure", "cavity_0") == "pressure/cavity_0" and input_name("tension", 2) == "tension/2"
+    assert parse_input_name("pressure/cavity_0") == ("pressure", "cavity_0")
+    assert parse_input_name("valve") == (None, "valve")
+    with pytest.raises(DataError, match="unknown input kind"):
+        input_name("presure", "cavity_0")
+    with pytest.raises(DataError, match="without '/'"):
+        input_name("pressure", "a/b")
+
+
+def test_version_2_files_carry_a_unit_on_every_dataset_and_the_named_regions(tmp_path):
+    X, cells = _square()
+    path = tmp_path / "v2.h5"
+    regions = {"left": ("facets", [[0, 5]]), "cavity_0": ("facets", [[1, 2]]), "layer": ("cells", [0, 1])}
+    with SnapshotWriter(path, X, cells, "triangle", regions=regions, cavities=["cavity_0"], time_kind="load",
+                        per_depth=True, units={"inputs/valve": "V"}) as w:
+        for k in range(2):
+            w.append(float(k), 0.01 * k * X, inputs={input_name("pressure", "cavity_0"): 1e3 * k, "valve": 1.0 * k},
+                     cavity_volumes={"cavity_0": 1e-6}, reactions={"left": [k, -k]}, energies={"strain": 0.1 * k},
+                     cell_fields={"von_mises": np.full(len(cells), float(k))})
+    units = {}
+    with h5py.File(path, "r") as f:
+        assert f.attrs["version"] == VERSION == 2
+        f.visititems(lambda name, d: units.__setitem__(name, d.attrs.get("unit")) if isinstance(d, h5py.Dataset)
+                     else None)
+    assert None not in units.values(), f"datasets without a unit: {[k for k, v in units.items() if v is None]}"
+    assert units == {"mesh/vertices": "m", "mesh/cells": "index", "mesh/regions/left": "index",
+                     "mesh/regions/cavity_0": "index", "mesh/regions/layer": "index", "steps/time": "1",
+                     "steps/displacement": "m", "steps/inputs/pressure/cavity_0": "Pa", "steps/inputs/valve": "V",
+                     "steps/cavity_volume/cavity_0": "m^2", "steps/reaction/left": "N/m", "steps/energy/strain": "J/m",
+                     "steps/cell_field/von_mises": "Pa"}
+    s = Snapshots(path)
+    assert s.version == 2 and s.units["steps/inputs/pressure/cavity_0"] == "Pa"
+    assert s.cavities == ["cavity_0"] and sorted(s.regions) == ["cavity_0", "layer", "left"]
+    np.testing.assert_array_equal(s.input("pressure", "cavity_0"), [0.0, 1e3])
+    with pytest.raises(DataError, match="no input 'pressure/cavity_1'.*pressure/cavity_0"):
+        s.input("pressure", "cavity_1")
+    with h5py.File(path, "a") as f:   # a version 2 file must state its units
+        del f["steps/displacement"].attrs["unit"]
+    with pytest.raises(DataError, match="steps/displacement: attribute 'unit' missing"):
+        Snapshots(path)
+
+
+def test_a_version_1_file_reads_with_the_default_units(tmp_path):
+    """The layout of version 1 (regions, cavities, inputs, no unit attributes), written as that version did."""
+    X, cells = _square(1)
+    path = tmp_path / "v1.h5"
+    with h5py.File(path, "w") as f:
+        f.attrs.update(format="soro-snapshots", version=1, units="SI", created="2026-01-01T00:00:00+00:00",
+                       metadata='{"formulation": "plane_strain"}')
+        f.create_dataset("mesh/vertices", data=X, fletcher32=True)
+        f.create_dataset("mesh/cells", data=cells, fletcher32=True).attrs["cell_type"] = "triangle"
+        f["mesh"].attrs["cavities"] = '["cavity_0"]'
+        f.create_dataset("mesh/regions/cavity_0", data=[[0, 1]]).attrs["kind"] = "facets"
+        f.create_dataset("steps/time", data=[0.0, 1.0]).attrs["kind"] = "load"
+        f.create_dataset("steps/displacement", data=np.stack([0 * X, 0.1 * X]))
+        f.create_dataset("steps/inputs/pressure/cavity_0", data=[0.0, 2e3])
+        f.create_dataset("steps/reaction/left", data=[[0.0, 0.0], [1.0, 2.0]])
+    s = Snapshots(path)
+    assert s.version == 1 and s.cavities == ["cavity_0"] and s.regions["cavity_0"][0] == "facets"
+    np.testing.assert_array_equal(s.input("pressure", "cavity_0"), [0.0, 2e3])
+    assert s.units["steps/inputs/pressure/cavity_0"] == "Pa" and s.units["steps/reaction/left"] == "N/m"
+    assert s.units["steps/time"] == "1" and s.units["steps/displacement"] == "m"
 
 
 # ---------------------------------------------------------------------------------------------- full disk
