@@ -20,7 +20,7 @@ from pathlib import Path
 from .errors import DataError
 
 __all__ = ["atomic_path", "write_json", "save_figure", "on_root", "file_digest", "fsync_path", "is_disk_full",
-           "disk_full_error", "process_alive"]
+           "disk_full_error", "process_alive", "Progress"]
 
 _FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
@@ -174,13 +174,15 @@ def write_json(path, data):
 
 
 def save_figure(fig, path, dpi=110):
-    """Lay out a matplotlib figure, write it as PNG to ``path`` atomically and close it; returns the path."""
-    import matplotlib.pyplot as plt
-
+    """Lay out a matplotlib figure, write it as PNG to ``path`` atomically and close it (if pyplot manages
+    it; a ``matplotlib.figure.Figure`` made directly needs no closing); returns the path. The process's
+    matplotlib backend is left as it is."""
     fig.tight_layout()
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=dpi, format="png")
-    plt.close(fig)
+    if getattr(fig.canvas, "manager", None) is not None:
+        import matplotlib.pyplot as plt
+        plt.close(fig)
     return path
 
 
@@ -201,3 +203,57 @@ def on_root(comm, fn):
     if err is not None:
         raise err
     return out
+
+
+class Progress:
+    """Progress of long work (a load march, a time integration) on rank 0 of ``comm``.
+
+    ``enabled=None`` (the solvers' default): a ``tqdm`` bar when standard error is a terminal and tqdm is
+    installed (the ``extras``), nothing otherwise (batch jobs, tests and notebooks' captured streams stay
+    quiet). ``True``: a bar on a terminal, else one line per update on standard error. ``False``: nothing.
+    Use as a context manager; :meth:`to` moves to an absolute position in [0, ``total``].
+    """
+
+    def __init__(self, total, description, enabled=None, comm=None, unit=""):
+        import sys
+
+        self.total, self.description, self.unit = float(total), description, unit
+        self._bar = self._lines = None
+        if enabled is False or (comm is not None and comm.rank != 0):
+            return
+        tty = bool(getattr(sys.stderr, "isatty", lambda: False)())
+        if tty:
+            try:
+                from tqdm import tqdm
+            except ImportError:
+                tqdm = None
+            if tqdm is not None:
+                self._bar = tqdm(total=self.total, desc=description, unit=unit, leave=False,
+                                 bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.4g}/{total:.4g} {unit} "
+                                            "[{elapsed}<{remaining}{postfix}]")
+                return
+        if enabled or (enabled is None and tty):
+            self._lines = sys.stderr
+
+    def to(self, value, **info):
+        """Move to ``value`` (same unit as ``total``); ``info`` is shown beside the bar (or on the line)."""
+        if self._bar is not None:
+            self._bar.set_postfix(info, refresh=False)
+            self._bar.update(float(value) - self._bar.n)
+        elif self._lines is not None:
+            extra = "  ".join(f"{k} {v}" for k, v in info.items())
+            print(f"  {self.description}: {float(value):.4g}/{self.total:.4g} {self.unit}  {extra}".rstrip(),
+                  file=self._lines, flush=True)
+
+    def close(self):
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+

@@ -74,13 +74,18 @@ class Trajectory:
     newton_iterations : (n_steps,) int
     lowest_eigenvalue : list of float [1/s^2], filled when solved with ``monitor_stability=True``
     metadata : dict
+    regions : dict name -> (kind, indices), rank 0 only: the mesh's named regions in the vertex/cell numbering
+        of :attr:`vertices`/:attr:`cells` (see :class:`sorofem.snapshots.SnapshotWriter`)
+    cavities : tuple of str, the names of the cavities among the regions
     """
 
-    def __init__(self, vertices, cells, cell_type, time_kind="load", metadata=None, comm=None):
+    def __init__(self, vertices, cells, cell_type, time_kind="load", metadata=None, comm=None, regions=None,
+                 cavities=()):
         from mpi4py import MPI
 
         self.comm = comm or MPI.COMM_WORLD  # the mesh's communicator: its rank 0 holds the gathered fields
         self.vertices, self.cells, self.cell_type = vertices, cells, cell_type
+        self.regions, self.cavities = regions, tuple(cavities)
         self.time_kind = time_kind
         self.metadata = dict(metadata or {})
         self._times, self._u, self._iters, self._energy = [], [], [], []
@@ -163,26 +168,49 @@ class Trajectory:
         order = self._TO_VTK.get(self.cell_type)
         return self.cells if order is None else self.cells[:, order]
 
+    #: Units of the fields written by :meth:`write_xdmf`.
+    XDMF_UNITS = {"displacement": "m", "von_mises": "Pa"}
+
     def write_xdmf(self, path):
-        """Write every state to an XDMF/HDF5 time series for ParaView (rank 0 writes; call on every rank):
-        point data ``displacement`` [m], cell data ``von_mises`` [Pa]. Both files appear together, atomically."""
+        """Write every state to an XDMF time series for ParaView (rank 0 writes; call on every rank).
+
+        ``path`` (``run.xdmf``) is the XML file; its arrays go to ``run.xdmf.h5`` beside it, a name that
+        :meth:`save` (``run.h5``) never takes. Each step is a time stamp (``times``: the time [s] or the load
+        level [-]) with point data ``displacement`` [m] as 3-component vectors (2D bodies get a zero z
+        component, so ParaView's Warp By Vector applies) and cell data ``von_mises`` [Pa]; the units are
+        recorded in the XML (``<Information Name="units">``, JSON) and on the HDF5 datasets (attribute
+        ``unit``). Both files appear together, atomically. Readable by meshio's XDMF reader and ParaView."""
         path = Path(path)
+        if path.suffix != ".xdmf":
+            raise DataError(f"write_xdmf writes an .xdmf file (with its .xdmf.h5 data file beside it), got {path}")
 
         def write():
+            import json
+            import xml.etree.ElementTree as ET
+
             import meshio
 
             path.parent.mkdir(parents=True, exist_ok=True)
             tmpdir = Path(tempfile.mkdtemp(prefix=f".{path.stem}.", dir=path.parent))
             try:
                 cells = [(self._MESHIO[self.cell_type], self._rank0_cells_vtk())]
-                # meshio 5.0 writes the .h5 into the working directory: write from inside tmpdir
-                with contextlib.chdir(tmpdir), meshio.xdmf.TimeSeriesWriter(path.name) as w:
-                    w.write_points_cells(self.vertices, cells)
+                # meshio 5 writes <stem>.h5 into the working directory: a file named run.xdmf.xdmf there
+                # writes run.xdmf.h5; the XML is renamed to run.xdmf afterwards (it names its data file)
+                with contextlib.chdir(tmpdir), meshio.xdmf.TimeSeriesWriter(path.name + ".xdmf") as w:
+                    w.write_points_cells(_pad3(self.vertices), cells)
                     for i, t in enumerate(self._times):
                         cell_data = {} if self._vm[i] is None else {"von_mises": [self._vm[i]]}
-                        w.write_data(t, point_data={"displacement": self._u[i]}, cell_data=cell_data)
-                for f in sorted(tmpdir.iterdir(), key=lambda f: f.suffix == ".xdmf"):  # .h5 first
-                    os.replace(f, path.parent / f.name)
+                        w.write_data(t, point_data={"displacement": _pad3(self._u[i])}, cell_data=cell_data)
+                xml, data = tmpdir / (path.name + ".xdmf"), tmpdir / (path.name + ".h5")
+                ET.register_namespace("xi", "http://www.w3.org/2003/XInclude")   # keep meshio's prefix
+                tree = ET.parse(xml)
+                ET.SubElement(tree.getroot().find("Domain"), "Information", Name="units",
+                              Value=json.dumps({"time": "s" if self.time_kind == "time" else "1",
+                                                **self.XDMF_UNITS}))
+                tree.write(xml)
+                _label_xdmf_data(xml, data, self.XDMF_UNITS)
+                os.replace(data, path.parent / data.name)   # the data first: the XML then finds it
+                os.replace(xml, path)
             finally:
                 shutil.rmtree(tmpdir, ignore_errors=True)
 
@@ -194,10 +222,8 @@ class Trajectory:
         ``"displacement"`` magnitude [mm]); 2D: filled cells, 3D: boundary faces. Rank 0 draws."""
         if self.comm.rank != 0:
             return path
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
         from matplotlib.collections import PolyCollection
+        from matplotlib.figure import Figure   # drawn without pyplot: the process's backend stays as it is
 
         from ..io import atomic_path
 
@@ -211,7 +237,8 @@ class Trajectory:
             raise ValueError(f"field must be 'von_mises' or 'displacement', got {field!r}")
         cells = self._rank0_cells_vtk()
         if x.shape[1] == 2:
-            fig, ax = plt.subplots(figsize=(7, 4))
+            fig = Figure(figsize=(7, 4))
+            ax = fig.subplots()
             pc = PolyCollection(x[cells] * 1e3, array=values, cmap="viridis", edgecolors="k", linewidths=0.1)
             ax.add_collection(pc)
             ax.autoscale()
@@ -221,7 +248,7 @@ class Trajectory:
         else:
             from mpl_toolkits.mplot3d.art3d import Poly3DCollection
             faces, owner = _boundary_faces(self.cell_type, cells)
-            fig = plt.figure(figsize=(7, 5))
+            fig = Figure(figsize=(7, 5))
             ax = fig.add_subplot(projection="3d")
             pc = Poly3DCollection(x[faces] * 1e3, array=values[owner], cmap="viridis", edgecolors="k",
                                   linewidths=0.05)
@@ -234,8 +261,7 @@ class Trajectory:
         ax.set_title(title or f"t = {self._times[step]:.3g}")
         fig.tight_layout()
         with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=130)
-        plt.close(fig)
+            fig.savefig(tmp, dpi=130, format="png")
         return path
 
     def filmstrip(self, path, steps, floor=None, xlim=None, ylim=None, xlabel="x [mm]"):
@@ -247,20 +273,23 @@ class Trajectory:
             return path
         if self.vertices.shape[1] != 2:
             raise ValueError("filmstrip draws 2D bodies; use plot() for 3D")
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
         from matplotlib.collections import PolyCollection
+        from matplotlib.figure import Figure   # drawn without pyplot: the process's backend stays as it is
 
         from ..io import atomic_path
 
         steps = [int(k) for k in steps]
         cells = self._rank0_cells_vtk()
-        fig, axes = plt.subplots(len(steps), 1, figsize=(7, 1.4 * len(steps)), sharex=True, squeeze=False)
-        for ax, k in zip(axes[:, 0], steps):
+        from matplotlib.colors import Normalize
+
+        fig = Figure(figsize=(7.6, 1.4 * len(steps)))
+        axes = fig.subplots(len(steps), 1, sharex=True, squeeze=False)
+        vm = [np.asarray(self._vm[k]) / 1e3 for k in steps]
+        norm = Normalize(0.0, max(float(v.max(initial=0.0)) for v in vm) or 1.0)   # one scale for every panel
+        for ax, k, values in zip(axes[:, 0], steps, vm):
             x = (self.vertices + self._u[k]) * 1e3
-            ax.add_collection(PolyCollection(x[cells], array=np.asarray(self._vm[k]) / 1e3, cmap="viridis",
-                                             edgecolors="none"))
+            pc = PolyCollection(x[cells], array=values, cmap="viridis", norm=norm, edgecolors="none")
+            ax.add_collection(pc)
             if floor is not None:
                 ax.axhline(floor * 1e3, color="k", lw=0.8)
             ax.set_xlim(xlim or (x[:, 0].min() - 5, x[:, 0].max() + 5))
@@ -269,19 +298,30 @@ class Trajectory:
             ax.set_ylabel(f"{self._times[k]:.3g} s", fontsize=8)
         axes[-1, 0].set_xlabel(xlabel)
         fig.tight_layout()
+        fig.colorbar(pc, ax=axes[:, 0].tolist(), label="von Mises stress [kPa]", shrink=0.9)
         with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=120)
-        plt.close(fig)
+            fig.savefig(tmp, dpi=120, format="png")
         return path
 
-    def save(self, path, regions=None, cavities=()):
+    def save(self, path, regions=None, cavities=None):
         """Write the trajectory as a snapshot file (see ``docs/snapshot-format.md``); rank 0 writes, every
-        rank must call. Returns the path."""
+        rank must call. Returns the path.
+
+        ``regions``/``cavities``: default (None) the mesh's named regions and cavities that the solver
+        recorded (:attr:`regions`, :attr:`cavities`); ``{}``/``()`` writes none."""
+        if Path(path).name.endswith(".xdmf.h5"):
+            raise DataError(f"{path} is the name of an XDMF data file (write_xdmf); save the snapshot under "
+                            "another name, e.g. run.h5")
+
         def write():
             if not len(self):
                 raise DataError("the trajectory is empty: nothing to save")
-            with SnapshotWriter(path, self.vertices, self.cells, self.cell_type, regions=regions,
-                                cavities=cavities, metadata=self.metadata, time_kind=self.time_kind) as w:
+            regs = self.regions if regions is None else regions
+            cavs = self.cavities if cavities is None else cavities
+            per_depth = self.metadata.get("formulation") in ("plane_strain", "plane_stress")
+            with SnapshotWriter(path, self.vertices, self.cells, self.cell_type, regions=regs,
+                                cavities=cavs, metadata=self.metadata, time_kind=self.time_kind,
+                                per_depth=per_depth) as w:
                 for i in range(len(self)):
                     w.append(self._times[i], self._u[i],
                              inputs={k: v[i] for k, v in self._inputs.items()},
@@ -292,6 +332,28 @@ class Trajectory:
 
         on_root(self.comm, write)
         return path
+
+
+def _pad3(a):
+    """(n, 2) -> (n, 3) with zeros (ParaView warps and glyphs 3-component vectors only); (n, 3) unchanged."""
+    a = np.asarray(a, dtype=float)
+    return np.column_stack([a, np.zeros((len(a), 3 - a.shape[1]))]) if a.shape[1] < 3 else a
+
+
+def _label_xdmf_data(xml, data, units):
+    """Write the unit of every array of an XDMF data file as its HDF5 attribute ``unit`` (the XML names
+    which field each array holds)."""
+    import xml.etree.ElementTree as ET
+
+    import h5py
+
+    with h5py.File(data, "r+") as f:
+        for att in ET.parse(xml).getroot().iter("Attribute"):
+            item = att.find("DataItem")
+            key = item.text.strip().split(":/")[-1] if item is not None and item.text else None
+            if key in f and att.get("Name") in units:
+                f[key].attrs["unit"] = units[att.get("Name")]
+                f[key].attrs["field"] = att.get("Name")
 
 
 _FACES = {"tetrahedron": [[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]],
