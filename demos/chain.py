@@ -213,7 +213,7 @@ def main(out: Path, quick: bool = False) -> dict:
     for cavity in msh.cavities:
         fem_t.add_pressure(cavity, p_max)
     t1 = time.perf_counter()
-    fem_t.solve(t_end=p_test / p_max, steps=2 if quick else 4).save(out / "pneunet_test.h5", cavities=())
+    fem_t.solve(load_level=p_test / p_max, steps=2 if quick else 4).save(out / "pneunet_test.h5", cavities=())
     fem_test_s = time.perf_counter() - t1
     plant, dvs = dvs_stage(out, msh.cavities[0], fem_test_s) if rank0 else (None, {})
     timings["dvs_s"] = time.perf_counter() - t0

@@ -75,7 +75,7 @@ def fem_snapshots(out, chambers, size, p_max, steps, p_test):
     t_train = time.perf_counter() - t0
     fem, _ = pn.build(2, chambers, size, p_max)
     t0 = time.perf_counter()
-    fem.solve(t_end=p_test / p_max, steps=max(2, steps // 2), max_step=1.0 / steps).save(out / "test.h5")
+    fem.solve(load_level=p_test / p_max, steps=max(2, steps // 2), max_step=1.0 / steps).save(out / "test.h5")
     t_test = time.perf_counter() - t0
     fem, _ = pn.build(2, chambers, size, p_max)
     r, c = cylinder(length)

@@ -143,14 +143,13 @@ def main(out: Path, quick: bool = False) -> dict:
                                     (3, p3, (4.0 if quick else 3.0) * mm, 4 if quick else 10)):
         t0 = time.perf_counter()
         fem, length = build(dim, 2 if quick and dim == 3 else chambers, size, p_max)
-        W = fem._built["W"] if fem._built else fem._build()["W"]
         try:
             traj = fem.solve(steps=steps, max_step=1.0 / steps)
         except ConvergenceError as e:  # e.g. a chamber wall inverting on a coarse 3D mesh: keep what converged
             traj = e.trajectory
         wall = time.perf_counter() - t0
         res[dim] = dict(fem=fem, traj=traj, length=length, wall=wall, p_max=p_max,
-                        dofs=W.dofmap.index_map.size_global * W.dofmap.index_map_bs,
+                        dofs=fem.num_dofs,
                         cavities=len(fem.mesh.cavities))
         if rank0:
             res[dim]["angle"] = tip_angle(traj.vertices, traj.displacement, length)

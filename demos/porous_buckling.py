@@ -163,7 +163,7 @@ def main(out: Path, quick: bool = False) -> dict:
 
     # ---- eigenmodes of the unloaded block
     before = fem.eigen(4)
-    dofs = fem._built["W"].dofmap.index_map.size_global * fem._built["W"].dofmap.index_map_bs
+    dofs = fem.num_dofs
 
     # ---- quasi-static compression, tracking the lowest eigenvalue
     try:

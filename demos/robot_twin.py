@@ -212,7 +212,7 @@ def planar(out, quick):
     for s in ("left", "right"):
         fem.add_pressure(side[s], planar_path(p_max, s))
     steps = 3 * per_leg
-    fem.solve(t_end=3.0, steps=steps, max_step=3.0 / steps).save(out / "train.h5")
+    fem.solve(load_level=3.0, steps=steps, max_step=3.0 / steps).save(out / "train.h5")
     t_fem = time.perf_counter() - t0
 
     # backbone: the left chain's bridge, 2 mm above its feed channel (inside the bridge's top wall), sampled

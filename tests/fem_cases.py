@@ -41,7 +41,7 @@ def cook_displacement(n, degree, cell="triangle", formulation="plane_stress"):
     """Vertical displacement [m] at (48, 52) and the Fem."""
     fem = Fem(cook_membrane(n, cell), materials.LinearElastic(E=1.0, nu=1 / 3), formulation=formulation,
               degree=degree)
-    traj = fem.add_support("left").add_force("right", [0.0, 1.0 / 16.0]).solve(steps=1)
+    traj = fem.add_support("left").add_traction("right", [0.0, 1.0 / 16.0]).solve(steps=1)
     return float(fem.evaluate([[48.0, 52.0]])[0][1]), traj
 
 

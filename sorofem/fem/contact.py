@@ -56,7 +56,7 @@ class Contact:
         gdim, fdim = msh.geometry.dim, msh.topology.dim - 1
         if self.obstacle.dim != gdim:
             raise ParameterError(f"a {self.obstacle.dim}D obstacle cannot touch a {gdim}D body")
-        if fem._split:
+        if fem.mixed_state:
             raise ParameterError("contact is available for the displacement formulation (mixed=False, not plane "
                                  "stress)")
         msh.topology.create_connectivity(fdim, msh.topology.dim)
@@ -77,8 +77,8 @@ class Contact:
         self.comm = msh.comm
         # penalty and regularization scales from the mesh and the materials
         h = msh.comm.allreduce(float(fem.mesh.quality.get("h_min", 0.0)) or np.inf, op=_op("MIN"))
-        self.h = h if np.isfinite(h) else fem._size() / 100
-        E = max(mat.E for _, mat in fem._materials)
+        self.h = h if np.isfinite(h) else fem.size / 100
+        E = max(mat.E for _, mat in fem.materials)
         self.k = float(self._stiffness or 100.0 * E / self.h)
         self.eps = float(self._regularization or 1e-3 * self.h)
         x = self.X + u_array[self.dofs]  # the current state (a model may be solved before contact is added)
@@ -86,7 +86,7 @@ class Contact:
         worst = msh.comm.allgather((float(gap.min()) if len(gap) else np.inf,
                                     x[np.argmin(gap)].tolist() if len(gap) else None))
         g_min, where = min(worst, key=lambda w: w[0])
-        if g_min < -1e-6 * fem._size():
+        if g_min < -1e-6 * fem.size:
             raise ParameterError(f"the body starts inside obstacle {self.name!r}: a boundary point at "
                                  f"{np.round(where, 6).tolist()} m is {-g_min:.3g} m deep; move the obstacle "
                                  "or the body so that they only touch")

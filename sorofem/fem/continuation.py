@@ -100,9 +100,9 @@ class ArcLength:
     def load_vector(self, solver):
         """:math:`\\partial R/\\partial\\lambda` at the current state (difference quotient of the lifted
         residual, Dirichlet rows included)."""
-        self.fem._set_loads(self.lam + self.eps)
+        self.fem.set_load_level(self.lam + self.eps)
         q = solver.assemble_residual().copy()
-        self.fem._set_loads(self.lam)
+        self.fem.set_load_level(self.lam)
         q.axpy(-1.0, solver.assemble_residual())
         q.scale(1.0 / self.eps)
         return q
@@ -121,7 +121,7 @@ class ArcLength:
     def set(self, lam):
         """Put the load factor at ``lam`` (every load follows)."""
         self.lam = float(lam)
-        return self.fem._set_loads(self.lam)
+        return self.fem.set_load_level(self.lam)
 
     def update(self, dp):
         self.set(self.lam + dp)
@@ -135,7 +135,7 @@ def _weight(fem, W):
     import dolfinx.fem
 
     f = dolfinx.fem.Function(W)
-    if fem._split:
+    if fem.mixed_state:
         f.x.array[np.asarray(W.sub(0).collapse()[1])] = 1.0
     else:
         f.x.array[:] = 1.0
@@ -199,17 +199,17 @@ def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, m
     if branch_switch and not monitor_stability:
         raise ParameterError("branch_switch finds the bifurcation with the stability monitor: pass "
                              "monitor_stability=True too")
-    if fem._contacts:
+    if fem.contacts:
         raise ParameterError("path following with contact is not supported (the contact's friction history is "
                              "committed per load step); use Fem.solve")
-    b = fem._built or fem._build()
-    fem._set_ramp(True)
-    x = _dolfinx.petsc_vec(b["w"])
-    controls = [con for _, _, con in b["controls"]]
-    newton = fem._newton(b["R"], b["J"], max_iterations)
-    traj = fem._trajectory("load")
+    b = fem.forms
+    fem.use_ramps(True)
+    x = _dolfinx.petsc_vec(b.state)
+    controls = [c.constraint for c in b.volume_controls]
+    newton = fem.newton_solver(b.residual, b.jacobian, max_iterations)
+    traj = fem.new_trajectory("load")
     traj.metadata.update(path="pseudo-arc-length", critical_points=[])
-    weight = _weight(fem, b["W"])
+    weight = _weight(fem, b.space)
     tmp = weight.duplicate()
     arc = ArcLength(fem, weight, 1.0, 1e-6 * t_end)
     try:
@@ -218,8 +218,8 @@ def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, m
         if not out.converged:
             raise ConvergenceError(f"the initial state (t = 0) did not converge: {out.reason}. Check that the "
                                    "supports prevent rigid motion and that the loads at t = 0 are reasonable")
-        fem._record(traj, 0.0, out.iterations, inputs, newton, monitor_stability)
-        for con, (_, load, _) in zip(controls, b["controls"]):   # volume targets move with the load factor
+        fem.record(traj, 0.0, out.iterations, inputs, newton, monitor_stability)
+        for con, (_, load, _) in zip(controls, b.volume_controls):   # volume targets move with the load factor
             con.target_rate = lambda other, load=load: arc.rate(load) if other is arc else 0.0
         u_t = _initial_tangent(newton, arc, controls)
         s_u = math.sqrt(max(_wdot(u_t, u_t, weight, tmp), 0.0))
@@ -256,8 +256,8 @@ def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, m
 
         def accept(s, ds, out):
             lam = arc.lam
-            inputs = fem._set_loads(lam)
-            fem._record(traj, lam, out.iterations, inputs, newton, monitor_stability)
+            inputs = fem.set_load_level(lam)
+            fem.record(traj, lam, out.iterations, inputs, newton, monitor_stability)
             d = x.copy()
             d.axpy(-1.0, state["x"])
             dl = lam - state["lam"]

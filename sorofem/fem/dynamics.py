@@ -81,11 +81,11 @@ def amplification_matrix(integrator, omega_dt, xi=0.0):
 
 def _displacement_part(fem, f):
     import ufl
-    return ufl.split(f)[0] if fem._split else f
+    return ufl.split(f)[0] if fem.mixed_state else f
 
 
 def simulate(fem, t_end, dt, scheme="generalized_alpha", rho_inf=0.8, beta=0.25, gamma=0.5, rayleigh=(0.0, 0.0),
-             velocity=None, max_step=None, min_step=None, max_iterations=25, record_every=1, progress=False):
+             velocity=None, max_step=None, min_step=None, max_iterations=25, record_every=1, progress=None):
     """Time integration of ``fem`` from its current state; see :meth:`sorofem.fem.Fem.simulate`."""
     import time as _time
 
@@ -95,11 +95,12 @@ def simulate(fem, t_end, dt, scheme="generalized_alpha", rho_inf=0.8, beta=0.25,
     from petsc4py import PETSc
 
     from ..errors import ConvergenceError
+    from ..io import Progress
     from .stepping import march
 
     if not (np.isfinite(t_end) and t_end > 0 and np.isfinite(dt) and dt > 0):
         raise ParameterError(f"t_end and dt must be positive, got t_end={t_end}, dt={dt}")
-    if fem._split:
+    if fem.mixed_state:
         raise ParameterError("dynamics uses the displacement formulation: build the Fem with mixed=False (degree=2 "
                              "and nu <= 0.49 keep locking small) and formulation 'plane_strain', 'axisymmetric' or "
                              "'3d'; fem.eigen() gives the vibration modes of the mixed formulation")
@@ -107,9 +108,9 @@ def simulate(fem, t_end, dt, scheme="generalized_alpha", rho_inf=0.8, beta=0.25,
     if alpha_M < 0 or alpha_K < 0:
         raise ParameterError(f"Rayleigh coefficients must be >= 0, got {rayleigh}")
     integ = TimeIntegrator(scheme, rho_inf, beta, gamma)
-    b = fem._built or fem._build()
-    fem._set_ramp(False)  # numbers are constant loads in time
-    W, w, wt, dx = b["W"], b["w"], b["kin"].weight, b["dx"]
+    b = fem.forms
+    fem.use_ramps(False)  # numbers are constant loads in time
+    W, w, wt, dx = b.space, b.state, b.kinematics.weight, b.dx
     w_n, v_n, a_n = (dolfinx.fem.Function(W) for _ in range(3))
     w_n.x.array[:] = w.x.array
     if velocity is not None:
@@ -129,14 +130,14 @@ def simulate(fem, t_end, dt, scheme="generalized_alpha", rho_inf=0.8, beta=0.25,
     w_mid = (1 - af) * w + af * w_n
     test = ufl.TestFunction(W)
     disp = lambda f: _displacement_part(fem, f)  # noqa: E731
-    rho = [mat.density for _, mat in fem._materials]
+    rho = [mat.density for _, mat in fem.materials]
     inertia = sum(r * ufl.dot(disp(a_mid), disp(test)) * wt * dx(k) for k, r in enumerate(rho))
-    residual = ufl.replace(b["residual_ufl"], {w: w_mid}) + inertia
+    residual = ufl.replace(b.residual_ufl, {w: w_mid}) + inertia
     if alpha_M:
         residual += alpha_M * sum(r * ufl.dot(disp(v_mid), disp(test)) * wt * dx(k) for k, r in enumerate(rho))
     if alpha_K:
         direction = dolfinx.fem.Function(W)
-        dK = ufl.algorithms.expand_derivatives(ufl.derivative(b["internal_ufl"], w, direction))
+        dK = ufl.algorithms.expand_derivatives(ufl.derivative(b.internal_ufl, w, direction))
         residual += alpha_K * ufl.replace(dK, {w: w_mid, direction: v_mid})
     R = dolfinx.fem.form(residual)
     J = dolfinx.fem.form(ufl.derivative(residual, w, ufl.TrialFunction(W)))
@@ -144,15 +145,15 @@ def simulate(fem, t_end, dt, scheme="generalized_alpha", rho_inf=0.8, beta=0.25,
     kinetic = dolfinx.fem.form(sum(0.5 * r * ufl.dot(disp(v_now), disp(v_now)) * wt * dx(k) for k, r in enumerate(rho)))
 
     # initial acceleration: M a_0 = -R(u_0, t = 0)
-    newton = fem._newton(R, J, max_iterations)
-    static = fem._newton(b["R"], b["J"], max_iterations)
-    fem._set_loads(0.0)
+    newton = fem.newton_solver(R, J, max_iterations)
+    static = fem.newton_solver(b.residual, b.jacobian, max_iterations)
+    fem.set_load_level(0.0)
     rhs = static.assemble_residual(lift=False)
     rhs.scale(-1.0)
-    _dolfinx.set_bc(rhs, b["bcs"], alpha=0.0)
+    _dolfinx.set_bc(rhs, list(b.bcs), alpha=0.0)
     M = dolfinx.fem.petsc.assemble_matrix(
         dolfinx.fem.form(sum(r * ufl.dot(ufl.TrialFunction(W), test) * wt * dx(k) for k, r in enumerate(rho))),
-        bcs=b["bcs"], diagonal=1.0)
+        bcs=list(b.bcs), diagonal=1.0)
     M.assemble()
     ksp = PETSc.KSP().create(fem.mesh.comm)
     ksp.setOperators(M)
@@ -167,21 +168,21 @@ def simulate(fem, t_end, dt, scheme="generalized_alpha", rho_inf=0.8, beta=0.25,
     if not np.all(np.isfinite(a_n.x.array)):
         raise ConvergenceError("the initial acceleration is not finite: check the supports and the initial loads")
 
-    traj = fem._trajectory("time")
+    traj = fem.new_trajectory("time")
     v_now.x.array[:] = v_n.x.array
 
     def energy_now():
         return fem.mesh.comm.allreduce(dolfinx.fem.assemble_scalar(kinetic))
 
-    fem._record(traj, 0.0, 0, fem._set_loads(0.0), newton, kinetic=energy_now())
-    fem._commit_contacts()   # after recording: the reported friction is that of the step's slip
+    fem.record(traj, 0.0, 0, fem.set_load_level(0.0), newton, kinetic=energy_now())
+    fem.commit_contacts()   # after recording: the reported friction is that of the step's slip
     x = w.x.array
     state = {"count": 0}
 
     def attempt(t, dt_step):
         dtc.value = dt_step
-        state["inputs"] = fem._set_loads(t + (1 - af) * dt_step)  # loads at the generalized midpoint
-        fem._set_bcs(t + dt_step)
+        state["inputs"] = fem.set_load_level(t + (1 - af) * dt_step)  # loads at the generalized midpoint
+        fem.set_prescribed_displacements(t + dt_step)
         # predictor u_{n+1} = u_n (x holds it): robust for steps far beyond the resolved periods, where the
         # constant-acceleration predictor overshoots by (omega dt)^2
         return newton.solve()
@@ -193,15 +194,15 @@ def simulate(fem, t_end, dt, scheme="generalized_alpha", rho_inf=0.8, beta=0.25,
         state["count"] += 1
         if state["count"] % int(record_every) == 0 or t >= t_end - 1e-12 * t_end:
             v_now.x.array[:] = v1
-            fem._record(traj, t, out.iterations, state["inputs"], newton, kinetic=energy_now())
-        fem._commit_contacts()   # after recording: the reported friction is that of the step's slip
-        if progress and fem.mesh.comm.rank == 0:
-            print(f"  t = {t:.4g} s ({out.iterations} Newton iterations)", flush=True)
+            fem.record(traj, t, out.iterations, state["inputs"], newton, kinetic=energy_now())
+        fem.commit_contacts()   # after recording: the reported friction is that of the step's slip
+        bar.to(t, newton=out.iterations)
 
     def reject(t, dt_step, out):
         x[:] = w_n.x.array
 
     wall = _time.perf_counter()
+    bar = Progress(t_end, "Fem.simulate", progress, fem.mesh.comm, unit="s")
     try:
         march(0.0, t_end, float(dt), float(min_step or dt / 1024), float(max_step or dt), attempt, accept, reject,
               "a smaller time step, generalized-alpha with rho_inf < 1 to damp unresolved frequencies, or Rayleigh "
@@ -210,6 +211,7 @@ def simulate(fem, t_end, dt, scheme="generalized_alpha", rho_inf=0.8, beta=0.25,
         e.trajectory = traj
         raise
     finally:
+        bar.close()
         newton.destroy()
     traj.metadata.update(wall_time_s=_time.perf_counter() - wall, scheme=scheme, rho_inf=rho_inf,
                          rayleigh=[alpha_M, alpha_K])

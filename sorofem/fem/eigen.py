@@ -55,19 +55,19 @@ def eigenmodes(fem, n=6, shift=0.0, tol=1e-10):
 
     if int(n) < 1:
         raise ParameterError(f"n must be >= 1, got {n}")
-    b = fem._built or fem._build()
-    W, kin = b["W"], b["kin"]
+    b = fem.forms
+    W, kin = b.space, b.kinematics
     u, v = ufl.TrialFunction(W), ufl.TestFunction(W)
-    if fem._split:  # the displacement part; the second field carries no inertia
+    if fem.mixed_state:  # the displacement part; the second field carries no inertia
         u, v = ufl.split(u)[0], ufl.split(v)[0]
     md = {"quadrature_degree": fem.quadrature_degree}
-    dx = ufl.Measure("dx", domain=fem.mesh.dolfinx, subdomain_data=b["cell_tags"], metadata=md)
-    mass = sum(mat.density * ufl.dot(u, v) * kin.weight * dx(k) for k, (_, mat) in enumerate(fem._materials))
-    K = dolfinx.fem.petsc.assemble_matrix(b["J"], bcs=b["bcs"], diagonal=1.0)
+    dx = ufl.Measure("dx", domain=fem.mesh.dolfinx, subdomain_data=b.cell_tags, metadata=md)
+    mass = sum(mat.density * ufl.dot(u, v) * kin.weight * dx(k) for k, (_, mat) in enumerate(fem.materials))
+    K = dolfinx.fem.petsc.assemble_matrix(b.jacobian, bcs=list(b.bcs), diagonal=1.0)
     K.assemble()
-    M = dolfinx.fem.petsc.assemble_matrix(dolfinx.fem.form(mass), bcs=b["bcs"], diagonal=0.0)
+    M = dolfinx.fem.petsc.assemble_matrix(dolfinx.fem.form(mass), bcs=list(b.bcs), diagonal=0.0)
     M.assemble()
-    symmetric = not fem._pressures
+    symmetric = not fem.pressure_regions
     eps = SLEPc.EPS().create(fem.mesh.comm)
     eps.setOperators(K, M)
     eps.setProblemType(SLEPc.EPS.ProblemType.GHEP if symmetric else SLEPc.EPS.ProblemType.GNHEP)
@@ -102,8 +102,8 @@ def eigenmodes(fem, n=6, shift=0.0, tol=1e-10):
     pairs = pairs[:n]
     shapes = []
     for _, f in pairs:
-        b["u1"].interpolate(f.sub(0).collapse() if fem._split else f)
-        s = b["gatherer"].gather_function(b["u1"])
+        b.vertex_displacement.interpolate(f.sub(0).collapse() if fem.mixed_state else f)
+        s = b.gatherer.gather_function(b.vertex_displacement)
         if s is not None:
             s = s / max(np.abs(s).max(), 1e-300)
         shapes.append(s)

@@ -23,7 +23,7 @@ there (a nearly incompressible body becomes many times too stiff); building such
 ``formulation="plane_stress"`` adds the thickness strain as a discontinuous unknown field (see
 :mod:`sorofem.fem.kinematics`); results are per unit reference thickness.
 
-Loads depend on a parameter ``t`` marched from 0 to ``t_end`` by :meth:`Fem.solve`: a number ``a`` is applied
+Loads depend on a parameter ``t`` marched from 0 to ``load_level`` by :meth:`Fem.solve`: a number ``a`` is applied
 as :math:`a\\,t` (a ramp reaching ``a`` at ``t = 1``); a callable ``f`` is applied as ``f(t)``. In
 :meth:`Fem.simulate` ``t`` is time [s] and a number is applied as the constant ``a``.
 """
@@ -31,20 +31,25 @@ import logging
 import math
 import time as _time
 import warnings
+from dataclasses import dataclass
+from typing import Any, NamedTuple, Optional
 
 import numpy as np
 
 from .. import _dolfinx
 from .._jit import silence_compiler_logs
 from ..errors import ConvergenceError, MeshError, ParameterError
+from ..io import Progress
 from ..materials import Material
+from ..snapshots import input_name
 from ..units import standard_gravity
 from .kinematics import FORMULATIONS, Kinematics
 from .newton import NewtonSolver, VolumeConstraint
 from .stepping import march
 from .results import Trajectory, VertexGatherer
 
-__all__ = ["Fem", "LockingWarning"]
+__all__ = ["Fem", "FemForms", "LoadConstant", "VolumeControl", "LockingWarning", "pressure_term",
+           "traction_term", "spring_term", "gravity_term", "volume_term"]
 
 #: Poisson ratio from which displacement-only P1 elements warn of volumetric locking (bulk/shear modulus
 #: ratio ~100). The silicone presets' default 0.49 (ratio 50) stays below it.
@@ -109,6 +114,123 @@ class _Load:
         if not np.all(np.isfinite(v)):
             raise ParameterError(f"{self.name}: the function returned a non-finite value {v} at t={t}")
         return v
+
+
+class LoadConstant(NamedTuple):
+    """A load of the model and the DOLFINx ``Constant`` its value is written into at each load level."""
+
+    kind: str          # "pressure", "traction", "body" or "gravity"
+    region: Optional[str]
+    constant: Any
+    load: _Load
+
+
+class VolumeControl(NamedTuple):
+    """A cavity under volume control: the region, the added-volume load and its bordered constraint."""
+
+    region: str
+    load: _Load
+    constraint: VolumeConstraint
+
+
+@dataclass(frozen=True)
+class FemForms:
+    """The compiled model of a :class:`Fem` (built on first use, rebuilt after a change): spaces, state,
+    forms and the constants the loads are written into. Read it through :attr:`Fem.forms`; the fields are
+    DOLFINx/UFL objects (``space`` the FunctionSpace of the state, ``residual``/``jacobian`` compiled forms,
+    ``residual_ufl``/``internal_ufl`` the UFL residual with and without loads).
+
+    Attributes
+    ----------
+    space : dolfinx.fem.FunctionSpace
+        Space of the state (vector P1/P2, or mixed: displacement then pressure / thickness strain).
+    state : dolfinx.fem.Function
+        The current state; solvers write into it.
+    kinematics : Kinematics
+        F, the integration weight (:math:`2\\pi R` when axisymmetric) and the current area vector.
+    dx : ufl.Measure
+        Cell measure with the material markers (``dx(k)``: cells of the k-th material).
+    bcs : tuple of DirichletBC
+    prescribed : tuple of (tuple of Constant, _Load)
+        Prescribed displacements and the constants of their components [m].
+    load_constants : tuple of LoadConstant
+    volume_controls : tuple of VolumeControl
+    residual, jacobian : dolfinx.fem.Form
+        :math:`R(u; v)` and :math:`\\partial R/\\partial u`.
+    residual_ufl, internal_ufl : ufl.Form
+        The residual with loads and the internal-force part only.
+    energy : dolfinx.fem.Form
+        Strain energy [J] (2D: [J/m]).
+    volumes : dict name -> dolfinx.fem.Form
+        Cavity volumes [m^3] (2D: [m^2]).
+    vertex_space, vertex_displacement, gatherer
+        P1 vector space, the displacement interpolated on it and the gatherer of vertex values to rank 0.
+    support_dofs : dict region -> {component: owned dofs}
+    growth : dolfinx.fem.Function
+        Volume growth factor per cell (DG0) [-].
+    expansions : tuple of (region, cells, _Load)
+    von_mises : dolfinx.fem.Function
+        DG0 von Mises stress [Pa]; ``stress_expressions`` fill it per material on ``material_cells``.
+    """
+
+    space: Any
+    state: Any
+    kinematics: Kinematics
+    dx: Any
+    cell_tags: Any
+    bcs: tuple
+    prescribed: tuple
+    load_constants: tuple
+    volume_controls: tuple
+    residual: Any
+    jacobian: Any
+    residual_ufl: Any
+    internal_ufl: Any
+    energy: Any
+    volumes: dict
+    vertex_space: Any
+    vertex_displacement: Any
+    gatherer: Any
+    support_dofs: dict
+    growth: Any
+    expansions: tuple
+    von_mises: Any
+    stress_expressions: tuple
+    material_cells: tuple
+
+
+# ---------------------------------------------------------------------------------------------- load terms
+def pressure_term(kin, u, v, pressure, ds):
+    """Follower pressure [Pa] on the current area (Nanson): :math:`\\int p\\,(J F^{-T} N)\\cdot v\\,w\\,dA`
+    (``v`` embedded in 3D, :meth:`Kinematics.embed`)."""
+    import ufl
+    return pressure * ufl.dot(kin.current_area_vector(u), v) * kin.weight * ds
+
+
+def traction_term(kin, traction, v, measure):
+    """Dead load: :math:`\\int t\\cdot v\\,w` over ``measure`` (a traction [Pa] on ``ds``, a force density
+    [N/m^3] on ``dx``)."""
+    import ufl
+    return ufl.dot(traction, v) * kin.weight * measure
+
+
+def spring_term(kin, stiffness, u, v, ds):
+    """Springs to ground: :math:`\\int k\\, u\\cdot v\\,w\\,dA`, ``stiffness`` k [N/m^3]."""
+    import ufl
+    return stiffness * ufl.dot(u, v) * kin.weight * ds
+
+
+def gravity_term(kin, acceleration, v, dx, materials):
+    """Weight: :math:`\\sum_k \\int_{\\Omega_k} \\rho_k\\, g\\cdot v\\,w\\,dX` (``dx(k)``: cells of material k)."""
+    import ufl
+    return sum(mat.density * ufl.dot(acceleration, v) * kin.weight * dx(k) for k, mat in enumerate(materials))
+
+
+def volume_term(kin, u, ds):
+    """Enclosed volume of a cavity from its boundary: :math:`-\\frac1d \\oint x\\cdot (J F^{-T} N)\\,w\\,dA`
+    (the outward normal of the body points into the cavity) [m^3; m^2 per unit depth in 2D]."""
+    import ufl
+    return -ufl.dot(kin.current_position(u), kin.current_area_vector(u)) / kin.dimension * kin.weight * ds
 
 
 class Fem:
@@ -180,7 +302,8 @@ class Fem:
         self._contacts = []                                          # Contact
         self._body_forces = []                                       # (_Load of force density [N/m^3])
         self._gravity = None                                         # _Load of acceleration [m/s^2]
-        self._built = None
+        self._forms = None                                           # FemForms, built on first use
+        self._load_level = 0.0                                       # t of the loads now applied
 
     # ------------------------------------------------------------------------------------------ builders
     def _check_material(self, material):
@@ -203,9 +326,9 @@ class Fem:
 
     def _changed(self):
         """A load or region was added: forms are rebuilt on the next solve, starting from the current state."""
-        if self._built is not None:
-            self._carry = self._built["w"].x.array.copy()
-        self._built = None
+        if self._forms is not None:
+            self._carry = self._forms.state.x.array.copy()
+        self._forms = None
         return self
 
     def add_material(self, region, material):
@@ -251,11 +374,19 @@ class Fem:
         self._volumes.append((region, _Load(f"added volume in {region!r}", added_volume, ())))
         return self._changed()
 
-    def add_force(self, region, traction):
-        """Dead traction [Pa = N/m^2 of reference area] on ``region``: a vector (ramped) or ``traction(t)``."""
+    def add_traction(self, region, traction):
+        """Dead traction [Pa = N/m^2 of reference area] on the surface ``region``: a vector (ramped) or
+        ``traction(t)``. (A force per area, unlike ``soroshapes.Shapes.add_force``, a generalized force.)"""
         self._region(region, "facets")
         self._tractions.append((region, _Load(f"traction on {region!r}", traction, (self.gdim,))))
         return self._changed()
+
+    def add_force(self, region, traction):
+        """Deprecated name of :meth:`add_traction` (the load is a traction [Pa], not a force): warns, then
+        adds the traction."""
+        warnings.warn("Fem.add_force is deprecated: the load is a traction [Pa]; use Fem.add_traction(region, "
+                      "traction)", DeprecationWarning, stacklevel=2)
+        return self.add_traction(region, traction)
 
     def add_body_force(self, force_density):
         """Dead body force [N/m^3] on the whole body: a vector (ramped) or ``force_density(t)``."""
@@ -405,70 +536,72 @@ class Fem:
             stress_exprs.append(ufl.sqrt(1.5 * ufl.inner(dev, dev)))
 
         # facets: one marker for every region that carries a load, support or volume
-        load_regions = []
-        for region, *_ in self._pressures + self._tractions + self._springs + self._volumes:
-            load_regions.append(region)
-        load_regions = list(dict.fromkeys(load_regions))
+        load_regions = list(dict.fromkeys(region for region, *_ in self._pressures + self._tractions + self._springs
+                                          + self._volumes))
         if load_regions:
             ftags, fids = self._markers(load_regions, fdim)
             ds = ufl.Measure("ds", domain=msh, subdomain_data=ftags, metadata=md)
         v3 = kin.embed(v)
-        consts = {}
+        terms = []   # LoadConstant: the constants that the load values are written into
+
+        def constant(kind, region, load, shape=()):
+            c = dolfinx.fem.Constant(msh, np.zeros(shape) if shape else 0.0)
+            terms.append(LoadConstant(kind, region, c, load))
+            return c
+
         for region, load in self._pressures:
-            c = consts[("pressure", region, id(load))] = (dolfinx.fem.Constant(msh, 0.0), load)
-            residual += c[0] * ufl.dot(kin.current_area_vector(u), v3) * wt * ds(fids[region])
+            residual += pressure_term(kin, u, v3, constant("pressure", region, load), ds(fids[region]))
         d = kin.dimension
-        def volume_expr(name, measure=None):
-            """Enclosed volume -1/d int x.n da of the cavity bounded by ``name`` (a UFL form)."""
-            if measure is None:  # a cavity without load: its own tags, so it adds nothing to the residual's
+
+        def cavity_volume(name, measure=None):
+            """Enclosed volume of the cavity bounded by ``name``; a cavity without load is integrated over
+            its own tags, so it adds nothing to the residual's."""
+            if measure is None:
                 measure = ufl.ds(domain=msh, subdomain_data=self.mesh.meshtags(name),
                                  subdomain_id=self.mesh.regions[name], metadata=md)
-            return -ufl.dot(kin.current_position(u), kin.current_area_vector(u)) / d * wt * measure
+            return volume_term(kin, u, measure)
+
         controls = []
         for region, load in self._volumes:
             pc = dolfinx.fem.Constant(msh, 0.0)
-            unit = ufl.dot(kin.current_area_vector(u), v3) * wt * ds(fids[region])
+            unit = pressure_term(kin, u, v3, 1.0, ds(fids[region]))
             residual += pc * unit
-            vexpr = volume_expr(region, ds(fids[region]))
-            controls.append((region, load, VolumeConstraint(
+            vexpr = cavity_volume(region, ds(fids[region]))
+            controls.append(VolumeControl(region, load, VolumeConstraint(
                 pressure=pc, load=dolfinx.fem.form(unit), value=dolfinx.fem.form(vexpr),
                 gradient=dolfinx.fem.form(ufl.derivative(vexpr, w, ufl.TestFunction(W))))))
         for region, load in self._tractions:
-            c = consts[("traction", region, id(load))] = (dolfinx.fem.Constant(msh, np.zeros(self.gdim)), load)
-            residual -= ufl.dot(c[0], v) * wt * ds(fids[region])
+            residual -= traction_term(kin, constant("traction", region, load, (self.gdim,)), v, ds(fids[region]))
         for region, k in self._springs:
-            residual += k * ufl.dot(u, v) * wt * ds(fids[region])
+            residual += spring_term(kin, k, u, v, ds(fids[region]))
         for load in self._body_forces:
-            c = consts[("body", id(load))] = (dolfinx.fem.Constant(msh, np.zeros(self.gdim)), load)
-            residual -= ufl.dot(c[0], v) * wt * dx
+            residual -= traction_term(kin, constant("body", None, load, (self.gdim,)), v, dx)
         if self._gravity is not None:
-            g = dolfinx.fem.Constant(msh, np.zeros(self.gdim))
-            consts[("gravity",)] = (g, self._gravity)
-            for k, (_, mat) in enumerate(self._materials):
-                residual -= mat.density * ufl.dot(g, v) * wt * dx(k)
+            residual -= gravity_term(kin, constant("gravity", None, self._gravity, (self.gdim,)), v, dx,
+                                     [mat for _, mat in self._materials])
 
         # Dirichlet conditions
         Wu = W.sub(0) if self._split else W
-        bcs, bc_consts, support_dofs = [], [], {}
+        bcs, prescribed, support_dofs = [], [], {}
         fixed = [(r, comps, None) for r, comps in self._supports] + list(self._displacements)
+        axis = None
         if self.formulation == "axisymmetric":
             axis = dolfinx.mesh.locate_entities_boundary(msh, fdim, lambda x: np.abs(x[0]) < 1e-9 * self._size())
             if msh.comm.allreduce(len(axis)):   # collective on every rank (no short-circuit: it hung on 2 ranks)
-                fixed.append(("__axis__", [0], None))
-                self._axis_facets = axis
+                fixed.append((None, [0], None))
         for region, comps, load in fixed:
-            facets = self._axis_facets if region == "__axis__" else self.mesh.facets(region)
+            facets = axis if region is None else self.mesh.facets(region)
             consts_here = []
-            for j, comp in enumerate(comps):
+            for comp in comps:
                 sub = Wu.sub(comp)
                 dofs = dolfinx.fem.locate_dofs_topological(sub, fdim, facets)
                 c = dolfinx.fem.Constant(msh, 0.0)
                 bcs.append(dolfinx.fem.dirichletbc(c, dofs, sub))
                 consts_here.append(c)
-                if region != "__axis__":
+                if region is not None:
                     support_dofs.setdefault(region, {}).setdefault(comp, []).append(dofs)
             if load is not None:
-                bc_consts.append((consts_here, load))
+                prescribed.append((tuple(consts_here), load))
 
         jacobian = ufl.derivative(residual, w, ufl.TrialFunction(W))
         R_form, J_form = dolfinx.fem.form(residual), dolfinx.fem.form(jacobian)
@@ -479,13 +612,14 @@ class Fem:
                                            for k, (_, mat) in enumerate(self._materials)))
         DG0 = growth.function_space
         pts = _dolfinx.interpolation_points(DG0)
-        material_cells = [np.flatnonzero(marker == k).astype(np.int32) for k in range(len(self._materials))]
+        material_cells = tuple(np.flatnonzero(marker == k).astype(np.int32) for k in range(len(self._materials)))
         von_mises = dolfinx.fem.Function(DG0, name="von_mises")
-        stress_exprs = [dolfinx.fem.Expression(e, pts) for e in stress_exprs]
-        expansion_cells = [(self.mesh.cells(region), load) for region, load in self._expansions]
-        volume_forms = {name: dolfinx.fem.form(volume_expr(name))
+        stress_exprs = tuple(dolfinx.fem.Expression(e, pts) for e in stress_exprs)
+        expansions = tuple((region, self.mesh.cells(region), load) for region, load in self._expansions)
+        volume_forms = {name: dolfinx.fem.form(cavity_volume(name))
                         for name in dict.fromkeys(list(self.mesh.cavities) + [r for r, _ in self._volumes])}
-        for region, _, con in controls:  # reference volume and a tolerance scale
+        for control in controls:  # reference volume and a tolerance scale
+            con = control.constraint
             con.reference = self._scalar(con.value)
             con.scale = max(abs(con.reference), self._size() ** d * 1e-6)
         V1 = _dolfinx.function_space(msh, "Lagrange", 1, "vector")
@@ -503,48 +637,59 @@ class Fem:
             tendon.setup(msh, W, owned, bcs)
         for contact in self._contacts:
             contact.setup(self, W, wt, w.x.array)
-        self._built = dict(W=W, w=w, kin=kin, bcs=bcs, cell_tags=ctags, bc_consts=bc_consts, consts=consts,
-                           R=R_form, J=J_form, energy=energy_form, volumes=volume_forms, V1=V1, u1=u1,
-                           gatherer=gatherer, support_dofs=support_dofs, controls=controls, growth=growth,
-                           expansion_cells=expansion_cells, von_mises=von_mises, stress_exprs=stress_exprs,
-                           material_cells=material_cells, residual_ufl=residual, internal_ufl=internal, dx=dx)
-        return self._built
+        self._forms = FemForms(
+            space=W, state=w, kinematics=kin, dx=dx, cell_tags=ctags, bcs=tuple(bcs), prescribed=tuple(prescribed),
+            load_constants=tuple(terms), volume_controls=tuple(controls), residual=R_form, jacobian=J_form,
+            residual_ufl=residual, internal_ufl=internal, energy=energy_form, volumes=volume_forms,
+            vertex_space=V1, vertex_displacement=u1, gatherer=gatherer, support_dofs=support_dofs, growth=growth,
+            expansions=expansions, von_mises=von_mises, stress_expressions=stress_exprs,
+            material_cells=material_cells)
+        return self._forms
 
     def _size(self):
         lo, hi = self.mesh.bounds
         return float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
 
-    def _set_loads(self, t):
-        b = self._built
+    def set_load_level(self, t):
+        """Write every load's value at load level (or time) ``t`` into the forms; returns the applied inputs by
+        name (:func:`sorofem.snapshots.input_name`: ``pressure/<region>`` [Pa], ``tension/<k>`` [N],
+        ``expansion/<region>`` [-], ``added_volume/<region>`` [m^3]). Used by the solvers."""
+        b = self.forms
         values = {}
-        for (kind, *rest), (const, load) in b["consts"].items():
-            v = load(t)
-            const.value = v
-            if kind == "pressure":
-                values[f"pressure/{rest[0]}"] = float(v)
-        b["t"] = t
+        for term in b.load_constants:
+            v = term.load(t)
+            term.constant.value = v
+            if term.kind == "pressure":
+                values[input_name("pressure", term.region)] = float(v)
+        self._load_level = t
         for k, tendon in enumerate(self._tendons):
-            values[f"tension/{k}"] = float(tendon.tension(t))
-        if b["expansion_cells"]:
-            b["growth"].x.array[:] = 1.0
-            for cells, load in b["expansion_cells"]:
+            values[input_name("tension", k)] = float(tendon.tension(t))
+        if b.expansions:
+            b.growth.x.array[:] = 1.0
+            for region, cells, load in b.expansions:
                 theta = 1.0 + float(load(t))
                 if theta <= 0:
                     raise ParameterError(f"{load.name}: volumetric strain {theta - 1:.3g} at t={t} shrinks the "
                                          "volume to nothing; it must stay > -1")
-                b["growth"].x.array[cells] = theta
-                values[f"expansion/{load.name.split(chr(39))[1]}"] = theta - 1.0
-        for region, load, con in b["controls"]:
-            con.target = con.reference + float(load(t))
-            values[f"added_volume/{region}"] = float(load(t))
-        self._set_bcs(t)
+                b.growth.x.array[cells] = theta
+                values[input_name("expansion", region)] = theta - 1.0
+        for control in b.volume_controls:
+            added = float(control.load(t))
+            control.constraint.target = control.constraint.reference + added
+            values[input_name("added_volume", control.region)] = added
+        self.set_prescribed_displacements(t)
         return values
 
-    def _set_bcs(self, t):
-        """Set the prescribed displacements to their values at ``t``."""
-        for consts_here, load in self._built["bc_consts"]:
+    def set_prescribed_displacements(self, t):
+        """Set the prescribed displacements [m] to their values at ``t``."""
+        for consts_here, load in self.forms.prescribed:
             for c, vi in zip(consts_here, np.atleast_1d(load(t))):
                 c.value = float(vi)
+
+    @property
+    def load_level(self):
+        """The load level (or time [s] in dynamics) of the loads now applied."""
+        return self._load_level
 
     # ------------------------------------------------------------------------------------------ outputs
     @property
@@ -555,10 +700,47 @@ class Fem:
         return tuple(self._contacts)
 
     @property
+    def forms(self):
+        """The compiled model (:class:`FemForms`: space, state, forms), built now if a change made it stale."""
+        return self._forms or self._build()
+
+    @property
+    def function_space(self):
+        """The DOLFINx FunctionSpace of the state (mixed in the mixed and plane-stress formulations)."""
+        return self.forms.space
+
+    @property
+    def num_dofs(self):
+        """Number of unknowns of the model (global, every field) [-]."""
+        imap = self.forms.space.dofmap
+        return imap.index_map.size_global * imap.index_map_bs
+
+    @property
+    def materials(self):
+        """((region or None, Material), ...): the material of every cell, later entries win on their region."""
+        return tuple(self._materials)
+
+    @property
+    def pressure_regions(self):
+        """Names of the regions under a prescribed follower pressure (:meth:`add_pressure`)."""
+        return tuple(r for r, _ in self._pressures)
+
+    @property
+    def mixed_state(self):
+        """Whether the state is a mixed function (displacement, then pressure or thickness strain): mixed
+        or plane-stress formulation."""
+        return self._split
+
+    @property
+    def size(self):
+        """Diagonal of the mesh's bounding box [m]: the length scale of tolerances and penalties."""
+        return self._size()
+
+    @property
     def displacement(self):
         """The current displacement as a DOLFINx Function (collapsed copy in the mixed formulation)."""
-        b = self._built or self._build()
-        return b["w"].sub(0).collapse() if self._split else b["w"]
+        b = self.forms
+        return b.state.sub(0).collapse() if self._split else b.state
 
     def _scalar(self, form):
         import dolfinx.fem
@@ -567,34 +749,38 @@ class Fem:
         return self.mesh.comm.allreduce(dolfinx.fem.assemble_scalar(form), op=MPI.SUM)
 
     def _reactions(self, newton):
-        b = self._built
         vec = newton.assemble_residual(lift=False)
         arr = vec.getArray(readonly=True)
         out = {}
-        for region, comps in b["support_dofs"].items():
+        for region, comps in self.forms.support_dofs.items():
             f = np.zeros(self.gdim)
             for comp, dofs in comps.items():
                 f[comp] = self.mesh.comm.allreduce(float(arr[dofs].sum()))
             out[region] = f
         return out
 
-    def _record(self, traj, t, iterations, inputs, newton, monitor=False, kinetic=0.0):
-        b = self._built
-        if monitor:
+    def record(self, traj, t, iterations, inputs, newton, monitor_stability=False, kinetic=0.0):
+        """Append the converged state at ``t`` to ``traj`` (a :meth:`new_trajectory`): vertex displacements,
+        ``inputs`` (from :meth:`set_load_level`) with the pressures of volume controls, cavity volumes,
+        reactions from ``newton``'s residual, von Mises stress, ``kinetic`` energy [J], and with
+        ``monitor_stability`` the lowest eigenvalue. Collective."""
+        b = self.forms
+        if monitor_stability:
             traj.lowest_eigenvalue.append(self._lowest_eigenvalue(traj.lowest_eigenvalue))
-        b["u1"].interpolate(self.displacement)
-        u_vert = b["gatherer"].gather_function(b["u1"])
-        volumes = {k: self._scalar(f) for k, f in b["volumes"].items()}
-        inputs = {**inputs, **{f"pressure/{r}": float(con.pressure.value) for r, _, con in b["controls"]}}
+        b.vertex_displacement.interpolate(self.displacement)
+        u_vert = b.gatherer.gather_function(b.vertex_displacement)
+        volumes = {k: self._scalar(f) for k, f in b.volumes.items()}
+        inputs = {**inputs, **{input_name("pressure", c.region): float(c.constraint.pressure.value)
+                               for c in b.volume_controls}}
         reactions = self._reactions(newton)
         areas = {}
         for contact in self._contacts:
-            reactions[contact.name], areas[contact.name] = contact.totals(b["w"].x.array, b["t"])
+            reactions[contact.name], areas[contact.name] = contact.totals(b.state.x.array, self._load_level)
         vm = self.von_mises()
         n_owned = self.mesh.dolfinx.topology.index_map(self.mesh.dolfinx.topology.dim).size_local
         vm_cells = self.mesh.comm.gather(vm.x.array[:n_owned].copy(), root=0)
         vm_cells = np.concatenate(vm_cells) if vm_cells is not None else None
-        traj.append(t, u_vert, iterations, self._scalar(b["energy"]), inputs, volumes, reactions,
+        traj.append(t, u_vert, iterations, self._scalar(b.energy), inputs, volumes, reactions,
                     contact_areas=areas,
                     von_mises=vm_cells, kinetic=kinetic, max_von_mises=self.mesh.comm.allreduce(float(vm.x.array[:n_owned].max(initial=0.0)),
                                                                               op=_max_op()))
@@ -603,9 +789,9 @@ class Fem:
         """Von Mises equivalent of the Cauchy stress [Pa] at the current state, one value per cell (DG0
         Function): :math:`\\sqrt{3/2\\, \\mathrm{dev}\\,\\sigma : \\mathrm{dev}\\,\\sigma}`,
         :math:`\\sigma = J^{-1} P F^T` (3D stress, including the out-of-plane component in plane strain)."""
-        b = self._built or self._build()
-        vm = b["von_mises"]
-        for expr, cells in zip(b["stress_exprs"], b["material_cells"]):
+        b = self.forms
+        vm = b.von_mises
+        for expr, cells in zip(b.stress_expressions, b.material_cells):
             if len(cells):
                 vm.interpolate(expr, cells)
         vm.x.scatter_forward()
@@ -651,9 +837,9 @@ class Fem:
         return msh.comm.allreduce(vals, op=MPI.SUM) / hits[:, None]
 
     # ------------------------------------------------------------------------------------------ solve
-    def solve(self, t_end=1.0, steps=10, min_step=None, max_step=None, max_iterations=25, predictor=True,
-              monitor_stability=False, progress=False):
-        """March the load parameter from 0 to ``t_end`` in adaptive steps; return a :class:`Trajectory`.
+    def solve(self, load_level=1.0, steps=10, min_step=None, max_step=None, max_iterations=25, predictor=True,
+              monitor_stability=False, progress=None, *, t_end=None):
+        """March the load level from 0 to ``load_level`` in adaptive steps; return a :class:`Trajectory`.
 
         A step whose Newton iteration fails (no convergence in ``max_iterations``, a non-finite residual,
         a failed factorization) is undone and halved; an easy step (at most 4 iterations) lets the next one
@@ -662,42 +848,51 @@ class Fem:
 
         Parameters
         ----------
-        t_end : float
-            Final load parameter (or time for time-dependent loads) [-].
+        load_level : float
+            Final load level t [-]: a load given as a number ``a`` reaches ``a * load_level``; a callable
+            load ``f`` reaches ``f(load_level)``.
         steps : int
-            Requested number of steps: initial and largest step ``t_end / steps`` unless ``max_step`` is set.
+            Requested number of steps: initial and largest step ``load_level / steps`` unless ``max_step`` is set.
         min_step : float, optional
-            Smallest step before giving up (default ``t_end / steps / 1024``).
+            Smallest step before giving up (default ``load_level / steps / 1024``).
         predictor : bool
             Start each step from the linear extrapolation of the last two states.
         monitor_stability : bool
             After each converged step compute the lowest eigenvalue of :math:`K\\phi = \\lambda M\\phi`
             (:attr:`Trajectory.lowest_eigenvalue`, [1/s^2]); it crosses zero where the equilibrium
             loses stability (buckling, limit points).
-        progress : bool
-            Print one line per converged step (rank 0).
+        progress : bool, optional
+            Default: a progress bar when attached to a terminal, quiet otherwise; ``True``: also one line per
+            step when not on a terminal; ``False``: never (:class:`sorofem.io.Progress`, rank 0).
+        t_end : float, optional
+            Deprecated name of ``load_level`` (it is not a time): warns, then works as ``load_level``.
         """
         from petsc4py import PETSc
 
+        if t_end is not None:
+            warnings.warn("Fem.solve(t_end=...) is deprecated: the final load level is now called load_level "
+                          "(Fem.solve(load_level=...))", DeprecationWarning, stacklevel=2)
+            load_level = t_end
+        t_end = load_level
         if not (math.isfinite(t_end) and t_end > 0):
-            raise ParameterError(f"t_end must be positive, got {t_end}")
+            raise ParameterError(f"load_level must be positive, got {t_end}")
         if int(steps) < 1:
             raise ParameterError(f"steps must be >= 1, got {steps}")
-        b = self._built or self._build()
-        self._set_ramp(True)
+        b = self.forms
+        self.use_ramps(True)
         dt0 = t_end / int(steps)
-        x = _dolfinx.petsc_vec(b["w"])
-        controls = [con for _, _, con in b["controls"]]
-        newton = self._newton(b["R"], b["J"], max_iterations)
-        traj = self._trajectory("load")
-        inputs = self._set_loads(0.0)
+        x = _dolfinx.petsc_vec(b.state)
+        controls = [c.constraint for c in b.volume_controls]
+        newton = self.newton_solver(b.residual, b.jacobian, max_iterations)
+        traj = self.new_trajectory("load")
+        inputs = self.set_load_level(0.0)
         out = newton.solve()  # the initial state (loads at t = 0 may be non-zero for callables)
         if not out.converged:
             newton.destroy()
             raise ConvergenceError(f"the initial state (t = 0) did not converge: {out.reason}. Check that the "
                                    "supports prevent rigid motion and that the loads at t = 0 are reasonable")
-        self._record(traj, 0.0, out.iterations, inputs, newton, monitor_stability)
-        self._commit_contacts()   # after recording: the reported friction is that of the step's slip
+        self.record(traj, 0.0, out.iterations, inputs, newton, monitor_stability)
+        self.commit_contacts()   # after recording: the reported friction is that of the step's slip
         state = {"x_old": x.copy(), "x_prev": None, "dt_prev": None,
                  "p_old": [float(c.pressure.value) for c in controls]}
 
@@ -706,16 +901,15 @@ class Fem:
                 x.axpy(dt / state["dt_prev"], state["x_old"])
                 x.axpy(-dt / state["dt_prev"], state["x_prev"])
                 x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
-            state["inputs"] = self._set_loads(t + dt)
+            state["inputs"] = self.set_load_level(t + dt)
             return newton.solve()
 
         def accept(t, dt, out):
-            self._record(traj, t, out.iterations, state["inputs"], newton, monitor_stability)
-            self._commit_contacts()
+            self.record(traj, t, out.iterations, state["inputs"], newton, monitor_stability)
+            self.commit_contacts()
             state.update(x_prev=state["x_old"], dt_prev=dt, x_old=x.copy(),
                          p_old=[float(c.pressure.value) for c in controls])
-            if progress and self.mesh.comm.rank == 0:
-                print(f"  t = {t:.4g}  ({out.iterations} Newton iterations)", flush=True)
+            bar.to(t, newton=out.iterations)
 
         def reject(t, dt, out):
             log.info("step t=%.4g -> %.4g failed (%s); halving", t, t + dt, out.reason)
@@ -727,6 +921,7 @@ class Fem:
 
         wall = _time.perf_counter()
         t = 0.0
+        bar = Progress(t_end, "Fem.solve", progress, self.mesh.comm, unit="load")
         try:
             t = march(0.0, t_end, dt0, float(min_step or dt0 / 1024), float(max_step or dt0), attempt, accept,
                       reject, "more or smaller steps, degree=2 with mixed=True for nearly incompressible "
@@ -737,43 +932,54 @@ class Fem:
             e.trajectory = traj
             raise
         finally:
+            bar.close()
             newton.destroy()
-            self._set_loads(t)
+            self.set_load_level(t)
         traj.metadata["wall_time_s"] = _time.perf_counter() - wall
         return traj
 
-    def follow(self, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, max_step=None,
-               max_iterations=15, monitor_stability=False, branch_switch=False, mode_sign=1.0, progress=False):
+    def follow(self, load_level=1.0, steps=10, until=None, max_steps=200, min_step=None, max_step=None,
+               max_iterations=15, monitor_stability=False, branch_switch=False, mode_sign=1.0, progress=False, *,
+               t_end=None):
         """Follow the equilibrium path by pseudo-arc-length continuation, the load factor ``t`` being an
         unknown: through limit points of pressure, force or displacement control (where :meth:`solve` stops),
-        with bifurcation detection and branch switching (``monitor_stability=True, branch_switch=True``).
+        with bifurcation detection and branch switching (``monitor_stability=True, branch_switch=True``),
+        until the load level ``load_level`` [-] (or ``until``, ``max_steps``).
         Returns a :class:`Trajectory` whose ``times`` are the load factors along the path. See
-        :func:`sorofem.fem.continuation.follow` for the method and the parameters."""
+        :func:`sorofem.fem.continuation.follow` for the method and the parameters (there ``t_end`` is
+        ``load_level``); ``t_end=`` here is the deprecated name of ``load_level``."""
         from .continuation import follow
+
+        if t_end is not None:
+            warnings.warn("Fem.follow(t_end=...) is deprecated: the final load level is now called load_level "
+                          "(Fem.follow(load_level=...))", DeprecationWarning, stacklevel=2)
+            load_level = t_end
+        t_end = load_level
 
         return follow(self, t_end=t_end, steps=steps, until=until, max_steps=max_steps, min_step=min_step,
                       max_step=max_step, max_iterations=max_iterations, monitor_stability=monitor_stability,
                       branch_switch=branch_switch, mode_sign=mode_sign, progress=progress)
 
-    def _newton(self, R, J, max_iterations):
-        """A Newton solver for the residual/Jacobian forms ``R``, ``J`` with this model's Dirichlet
-        conditions, volume controls, tendons and linear solver options."""
-        b = self._built
+    def newton_solver(self, R, J, max_iterations=25):
+        """A :class:`~sorofem.fem.newton.NewtonSolver` for the compiled residual/Jacobian forms ``R``, ``J``
+        (e.g. :attr:`FemForms.residual`, or a dynamic residual built from it) with this model's Dirichlet
+        conditions, volume controls, tendons, contacts and linear solver options. Destroy it after use."""
+        b = self.forms
 
         point_loads = self._tendons + self._contacts  # forces at nodes, with their derivatives
 
         def point_forces(b_array, u_array):
             for load in point_loads:
-                load.subtract(b_array, u_array, b["t"])
+                load.subtract(b_array, u_array, self._load_level)
 
         def point_tangent(A, u_array):
             for load in point_loads:
-                load.add_tangent(A, u_array, b["t"])
+                load.add_tangent(A, u_array, self._load_level)
 
         gamg = self.petsc_options.get("pc_type") == "gamg" and not self._split
-        return NewtonSolver(R, J, b["w"], b["bcs"], self.petsc_options, scale=self._size(),
-                            near_nullspace=NewtonSolver.rigid_body_modes(b["W"]) if gamg else None,
-                            max_iterations=max_iterations, constraints=[c for _, _, c in b["controls"]],
+        return NewtonSolver(R, J, b.state, list(b.bcs), self.petsc_options, scale=self._size(),
+                            near_nullspace=NewtonSolver.rigid_body_modes(b.space) if gamg else None,
+                            max_iterations=max_iterations, constraints=[c.constraint for c in b.volume_controls],
                             point_forces=point_forces if point_loads else None,
                             point_tangent=point_tangent if point_loads else None)
 
@@ -786,22 +992,28 @@ class Fem:
         if self._gravity is not None:
             yield self._gravity
 
-    def _set_ramp(self, ramp):
+    def use_ramps(self, ramp):
+        """Loads given as numbers are ramped, ``a t`` (``True``: quasi-static, t a load level), or held
+        constant, ``a`` (``False``: dynamics, t a time [s])."""
         for load in self._loads():
-            load.ramp = ramp
+            load.ramp = bool(ramp)
 
-    def _commit_contacts(self):
+    def commit_contacts(self):
+        """A step converged: the contacts measure the next step's slip from the current state."""
         for contact in self._contacts:
-            contact.commit(self._built["w"].x.array)
+            contact.commit(self.forms.state.x.array)
 
-    def _trajectory(self, time_kind):
-        b = self._built
-        return Trajectory(b["gatherer"].vertices, b["gatherer"].cells, self._cell_type(), time_kind=time_kind,
-                          metadata=self._metadata(), comm=self.mesh.comm)
+    def new_trajectory(self, time_kind):
+        """An empty :class:`Trajectory` of this model (``time_kind``: ``"load"`` or ``"time"``) that knows the
+        mesh's named regions and cavities, which :meth:`Trajectory.save` writes into the snapshot file."""
+        b = self.forms
+        return Trajectory(b.gatherer.vertices, b.gatherer.cells, self._cell_type(), time_kind=time_kind,
+                          metadata=self._metadata(), comm=self.mesh.comm, regions=self._vertex_regions(),
+                          cavities=tuple(self.mesh.cavities))
 
     def simulate(self, t_end, dt, scheme="generalized_alpha", rho_inf=0.8, beta=0.25, gamma=0.5,
                  rayleigh=(0.0, 0.0), velocity=None, max_step=None, min_step=None, max_iterations=25,
-                 record_every=1, progress=False):
+                 record_every=1, progress=None):
         """Implicit dynamics from the current state (the reference one, or the result of :meth:`solve`) to
         time ``t_end`` [s]; returns a :class:`Trajectory` (``time_kind="time"``, with kinetic energies).
 
@@ -826,6 +1038,8 @@ class Fem:
             Initial velocity [m/s]: a constant vector, or ``f(x) -> (gdim, N)`` array as DOLFINx interpolates.
         record_every : int
             Keep every n-th step in the trajectory (the last one always).
+        progress : bool, optional
+            Default: a progress bar when attached to a terminal, quiet otherwise (see :meth:`solve`).
         """
         from .dynamics import simulate
 
@@ -855,6 +1069,45 @@ class Fem:
     def _split(self):
         """The state is a mixed function (displacement, then pressure or thickness strain)."""
         return self.mixed or self.formulation == "plane_stress"
+
+    def _vertex_regions(self):
+        """The mesh's named regions in the numbering of the gathered vertices and cells (rank 0; None
+        elsewhere): ``name -> ("facets", (n, k) vertex indices)`` or ``("cells", (n,) cell indices)``."""
+        msh = self.mesh.dolfinx
+        tdim = msh.topology.dim
+        gatherer = self.forms.gatherer
+        V1 = gatherer.V1
+        msh.topology.create_connectivity(tdim, 0)
+        msh.topology.create_connectivity(tdim - 1, 0)
+        c2v, f2v = msh.topology.connectivity(tdim, 0), msh.topology.connectivity(tdim - 1, 0)
+        n_cells = msh.topology.index_map(tdim).size_local + msh.topology.index_map(tdim).num_ghosts
+        vertex_dof = np.full(msh.topology.index_map(0).size_local + msh.topology.index_map(0).num_ghosts, -1,
+                             dtype=np.int64)
+        # P1: a cell's dofs follow its vertices in reference order
+        vertex_dof[c2v.array.reshape(n_cells, -1)] = _dolfinx.cell_dofs(V1, n_cells)
+        facet_vertices = f2v.array.reshape(-1, len(f2v.links(0))) if len(f2v.array) else np.zeros((0, tdim), int)
+        n_owned = msh.topology.index_map(tdim).size_local
+        first_cell = msh.comm.exscan(n_owned) or 0
+        n_owned_facets = msh.topology.index_map(tdim - 1).size_local
+        local = {}
+        for name in self.mesh.regions:
+            try:
+                facets = self.mesh.facets(name)
+            except MeshError:
+                cells = self.mesh.cells(name)
+                local[name] = ("cells", (cells[cells < n_owned] + first_cell).astype(np.int64))
+                continue
+            facets = facets[facets < n_owned_facets]
+            local[name] = ("facets", gatherer.local_to_global[vertex_dof[facet_vertices[facets]]])
+        parts = msh.comm.gather(local, root=0)
+        if parts is None:
+            return None
+        out = {}
+        for name in self.mesh.regions:
+            kind = parts[0][name][0]
+            arrays = [p[name][1] for p in parts if len(p[name][1])]
+            out[name] = (kind, np.concatenate(arrays) if arrays else parts[0][name][1])
+        return out
 
     def _cell_type(self):
         return self.mesh.dolfinx.topology.cell_type.name

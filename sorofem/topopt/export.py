@@ -37,10 +37,9 @@ def nodal_density(problem, x):
     """Vertex coordinates (nv, dim) [m] and the volume-weighted vertex average (nv,) of the physical density."""
     dom = problem.mesh.dolfinx
     rho = problem.physical(x)
-    b = problem._built or problem._build()
     cells = _cells(dom, problem.n)
     X = dom.geometry.x[:, : problem.dim]
-    w = np.repeat(b["vol"], cells.shape[1])
+    w = np.repeat(problem.cell_volumes, cells.shape[1])
     num = np.bincount(cells.ravel(), weights=w * np.repeat(rho, cells.shape[1]), minlength=len(X))
     den = np.bincount(cells.ravel(), weights=w, minlength=len(X))
     return X, num / np.maximum(den, 1e-300)
@@ -114,13 +113,10 @@ def write_xdmf(problem, x, path):
     """Write the mesh and the physical density (DG0 function ``density``) to ``path`` (.xdmf + .h5).
 
     Both files are written in a temporary directory and moved into place (the .h5 first)."""
-    import dolfinx.fem as fem
     from dolfinx.io import XDMFFile
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    b = problem._built or problem._build()
-    rho = fem.Function(b["Q"], name="density")
-    rho.x.array[b["cell_dofs"]] = problem.physical(x)
+    rho = problem.density_function(x)
     tmpdir = Path(tempfile.mkdtemp(prefix=f".{path.stem}.", dir=path.parent))
     try:
         with XDMFFile(problem.mesh.comm, str(tmpdir / path.name), "w") as f:

@@ -300,6 +300,20 @@ class TopOpt:
         b = self._built or self._build()
         return float(b["vol"] @ self.physical(x) / b["vol_total"])
 
+    @property
+    def cell_volumes(self):
+        """Volume [m^3] (2D: area [m^2]) of each owned cell, in the order of the design variables."""
+        return (self._built or self._build())["vol"]
+
+    def density_function(self, x):
+        """The physical density of design ``x`` [-] as a DG0 DOLFINx Function named ``density``."""
+        import dolfinx.fem
+
+        b = self._built or self._build()
+        rho = dolfinx.fem.Function(b["Q"], name="density")
+        rho.x.array[b["cell_dofs"]] = self.physical(x)
+        return rho
+
     def initial_design(self):
         """The uniform design at the volume fraction (passive cells set), the usual starting point."""
         x = np.full(self.n, self.volume_fraction)

@@ -21,7 +21,7 @@ def test_thick_sphere_limit_point_refinement(record):
     A, B, mu = 0.01, 0.015, 100e3
     p_max, _ = sphere_pressure_maximum(mu, A, B)
     def error(n, nu=0.4999):
-        traj = thick_sphere(A, B, mu, p_max, n, nu).follow(t_end=2.0, steps=8,
+        traj = thick_sphere(A, B, mu, p_max, n, nu).follow(load_level=2.0, steps=8,
                                                            until=lambda tr: inner_radius(tr, A)[-1] > 2.2 * A)
         a, p = inner_radius(traj, A), traj.inputs["pressure/inner"]
         ref = np.array([sphere_inflation_pressure(mu, A, B, ai) for ai in a])
@@ -39,7 +39,7 @@ def test_buckled_strut_refinement(record):
     L, P_cr = STRUT["L"], STRUT["P_cr"]
     levels, errors, first = (1, 2, 4, 8), [], []
     for n in levels:
-        traj = strut(n).follow(t_end=1.0, steps=20, until=lambda tr: abs(strut_end_offset(tr)[-1]) > 0.2 * L,
+        traj = strut(n).follow(load_level=1.0, steps=20, until=lambda tr: abs(strut_end_offset(tr)[-1]) > 0.2 * L,
                                monitor_stability=True, branch_switch=True)
         k = traj.metadata["critical_points"][0]["step"]
         P, w = -traj.reactions["right"][k + 1:, 0], strut_end_offset(traj)[k + 1:]

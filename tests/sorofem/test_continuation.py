@@ -34,7 +34,7 @@ def test_thick_sphere_is_followed_through_its_pressure_maximum_under_pressure_co
     p_max, a_max = sphere_pressure_maximum(mu, A, B)
     assert a_max == pytest.approx(1.6034 * A, rel=1e-4)
     fem = thick_sphere(A, B, mu, p_max, cells_across=3)
-    traj = fem.follow(t_end=2.0, steps=8, until=lambda tr: inner_radius(tr, A)[-1] > 2.2 * A,
+    traj = fem.follow(load_level=2.0, steps=8, until=lambda tr: inner_radius(tr, A)[-1] > 2.2 * A,
                       monitor_stability=True)
     assert traj.metadata["stopped"] == "until"
     a, p = inner_radius(traj, A), traj.inputs["pressure/inner"]
@@ -60,7 +60,7 @@ def test_volume_control_is_followed_too_and_the_last_step_lands_on_t_end():
 
     A, B, mu = 0.01, 0.015, 100e3
     fem = thick_sphere(A, B, mu, 2 / 3 * np.pi * (2**3 - 1) * A**3, cells_across=3, volume=True)  # to a = 2 A
-    traj = fem.follow(t_end=1.0, steps=6)
+    traj = fem.follow(load_level=1.0, steps=6)
     assert traj.metadata["stopped"] == "t_end" and traj.times[-1] == 1.0
     np.testing.assert_allclose(traj.cavity_volumes["inner"], 2 / 3 * np.pi * A**3 * (1 + 7 * traj.times),
                                rtol=1e-5)
@@ -79,7 +79,7 @@ def test_strut_buckles_onto_the_elastica_by_branch_switching():
     stable and matches the elastica's load against the sideways offset up to w = 0.2 L."""
     from analytic import buckled_strut
 
-    traj = strut().follow(t_end=1.0, steps=20, until=lambda tr: abs(strut_end_offset(tr)[-1]) > 0.2 * L,
+    traj = strut().follow(load_level=1.0, steps=20, until=lambda tr: abs(strut_end_offset(tr)[-1]) > 0.2 * L,
                            monitor_stability=True, branch_switch=True)
     assert traj.metadata["stopped"] == "until"
     (crit,) = traj.metadata["critical_points"]
@@ -103,7 +103,7 @@ def test_strut_buckles_onto_the_elastica_by_branch_switching():
 def test_without_branch_switching_the_perfect_strut_stays_straight():
     """The same continuation without switching stays on the straight (now unstable) branch: the buckled branch
     above is taken deliberately, not by round-off."""
-    traj = strut().follow(t_end=1.0, steps=20, max_steps=3)
+    traj = strut().follow(load_level=1.0, steps=20, max_steps=3)
     assert traj.metadata["stopped"] == "max_steps" and len(traj) == 4
     assert np.abs(strut_end_offset(traj)).max() < 1e-5 * L
     assert -traj.reactions["right"][-1, 0] > 2 * P_CR
@@ -114,7 +114,7 @@ def test_bad_arguments():
     with pytest.raises(ParameterError, match="monitor_stability=True"):
         fem.follow(branch_switch=True)
     with pytest.raises(ParameterError, match="t_end"):
-        fem.follow(t_end=0.0)
+        fem.follow(load_level=0.0)
     with pytest.raises(ParameterError, match="no load"):
         strut(shortening=0.0).follow()
 
@@ -131,10 +131,10 @@ def test_limit_point_and_branch_switch_on_two_ranks():
     A, B, mu = 0.01, 0.015, 100e3
     p_max, _ = sphere_pressure_maximum(mu, A, B)
     traj = thick_sphere(A, B, mu, p_max, cells_across=3).follow(
-        t_end=2.0, steps=8, until=lambda tr: inner_radius(tr, A)[-1] > 2.2 * A, monitor_stability=True)
+        load_level=2.0, steps=8, until=lambda tr: inner_radius(tr, A)[-1] > 2.2 * A, monitor_stability=True)
     (crit,) = traj.metadata["critical_points"]
     assert crit["kind"] == "limit" and crit["load"] == pytest.approx(1.0, abs=2e-3)
-    traj2 = strut().follow(t_end=1.0, steps=20, until=lambda tr: abs(strut_end_offset(tr)[-1]) > 0.2 * L,
+    traj2 = strut().follow(load_level=1.0, steps=20, until=lambda tr: abs(strut_end_offset(tr)[-1]) > 0.2 * L,
                            monitor_stability=True, branch_switch=True)
     assert [c["kind"] for c in traj2.metadata["critical_points"]] == ["bifurcation"]
     if MPI.COMM_WORLD.rank == 0:

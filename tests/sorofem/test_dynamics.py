@@ -54,7 +54,7 @@ def test_generalized_alpha_damps_a_mode_as_its_amplification_matrix_predicts(rho
 def test_steps_100_times_the_explicit_limit_stay_stable():
     """dt = 100 h / c_p (c_p the dilatational wave speed): generalized-alpha stays bounded and dissipates."""
     fem = _cantilever()
-    mat = fem._materials[0][1]
+    mat = fem.materials[0][1]
     c_p = np.sqrt((mat.K + 4 * mat.G / 3) / mat.density)
     dt = 100 * (H / 2) / c_p
     traj = fem.simulate(t_end=60 * dt, dt=dt, rho_inf=0.8, velocity=lambda x: np.vstack([0 * x[0], 0.05 * x[0] / L]))

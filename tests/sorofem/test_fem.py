@@ -89,7 +89,7 @@ def test_small_load_cantilever_matches_timoshenko_beam():
     k = 5/6. The 2D continuum agrees to within the beam theory's own O((H/L)^2) error, here 1 %."""
     L, H, P = 0.1, 0.005, 1e-3
     fem, mat = _cantilever(L, H)
-    fem.add_force("right", [0.0, -P / H])
+    fem.add_traction("right", [0.0, -P / H])
     traj = fem.solve(steps=1)
     E_ps = mat.E / (1 - mat.nu**2)
     w = P * L**3 / (3 * E_ps * H**3 / 12) + P * L / (5 / 6 * mat.G * H)
@@ -106,7 +106,7 @@ def test_large_deflection_cantilever_matches_elastica(load):
     fem, mat = _cantilever(L, H, size=H / 2)
     EI = mat.E / (1 - mat.nu**2) * H**3 / 12
     P = load * EI / L**2
-    fem.add_force("right", [0.0, -P / H])
+    fem.add_traction("right", [0.0, -P / H])
     fem.solve(steps=6)
     dx, dy = elastica_tip(L, EI, P)
     u = fem.evaluate([[L, 0.0]])[0]
@@ -120,10 +120,10 @@ def test_mesh_convergence_rate_of_the_cantilever():
     tips = []
     for n in (2, 4, 8):
         fem, _ = _cantilever(L, H, size=H / n, degree=1)
-        fem.add_force("right", [0.0, -P / H]).solve(steps=1)
+        fem.add_traction("right", [0.0, -P / H]).solve(steps=1)
         tips.append(-fem.evaluate([[L, 0.0]])[0][1])
     fem, _ = _cantilever(L, H, size=H / 8, degree=2)
-    fem.add_force("right", [0.0, -P / H]).solve(steps=1)
+    fem.add_traction("right", [0.0, -P / H]).solve(steps=1)
     ref = -fem.evaluate([[L, 0.0]])[0][1]
     err = np.abs(np.array(tips) - ref)
     rates = np.log2(err[:-1] / err[1:])
@@ -175,7 +175,7 @@ def test_bad_input_is_refused():
     with pytest.raises(ParameterError, match="must be a sorofem.materials.Material"):
         Fem(msh, "silicone")
     with pytest.raises(ParameterError, match="expected a value of shape \\(2,\\)"):
-        fem.add_force("right", 1.0)
+        fem.add_traction("right", 1.0)
     with pytest.raises(ParameterError, match="spring stiffness must be positive"):
         fem.add_spring("right", -1.0)
     fem.add_support("left").add_pressure("right", lambda t: float("nan"))
@@ -186,7 +186,7 @@ def test_bad_input_is_refused():
 def test_unsupported_body_is_reported_not_nan():
     """No supports: the tangent is singular (rigid motion); the message says to add supports."""
     msh = Mesh.rectangle(0.02, 0.01, size=0.005)
-    fem = Fem(msh, materials.NeoHookean(mu=1 * MPa)).add_force("right", [1e3, 0.0])
+    fem = Fem(msh, materials.NeoHookean(mu=1 * MPa)).add_traction("right", [1e3, 0.0])
     with pytest.raises(ConvergenceError, match="supports"):
         fem.solve(steps=1)
 
@@ -366,13 +366,21 @@ def test_xdmf_and_png_outputs(tmp_path, dim):
         fem = Fem(msh, materials.Ecoflex0030()).add_support("left").add_gravity()
     traj = fem.solve(steps=2)
     traj.write_xdmf(tmp_path / "r.xdmf")
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.h5", "r.xdmf"]
+    traj.save(tmp_path / "r.h5")   # the snapshot beside it leaves the XDMF's data file alone
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.h5", "r.xdmf", "r.xdmf.h5"]
     with meshio.xdmf.TimeSeriesReader(str(tmp_path / "r.xdmf")) as r:
         points, cells = r.read_points_cells()
         t, point_data, cell_data = r.read_data(2)
     assert t == pytest.approx(1.0)
-    np.testing.assert_allclose(point_data["displacement"], traj.displacement[2])
+    u = point_data["displacement"]
+    assert u.shape == (len(traj.vertices), 3)   # 3 components in 2D too (ParaView warps 3-vectors only)
+    np.testing.assert_allclose(u[:, :dim], traj.displacement[2])
+    assert not u[:, dim:].any()
     np.testing.assert_allclose(cell_data["von_mises"][0], traj.von_mises[2])
+    import json
+    import xml.etree.ElementTree as ET
+    info = ET.parse(tmp_path / "r.xdmf").getroot().find("Domain/Information")
+    assert json.loads(info.get("Value")) == {"time": "1", "displacement": "m", "von_mises": "Pa"}
     png = traj.plot(tmp_path / "s.png")
     assert png.stat().st_size > 5000
 
@@ -398,7 +406,7 @@ def test_two_materials_in_series_add_their_compliances():
     fem = Fem(msh, materials.NeoHookean(E=E1, nu=0.0))
     fem.add_material("stiff", materials.NeoHookean(E=E2, nu=0.0))
     fem.add_support("left", "x").add_support("front", "y").add_support("bottom", "z")
-    fem.add_force("right", [q, 0.0, 0.0]).solve(steps=1)
+    fem.add_traction("right", [q, 0.0, 0.0]).solve(steps=1)
     expected = q * (L / 2 / E1 + L / 2 / E2)
     assert fem.evaluate([[L, A, A]])[0][0] == pytest.approx(expected, rel=1e-3)  # O(strain) = 1e-4 nonlinearity
     assert fem.evaluate([[L / 2, A, A]])[0][0] == pytest.approx(q * L / 2 / E1, rel=1e-3)
@@ -410,7 +418,7 @@ def test_springs_to_ground_carry_the_load():
     msh = Mesh.box(h, h, h, size=h / 2, center=(0, 0, h / 2), cell="hexahedron")
     E, k, q = 100 * kPa, 1e7, 10.0
     fem = Fem(msh, materials.NeoHookean(E=E, nu=0.0)).add_spring("bottom", k)
-    fem.add_force("top", [0.0, 0.0, -q]).solve(steps=1)
+    fem.add_traction("top", [0.0, 0.0, -q]).solve(steps=1)
     assert fem.evaluate([[0.0, 0.0, h]])[0][2] == pytest.approx(-q / k - q * h / E, rel=1e-3)
 
 
