@@ -95,3 +95,37 @@ def test_no_module_reaches_into_fem_privately(repo):
             for pattern in (r"\bfem\._[a-z]\w*", r"\bfem_t\._[a-z]\w*", r"\._built\b", r"\._build\(\)\["):
                 offenders += [f"{path.relative_to(repo)}: {m}" for m in re.findall(pattern, text)]
     assert not offenders, offenders
+
+
+@pytest.mark.mpi
+def test_regions_saved_from_two_ranks_are_the_serial_ones(tmp_path_factory):
+    """The regions of a distributed mesh are gathered into the saved numbering: the same facets (by their
+    centroids) and cells (by their centroids) as a serial run."""
+    from mpi4py import MPI
+
+    from sorofem.snapshots import Snapshots
+
+    comm = MPI.COMM_WORLD
+    assert comm.size == 2
+    body = sdf.Rectangle(20 * mm, 10 * mm, center=(10 * mm, 0)) - sdf.Circle(2 * mm, center=(10 * mm, 0))
+    folder = comm.bcast(str(tmp_path_factory.mktemp("regions")) if comm.rank == 0 else None, root=0)
+    centroids = []
+    for c, name in ((comm, "parallel.h5"), (MPI.COMM_SELF, "serial.h5")):
+        msh = Mesh.from_sdf(body, size=1.5 * mm, comm=c)
+        msh.add_region("core", lambda x: x[0] < 5 * mm, kind="cells")
+        fem = Fem(msh, materials.NeoHookean(E=200 * kPa, nu=0.45)).add_support("left")
+        traj = fem.add_pressure("cavity_0", 5 * kPa).solve(steps=1)
+        path = traj.save(f"{folder}/{name}")
+        if comm.rank == 0:
+            snap = Snapshots(path)
+            out = {}
+            for region, (kind, idx) in snap.regions.items():
+                cells = snap.cells[idx] if kind == "cells" else idx
+                out[region] = np.sort(np.round(snap.vertices[cells].mean(axis=1), 9), axis=0)
+            centroids.append((out, snap.cavities))
+    if comm.rank == 0:
+        (par, cav_p), (ser, cav_s) = centroids
+        assert cav_p == cav_s == ["cavity_0"] and sorted(par) == sorted(ser)
+        for region in ser:
+            np.testing.assert_allclose(par[region][np.lexsort(par[region].T)],
+                                       ser[region][np.lexsort(ser[region].T)], atol=1e-12)
