@@ -9,7 +9,8 @@ _init_petsc()  # before DOLFINx: Python keeps its signal handling (sorofem._pets
 
 from .eigen import Modes
 from .kinematics import FORMULATIONS
-from .problem import Fem, FemForms, LockingWarning
+from .forms import FemForms
+from .problem import Fem, LockingWarning
 from .results import Trajectory
 
 __all__ = ["Fem", "FemForms", "LockingWarning", "Trajectory", "Modes", "FORMULATIONS"]

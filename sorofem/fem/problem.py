@@ -31,8 +31,6 @@ import logging
 import math
 import time as _time
 import warnings
-from dataclasses import dataclass
-from typing import Any, NamedTuple, Optional
 
 import numpy as np
 
@@ -43,13 +41,14 @@ from ..io import Progress
 from ..materials import Material
 from ..snapshots import input_name
 from ..units import standard_gravity
+from .forms import (FemForms, LoadConstant, VolumeControl, gravity_term, pressure_term, spring_term, traction_term,
+                    volume_term)
 from .kinematics import FORMULATIONS, Kinematics
 from .newton import NewtonSolver, VolumeConstraint
 from .stepping import march
 from .results import Trajectory, VertexGatherer
 
-__all__ = ["Fem", "FemForms", "LoadConstant", "VolumeControl", "LockingWarning", "pressure_term",
-           "traction_term", "spring_term", "gravity_term", "volume_term"]
+__all__ = ["Fem", "LockingWarning"]
 
 #: Poisson ratio from which displacement-only P1 elements warn of volumetric locking (bulk/shear modulus
 #: ratio ~100). The silicone presets' default 0.49 (ratio 50) stays below it.
@@ -114,123 +113,6 @@ class _Load:
         if not np.all(np.isfinite(v)):
             raise ParameterError(f"{self.name}: the function returned a non-finite value {v} at t={t}")
         return v
-
-
-class LoadConstant(NamedTuple):
-    """A load of the model and the DOLFINx ``Constant`` its value is written into at each load level."""
-
-    kind: str          # "pressure", "traction", "body" or "gravity"
-    region: Optional[str]
-    constant: Any
-    load: _Load
-
-
-class VolumeControl(NamedTuple):
-    """A cavity under volume control: the region, the added-volume load and its bordered constraint."""
-
-    region: str
-    load: _Load
-    constraint: VolumeConstraint
-
-
-@dataclass(frozen=True)
-class FemForms:
-    """The compiled model of a :class:`Fem` (built on first use, rebuilt after a change): spaces, state,
-    forms and the constants the loads are written into. Read it through :attr:`Fem.forms`; the fields are
-    DOLFINx/UFL objects (``space`` the FunctionSpace of the state, ``residual``/``jacobian`` compiled forms,
-    ``residual_ufl``/``internal_ufl`` the UFL residual with and without loads).
-
-    Attributes
-    ----------
-    space : dolfinx.fem.FunctionSpace
-        Space of the state (vector P1/P2, or mixed: displacement then pressure / thickness strain).
-    state : dolfinx.fem.Function
-        The current state; solvers write into it.
-    kinematics : Kinematics
-        F, the integration weight (:math:`2\\pi R` when axisymmetric) and the current area vector.
-    dx : ufl.Measure
-        Cell measure with the material markers (``dx(k)``: cells of the k-th material).
-    bcs : tuple of DirichletBC
-    prescribed : tuple of (tuple of Constant, _Load)
-        Prescribed displacements and the constants of their components [m].
-    load_constants : tuple of LoadConstant
-    volume_controls : tuple of VolumeControl
-    residual, jacobian : dolfinx.fem.Form
-        :math:`R(u; v)` and :math:`\\partial R/\\partial u`.
-    residual_ufl, internal_ufl : ufl.Form
-        The residual with loads and the internal-force part only.
-    energy : dolfinx.fem.Form
-        Strain energy [J] (2D: [J/m]).
-    volumes : dict name -> dolfinx.fem.Form
-        Cavity volumes [m^3] (2D: [m^2]).
-    vertex_space, vertex_displacement, gatherer
-        P1 vector space, the displacement interpolated on it and the gatherer of vertex values to rank 0.
-    support_dofs : dict region -> {component: owned dofs}
-    growth : dolfinx.fem.Function
-        Volume growth factor per cell (DG0) [-].
-    expansions : tuple of (region, cells, _Load)
-    von_mises : dolfinx.fem.Function
-        DG0 von Mises stress [Pa]; ``stress_expressions`` fill it per material on ``material_cells``.
-    """
-
-    space: Any
-    state: Any
-    kinematics: Kinematics
-    dx: Any
-    cell_tags: Any
-    bcs: tuple
-    prescribed: tuple
-    load_constants: tuple
-    volume_controls: tuple
-    residual: Any
-    jacobian: Any
-    residual_ufl: Any
-    internal_ufl: Any
-    energy: Any
-    volumes: dict
-    vertex_space: Any
-    vertex_displacement: Any
-    gatherer: Any
-    support_dofs: dict
-    growth: Any
-    expansions: tuple
-    von_mises: Any
-    stress_expressions: tuple
-    material_cells: tuple
-
-
-# ---------------------------------------------------------------------------------------------- load terms
-def pressure_term(kin, u, v, pressure, ds):
-    """Follower pressure [Pa] on the current area (Nanson): :math:`\\int p\\,(J F^{-T} N)\\cdot v\\,w\\,dA`
-    (``v`` embedded in 3D, :meth:`Kinematics.embed`)."""
-    import ufl
-    return pressure * ufl.dot(kin.current_area_vector(u), v) * kin.weight * ds
-
-
-def traction_term(kin, traction, v, measure):
-    """Dead load: :math:`\\int t\\cdot v\\,w` over ``measure`` (a traction [Pa] on ``ds``, a force density
-    [N/m^3] on ``dx``)."""
-    import ufl
-    return ufl.dot(traction, v) * kin.weight * measure
-
-
-def spring_term(kin, stiffness, u, v, ds):
-    """Springs to ground: :math:`\\int k\\, u\\cdot v\\,w\\,dA`, ``stiffness`` k [N/m^3]."""
-    import ufl
-    return stiffness * ufl.dot(u, v) * kin.weight * ds
-
-
-def gravity_term(kin, acceleration, v, dx, materials):
-    """Weight: :math:`\\sum_k \\int_{\\Omega_k} \\rho_k\\, g\\cdot v\\,w\\,dX` (``dx(k)``: cells of material k)."""
-    import ufl
-    return sum(mat.density * ufl.dot(acceleration, v) * kin.weight * dx(k) for k, mat in enumerate(materials))
-
-
-def volume_term(kin, u, ds):
-    """Enclosed volume of a cavity from its boundary: :math:`-\\frac1d \\oint x\\cdot (J F^{-T} N)\\,w\\,dA`
-    (the outward normal of the body points into the cavity) [m^3; m^2 per unit depth in 2D]."""
-    import ufl
-    return -ufl.dot(kin.current_position(u), kin.current_area_vector(u)) / kin.dimension * kin.weight * ds
 
 
 class Fem:
@@ -1008,7 +890,7 @@ class Fem:
         mesh's named regions and cavities, which :meth:`Trajectory.save` writes into the snapshot file."""
         b = self.forms
         return Trajectory(b.gatherer.vertices, b.gatherer.cells, self._cell_type(), time_kind=time_kind,
-                          metadata=self._metadata(), comm=self.mesh.comm, regions=self._vertex_regions(),
+                          metadata=self._metadata(), comm=self.mesh.comm, regions=b.gatherer.regions(self.mesh),
                           cavities=tuple(self.mesh.cavities))
 
     def simulate(self, t_end, dt, scheme="generalized_alpha", rho_inf=0.8, beta=0.25, gamma=0.5,
@@ -1069,45 +951,6 @@ class Fem:
     def _split(self):
         """The state is a mixed function (displacement, then pressure or thickness strain)."""
         return self.mixed or self.formulation == "plane_stress"
-
-    def _vertex_regions(self):
-        """The mesh's named regions in the numbering of the gathered vertices and cells (rank 0; None
-        elsewhere): ``name -> ("facets", (n, k) vertex indices)`` or ``("cells", (n,) cell indices)``."""
-        msh = self.mesh.dolfinx
-        tdim = msh.topology.dim
-        gatherer = self.forms.gatherer
-        V1 = gatherer.V1
-        msh.topology.create_connectivity(tdim, 0)
-        msh.topology.create_connectivity(tdim - 1, 0)
-        c2v, f2v = msh.topology.connectivity(tdim, 0), msh.topology.connectivity(tdim - 1, 0)
-        n_cells = msh.topology.index_map(tdim).size_local + msh.topology.index_map(tdim).num_ghosts
-        vertex_dof = np.full(msh.topology.index_map(0).size_local + msh.topology.index_map(0).num_ghosts, -1,
-                             dtype=np.int64)
-        # P1: a cell's dofs follow its vertices in reference order
-        vertex_dof[c2v.array.reshape(n_cells, -1)] = _dolfinx.cell_dofs(V1, n_cells)
-        facet_vertices = f2v.array.reshape(-1, len(f2v.links(0))) if len(f2v.array) else np.zeros((0, tdim), int)
-        n_owned = msh.topology.index_map(tdim).size_local
-        first_cell = msh.comm.exscan(n_owned) or 0
-        n_owned_facets = msh.topology.index_map(tdim - 1).size_local
-        local = {}
-        for name in self.mesh.regions:
-            try:
-                facets = self.mesh.facets(name)
-            except MeshError:
-                cells = self.mesh.cells(name)
-                local[name] = ("cells", (cells[cells < n_owned] + first_cell).astype(np.int64))
-                continue
-            facets = facets[facets < n_owned_facets]
-            local[name] = ("facets", gatherer.local_to_global[vertex_dof[facet_vertices[facets]]])
-        parts = msh.comm.gather(local, root=0)
-        if parts is None:
-            return None
-        out = {}
-        for name in self.mesh.regions:
-            kind = parts[0][name][0]
-            arrays = [p[name][1] for p in parts if len(p[name][1])]
-            out[name] = (kind, np.concatenate(arrays) if arrays else parts[0][name][1])
-        return out
 
     def _cell_type(self):
         return self.mesh.dolfinx.topology.cell_type.name

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import _dolfinx
-from ..errors import DataError
+from ..errors import DataError, MeshError
 from ..io import on_root
 from ..snapshots import SnapshotWriter
 
@@ -33,7 +33,7 @@ class VertexGatherer:
         self.n_global = imap.size_global
         tdim = V1.mesh.topology.dim
         n_cells = V1.mesh.topology.index_map(tdim).size_local
-        cells = _dolfinx.cell_dofs(V1, n_cells)
+        cells = _dolfinx.cell_dofs(self.V1, n_cells)
         X = V1.tabulate_dof_coordinates()[: self.n_owned, : V1.mesh.geometry.dim]
         all_cells = comm.gather(self.local_to_global[cells], root=0)
         self.vertices = self.gather(X)
@@ -53,6 +53,44 @@ class VertexGatherer:
         """Values of a P1 vector Function at the vertices, (n_global, gdim) on rank 0."""
         bs = self.V1.dofmap.index_map_bs
         return self.gather(u1.x.array[: self.n_owned * bs].reshape(-1, bs))
+
+    def regions(self, mesh):
+        """The named regions of ``mesh`` (the :class:`sorofem.mesh.Mesh` of this space) in the gathered
+        numbering of :attr:`vertices` and :attr:`cells` (rank 0; None elsewhere): ``name -> ("facets", (n, k)
+        vertex indices)`` (owned facets of every rank) or ``("cells", (n,) cell indices)``. Collective."""
+        msh = mesh.dolfinx
+        tdim = msh.topology.dim
+        msh.topology.create_connectivity(tdim, 0)
+        msh.topology.create_connectivity(tdim - 1, 0)
+        c2v, f2v = msh.topology.connectivity(tdim, 0), msh.topology.connectivity(tdim - 1, 0)
+        n_cells = msh.topology.index_map(tdim).size_local + msh.topology.index_map(tdim).num_ghosts
+        vertex_dof = np.full(msh.topology.index_map(0).size_local + msh.topology.index_map(0).num_ghosts, -1,
+                             dtype=np.int64)
+        # P1: a cell's dofs follow its vertices in reference order
+        vertex_dof[c2v.array.reshape(n_cells, -1)] = _dolfinx.cell_dofs(self.V1, n_cells)
+        facet_vertices = f2v.array.reshape(-1, len(f2v.links(0))) if len(f2v.array) else np.zeros((0, tdim), int)
+        n_owned = msh.topology.index_map(tdim).size_local
+        first_cell = msh.comm.exscan(n_owned) or 0
+        n_owned_facets = msh.topology.index_map(tdim - 1).size_local
+        local = {}
+        for name in mesh.regions:
+            try:
+                facets = mesh.facets(name)
+            except MeshError:
+                cells = mesh.cells(name)
+                local[name] = ("cells", (cells[cells < n_owned] + first_cell).astype(np.int64))
+                continue
+            facets = facets[facets < n_owned_facets]
+            local[name] = ("facets", self.local_to_global[vertex_dof[facet_vertices[facets]]])
+        parts = msh.comm.gather(local, root=0)
+        if parts is None:
+            return None
+        out = {}
+        for name in mesh.regions:
+            kind = parts[0][name][0]
+            arrays = [p[name][1] for p in parts if len(p[name][1])]
+            out[name] = (kind, np.concatenate(arrays) if arrays else parts[0][name][1])
+        return out
 
 
 class Trajectory:
