@@ -35,7 +35,7 @@ floor              friction mu = 0.6
 time               2 periods with dt = 2 ms (quick: 1 period, dt = 4 ms), rho_inf = 0.8
 =================  =====================================================================================
 
-Output: ``com.png`` (centre-of-mass history), ``gait.png`` (the body at six instants), ``crawler.xdmf`` (+ .h5,
+Output: ``com.png`` (centre-of-mass history), ``gait.png`` (the body at six instants), ``crawler.xdmf`` (+ .xdmf.h5,
 the whole gait for ParaView),
 ``report.json`` with ``com_dx_mm``, ``com_dy_mm``, ``speed_mm_per_s``, ``periods``, ``steps``,
 ``newton_iterations_max``, ``max_contact_force_N_per_m``.
