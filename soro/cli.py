@@ -1,25 +1,32 @@
 """The ``soro`` command.
 
+The application layer's entry point: it parses the command line, calls the module of each command and
+turns their errors (:class:`sorofem.errors.SoroError`) into exit codes; library code never exits.
+
 ``soro doctor``
     Print the versions of the numerical stack (DOLFINx, PETSc, SLEPc, MPI, numba, gmsh, OpenCV, ...), check
     the JIT cache (writable; no stale lock of a killed compile, :mod:`sorofem.jitcache`), that a UFL form
-    JIT-compiles and assembles, and that ``mpirun -n 2`` works. Exit status 0 when all is
+    JIT-compiles and assembles, and that ``mpirun -n 2`` works (:mod:`soro.doctor`). Exit status 0 when all is
     well; otherwise 1, with one line per problem that says how to fix it.
 ``soro demo [NAME] [--quick] [--out DIR]``
-    Run ``demos/NAME.py`` (default: ``chain``, the end-to-end job) and write its report (PNG figures and
-    ``report.json``) to ``DIR/NAME/`` (default ``out/NAME/``). ``soro demo --list`` lists the demos.
+    Run the demo ``NAME`` (default: ``chain``, the end-to-end job; the demos are installed with the package,
+    :mod:`soro.demo`) and write its report (PNG figures and ``report.json``) to ``DIR/NAME/`` (default
+    ``out/NAME/``). ``soro demo --list`` lists the demos; an unknown name exits with status 2.
 ``soro trade [TRAIN.h5 TEST.h5 --backbone X0,Y0[,Z0]:X1,Y1[,Z1] [--input NAME]] [--tolerance T] [--out DIR]``
     The speed-accuracy trade of beam models (DVS, Chebyshev and PCC bases of 1-6 modes) against FEM
-    snapshots (:func:`soroshapes.dvs.trade_files`): a table of tip and shape errors and time per solve, a
+    snapshots (:func:`soro.trade.trade_files`): a table of tip and shape errors and time per solve, a
     PNG, and the cheapest model within the tolerance (a fraction of the length, default 0.03), chosen by one
-    rule (:func:`soroshapes.dvs.cheapest`: the smallest median time per solve among the rows within the
+    rule (:func:`soro.trade.cheapest`: the smallest median time per solve among the rows within the
     tolerance on the test and contact tip errors) that also marks the table's selected row. Without files
     it runs the PneuNet of ``demos/dvs_pneunet.py`` (``--quick`` for a short run).
+``soro robot list [NAME]``, ``soro robot export NAME [--out DIR] [--param NAME=VALUE ...]``
+    The open-hardware robots: their parameters; print-ready STL, a preview and the board profile
+    (:mod:`soro.robots`).
 ``soro play SCENE [--backend model|sim|board] [--port N] [--open]``
     Serve a live page of a scene (a demo name or ``path/to/file.py:build``) on 127.0.0.1 and print its URL:
     3D view, a slider per input, a draggable IK target, live plots, recording (:mod:`soro.play`).
 ``soro sweep CONFIG.toml [--out DIR] [--group-size K] [--retry-failed] [--force-rerun] [--dry-run]``
-    Run a batch of FEM cases described by a TOML file (format: :mod:`sorofem.sweep`), one snapshot file and
+    Run a batch of FEM cases described by a TOML file (format: :mod:`soro.sweep`), one snapshot file and
     one status file per case plus ``manifest.json`` in ``DIR`` (default ``out/sweeps/<config name>/``).
     Resumable: run it again after an interruption and only the missing cases run; ``--retry-failed`` runs
     the failed ones again. A resume checks the provenance of the results (builder source, ``[solve]``,
@@ -29,245 +36,19 @@
     ``--dry-run`` prints the case table (with each case's status in ``DIR``) and runs nothing. Exit status
     0 when every case is done, 1 when some failed, 2 for an invalid configuration.
 
-This module imports only the standard library at load time; every check imports what it tests.
+This module imports only the standard library (and :mod:`sorofem.errors`) at load time; each command
+imports what it needs.
 """
 import argparse
-import importlib
-import importlib.util
 import json
 import os
-import platform
-import shutil
-import subprocess
 import sys
 import time
 from pathlib import Path
 
-__all__ = ["main", "doctor", "run_demo", "list_demos", "run_sweep", "run_trade", "DEMOS_DIR"]
+from .demo import DEFAULT_DEMO
 
-#: Where ``soro demo`` looks for demo scripts (the repository's ``demos/``; ``$SORO_DEMOS`` overrides).
-DEMOS_DIR = Path(os.environ.get("SORO_DEMOS", Path(__file__).resolve().parents[1] / "demos"))
-DEFAULT_DEMO = "chain"
-
-_BOOTSTRAP = "run `bash scripts/bootstrap.sh` from the repository (or `make test`), then use `.venv/bin/soro`"
-
-
-def _mpi_env():
-    """Environment for ``mpirun``: Debian's OpenMPI refuses to run as root without these two variables."""
-    env = dict(os.environ)
-    env.setdefault("OMPI_ALLOW_RUN_AS_ROOT", "1")
-    env.setdefault("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-    env.setdefault("OMPI_MCA_rmaps_base_oversubscribe", "1")
-    return env
-
-
-# (label, module, version getter, fix hint)
-_PACKAGES = [
-    ("numpy", "numpy", lambda m: m.__version__, "apt-get install python3-numpy; " + _BOOTSTRAP),
-    ("scipy", "scipy", lambda m: m.__version__, "apt-get install python3-scipy; " + _BOOTSTRAP),
-    ("numba", "numba", lambda m: m.__version__, "apt-get install python3-numba; " + _BOOTSTRAP),
-    ("gmsh", "gmsh", lambda m: m.__version__, "apt-get install python3-gmsh; " + _BOOTSTRAP),
-    ("meshio", "meshio", lambda m: m.__version__, "apt-get install python3-meshio; " + _BOOTSTRAP),
-    ("h5py", "h5py", lambda m: m.__version__, "apt-get install python3-h5py; " + _BOOTSTRAP),
-    ("matplotlib", "matplotlib", lambda m: m.__version__, "apt-get install python3-matplotlib; " + _BOOTSTRAP),
-    ("mpi4py", "mpi4py", lambda m: m.__version__, "apt-get install python3-mpi4py; " + _BOOTSTRAP),
-    ("MPI library", "mpi4py.MPI", lambda m: m.Get_library_version().splitlines()[0].strip(),
-     "apt-get install openmpi-bin python3-mpi4py; " + _BOOTSTRAP),
-    ("PETSc", "petsc4py.PETSc", lambda m: ".".join(map(str, m.Sys.getVersion())),
-     "apt-get install python3-petsc4py; " + _BOOTSTRAP),
-    ("SLEPc", "slepc4py.SLEPc", lambda m: ".".join(map(str, m.Sys.getVersion())),
-     "apt-get install python3-slepc4py; " + _BOOTSTRAP),
-    ("DOLFINx", "dolfinx", lambda m: m.__version__,
-     "apt-get install python3-dolfinx (Debian 12 ships 0.5.2, Debian 13 0.9.0); " + _BOOTSTRAP),
-    ("OpenCV", "cv2", lambda m: m.__version__,
-     "pip install opencv-python-headless into the project's venv; " + _BOOTSTRAP),
-    ("tqdm", "tqdm", lambda m: m.__version__, "pip install tqdm into the project's venv; " + _BOOTSTRAP),
-]
-
-
-def _check_packages():
-    rows, problems = [], []
-    for label, module, version, fix in _PACKAGES:
-        try:
-            mod = importlib.import_module(module)
-            rows.append((label, str(version(mod)), getattr(mod, "__file__", "") or ""))
-        except Exception as e:  # noqa: BLE001 - any import failure is a problem to report, not to raise
-            rows.append((label, "MISSING", f"{type(e).__name__}: {e}"))
-            problems.append(f"{label} cannot be imported ({type(e).__name__}: {e}). Fix: {fix}")
-    return rows, problems
-
-
-def _check_debian_numpy():
-    """numpy must be Debian's build: DOLFINx, SciPy and numba were compiled against it."""
-    try:
-        import numpy
-    except ImportError:
-        return []  # already reported
-    if not numpy.__file__.startswith("/usr/lib/python3/"):
-        return [f"numpy {numpy.__version__} is loaded from {numpy.__file__}, not Debian's /usr/lib/python3: "
-                "a pip-installed numpy shadows the one DOLFINx was built against. Fix: "
-                "`.venv/bin/pip uninstall numpy`, then " + _BOOTSTRAP + " (it pins numpy with a constraints file)"]
-    return []
-
-
-def _blas():
-    """Which BLAS Debian's alternatives give ``libblas.so.3`` (MUMPS, numpy and scipy use it)."""
-    import glob
-
-    for link in sorted(glob.glob("/usr/lib/*-linux-gnu/libblas.so.3")):
-        real = os.path.realpath(link)
-        if "openblas" in real:
-            return f"OpenBLAS ({real})"
-        if "blis" in real or "mkl" in real or "atlas" in real:
-            return real
-        return (f"reference BLAS ({real}): direct solves run ~5x slower; "
-                "`apt-get install libopenblas0-serial` (scripts/bootstrap.sh does)")
-    return "not found in /usr/lib/*-linux-gnu (not a Debian layout)"
-
-
-def _check_dolfinx_support():
-    """Whether the installed DOLFINx is in the tested range (:data:`sorofem._dolfinx.SUPPORTED`)."""
-    from . import _dolfinx
-
-    ok, sentence = _dolfinx.support_status()
-    return ("yes: " if ok else "NO: ") + sentence, ([] if ok else [sentence])
-
-
-def _check_jit():
-    """Compile and assemble a small UFL form: integral of 1 over the unit square must be 1."""
-    from ._jit import silence_compiler_logs
-
-    silence_compiler_logs()
-    t0 = time.perf_counter()
-    try:
-        from mpi4py import MPI
-        import ufl
-        import dolfinx.fem
-        import dolfinx.mesh
-        msh = dolfinx.mesh.create_unit_square(MPI.COMM_SELF, 2, 2)
-        one = dolfinx.fem.Constant(msh, 1.0)
-        value = dolfinx.fem.assemble_scalar(dolfinx.fem.form(one * ufl.dx(domain=msh)))
-    except Exception as e:  # noqa: BLE001
-        return f"failed ({type(e).__name__}: {e})", [
-            f"a UFL form does not JIT-compile ({type(e).__name__}: {e}). Fix: check that gcc and "
-            "python3-dev are installed (apt-get install build-essential python3-dev) and that "
-            "~/.cache/fenics is writable; " + _BOOTSTRAP]
-    if abs(value - 1.0) > 1e-12:
-        return f"wrong result {value}", [f"a JIT-compiled form gave {value} instead of 1.0: the FEniCSx "
-                                         "installation is broken; reinstall python3-dolfinx"]
-    return f"ok ({time.perf_counter() - t0:.1f} s)", []
-
-
-def _check_jit_cache(directory=None):
-    """The JIT cache: its directory, module count and locks; a stale lock (killed compile) is a problem."""
-    from . import jitcache
-
-    directory = Path(directory) if directory is not None else jitcache.cache_dir()
-    if not directory.exists():
-        return f"{directory} (empty)", []
-    if not os.access(directory, os.W_OK):
-        return f"{directory} not writable", [f"the JIT cache {directory} is not writable: forms cannot be "
-                                             "compiled. Fix: chown or chmod it, or set XDG_CACHE_HOME"]
-    modules = len(list(directory.glob("*.c.cached")))
-    locks = jitcache.scan(directory)
-    stale = [lock for lock in locks if lock.stale]
-    status = f"{directory}: {modules} compiled module(s), {len(locks) - len(stale)} compiling, {len(stale)} stale"
-    problems = []
-    if stale:
-        files = " ".join(str(lock.path) for lock in stale)
-        problems.append(f"{len(stale)} stale JIT lock(s) of killed compiles ({stale[0].reason}): every run that "
-                        f"needs those forms waits for the JIT timeout and fails. Fix: rm {files} "
-                        "(soro sweep removes them at start)")
-    return status, problems
-
-
-def _check_mpi():
-    """Run two ranks that sum their ranks with an allreduce."""
-    mpirun = shutil.which("mpirun")
-    if mpirun is None:
-        return "mpirun not found", ["mpirun is not on PATH. Fix: apt-get install openmpi-bin"]
-    # only rank 0 prints: output of two ranks interleaves character by character
-    code = ("from mpi4py import MPI; c = MPI.COMM_WORLD; s = c.allreduce(c.rank)\n"
-            "if c.rank == 0: print(c.size, s)")
-    try:
-        res = subprocess.run([mpirun, "-n", "2", sys.executable, "-c", code], capture_output=True, text=True,
-                             timeout=120, env=_mpi_env(), stdin=subprocess.DEVNULL)
-    except subprocess.TimeoutExpired:
-        return "timed out", ["`mpirun -n 2` did not finish in 120 s. Fix: check that no firewall or hostname "
-                             "lookup blocks OpenMPI (try `mpirun -n 2 hostname`)"]
-    lines = res.stdout.split()
-    if res.returncode != 0 or lines != ["2", "1"]:
-        return f"failed (exit {res.returncode})", [
-            f"`mpirun -n 2 python` failed (exit {res.returncode}): {res.stderr.strip()[-300:]} Fix: "
-            "apt-get install openmpi-bin python3-mpi4py; as root set OMPI_ALLOW_RUN_AS_ROOT=1 and "
-            "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1"]
-    return "ok (2 ranks)", []
-
-
-def doctor(stream=None):
-    """Check the installation; print a report to ``stream`` (default stdout). Return the exit status."""
-    out = stream or sys.stdout
-    print(f"soro doctor — Python {platform.python_version()} at {sys.executable}", file=out)
-    rows, problems = _check_packages()
-    width = max(len(r[0]) for r in rows)
-    for label, version, where in rows:
-        print(f"  {label:<{width}}  {version}", file=out)
-    problems += _check_debian_numpy()
-    print(f"  {'BLAS':<{width}}  {_blas()}", file=out)
-    have_dolfinx = all(r[1] != "MISSING" for r in rows if r[0] in ("DOLFINx", "mpi4py"))
-    status, p = _check_jit_cache()
-    problems += p
-    print(f"  {'JIT cache':<{width}}  {status}", file=out)
-    if have_dolfinx:
-        support, p = _check_dolfinx_support()
-        problems += p
-        status, p = _check_jit()
-        problems += p
-    else:
-        support = status = "skipped (DOLFINx missing)"
-    print(f"  {'supported':<{width}}  {support}", file=out)
-    print(f"  {'form JIT':<{width}}  {status}", file=out)
-    status, p = _check_mpi()
-    problems += p
-    print(f"  {'mpirun -n 2':<{width}}  {status}", file=out)
-    if problems:
-        print(f"\n{len(problems)} problem(s):", file=out)
-        for p in problems:
-            print(f"  - {p}", file=out)
-        return 1
-    print("\nall checks passed", file=out)
-    return 0
-
-
-def list_demos():
-    """Names of the demos in :data:`DEMOS_DIR` (files ``NAME.py`` not starting with ``_``)."""
-    return sorted(p.stem for p in DEMOS_DIR.glob("*.py") if not p.name.startswith("_"))
-
-
-def run_demo(name=DEFAULT_DEMO, out="out", quick=False, **options):
-    """Run ``demos/<name>.py``'s ``main(out_dir, quick, **options)`` and write ``<out>/<name>/report.json``.
-
-    Returns the summary dict the demo returned, completed with its wall time.
-    """
-    from .io import write_json
-
-    path = DEMOS_DIR / f"{name}.py"
-    if not path.is_file():
-        raise SystemExit(f"no demo named {name!r}; available: {', '.join(list_demos()) or 'none'} "
-                         f"(looked in {DEMOS_DIR})")
-    spec = importlib.util.spec_from_file_location(f"soro_demo_{name}", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    out_dir = Path(out) / name
-    out_dir.mkdir(parents=True, exist_ok=True)
-    t0 = time.perf_counter()
-    summary = module.main(out_dir, quick=quick, **options)
-    summary = dict(summary or {})
-    summary.setdefault("demo", name)
-    summary["quick"] = bool(quick)
-    summary["wall_time_s"] = round(time.perf_counter() - t0, 3)
-    write_json(out_dir / "report.json", summary)
-    return summary
+__all__ = ["main", "run_sweep"]
 
 
 def _world_rank():
@@ -284,7 +65,8 @@ def run_sweep(config, out=None, group_size=1, retry_failed=False, dry_run=False,
     0 when every case is done, 1 when a case failed (or is still pending), 2 when the configuration is
     invalid. World rank 0 prints one line per finished case and a one-line summary to ``stream``.
     """
-    from .errors import SoroError
+    from sorofem.errors import SoroError
+
     from .sweep import Sweep, format_record
 
     stream = stream or sys.stdout
@@ -329,46 +111,6 @@ def run_sweep(config, out=None, group_size=1, retry_failed=False, dry_run=False,
     return 0 if counts["failed"] == 0 and counts["pending"] == 0 else 1
 
 
-def run_trade(train=None, test=None, backbone=None, inputs=None, tolerance=0.03, out=None, quick=False,
-              stream=None):
-    """``soro trade``: the speed-accuracy table for two snapshot files along a backbone, or for the PneuNet
-    demo when no file is given. Prints the table; returns the exit status (1 if no model meets the
-    tolerance, 2 for bad arguments)."""
-    stream = stream or sys.stdout
-    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) or not 0 < tolerance < 1:
-        print(f"soro trade: --tolerance is a fraction of the length in (0, 1), e.g. 0.03; got {tolerance}",
-              file=sys.stderr)
-        return 2
-    if train is None:
-        if test is not None or backbone is not None:
-            print("soro trade: give both TRAIN and TEST snapshot files with --backbone, or none", file=sys.stderr)
-            return 2
-        from soroshapes.dvs import trade_text
-
-        out = Path(out or "out")
-        report = run_demo("dvs_pneunet", out=out, quick=quick, tolerance=tolerance)
-        text, pick = trade_text(report["trade"], tolerance)   # the one selection rule, as in trade.txt
-        print(text, file=stream)
-    else:
-        from sorofem.errors import SoroError
-        from soroshapes.dvs import Backbone, trade_files
-        if test is None or backbone is None:
-            print("soro trade: TRAIN needs a TEST file and --backbone", file=sys.stderr)
-            return 2
-        try:
-            points = [[float(v) for v in p.split(",")] for p in backbone.split(":")]
-            rows, pick, text = trade_files(train, test, Backbone(points), inputs=inputs, tolerance=tolerance,
-                                           out=Path(out or "out/trade"))
-        except (ValueError, SoroError) as e:
-            print(f"soro trade: {e}", file=sys.stderr)
-            return 2
-        print(text, file=stream)
-    if pick is None:
-        return 1
-    print(f"selected: {pick['family']} with {pick['modes']} modes", file=stream)
-    return 0
-
-
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="soro", description="Soft-robot design, simulation and control.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -387,7 +129,7 @@ def main(argv=None):
     p.add_argument("--out", default=None, help="output directory")
     p.add_argument("--quick", action="store_true", help="short PneuNet run (without files)")
     p = sub.add_parser("sweep", help="run a batch of FEM cases from a TOML configuration (resumable, MPI)")
-    p.add_argument("config", help="sweep configuration (TOML; format in sorofem.sweep)")
+    p.add_argument("config", help="sweep configuration (TOML; format in soro.sweep)")
     p.add_argument("--out", default=None, help="output directory (default: out/sweeps/<config name>)")
     p.add_argument("--group-size", type=int, default=1, metavar="K",
                    help="MPI ranks per case under mpirun (default: 1)")
@@ -422,27 +164,35 @@ def main(argv=None):
     p.add_argument("--out", default="out/play", help="where recordings go (default out/play)")
     args = parser.parse_args(argv)
     if args.command == "play":    # soro play SCENE (soro.play)
-        from soro.play.cli import run as run_play
+        from .play.cli import run as run_play
         return run_play(args)
-    if args.command == "robot":   # soro robot list | export NAME (sorofem.robots)
-        from .robots._cli import run as run_robot
+    if args.command == "robot":   # soro robot list | export NAME (soro.robots)
+        from .robots.cli import run as run_robot
         return run_robot(args)
 
     if args.command == "doctor":
+        from .doctor import doctor
         return doctor()
     if args.command == "demo":
-        if args.list:
-            print("\n".join(list_demos()))
-            return 0
+        from sorofem.errors import SoroError
+
+        from .demo import list_demos, run_demo
         try:
+            if args.list:
+                print("\n".join(list_demos()))
+                return 0
             summary = run_demo(args.name, out=args.out, quick=args.quick)
         except KeyboardInterrupt:
             print("interrupted", file=sys.stderr)
             return 130
+        except SoroError as e:
+            print(f"soro demo: {e}", file=sys.stderr)
+            return 2
         print(json.dumps(summary, indent=2, default=str))
         print(f"report: {Path(args.out) / args.name / 'report.json'}")
         return 0
     if args.command == "trade":
+        from .trade import run_trade
         return run_trade(args.train, args.test, args.backbone, args.inputs, args.tolerance, args.out, args.quick)
     if args.command == "sweep":
         try:

@@ -14,7 +14,7 @@ from .errors import *  # noqa: F401,F403  (the hierarchy is small and listed in 
 
 __version__ = "0.1.0"
 
-_SUBMODULES = ("sdf", "mesh", "materials", "fem", "topopt", "snapshots", "cli")
+_SUBMODULES = ("sdf", "mesh", "materials", "fem", "topopt", "snapshots")
 
 __all__ = ["units", "errors", *_SUBMODULES, *errors.__all__]
 

@@ -1,180 +1,11 @@
-"""Parameter sweeps: one FEM case per point of a parameter space, run in batch (``soro sweep CONFIG.toml``).
-
-A sweep names a *case builder* (a Python function that returns a ready :class:`sorofem.fem.Fem`) and a
-parameter space (a full grid or a Latin hypercube sample). Every case is solved with :meth:`Fem.solve` and
-saved as a snapshot file (``docs/snapshot-format.md``); a ``manifest.json`` lists every case with its
-parameters and status. Sweeps are resumable (a rerun completes only what is missing), a failing case is
-recorded and does not stop the others, and under ``mpirun`` cases run side by side on groups of ranks.
-
-Configuration (TOML)
---------------------
-A complete example (``demos/sweeps/pneunet.toml``)::
-
-    builder = "pneunet_case.py:build"      # "file.py:function" (relative to this file) or "package.module:function"
-    summary = "pneunet_case.py:summary"    # optional: figures of a solved case, kept in the manifest
-
-    [sweep]
-    mode = "grid"                          # "grid": every combination; "lhs": Latin hypercube sample
-    # samples = 12                         # lhs only: number of cases (required)
-    # seed = 1                             # lhs only: random seed (default 0): same seed, same cases
-    # max_cells = 1_000_000                # a case whose mesh has more cells fails before its solve
-
-    [parameters]                           # what varies from case to case, SI units
-    pressure = [2e3, 4e3, 6e3]             # chamber pressure [Pa]; lhs: a range [lo, hi]
-    material = ["Ecoflex0030", "DragonSkin10"]    # categorical: preset names of sorofem.materials.PRESETS
-
-    [fixed]                                # the same in every case (optional)
-    chambers = 3
-    size = 1.5e-3                          # mesh size [m]
-
-    [solve]                                # keyword arguments of Fem.solve for every case (optional)
-    steps = 4
-
-Top-level keys: ``builder`` (required), ``summary``, and the tables ``[sweep]``, ``[parameters]``
-(required, at least one), ``[fixed]``, ``[solve]``; an unknown key is an error naming it.
-
-Parameters. In both modes the cases are formed in the order the parameters are written:
-
-==============================  ===============================  ==========================================
-value                           ``mode = "grid"``                ``mode = "lhs"``
-==============================  ===============================  ==========================================
-``[a, b, c]``                   these values                     two numbers ``[lo, hi]``: a range
-                                                                 (uniform); names (strings): choices
-``{choices = [a, b, c]}``       these values                     choices of any type (numbers, ``true``)
-``{linspace = [lo, hi, n]}``    n evenly spaced values, lo..hi   --
-``{range = [lo, hi]}``          --                               a range
-==============================  ===============================  ==========================================
-
-A grid runs every combination (the last parameter varies fastest). A Latin hypercube with ``samples = n``
-splits each range into n equal strata and puts one sample in each, in an independent random order per
-parameter (:func:`latin_hypercube`); a categorical parameter is stratified the same way over its choices,
-so each choice is drawn uniformly and about n/k times. Numbers are SI and must be finite.
-A parameter named ``material`` or ending in ``_material`` (in ``[parameters]`` or ``[fixed]``) must name
-presets of :data:`sorofem.materials.PRESETS`; the builder receives the name and makes the material with
-``materials.PRESETS[name]()``.
-
-The builder (the contract)::
-
-    def build(params: dict, comm) -> Fem | tuple[Fem, dict]
-
-``params`` holds the ``[fixed]`` values and the case's parameters (plain floats, ints, strings, bools and
-lists); ``comm`` is the MPI communicator the case runs on: build the mesh on it
-(``Mesh.from_sdf(shape, size=..., comm=comm)``; the Fem follows its mesh). Return the model with its
-supports and loads added (numbers are ramped by ``solve`` from 0 to their value at ``t_end = 1``), or
-``(fem, solve_kwargs)``, whose keyword arguments override ``[solve]`` for this case. The sweep calls
-``fem.solve(**solve)`` and saves the trajectory; ``[solve]`` accepts the arguments of :meth:`Fem.solve`
-listed in :data:`SOLVE_KEYS`, of the types in :data:`SOLVE_TYPES` (checked when the configuration is loaded:
-``steps = "four"``, ``steps = 2.5`` or ``predictor = 1`` are refused, naming the key).
-
-The builder may declare the types of its parameters, so that a configuration is checked when it is loaded,
-not case by case (a bool is not a number, an integer is not a float: ``pressure = [true, false]`` and
-``chambers = 2.7`` are refused instead of running as 1 Pa / 0 Pa and 2 chambers; a name the builder does not
-declare, e.g. a typo, is refused too)::
-
-    build.parameters = {"pressure": float, "material": str, "chambers": int, "size": float}
-
-(types: ``float`` = any number, ``int``, ``bool``, ``str``, ``list``). Without a declaration the values of
-each parameter must at least be of one kind (no ``[1.0, true]``).
-
-The optional summary::
-
-    def summary(traj, params) -> dict | None
-
-is called on every rank of the case after the solve; what it returns on the case's rank 0 (the rank that
-holds the gathered ``traj.vertices`` and ``traj.displacement``) must be a JSON dict of finite values and is
-kept under ``"summary"`` in the case's status and the manifest (e.g. a tip angle per case).
-
-Output directory
-----------------
-::
-
-    OUT/manifest.json    every case: index, id, params, status ("done", "failed" or "pending"), wall_time_s,
-                         steps (load steps after the initial state), ranks, snapshot, summary, attempts,
-                         error and traceback (failures); and the sweep's configuration and counts
-    OUT/case_0000.h5     the snapshot file of case 0; its metadata["case"] holds the id and parameters
-    OUT/case_0000.json   the status of case 0 (the same record as in the manifest, plus its provenance;
-                         "sha256" is the digest of the snapshot file)
-    OUT/.sweep.lock      while a run is going on
-
-Every file is written atomically (a temporary file flushed to disk, renamed into place, and the directory
-flushed), so a killed run or a power loss leaves either the complete file or none. The status files are the
-truth; the manifest is assembled from them by one rank at the start of a run (showing what a resume will do)
-and at its end.
-
-Provenance and checksums. Every status record (and the manifest, and each snapshot's metadata) holds the
-*provenance* of the results (:func:`provenance_changes` compares two): SHA-256 digests of the builder's (and
-summary's) source file and of every file it imports from the configuration's folder (found from its
-``import`` statements, recursively, and from the file names its string literals hold: a module loaded with
-``spec_from_file_location``, a data file), of ``[solve]`` and ``[fixed]``, and the package version. A done case's
-status also holds the SHA-256 digest of its snapshot file, whose datasets carry HDF5 ``fletcher32``
-checksums (``docs/snapshot-format.md``).
-A disk that fills up while a snapshot is written fails that case with a ``DataError`` naming the file and
-the free space (nothing is left under the snapshot's name). A status or claim file that cannot be written
-stops the group that writes it (all its ranks together); the run ends on every rank with that ``DataError``
-after the other groups' cases and the manifest, and the case without a status runs again in the next run.
-
-Running
--------
-* **Resume**: a case is skipped when its status is ``done`` and its snapshot exists and matches the digest
-  in its status (a truncated or damaged snapshot runs again); everything else that is missing runs. A case's
-  status file records its parameters: a directory holding cases of another configuration is refused (use
-  another output directory). Results of another provenance (the builder's source, ``[solve]``, ``[fixed]``
-  or the package version changed) are refused with a message naming what changed, before anything is
-  written; ``force_rerun=True`` (``--force-rerun``) runs those cases again instead. Failed cases are kept as
-  failed unless ``retry_failed=True`` (``--retry-failed``) runs them again.
-* **One sweep per directory**: a run holds ``OUT/.sweep.lock`` (process id and host) from start to end; a
-  second sweep in the same directory is refused. The lock of a process that no longer runs (killed) is
-  taken over.
-* **JIT cache**: a form compilation killed or interrupted leaves a lock in the DOLFINx JIT cache that makes
-  every later compile of that form time out (:mod:`sorofem.jitcache`). A run records the owner of the locks
-  it creates, removes its own unfinished ones on an interrupt and the stale ones (owner gone, or of unknown
-  owner and unchanged for 10 min) at start. A case that still meets a JIT timeout is recorded ``pending``,
-  not ``failed``: the next run does it.
-* **Mesh size**: a case whose builder makes a mesh of more than ``max_cells`` cells (``[sweep]``, default
-  :data:`MAX_CELLS`) fails before its solve, naming the count and the limit (a mistyped mesh size would
-  otherwise solve for hours). The count is known once the builder has meshed: an estimate before meshing
-  needs the mesh module's help (not yet).
-* **Failures**: any exception in the builder, the solve or the summary (a ``ConvergenceError``, a
-  ``ValueError`` ...) marks the case ``failed`` with its message and the last frames of its traceback;
-  the other cases go on. ``KeyboardInterrupt`` stops the run (run it again to resume).
-* **MPI**: under ``mpirun -n N`` the ranks are split into groups of ``group_size`` consecutive ranks (the
-  last group may be smaller); each group runs one case at a time on its communicator and takes the next
-  pending case as soon as it is free (a case is claimed with an exclusively created ``.case_XXXX.claim``
-  file in the output directory, which must therefore be on a file system every rank sees). Only a group's
-  rank 0 writes its case's files. Without MPI, or on one rank, the cases run one after another. Run one
-  sweep per output directory at a time.
-* **Progress**: world rank 0 reports one record per finished case (id, status, wall time) to the
-  ``progress`` callable (the CLI prints one line); records of other groups arrive when rank 0 is between
-  two of its own cases.
-
-Python use::
-
-    from sorofem.sweep import Sweep
-    sweep = Sweep.from_toml("demos/sweeps/pneunet.toml")
-    sweep.cases                          # [{'chambers': 3, 'size': 0.0015, 'pressure': 2000.0, ...}, ...]
-    print(sweep.table())                 # what --dry-run prints
-    manifest = sweep.run("out/sweeps/pneunet", group_size=1)      # every rank gets the manifest
-
-Examples
---------
->>> grid({"p": [1.0, 2.0], "m": ["A", "B"]})
-[{'p': 1.0, 'm': 'A'}, {'p': 1.0, 'm': 'B'}, {'p': 2.0, 'm': 'A'}, {'p': 2.0, 'm': 'B'}]
->>> cases = latin_hypercube({"p": [0.0, 1.0], "m": ["A", "B"]}, samples=4, seed=1)
->>> sorted(int(c["p"] * 4) for c in cases), sorted(c["m"] for c in cases)
-([0, 1, 2, 3], ['A', 'A', 'B', 'B'])
-"""
+"""The :class:`Sweep` (format and behaviour in :mod:`soro.sweep`): cases from the configuration, status files,
+the lock of the output directory, the manifest, and the cases run on groups of MPI ranks."""
 import gc
-import hashlib
-import importlib
-import importlib.util
-import inspect
-import itertools
 import json
 import logging
 import math
 import os
 import socket
-import sys
 import time
 import tomllib
 import traceback
@@ -182,418 +13,26 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import DataError, ParameterError
-from .io import process_alive, write_json
+from sorofem.errors import DataError, ParameterError
+from sorofem.io import process_alive, write_json
 
-__all__ = ["Sweep", "grid", "latin_hypercube", "SOLVE_KEYS", "SOLVE_TYPES", "PARAMETER_TYPES", "MODES", "MAX_CELLS",
-           "format_record", "provenance_changes"]
+from .manifest import _fmt, _provenance, format_record, provenance_changes
+from .sampling import _grid_values, _lhs_spec, grid, latin_hypercube
+from .schema import (MAX_CELLS, MODES, SOLVE_KEYS, _SWEEP_KEYS, _TOP_KEYS, _check_declared, _check_material,
+                     _check_solve, _check_value, _describe, _err, _is_material_key, _resolve)
+
+__all__ = ["Sweep"]
 
 log = logging.getLogger(__name__)
 
-MODES = ("grid", "lhs")
-#: Keyword arguments of :meth:`sorofem.fem.Fem.solve` that ``[solve]`` (or a builder) may set.
-SOLVE_KEYS = ("t_end", "steps", "min_step", "max_step", "max_iterations", "predictor", "monitor_stability")
 MANIFEST = "manifest.json"
 FORMAT = "soro-sweep"
 VERSION = 1
-_TOP_KEYS = ("builder", "summary", "sweep", "parameters", "fixed", "solve")
-_SWEEP_KEYS = ("mode", "samples", "seed", "max_cells")
-#: Default largest mesh (global cell count) a case may solve: a mistyped mesh size (1e-5 for 1e-3) fails the
-#: case with the count and the limit instead of solving for hours.
-MAX_CELLS = 1_000_000
+LOCK = ".sweep.lock"
+_TAG = 7301  # MPI tag of the progress records sent to world rank 0 (on a private duplicate of the communicator)
 #: What the manifest keeps of a case's status record (besides index, id, params and status).
 _RECORD_KEYS = ("wall_time_s", "steps", "ranks", "group", "snapshot", "sha256", "summary", "attempts", "finished",
                 "error", "traceback", "load_level")
-#: The type of each ``[solve]`` setting: "number" (an int or a float, never a bool), "integer", "bool";
-#: all numbers must be positive.
-SOLVE_TYPES = {"t_end": "number", "steps": "integer", "min_step": "number", "max_step": "number",
-               "max_iterations": "integer", "predictor": "bool", "monitor_stability": "bool"}
-#: Parameter types a builder may declare in its ``parameters`` attribute (see the module docstring).
-PARAMETER_TYPES = {float: "number", int: "integer", bool: "bool", str: "string", list: "list"}
-LOCK = ".sweep.lock"
-_TAG = 7301  # MPI tag of the progress records sent to world rank 0 (on a private duplicate of the communicator)
-
-
-# ---------------------------------------------------------------------------------------------- validation
-def _err(source, key, problem):
-    return ParameterError(f"{source}: {key}: {problem}" if source else f"{key}: {problem}")
-
-
-def _is_number(v):
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
-
-
-def _check_value(v, key, source):
-    """A case value: a finite number, a string, a bool or a list of those (JSON round-trips it exactly)."""
-    if isinstance(v, bool) or isinstance(v, str):
-        return v
-    if _is_number(v):
-        if not math.isfinite(v):
-            raise _err(source, key, f"{v} is not a finite number")
-        return v
-    if isinstance(v, (list, tuple)):
-        return [_check_value(x, f"{key}[{i}]", source) for i, x in enumerate(v)]
-    raise _err(source, key, f"values must be numbers, strings, booleans or lists of them, got "
-                            f"{type(v).__name__} {v!r}")
-
-
-def _type_name(v):
-    if isinstance(v, bool):
-        return "bool"
-    if isinstance(v, int):
-        return "integer"
-    if isinstance(v, float):
-        return "number"
-    return {str: "string", list: "list", tuple: "list"}.get(type(v), type(v).__name__)
-
-
-def _check_type(v, want, key, source):
-    """``v`` is of the type ``want`` ("number", "integer", "bool", "string" or "list"): bools are not numbers,
-    and an integer setting is an integer (``2.7`` or ``2.0`` is refused, not truncated)."""
-    ok = {"number": _is_number(v), "integer": isinstance(v, int) and not isinstance(v, bool),
-          "bool": isinstance(v, bool), "string": isinstance(v, str), "list": isinstance(v, (list, tuple))}[want]
-    if not ok:
-        article = "an" if want[0] in "aeiou" else "a"
-        raise _err(source, key, f"must be {article} {want}, got {_type_name(v)} {v!r}")
-
-
-def _check_solve(solve, source):
-    for k, v in solve.items():
-        if k not in SOLVE_KEYS:
-            raise _err(source, f"solve.{k}", f"not a setting of Fem.solve; use one of {', '.join(SOLVE_KEYS)}")
-        _check_type(v, SOLVE_TYPES[k], f"solve.{k}", source)
-        _check_value(v, f"solve.{k}", source)
-        if SOLVE_TYPES[k] != "bool" and not v > 0:
-            raise _err(source, f"solve.{k}", f"must be positive, got {v!r}")
-
-
-def _check_kinds(key, values, source):
-    """The values of one parameter are of one kind: numbers (ints and floats mix), bools, strings or lists."""
-    kinds = {("number" if _is_number(v) else _type_name(v)) for v in values}
-    if len(kinds) > 1:
-        raise _err(source, key, f"mixes {' and '.join(sorted(kinds))} values {values!r}; a parameter's values "
-                                "are all of one type (true/false are not 1/0)")
-
-
-def _check_declared(cases, declared, builder_spec, source, fixed=()):
-    """Check every case value against the types the builder declares (``build.parameters``)."""
-    if declared is None:
-        return
-    if not isinstance(declared, dict) or not all(t in PARAMETER_TYPES for t in declared.values()):
-        raise _err(source, "builder", f"{builder_spec}.parameters must map names to types among "
-                                      f"{', '.join(t.__name__ for t in PARAMETER_TYPES)}, got {declared!r}")
-    for params in cases:
-        for k, v in params.items():
-            key = f"fixed.{k}" if k in fixed else f"parameters.{k}"
-            if k not in declared:
-                raise _err(source, key, f"the builder {builder_spec} takes no parameter {k!r}; it declares "
-                                        f"{', '.join(declared)}")
-            _check_type(v, PARAMETER_TYPES[declared[k]], key, source)
-
-
-def _is_material_key(name):
-    return name == "material" or name.endswith("_material")
-
-
-def _check_material(name, value, source):
-    from .materials import PRESETS
-
-    if not isinstance(value, str) or value not in PRESETS:
-        raise _err(source, name, f"unknown material preset {value!r}; known presets: {', '.join(PRESETS)}")
-
-
-def _grid_values(key, spec, source=""):
-    """The list of values of one grid parameter."""
-    if isinstance(spec, dict):
-        if set(spec) == {"choices"}:
-            spec = spec["choices"]
-        elif set(spec) == {"linspace"}:
-            ls = spec["linspace"]
-            if not (isinstance(ls, list) and len(ls) == 3 and all(_is_number(x) for x in ls)
-                    and isinstance(ls[2], int) and ls[2] >= 1):
-                raise _err(source, key, f"linspace must be [lo, hi, n] with n a positive integer, got {ls!r}")
-            _check_value(ls, key, source)
-            return [float(x) for x in np.linspace(ls[0], ls[1], ls[2])]
-        elif "range" in spec:
-            raise _err(source, key, "a range is sampled by mode = \"lhs\"; a grid needs values: a list, "
-                                    "{ choices = [...] } or { linspace = [lo, hi, n] }")
-        else:
-            raise _err(source, key, f"unknown form {sorted(spec)}; use a list of values, {{ choices = [...] }} "
-                                    "or { linspace = [lo, hi, n] }")
-    if not isinstance(spec, list):
-        raise _err(source, key, f"a grid parameter is a list of values, got {spec!r} (a value that does not "
-                                "vary belongs in [fixed])")
-    if not spec:
-        raise _err(source, key, "the list of values is empty")
-    _check_kinds(key, spec, source)
-    return [_check_value(v, f"{key}[{i}]", source) for i, v in enumerate(spec)]
-
-
-def _lhs_spec(key, spec, source=""):
-    """("range", lo, hi) or ("choices", values) for one Latin-hypercube parameter."""
-    if isinstance(spec, dict):
-        if set(spec) == {"choices"}:
-            values = spec["choices"]
-            if not isinstance(values, list) or not values:
-                raise _err(source, key, f"choices must be a non-empty list, got {values!r}")
-            _check_kinds(key, values, source)
-            return ("choices", [_check_value(v, f"{key}.choices[{i}]", source) for i, v in enumerate(values)])
-        if set(spec) == {"range"}:
-            spec = spec["range"]
-        elif "linspace" in spec:
-            raise _err(source, key, "linspace makes grid values; in lhs mode give a range [lo, hi]")
-        else:
-            raise _err(source, key, f"unknown form {sorted(spec)}; in lhs mode use [lo, hi], a list of names "
-                                    "or { choices = [...] }")
-    if isinstance(spec, (list, tuple)) and spec and all(isinstance(v, str) for v in spec):
-        return ("choices", list(spec))
-    if not (isinstance(spec, (list, tuple)) and len(spec) == 2 and all(_is_number(v) for v in spec)):
-        raise _err(source, key, f"in lhs mode a parameter is a range [lo, hi] of two numbers, a list of names "
-                                f"or {{ choices = [...] }}, got {spec!r}")
-    lo, hi = (float(v) for v in spec)
-    if not (math.isfinite(lo) and math.isfinite(hi)) or not lo < hi:
-        raise _err(source, key, f"the range [lo, hi] needs finite lo < hi, got [{spec[0]}, {spec[1]}]")
-    return ("range", lo, hi)
-
-
-# ---------------------------------------------------------------------------------------------- sampling
-def grid(parameters):
-    """Every combination of the parameters' values, in order, the last parameter varying fastest.
-
-    Parameters
-    ----------
-    parameters : dict
-        ``name -> list of values`` (or ``{"choices": [...]}``, ``{"linspace": [lo, hi, n]}``).
-
-    Returns
-    -------
-    list of dict, one per case (``prod(len(values))`` cases).
-    """
-    names = list(parameters)
-    values = [_grid_values(k, parameters[k]) for k in names]
-    return [dict(zip(names, combo)) for combo in itertools.product(*values)]
-
-
-def latin_hypercube(parameters, samples, seed=0):
-    """A Latin hypercube sample of ``samples`` cases.
-
-    For each parameter independently, :math:`u_i = (\\pi_i + r_i)/n`, :math:`i = 0..n-1`, with
-    :math:`\\pi` a random permutation of :math:`0..n-1` and :math:`r_i` uniform in [0, 1): exactly one
-    sample falls in each of the n strata :math:`[k/n, (k+1)/n)`. A range ``[lo, hi]`` maps it to
-    :math:`lo + (hi - lo) u` (so lo <= value < hi); choices :math:`c_0..c_{k-1}` to :math:`c_{\\lfloor k u
-    \\rfloor}` (each choice drawn with probability 1/k, n/k times up to one).
-
-    Parameters
-    ----------
-    parameters : dict
-        ``name -> [lo, hi]`` (a range), a list of names, ``{"range": [lo, hi]}`` or ``{"choices": [...]}``.
-    samples : int
-        Number of cases n >= 1.
-    seed : int
-        Seed of :func:`numpy.random.default_rng`; the same seed and parameters give the same cases.
-    """
-    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 1:
-        raise ParameterError(f"samples must be a positive integer, got {samples!r}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ParameterError(f"seed must be a non-negative integer, got {seed!r}")
-    n = int(samples)
-    rng = np.random.default_rng(int(seed))
-    columns = {}
-    for name, raw in parameters.items():
-        spec = _lhs_spec(name, raw)
-        u = (rng.permutation(n) + rng.random(n)) / n
-        if spec[0] == "range":
-            lo, hi = spec[1], spec[2]
-            columns[name] = [min(lo + (hi - lo) * float(x), math.nextafter(hi, lo)) for x in u]
-        else:
-            choices = spec[1]
-            columns[name] = [choices[min(int(x * len(choices)), len(choices) - 1)] for x in u]
-    return [{k: columns[k][i] for k in columns} for i in range(n)]
-
-
-# ---------------------------------------------------------------------------------------------- builders
-def _resolve(spec, base_dir, key, source):
-    """A function from ``"file.py:function"`` (relative to ``base_dir``) or ``"package.module:function"``."""
-    if callable(spec):
-        return spec
-    if not isinstance(spec, str) or ":" not in spec:
-        raise _err(source, key, f"expected \"file.py:function\" or \"package.module:function\", got {spec!r}")
-    target, _, name = spec.rpartition(":")
-    if not target or not name.isidentifier():
-        raise _err(source, key, f"expected \"file.py:function\" or \"package.module:function\", got {spec!r}")
-    if target.endswith(".py") or "/" in target or os.sep in target:
-        path = Path(target)
-        if not path.is_absolute():
-            path = Path(base_dir or ".") / path
-        if not path.is_file():
-            raise _err(source, key, f"no file {path} (a relative path is taken from the config's folder)")
-        path = path.resolve()
-        # registered in sys.modules under a name unique to the file (dataclasses, pickle look modules up there)
-        module_name = f"soro_sweep_{path.stem}_{hashlib.sha1(str(path).encode()).hexdigest()[:8]}"
-        try:
-            mod_spec = importlib.util.spec_from_file_location(module_name, path)
-            module = importlib.util.module_from_spec(mod_spec)
-            sys.modules[module_name] = module
-            mod_spec.loader.exec_module(module)
-        except Exception as e:  # noqa: BLE001 - re-raised with the key that named the file
-            sys.modules.pop(module_name, None)
-            raise _err(source, key, f"importing {path} failed: {type(e).__name__}: {e}") from e
-        where = str(path)
-    else:
-        try:
-            module = importlib.import_module(target)
-        except ImportError as e:
-            raise _err(source, key, f"cannot import module {target!r} ({e})") from e
-        where = f"module {target}"
-    fn = getattr(module, name, None)
-    if not callable(fn):
-        raise _err(source, key, f"{where} has no function {name!r}")
-    return fn
-
-
-def _describe(spec):
-    """How a builder or summary is named in tables and the manifest."""
-    if isinstance(spec, str):
-        return spec
-    return f"{getattr(spec, '__module__', '?')}:{getattr(spec, '__qualname__', spec)}"
-
-
-def format_record(rec, done=None, total=None):
-    """One progress line for a case record: ``[3/12] case_0002  done     1.4 s  (4 steps, 1 rank)``."""
-    count = f"[{done}/{total}] " if done is not None and total is not None else ""
-    status = rec["status"]
-    line = f"{count}{rec['id']}  {status:<6} {rec.get('wall_time_s') or 0.0:7.1f} s"
-    if status == "done":
-        ranks = rec.get("ranks", 1)
-        line += f"  ({rec.get('steps')} steps, {ranks} rank{'s' if ranks != 1 else ''})"
-    elif rec.get("error"):
-        line += f"  {rec['error'].splitlines()[0][:200]}"
-    return line
-
-
-def _fmt(v):
-    if isinstance(v, float):
-        return f"{v:.6g}"
-    return json.dumps(v) if not isinstance(v, str) else v
-
-
-# ---------------------------------------------------------------------------------------------- provenance
-def _sha256(data):
-    return hashlib.sha256(data if isinstance(data, bytes) else data.encode()).hexdigest()
-
-
-def _canonical(obj):
-    return json.dumps(obj, sort_keys=True, separators=(",", ":"))
-
-
-def _local_imports(path, base_dir):
-    """Files of ``base_dir`` that the Python file ``path`` imports (``import x``, ``from x import y``,
-    ``from x.y import z``, at any depth of the file), found from its syntax tree; and the files that a string
-    literal of the file names: a data file of ``base_dir`` the builder reads (relative to ``base_dir`` or to the
-    file's folder; not a ``.toml`` file: a sweep configuration's parameters may grow between runs), or a module
-    loaded by path (``spec_from_file_location(..., Path(__file__).parents[1] / "case_lib.py")``): a literal
-    ending in ``.py`` names the nearest such file in the file's folder or a folder above it."""
-    import ast
-
-    try:
-        tree = ast.parse(Path(path).read_text(), filename=str(path))
-    except (OSError, SyntaxError, ValueError):
-        return []
-    names, literals = [], []
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            names += [a.name for a in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            names.append(node.module)
-            names += [f"{node.module}.{a.name}" for a in node.names]
-        elif isinstance(node, ast.Constant) and isinstance(node.value, str) and 0 < len(node.value) < 256 \
-                and "\n" not in node.value and "\0" not in node.value:
-            literals.append(node.value)
-    found = []
-    base, here = base_dir.resolve(), Path(path).resolve().parent
-    for text in literals:
-        module = text.endswith(".py")
-        for candidate in [base / text, here / text] + ([p / text for p in here.parents] if module else []):
-            try:
-                real = candidate.resolve()
-                ok = real.is_file() and real.suffix != ".toml" and (module or base in real.parents)
-            except (OSError, ValueError):
-                continue
-            if ok:
-                if real not in found:
-                    found.append(real)
-                if module:
-                    break
-    for name in names:
-        parts = name.split(".")
-        for n in range(1, len(parts) + 1):  # importing a.b.c runs a/__init__.py and a/b/__init__.py too
-            rel = Path(*parts[:n])
-            for candidate in (base_dir / rel.with_suffix(".py"), base_dir / rel / "__init__.py"):
-                if candidate.is_file() and candidate.resolve() not in found:
-                    found.append(candidate.resolve())
-    return found
-
-
-def _source_files(fn, base_dir):
-    """The source file of ``fn`` and, recursively, the files of ``base_dir`` it imports."""
-    try:
-        first = Path(inspect.getsourcefile(fn)).resolve()
-    except (TypeError, OSError):
-        return []
-    files, todo = [], [first]
-    while todo:
-        f = todo.pop()
-        if f in files or not f.is_file():
-            continue
-        files.append(f)
-        if base_dir is not None and f.suffix == ".py":
-            todo += _local_imports(f, base_dir)
-    return files
-
-
-def _provenance(builder, summary, base_dir, solve, fixed):
-    """What a case's results depend on besides its parameters: digests of the builder's (and summary's) source
-    files and of the files they import from the configuration's folder, of ``[solve]`` and ``[fixed]``, and
-    the package version."""
-    from . import __version__
-
-    base = base_dir.resolve() if base_dir is not None else None
-    files = {}
-    for fn in (builder, summary):
-        if fn is None:
-            continue
-        sources = _source_files(fn, base)
-        if not sources:  # a callable without a source file: its code object stands for it
-            code = getattr(fn, "__code__", None)
-            files[f"<{_describe(fn)}>"] = _sha256(code.co_code + repr(code.co_consts).encode()) if code \
-                else _sha256(_describe(fn))
-        for f in sources:  # named relative to the configuration's folder: moving the whole tree changes nothing
-            name = os.path.relpath(f, base) if base is not None else str(f)
-            files[name] = _sha256(f.read_bytes())
-    return {"package_version": __version__, "builder_sha256": _sha256(_canonical(files)), "builder_files": files,
-            "solve_sha256": _sha256(_canonical(solve)), "solve": solve,
-            "fixed_sha256": _sha256(_canonical(fixed)), "fixed": fixed}
-
-
-def provenance_changes(old, new):
-    """What differs between two provenance records (lists of phrases; empty if they match)."""
-    if not isinstance(old, dict) or "builder_sha256" not in old:
-        return ["the results were written before provenance was recorded"]
-    changes = []
-    if old.get("builder_sha256") != new["builder_sha256"]:
-        a, b = old.get("builder_files") or {}, new["builder_files"]
-        what = sorted(k for k in set(a) | set(b) if a.get(k) != b.get(k))
-        changes.append(f"the builder's source changed ({', '.join(what) or 'unknown files'})")
-    for key, table in (("solve", "[solve]"), ("fixed", "[fixed]")):
-        if old.get(f"{key}_sha256") != new[f"{key}_sha256"]:
-            a, b = old.get(key) or {}, new[key]
-            diff = [f"{k} {json.dumps(a.get(k))} -> {json.dumps(b.get(k))}"
-                    for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)]
-            changes.append(f"{table} changed ({'; '.join(diff) or 'values'})")
-    if old.get("package_version") != new["package_version"]:
-        changes.append(f"the package version changed ({old.get('package_version')} -> {new['package_version']})")
-    return changes
-
 
 # ---------------------------------------------------------------------------------------------- the sweep
 class Sweep:
@@ -668,7 +107,7 @@ class Sweep:
                 if _is_material_key(k):
                     for i, v in enumerate(vals):
                         _check_material(f"parameters.{k}[{i}]", v, src)
-            cases = [dict(zip(values, combo)) for combo in itertools.product(*values.values())]
+            cases = grid(values)   # the values are checked lists: the grid forms their combinations
         else:
             if samples is None:
                 raise _err(src, "sweep.samples", "mode = \"lhs\" needs the number of cases, e.g. samples = 16")
@@ -827,7 +266,7 @@ class Sweep:
 
     def _digest_ok(self, snapshot, expected):
         """Whether the snapshot's bytes match the digest of its status record (cached per size and mtime)."""
-        from .io import file_digest
+        from sorofem.io import file_digest
 
         st = snapshot.stat()
         key = (str(snapshot), st.st_size, st.st_mtime_ns)
@@ -936,8 +375,8 @@ class Sweep:
         """
         from mpi4py import MPI
 
-        from . import jitcache
-        from .io import on_root
+        from sorofem import jitcache
+        from sorofem.io import on_root
 
         jitcache.track()
         world = (comm or MPI.COMM_WORLD).Dup()
@@ -965,7 +404,7 @@ class Sweep:
         started = time.perf_counter()
 
         def plan():
-            from . import jitcache
+            from sorofem import jitcache
 
             out.mkdir(parents=True, exist_ok=True)
             locked.append(self._lock(out))
@@ -1062,7 +501,7 @@ class Sweep:
         has no status, runs again in the next run."""
         cid = self.case_id(index)
         params = self.cases[index]
-        from . import jitcache
+        from sorofem import jitcache
 
         snapshot = out / f"{cid}.h5"
         t0 = time.perf_counter()
@@ -1079,7 +518,7 @@ class Sweep:
             traj.save(snapshot)
             steps = len(traj) - 1
             if group.rank == 0:
-                from .io import file_digest
+                from sorofem.io import file_digest
                 digest = file_digest(snapshot)
         except Exception as e:  # noqa: BLE001 - a case's failure is recorded; the sweep goes on
             error = e
@@ -1118,8 +557,8 @@ class Sweep:
         return rec, write_failed
 
     def _build(self, params, group, MPI):
-        from .fem import Fem
-        from .mesh import cell_limit
+        from sorofem.fem import Fem
+        from sorofem.mesh import cell_limit
 
         with cell_limit(self.max_cells):   # Mesh.from_sdf refuses a larger estimate before gmsh runs
             built = self.builder(dict(params), group)
@@ -1151,7 +590,7 @@ class Sweep:
 def _write_error(path, exc):
     """The :class:`DataError` for a file of the sweep that could not be written: a full disk names the free
     space (:func:`sorofem.io.disk_full_error`)."""
-    from .io import disk_full_error, is_disk_full
+    from sorofem.io import disk_full_error, is_disk_full
 
     if is_disk_full(exc):
         return disk_full_error(path, exc)
@@ -1196,7 +635,7 @@ def _patient_jit():
     """Groups running side by side compile the same forms at the same moment; FFCx makes the second one wait
     for the first one's module, by default for 10 s only, then fails. Wait up to 10 min instead."""
     try:
-        from . import _dolfinx
+        from sorofem import _dolfinx
         _dolfinx.set_jit_timeout(600)
     except ImportError:  # pragma: no cover - no DOLFINx: nothing compiles forms
         log.debug("could not lengthen the JIT timeout", exc_info=True)
