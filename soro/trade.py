@@ -29,7 +29,8 @@ def trade(train, test, make_shapes, inputs, modes=range(1, 7), strain=2, familie
     For each family (``"dvs"``: the POD of ``train``; ``"chebyshev"``; ``"pcc"``: piecewise constant on k
     equal sections) and each number of modes k, builds ``make_shapes(bases, dofs)`` with k modes on the strain
     ``strain`` (2 = bending about z, the planar bending), identifies its actuation on ``train``
-    (:func:`soroshapes.dvs.identify`) and measures (:func:`soroshapes.dvs.compare`) the tip and shape errors on ``train`` and on ``test``
+    (:func:`soroshapes.dvs.identify`) and measures (:func:`soroshapes.dvs.compare`) the tip and shape errors on
+    ``train`` and on ``test``
     (snapshots not used for training) and the time per static solve. With ``contact = (data, add)``, the
     DVS modes are learned from ``train`` and ``data`` together and each model, once identified, is also
     compared with ``data`` after ``add(shapes)`` gave it the obstacle (columns ``*_contact``). The time per

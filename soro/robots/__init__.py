@@ -40,7 +40,8 @@ __all__ = ["names", "get", "design", "parse_params", "export", "export_part", "p
 
 
 def scene(name, stiffness="bellows", **params):
-    """The ``soro play`` scene of robot ``name`` built with ``params`` in SI (:func:`soro.robots.twin.scene`); ``soro play``
+    """The ``soro play`` scene of robot ``name`` built with ``params`` in SI (:func:`soro.robots.twin.scene`);
+    ``soro play``
     lists it as ``robot:NAME``."""
     return twin_scene(design(name, **params), stiffness=stiffness)
 
