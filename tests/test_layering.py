@@ -211,6 +211,40 @@ def test_pyproject_lists_every_package():
     assert listed - folders == {"soro.demos"} and cfg["package-dir"] == {"soro.demos": "demos"}
 
 
+#: Process entry points outside the application layer that may exit: the board service's own command lines
+#: (``python -m sorocontrol.server`` and the unit's stop hook ``python -m sorocontrol.vent``, run by systemd on
+#: the board, hardware/soro-board.service): their ``main``/``__main__`` and the argument helpers of ``main``.
+EXIT_ALLOWED = {("sorocontrol.server", "main"), ("sorocontrol.server", "_read_secret"),
+                ("sorocontrol.server", "_import_plant"), ("sorocontrol.server", "_receive_plant"),
+                ("sorocontrol.server", "<module>"), ("sorocontrol.vent", "<module>")}
+
+
+def exits(module, source=None):
+    """(function, line) of every ``raise SystemExit`` / ``sys.exit(...)`` / ``exit(...)`` in ``module``."""
+    tree = ast.parse(source if source is not None else MODULES[module].read_text())
+    found = []
+
+    def visit(node, func):
+        for child in ast.iter_child_nodes(node):
+            name = child.name if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)) else func
+            hit = (isinstance(child, ast.Raise) and child.exc is not None and "SystemExit" in ast.unparse(child.exc)) \
+                or (isinstance(child, ast.Call) and ast.unparse(child.func) in ("sys.exit", "exit", "os._exit"))
+            if hit:
+                found.append((func, child.lineno))
+            visit(child, name)
+    visit(tree, "<module>")
+    return found
+
+
+def test_only_the_cli_turns_errors_into_exit_codes():
+    """Library code raises SoroErrors; exit codes are the CLI's (soro/), besides the board service's entry points."""
+    problems = [f"{MODULES[m].relative_to(ROOT)}:{line} exits in {func}()" for m in MODULES
+                if m.split(".")[0] != "soro" for func, line in exits(m) if (m, func) not in EXIT_ALLOWED]
+    assert not problems, "raise a SoroError subclass instead (the CLI turns it into the exit status):\n" + \
+        "\n".join(problems)
+    assert exits("sorofem.io", "def f():\n    raise SystemExit('no')\n") == [("f", 2)]
+
+
 # ------------------------------------------------------------------------------------------------ at run time
 _WATCH = r'''
 import builtins, importlib, json, sys
