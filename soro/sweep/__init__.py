@@ -165,8 +165,9 @@ Examples
 
 The package: :mod:`~soro.sweep.schema` (the configuration's keys, types and checks; the builder and summary
 references), :mod:`~soro.sweep.sampling` (grid and Latin hypercube), :mod:`~soro.sweep.manifest` (progress
-records and the provenance of results) and :mod:`~soro.sweep.runner` (the :class:`Sweep`: status files,
-locks, MPI groups).
+records and the provenance of results), :mod:`~soro.sweep.directory` (the lock of the output directory, the
+clean-up of a killed run) and :mod:`~soro.sweep.runner` (the :class:`Sweep`: status files, manifest, MPI
+groups).
 """
 from .manifest import format_record, provenance_changes
 from .runner import Sweep

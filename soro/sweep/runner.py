@@ -5,7 +5,6 @@ import json
 import logging
 import math
 import os
-import socket
 import time
 import tomllib
 import traceback
@@ -14,8 +13,9 @@ from pathlib import Path
 import numpy as np
 
 from sorofem.errors import DataError, ParameterError
-from sorofem.io import process_alive, write_json
+from sorofem.io import write_json
 
+from .directory import MANIFEST, clean, take_lock
 from .manifest import _fmt, _provenance, format_record, provenance_changes
 from .sampling import _grid_values, _lhs_spec, grid, latin_hypercube
 from .schema import (MAX_CELLS, MODES, SOLVE_KEYS, _SWEEP_KEYS, _TOP_KEYS, _check_declared, _check_material,
@@ -25,10 +25,8 @@ __all__ = ["Sweep"]
 
 log = logging.getLogger(__name__)
 
-MANIFEST = "manifest.json"
 FORMAT = "soro-sweep"
 VERSION = 1
-LOCK = ".sweep.lock"
 _TAG = 7301  # MPI tag of the progress records sent to world rank 0 (on a private duplicate of the communicator)
 #: What the manifest keeps of a case's status record (besides index, id, params and status).
 _RECORD_KEYS = ("wall_time_s", "steps", "ranks", "group", "snapshot", "sha256", "summary", "attempts", "finished",
@@ -301,42 +299,6 @@ class Sweep:
         write_json(out / MANIFEST, manifest)
         return manifest
 
-    @staticmethod
-    def _lock(out):
-        """Take ``out/.sweep.lock`` (exclusive creation); a lock whose process is gone (same host) is stale
-        and taken over. Another live sweep in the same directory is refused."""
-        path = out / LOCK
-        me = {"pid": os.getpid(), "host": socket.gethostname(), "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
-        for _ in range(3):
-            try:
-                fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-            except FileExistsError:
-                try:
-                    other = json.loads(path.read_text())
-                    pid, host = int(other["pid"]), str(other["host"])
-                except (OSError, ValueError, KeyError, TypeError):
-                    pid = host = None
-                if pid is not None and host == me["host"] and pid != os.getpid() and not process_alive(pid):
-                    log.warning("removing the lock of a sweep that is gone (process %d): %s", pid, path)
-                    path.unlink(missing_ok=True)
-                    continue
-                owner = f"process {pid} on {host}" if pid is not None else "an unknown process"
-                raise ParameterError(
-                    f"another sweep is running in {out} ({owner}, lock {path}): wait for it to finish or use "
-                    f"another output directory (--out); if no sweep runs there any more, remove {path}")
-            os.write(fd, json.dumps(me).encode())
-            os.close(fd)
-            return path
-        raise ParameterError(f"could not take the lock {path}: remove it if no sweep runs in {out}")
-
-    @staticmethod
-    def _clean(out):
-        """Remove what a killed run may have left: claims and temporary files (never a finished file)."""
-        for f in out.iterdir():
-            n = f.name
-            if f.is_file() and (n.startswith(".case_") or n.startswith(f".{MANIFEST}.")):
-                f.unlink(missing_ok=True)
-
     def _claim(self, out, i):
         """Claim case ``i`` for this group (atomic exclusive creation); False if another group has it."""
         try:
@@ -407,9 +369,9 @@ class Sweep:
             from sorofem import jitcache
 
             out.mkdir(parents=True, exist_ok=True)
-            locked.append(self._lock(out))
+            locked.append(take_lock(out))
             jitcache.remove_stale(jit_cache)   # left by a killed compile: every case needing the form times out
-            self._clean(out)
+            clean(out)
             statuses = self._statuses(out, force_rerun)
             todo = []
             for i, rec in enumerate(statuses):
@@ -483,7 +445,7 @@ class Sweep:
         world.Barrier()
 
         def finish():
-            self._clean(out)  # the claims of this run (every group is done)
+            clean(out)  # the claims of this run (every group is done)
             return self._manifest(out, self._statuses(out, force_rerun), world.size, group_size, started)
 
         manifest = world.bcast(on_root(world, finish), root=0)
