@@ -71,7 +71,8 @@ def dvs_stage(out, cavity, fem_test_s):
     """Recover strains from the two snapshot files, build the 3-mode DVS beam, compare it with FEM and run
     the trade; returns the report entries."""
     from soroshapes import Shapes
-    from soroshapes.dvs import Backbone, compare, dvs_basis, identify, recover_strains, trade_report
+    from soro.trade import trade_report
+    from soroshapes.dvs import Backbone, compare, dvs_basis, identify, recover_strains
 
     backbone = Backbone.line([0.0, LAYER / 2], [L, LAYER / 2])
     train = recover_strains(out / "pneunet_inflation.h5", backbone, samples=61)

@@ -12,7 +12,7 @@ Along a backbone in its strain-limiting layer the bending strain is recovered fr
 identified on the free training ramp (:func:`soroshapes.dvs.identify`; the modes are learned from the free
 and the wrapping snapshots together), and the beam model is compared with FEM on the three cases (for the
 wrap, with the cylinder as an SDF contact of the beam). The speed-accuracy trade of DVS, Chebyshev and PCC bases of 1 to 6 modes is tabulated
-(:func:`soroshapes.dvs.trade`) and the cheapest model within 3 % of the length is selected.
+(:func:`soro.trade.trade`) and the cheapest model within 3 % of the length is selected.
 
 Parameters
 ----------
@@ -102,7 +102,8 @@ def main(out: Path, quick: bool = False, tolerance: float = 0.03) -> dict:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from soroshapes.dvs import Backbone, compare, dvs_basis, identify, recover_strains, trade_report
+    from soro.trade import trade_report
+    from soroshapes.dvs import Backbone, compare, dvs_basis, identify, recover_strains
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -94,7 +94,8 @@ def bending(out, quick):
     import matplotlib.pyplot as plt
 
     from soroshapes.dvs import Backbone
-    from sorofem import materials, robots, sdf
+    from soro import robots
+    from sorofem import materials, sdf
     from sorofem.fem import Fem
     from sorofem.mesh import Mesh
 
@@ -184,7 +185,8 @@ def planar(out, quick):
     import matplotlib.pyplot as plt
 
     from soroshapes.dvs import Backbone
-    from sorofem import materials, robots, sdf
+    from soro import robots
+    from sorofem import materials, sdf
     from sorofem.fem import Fem
     from sorofem.mesh import Mesh
 

@@ -6,6 +6,13 @@ Importing ``sorofem`` is cheap: submodules are loaded on first attribute access,
 Layer 1 (pure numpy/numba): :mod:`sorofem.units`, :mod:`sorofem.errors`, :mod:`sorofem.sdf`.
 Layer 2 (DOLFINx, UFL, PETSc, SLEPc, gmsh): :mod:`sorofem.mesh`, :mod:`sorofem.materials`,
 :mod:`sorofem.fem`, :mod:`sorofem.topopt`.
+
+``sorofem`` is the ground floor of the platform: it imports nothing from ``soroshapes``, ``sorocontrol`` or the
+application layer ``soro`` (``tests/test_layering.py``). The packages above use only its *foundation*:
+:mod:`~sorofem.errors`, :mod:`~sorofem.units`, :mod:`~sorofem.io`, :mod:`~sorofem.sdf`,
+:mod:`~sorofem.snapshots` (the seam: FEM results as files), :mod:`~sorofem.materials`, and two helpers that
+import no DOLFINx: ``sorofem._numba`` (the cache stamp of every numba kernel of the platform) and
+``sorofem._lazy`` (the lazy attributes of the packages' ``__init__``).
 """
 import importlib
 
@@ -14,7 +21,7 @@ from .errors import *  # noqa: F401,F403  (the hierarchy is small and listed in 
 
 __version__ = "0.1.0"
 
-_SUBMODULES = ("sdf", "mesh", "materials", "fem", "topopt", "snapshots", "cli")
+_SUBMODULES = ("sdf", "mesh", "materials", "fem", "topopt", "snapshots")
 
 __all__ = ["units", "errors", *_SUBMODULES, *errors.__all__]
 

@@ -10,7 +10,7 @@ times out until the file is deleted by hand.
 
 This module makes those locks visible and removable:
 
-* :func:`track` (called by :meth:`sorofem.sweep.Sweep.run`) records the owner of each lock this process
+* :func:`track` (called by the sweep runner, :meth:`soro.sweep.Sweep.run`) records the owner of each lock this process
   creates in ``<module>.c.owner`` (process id, host, time), and :func:`release_owned` removes this process's
   unfinished locks (on an interrupt);
 * :func:`scan` lists the locks (``.c`` without ``.c.cached``) and says which are *stale*: their owner process

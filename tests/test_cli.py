@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from sorofem import cli
+from soro import cli, demo
 
-SORO = [sys.executable, "-m", "sorofem.cli"]
+SORO = [sys.executable, "-m", "soro.cli"]
 
 
 @pytest.mark.slow
@@ -61,9 +61,11 @@ def test_doctor_names_a_stale_jit_lock_and_the_fix(tmp_path, subprocess_env):
 def test_demo_list_and_unknown_demo(capsys):
     assert cli.main(["demo", "--list"]) == 0
     names = capsys.readouterr().out.split()
-    assert cli.DEFAULT_DEMO in names
-    with pytest.raises(SystemExit, match="no demo named 'nope'"):
-        cli.run_demo("nope")
+    assert demo.DEFAULT_DEMO in names and "sdf_gallery" in names
+    with pytest.raises(demo.DemoNotFoundError, match="no demo named 'nope'; available: .*sdf_gallery"):
+        demo.run_demo("nope")
+    assert cli.main(["demo", "nope"]) == 2       # the CLI turns the error into its exit status
+    assert "soro demo: no demo named 'nope'" in capsys.readouterr().err
 
 
 def test_run_demo_writes_report(tmp_path, monkeypatch):
@@ -72,8 +74,8 @@ def test_run_demo_writes_report(tmp_path, monkeypatch):
     (demos / "tiny.py").write_text("def main(out, quick=False):\n"
                                    "    (out / 'x.txt').write_text('hi')\n"
                                    "    return {'value': 2.5}\n")
-    monkeypatch.setattr(cli, "DEMOS_DIR", demos)
-    summary = cli.run_demo("tiny", out=tmp_path / "out", quick=True)
+    monkeypatch.setenv("SORO_DEMOS", str(demos))
+    summary = demo.run_demo("tiny", out=tmp_path / "out", quick=True)
     report = json.loads((tmp_path / "out/tiny/report.json").read_text())
     assert report["value"] == 2.5 and report["quick"] is True and report["demo"] == "tiny"
     assert summary["wall_time_s"] >= 0
@@ -81,10 +83,10 @@ def test_run_demo_writes_report(tmp_path, monkeypatch):
 
 
 def test_sweep_subcommand_options_and_lazy_import(capsys):
-    res = subprocess.run([sys.executable, "-c", "import sys, sorofem.cli; "
-                          "print('sorofem.sweep' in sys.modules, 'numpy' in sys.modules)"],
+    res = subprocess.run([sys.executable, "-c", "import sys, soro.cli; "
+                          "print('soro.sweep' in sys.modules, 'numpy' in sys.modules)"],
                          capture_output=True, text=True, check=True)
-    assert res.stdout.split() == ["False", "False"], "sorofem.cli must import only the standard library"
+    assert res.stdout.split() == ["False", "False"], "soro.cli must import only the standard library"
     with pytest.raises(SystemExit) as exit_:
         cli.main(["sweep", "--help"])
     assert exit_.value.code == 0
@@ -137,7 +139,7 @@ def _selected_in_table(text):
 @pytest.mark.parametrize("tolerance, expected", [(0.03, ("chebyshev", "2")), (0.01, ("chebyshev", "4")),
                                                  (0.001, None)])
 def test_the_trade_verdict_is_the_row_the_table_marks(tolerance, expected):
-    from soroshapes.dvs import cheapest, trade_text
+    from soro.trade import cheapest, trade_text
 
     text, pick = trade_text(ROWS, tolerance)
     assert _selected_in_table(text) == expected
@@ -156,7 +158,7 @@ def test_the_trade_verdict_is_the_row_the_table_marks(tolerance, expected):
 
 
 def test_times_within_the_band_are_a_tie_resolved_by_modes_then_error():
-    from soroshapes.dvs import TIME_BAND, cheapest
+    from soro.trade import TIME_BAND, cheapest
 
     rows = [_row("chebyshev", 3, 0.300, 0.001, 0.002), _row("dvs", 2, 0.305, 0.001, 0.002),
             _row("pcc", 2, 0.301, 0.001, 0.0025)]
@@ -169,7 +171,7 @@ def test_times_within_the_band_are_a_tie_resolved_by_modes_then_error():
 
 
 def test_the_trade_plot_has_one_line_per_family_sorted_by_time():
-    from soroshapes.dvs import trade_figure
+    from soro.trade import trade_figure
 
     fig = trade_figure(ROWS, 0.03)
     lines = {ln.get_label(): ln.get_xdata() for ln in fig.axes[0].get_lines() if not ln.get_label().startswith("_")}
@@ -206,7 +208,7 @@ def test_soro_trade_quick_selects_as_its_table_says_twice_in_a_row(tmp_path, sub
     what the rule selects from the table's own figures (within the tolerance; the fastest median time per solve up
     to the 10 % tie band). Which model is fastest is a timing, so two runs on a loaded machine may select
     differently (seen: dvs once, chebyshev once); each run must agree with its own table."""
-    from soroshapes.dvs import TIME_BAND
+    from soro.trade import TIME_BAND
 
     for tol in ("0.03", "0.01"):
         for run in range(2):

@@ -3,18 +3,18 @@ import json
 
 import pytest
 
-from sorofem import cli
+from soro import demo
 
 
 def _run(name, tmp_path):
-    summary = cli.run_demo(name, out=tmp_path, quick=True)
+    summary = demo.run_demo(name, out=tmp_path, quick=True)
     report = json.loads((tmp_path / name / "report.json").read_text())
     assert report == json.loads(json.dumps(summary)), "report.json must hold what the demo returned"
     return report, tmp_path / name
 
 
 def test_every_demo_has_a_check():
-    assert set(cli.list_demos()) == set(CHECKS), "add a check for each demo to CHECKS below"
+    assert set(demo.list_demos()) == set(CHECKS), "add a check for each demo to CHECKS below"
 
 
 def check_chain(report, out):

@@ -2,7 +2,7 @@
 
 The 2D plane-strain PneuNet section of ``demos/pneunet_inflation.py`` (its geometry, strain-limiting layer
 and tip angle), with the chamber pressure and the body material as parameters. Not a demo itself: the sweep
-configuration names :func:`build` and :func:`summary` (the contract is in :mod:`sorofem.sweep`).
+configuration names :func:`build` and :func:`summary` (the contract is in :mod:`soro.sweep`).
 
 Parameters (``params``)
 -----------------------
@@ -52,7 +52,7 @@ def build(params, comm):
     return fem
 
 
-# the types of the parameters, checked when the sweep configuration is loaded (sorofem.sweep)
+# the types of the parameters, checked when the sweep configuration is loaded (soro.sweep)
 build.parameters = {"pressure": float, "material": str, "chambers": int, "size": float}
 
 

@@ -18,6 +18,8 @@ import numpy as np
 
 from sorofem.errors import ParameterError, SoroError
 
+from ..demo import demos_dir   # where ``soro play NAME`` looks for a demo's scene
+
 __all__ = ["Channel", "Target", "Scene", "SceneError", "SceneNotFoundError", "default_channel", "as_scene", "load_scene", "DEMO_SCENES",
            "demos_dir"]
 
@@ -208,11 +210,6 @@ def as_scene(obj, where="the scene"):
         raise SceneError(f"{where} returned {type(obj).__name__}: {e}") from None
 
 
-def demos_dir():
-    """The repository's ``demos/`` (``$SORO_DEMOS`` overrides), where ``soro play NAME`` looks."""
-    return Path(os.environ.get("SORO_DEMOS", Path(__file__).resolve().parents[2] / "demos"))
-
-
 def _import_file(path, what):
     name = f"_soro_play_scene_{abs(hash(str(path)))}"
     spec = importlib.util.spec_from_file_location(name, path)
@@ -231,9 +228,9 @@ def _import_file(path, what):
 
 def robot_scene(name):
     """The scene of the open-hardware robot ``name`` (``soro robot list``): its twin
-    (:func:`sorofem.robots.scene`) with one slider per model input, limited to its board channel's safety limits
+    (:func:`soro.robots.scene`) with one slider per model input, limited to its board channel's safety limits
     (a channel that feeds several chambers, e.g. the gripper's three fingers, gives one slider per chamber)."""
-    from sorofem import robots
+    from .. import robots
     if name not in robots.names():
         raise SceneNotFoundError(f"no robot {name!r}: the robots are {', '.join(robots.names())} (soro robot list)")
     twin = robots.scene(name)

@@ -130,15 +130,6 @@ class Design:
     size: tuple | None
     workspace: tuple | None = None
 
-    def scene(self, stiffness="bellows"):
-        """The twin as a ``soro play`` scene: a :class:`~sorofem.robots.Scene` holding a
-        :class:`soroshapes.Shapes` (one soft body) or :class:`soroshapes.Model` (several) and its board
-        channels (names, limits [Pa] from ``channels``, the model inputs each sets). Imports soroshapes.
-        ``stiffness``: ``"bellows"`` (the effective modulus calibrated on FEM), ``"section"`` or a modulus [Pa]
-        (:func:`sorofem.robots.scene`)."""
-        from ._scene import scene
-        return scene(self, stiffness=stiffness)
-
     def part(self, name):
         for p in self.parts:
             if p.name == name:

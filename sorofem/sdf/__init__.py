@@ -66,7 +66,7 @@ Every shape exposes
 :func:`is_csg` tells whether a tree holds only primitives, non-smooth booleans and rigid transforms
 (translate, rotate, mirror), i.e. what a B-rep kernel can rebuild exactly.
 """
-from . import core, export, primitives2d, primitives3d, properties
+from . import _codegen, core, export, primitives2d, primitives3d, properties  # noqa: F401 (_codegen registers)
 from .core import *  # noqa: F401,F403
 from .export import *  # noqa: F401,F403
 from .primitives2d import *  # noqa: F401,F403

@@ -9,7 +9,7 @@ import logging
 
 import numpy as np
 
-from .core import NoCodegen
+from .core import NoCodegen, register_compiler
 
 __all__ = ["compile_tree", "kernel_source"]
 
@@ -55,6 +55,7 @@ def kernel_source(shape):
     return src, np.array(g.consts, dtype=float)
 
 
+@register_compiler
 def compile_tree(shape):
     """A callable ``points (N, d) -> (N,)`` evaluating ``shape`` with a fused numba kernel, or None when a
     node has no kernel (``repeat``, ``circular_repeat`` and user subclasses use the numpy path)."""

@@ -13,6 +13,11 @@ A shape is an immutable node of a tree. Each node implements four small hooks:
     scalar source code for the fused numba kernel (:mod:`sorofem.sdf._codegen`); optional.
 
 and optionally ``_moments()`` (exact zeroth, first and second area/volume moments about the origin).
+
+The modules built on this base register what the base hands out, so that it imports none of them (no import
+cycle): the primitives their ``op`` names (:func:`register_primitives`, for :func:`is_csg`), the 2D -> 3D
+operations their classes (:func:`register_operation`, for :meth:`SDF.extrude` and :meth:`SDF.revolve`) and
+the fused-kernel generator its compiler (:func:`register_compiler`, for :meth:`SDF.compiled`).
 """
 import math
 
@@ -28,6 +33,45 @@ __all__ = ["SDF", "is_csg", "CSG_BOOLEANS", "CSG_TRANSFORMS", "Union", "Intersec
 CSG_BOOLEANS = frozenset({"union", "intersection", "difference"})
 #: Rigid (distance-preserving) transforms, see :func:`is_csg`.
 CSG_TRANSFORMS = frozenset({"translate", "rotate", "mirror"})
+
+#: ``op`` names of the registered primitives (:func:`register_primitives`).
+_PRIMITIVE_OPS = set()
+#: Shape classes of the registered operations, by name (:func:`register_operation`).
+_OPERATIONS = {}
+#: The registered tree compiler (:func:`register_compiler`), at most one.
+_COMPILER = []
+
+
+def register_primitives(ops):
+    """Register the ``op`` names of primitives (each module of primitives calls it once); returns them as a
+    frozenset."""
+    ops = frozenset(ops)
+    _PRIMITIVE_OPS.update(ops)
+    return ops
+
+
+def register_operation(name):
+    """Class decorator: the shape class of the operation ``name`` (``"extrude"``, ``"revolve"``) that the base
+    class's method of that name builds."""
+    def register(cls):
+        _OPERATIONS[name] = cls
+        return cls
+    return register
+
+
+def register_compiler(compile_tree):
+    """Register ``compile_tree(shape) -> kernel or None``, the fused-kernel generator of :meth:`SDF.compiled`."""
+    _COMPILER[:] = [compile_tree]
+    return compile_tree
+
+
+def _operation(name):
+    try:
+        return _OPERATIONS[name]
+    except KeyError:   # the package's __init__ imports every module that registers: only a broken install lands here
+        raise GeometryError(f"the shape operation {name!r} is not registered: import sorofem.sdf (not one of its "
+                            "modules alone)") from None
+
 
 #: Points per chunk of the numpy evaluation path (keeps temporaries in cache).
 _CHUNK = 1 << 15
@@ -249,8 +293,7 @@ class SDF:
             return self.__dict__["_kernel"]
         except KeyError:
             pass
-        from ._codegen import compile_tree
-        kernel = compile_tree(self)
+        kernel = _COMPILER[0](self) if _COMPILER else None
         object.__setattr__(self, "_kernel", kernel)
         return kernel
 
@@ -486,8 +529,7 @@ class SDF:
 
     def extrude(self, height):
         """2D -> 3D: prism of ``height`` [m] along z, centred on z = 0 (exact distance)."""
-        from .primitives3d import Extrude
-        return Extrude(self, height)
+        return _operation("extrude")(self, height)
 
     def revolve(self, axis=(0.0, 0.0, 1.0), offset=0.0):
         """2D -> 3D: revolve the profile about ``axis`` through the origin.
@@ -496,8 +538,7 @@ class SDF:
         with u >= -offset is what the solid contains. Exact for profiles symmetric about u = -offset or lying
         in u >= -offset (a torus is ``Circle(r).revolve(offset=R)``).
         """
-        from .primitives3d import Revolve
-        return Revolve(self, axis, offset)
+        return _operation("revolve")(self, axis, offset)
 
     # ------------------------------------------------------------------ properties & export
     def section_properties(self, resolution=None):
@@ -538,9 +579,7 @@ def is_csg(shape):
     Such trees can be rebuilt exactly by a boundary-representation kernel (gmsh/OpenCASCADE): the node ops
     allowed besides primitives are :data:`CSG_BOOLEANS` and :data:`CSG_TRANSFORMS`.
     """
-    from .primitives2d import PRIMITIVE_OPS_2D
-    from .primitives3d import PRIMITIVE_OPS_3D
-    allowed = CSG_BOOLEANS | CSG_TRANSFORMS | PRIMITIVE_OPS_2D | PRIMITIVE_OPS_3D
+    allowed = CSG_BOOLEANS | CSG_TRANSFORMS | _PRIMITIVE_OPS
     stack = [shape]
     while stack:
         s = stack.pop()

@@ -4,14 +4,14 @@ import math
 import numpy as np
 
 from ..errors import GeometryError
-from .core import SDF, _positive, _unit, _vec
+from .core import SDF, _positive, _unit, _vec, register_primitives
 
 __all__ = ["Circle", "Rectangle", "RoundedRectangle", "Squircle", "Ellipse", "Polygon", "Polyline",
            "Segment", "Strut", "Line", "PRIMITIVE_OPS_2D"]
 
 #: ``op`` names of the 2D primitives.
-PRIMITIVE_OPS_2D = frozenset({"circle", "rectangle", "rounded_rectangle", "ellipse", "polygon", "polyline",
-                              "segment", "strut", "line"})
+PRIMITIVE_OPS_2D = register_primitives({"circle", "rectangle", "rounded_rectangle", "ellipse", "polygon",
+                                        "polyline", "segment", "strut", "line"})
 
 
 def _sgn(x):

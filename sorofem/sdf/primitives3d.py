@@ -4,14 +4,15 @@ import math
 import numpy as np
 
 from ..errors import GeometryError
-from .core import SDF, _cylinder_aabb, _perpendicular, _positive, _unit, _vec
+from .core import (SDF, _cylinder_aabb, _perpendicular, _positive, _unit, _vec, register_operation,
+                   register_primitives)
 from .primitives2d import _box_eval, _box_grad, _emit_box, _emit_capsule, _radial_grad, _segments_closest
 
 __all__ = ["Sphere", "Box", "Cylinder", "Capsule", "Torus", "Cone", "Plane", "Extrude", "Revolve",
            "PRIMITIVE_OPS_3D"]
 
 #: ``op`` names of the 3D primitives.
-PRIMITIVE_OPS_3D = frozenset({"sphere", "box", "cylinder", "capsule", "torus", "cone", "plane"})
+PRIMITIVE_OPS_3D = register_primitives({"sphere", "box", "cylinder", "capsule", "torus", "cone", "plane"})
 
 _Z = (0.0, 0.0, 1.0)
 
@@ -307,6 +308,7 @@ class Plane(SDF):
 
 
 # ====================================================================== 2D -> 3D
+@register_operation("extrude")
 class Extrude(SDF):
     """Prism: the 2D region extruded along z over [-height/2, height/2] (exact for an exact profile).
 
@@ -362,6 +364,7 @@ class Extrude(SDF):
         return A * h, np.append(S * h, 0.0), m2
 
 
+@register_operation("revolve")
 class Revolve(SDF):
     """Solid of revolution of a 2D profile about ``axis`` through the origin.
 

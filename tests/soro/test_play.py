@@ -222,7 +222,7 @@ def test_robot_scenes_take_the_board_channels_limits():
 
 
 def _play(*args, timeout=120):
-    return subprocess.run([sys.executable, "-m", "sorofem.cli", "play", *args], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "soro.cli", "play", *args], capture_output=True, text=True,
                           timeout=timeout)
 
 

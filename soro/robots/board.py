@@ -7,12 +7,12 @@ Calibration is not a limit: each ``[[channels]]`` table holds the wiring, the re
 of that network. The board server enforces them per channel (a set-point beyond a channel's limit is clamped
 to it); a ``--p-min/--p-max`` pair in ``board.env`` can only narrow them.
 
-``sorofem`` does not import ``sorocontrol`` (layering): this module writes text; the tests read it back with
-the board's own loader.
+This module writes the text (the export needs no board package); the tests read it back with the board's own
+loader.
 """
 from __future__ import annotations
 
-from ..errors import GeometryError
+from sorofem.errors import GeometryError
 
 __all__ = ["board_profile", "VEAB_SIGNAL_RANGE"]
 

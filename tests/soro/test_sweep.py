@@ -1,4 +1,4 @@
-"""Parameter sweeps (sorofem.sweep, `soro sweep`): sampling, configuration errors, snapshots and manifest,
+"""Parameter sweeps (soro.sweep, `soro sweep`): sampling, configuration errors, snapshots and manifest,
 failure isolation, resume after a killed run, and MPI groups giving the serial results."""
 import contextlib
 import inspect
@@ -14,12 +14,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sorofem import cli
+from soro import cli, demo, doctor
 from sorofem.errors import ParameterError
-from sorofem.sweep import MODES, SOLVE_KEYS, Sweep, grid, latin_hypercube
+from soro.sweep import MODES, SOLVE_KEYS, Sweep, grid, latin_hypercube
 
 REPO = Path(__file__).resolve().parents[2]
-SORO = [sys.executable, "-m", "sorofem.cli"]
+SORO = [sys.executable, "-m", "soro.cli"]
 
 # A tiny 2D case: a 20 x 10 mm block with a circular cavity, clamped on the left, P1, ~120 cells (0.05 s a case
 # once the forms are compiled). Environment variables let the tests count builder calls (one marker file per
@@ -409,7 +409,7 @@ def test_the_example_sweep_config_loads_and_is_not_a_demo():
     assert sweep.mode == "grid" and len(sweep) == 6
     assert {c["material"] for c in sweep.cases} == {"Ecoflex0030", "DragonSkin10"}
     assert sweep.builder.__name__ == "build" and sweep.summary.__name__ == "summary"
-    assert not {"sweeps", "pneunet_case", "pneunet"} & set(cli.list_demos())
+    assert not {"sweeps", "pneunet_case", "pneunet"} & set(demo.list_demos())
 
 
 @pytest.mark.slow
@@ -468,7 +468,7 @@ def test_a_resume_with_another_builder_solve_or_fixed_is_refused(tmp_path, monke
 
 
 def test_files_the_builder_imports_from_its_folder_are_part_of_its_provenance(tmp_path, monkeypatch):
-    from sorofem.sweep import provenance_changes
+    from soro.sweep import provenance_changes
 
     (tmp_path / "shapes").mkdir()
     (tmp_path / "shapes" / "__init__.py").write_text("")
@@ -492,7 +492,7 @@ def test_files_the_builder_loads_by_path_are_part_of_its_provenance(tmp_path):
     """Modules loaded with spec_from_file_location (beside the builder, or in a folder above it as the PneuNet
     case loads its demo) and a data file the builder reads, named by string literals, are hashed with its source
     (named relative to the configuration's folder); the sweep's own TOML file is not (its parameters may grow)."""
-    from sorofem.sweep import provenance_changes
+    from soro.sweep import provenance_changes
 
     folder = tmp_path / "cfg"
     folder.mkdir()
@@ -523,7 +523,7 @@ def _status_disk_full(monkeypatch, rank=0):
 
     from mpi4py import MPI
 
-    from sorofem import sweep as sweep_module
+    from soro.sweep import runner as sweep_module
     from sorofem.io import disk_full_error
     real = sweep_module.write_json
 
@@ -677,11 +677,11 @@ def test_jit_locks_stale_and_live(tmp_path):
         assert {k.module for k in jitcache.scan(tmp_path, now=now)} == {"b_live", "c_unknown_young",
                                                                           "e_other_host"}
         # soro doctor reports stale locks, with the fix
-        status, problems = cli._check_jit_cache(tmp_path)
+        status, problems = doctor._check_jit_cache(tmp_path)
         assert "1 compiled module(s), 3 compiling, 0 stale" in status and problems == []
         live.send_signal(signal.SIGKILL)
         live.wait()
-        status, problems = cli._check_jit_cache(tmp_path)
+        status, problems = doctor._check_jit_cache(tmp_path)
         assert "1 stale" in status and len(problems) == 1
         assert f"owner process {live.pid} is gone" in problems[0] and f"rm {tmp_path / 'b_live.c'}" in problems[0]
     finally:

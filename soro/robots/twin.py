@@ -2,8 +2,9 @@
 :class:`soroshapes.Shapes` (one soft body) or a :class:`soroshapes.Model` (several), and the board channels
 that drive them (names, limits [Pa] from :attr:`Design.channels`, the model inputs each one sets).
 
-``sorofem`` sits below ``soroshapes`` in the layering: ``soroshapes`` is imported inside the functions only,
-so that ``import sorofem.robots`` never loads it.
+This is the application layer (:mod:`soro.robots`): the designs and their twin data come from
+:mod:`sorofem.robots`, the beams from ``soroshapes`` (imported inside the functions, so that ``soro robot
+export`` does not load it).
 
 The beams are the solid-section twins (the printed cross-section through a bellows, chambers as axial forces
 off the axis) with the bellows' effective modulus, calibrated on the 3D FEM of (a) and (b) (a solid section is
@@ -16,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ParameterError
+from sorofem.errors import ParameterError
 
 __all__ = ["Channel", "Scene", "twin_shapes", "scene", "reach", "bellows_modulus", "BELLOWS_E_FACTOR",
            "PARALLEL_BELLOWS_E_FACTOR"]
@@ -100,7 +101,7 @@ def twin_shapes(twin, dofs=(0, 3, 3, 1, 0, 0), modes=3, E=None):
     """
     from soroshapes import Basis, Shapes
 
-    from .. import materials
+    from sorofem import materials
     shp = Shapes(Basis.chebyshev(modes), dofs, twin.length, twin.section, materials.PRESETS[twin.material](),
                  base=twin.base, E=E)
     for c in twin.chambers:
@@ -112,7 +113,7 @@ def bellows_modulus(twin):
     """The effective Young's modulus [Pa] of a twin's bellows: the material's times
     :data:`PARALLEL_BELLOWS_E_FACTOR` for chains side by side (several chambers in the section: (b), (d)), else
     :data:`BELLOWS_E_FACTOR` (one chain on a strain-limiting layer: (a), the hand's and the gripper's fingers)."""
-    from .. import materials
+    from sorofem import materials
     f = PARALLEL_BELLOWS_E_FACTOR if len(twin.chambers) > 1 else BELLOWS_E_FACTOR
     return materials.PRESETS[twin.material]().E * f
 

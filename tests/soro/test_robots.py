@@ -1,4 +1,5 @@
-"""sorofem.robots: the seed's four robots as print-ready parts.
+"""The seed's four robots: designs and print-ready parts (sorofem.robots), twins, board profiles, export and
+command (soro.robots, which re-exports the designs).
 
 Every exported STL is read back (its scale from the header and from the raw numbers), checked watertight
 (every edge shared by two triangles, consistent orientation, positive volume, one shell per part) and its
@@ -9,7 +10,8 @@ import math
 import numpy as np
 import pytest
 
-from sorofem import robots, sdf
+from soro import robots
+from sorofem import sdf
 from sorofem.errors import GeometryError, ParameterError
 from sorofem.units import kPa, mm
 
@@ -174,7 +176,7 @@ def test_twin_sections_are_slices_of_the_printed_body(name):
 
 
 def test_cli_lists_and_exports(tmp_path, capsys):
-    from sorofem import cli
+    from soro import cli
     assert cli.main(["robot", "list"]) == 0
     out = capsys.readouterr().out
     assert all(n in out for n in NAMES) and "wall" in out and "[1.5, 4]" in out
@@ -284,7 +286,7 @@ def test_scene_has_the_boards_channels(name):
     with the seed's limits in Pa, each driving the chambers of its network."""
     from soroshapes import Model, Shapes
     d = robots.design(name)
-    sc = d.scene()
+    sc = robots.scene(name)
     assert isinstance(sc.model, Shapes if len(d.twins) == 1 else Model)
     assert [c.name for c in sc.channels] == list(d.channels)
     assert all(c.limits == d.channels[c.name] and c.unit == "Pa" for c in sc.channels)
@@ -320,9 +322,10 @@ def test_scene_moves_the_right_way():
 def test_robots_import_does_not_load_soroshapes():
     import subprocess
     import sys
-    code = "import sys, sorofem.robots as r; r.design('hand'); print('soroshapes' in sys.modules)"
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
-    assert out.strip() == "False"
+    for module in ("sorofem.robots", "soro.robots"):   # the designs, and the export without the twins
+        code = f"import sys, {module} as r; r.design('hand'); print('soroshapes' in sys.modules)"
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+        assert out.strip() == "False", module
 
 
 # The seed's workspaces are round figures ("~100 x 100 mm", "~150 x 150 x 150 mm"): read as the nearest 50 mm,

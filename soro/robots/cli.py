@@ -1,8 +1,8 @@
 """``soro robot list`` and ``soro robot export NAME --out DIR [--units mm] [--param k=v ...]`` (the parser is
-in :mod:`sorofem.cli`)."""
+in :mod:`soro.cli`)."""
 import sys
 
-from ..errors import SoroError
+from sorofem.errors import SoroError
 
 __all__ = ["run"]
 
@@ -10,7 +10,7 @@ __all__ = ["run"]
 def run(args, stream=None):
     """Run a parsed ``soro robot ...`` command; exit status 0, or 2 with the error's message."""
     from . import ROBOTS, UNITS, export, get, parse_params
-    from ..units import mm
+    from sorofem.units import mm
     stream = stream or sys.stdout
     try:
         if args.robot_command == "list":
