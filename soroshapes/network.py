@@ -1093,7 +1093,7 @@ def jacobian(t, x, net, scale, w, f0, fp, xp, Jac, JF):
 
 @njit(cache=True)
 def _fd_rows(t, x, net, scale, w, f0, fp, xp, rows, out):
-    """The rows of the systems marked in ``rows`` (bool per system) of :math:`\partial F/\partial x` by grouped
+    r"""The rows of the systems marked in ``rows`` (bool per system) of :math:`\partial F/\partial x` by grouped
     forward differences (steps ``FD_STEP max(|x_j|, scale_j)``), evaluating only those systems, into ``out``
     (other rows untouched). False if an evaluation fails."""
     table, groups, dep, col_block = net[0], net[15], net[16], net[17]
