@@ -68,6 +68,9 @@ def check_porous_buckling(report, out):
     assert -0.125 < report["critical_strain"] < -0.02  # the lowest eigenvalue crossed zero under compression
     assert report["lambda1_at_zero"] > 0
     assert report["ellipse_alternation"] >= 0.75  # the mutually orthogonal ellipses of the seed's Fig. 7
+    # followed onto the post-critical branch (branch switching), to the seed's -12.5 %, where it is stable
+    assert report["strain_reached"] == report["strain_end"] == -0.125 and report["branch_switch_step"] is not None
+    assert report["lambda1_at_end"] > 0
     assert (out / "modes.png").stat().st_size > 0 and (out / "stability.png").stat().st_size > 0
 
 

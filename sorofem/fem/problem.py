@@ -743,7 +743,8 @@ class Fem:
         return traj
 
     def follow(self, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, max_step=None,
-               max_iterations=15, monitor_stability=False, branch_switch=False, mode_sign=1.0, progress=False):
+               max_iterations=15, monitor_stability=False, branch_switch=False, mode_sign=1.0, t_min=0.0,
+               progress=False):
         """Follow the equilibrium path by pseudo-arc-length continuation, the load factor ``t`` being an
         unknown: through limit points of pressure, force or displacement control (where :meth:`solve` stops),
         with bifurcation detection and branch switching (``monitor_stability=True, branch_switch=True``).
@@ -753,7 +754,7 @@ class Fem:
 
         return follow(self, t_end=t_end, steps=steps, until=until, max_steps=max_steps, min_step=min_step,
                       max_step=max_step, max_iterations=max_iterations, monitor_stability=monitor_stability,
-                      branch_switch=branch_switch, mode_sign=mode_sign, progress=progress)
+                      branch_switch=branch_switch, mode_sign=mode_sign, t_min=t_min, progress=progress)
 
     def _newton(self, R, J, max_iterations):
         """A Newton solver for the residual/Jacobian forms ``R``, ``J`` with this model's Dirichlet
