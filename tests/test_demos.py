@@ -66,6 +66,10 @@ def check_mesh_gallery(report, out):
 
 def check_porous_buckling(report, out):
     assert -0.125 < report["critical_strain"] < -0.02  # the lowest eigenvalue crossed zero under compression
+    # -9.08 % measured at the quick mesh (4 x 4 holes; -7.84 % for the full 6 x 6 block): the crossing is placed by
+    # linear interpolation between steps 0.8 % strain apart, and another step sequence moves it by well under
+    # 1 % of its value; 3 %
+    assert report["critical_strain"] == pytest.approx(-0.0908, rel=0.03)
     assert report["lambda1_at_zero"] > 0
     assert report["ellipse_alternation"] >= 0.75  # the mutually orthogonal ellipses of the seed's Fig. 7
     # followed onto the post-critical branch (branch switching), to the seed's -12.5 %, where it is stable
