@@ -62,6 +62,13 @@ def check_mesh_gallery(report, out):
     assert report["image_area_rel_error"] < 1e-2  # half-pixel bound of the image contour
     assert report["stl_volume_rel_error"] < 2e-2
     assert (out / "pneunet.png").stat().st_size > 0
+    # Voronoi/Lloyd polygons (quick: 80 polygons, 15 Lloyd steps): area 2.1 % off (measured; 1.0 % with 300):
+    # the sides are tangent lines, and at each of the 16 convex chamber corners a triangle of about (h/2)^2/2
+    # (h = 3.6 mm, the cell size) is cut off; bound 4 %. Lloyd lowered the energy to 0.53 E_0 (bound 0.7).
+    assert report["voronoi_polygons"] == 80
+    assert report["voronoi_area_rel_error"] < 0.04
+    assert report["voronoi_energy_ratio"] < 0.7
+    assert (out / "voronoi.png").stat().st_size > 0
 
 
 def check_porous_buckling(report, out):
