@@ -64,7 +64,7 @@ from .. import _dolfinx
 from ..errors import ConvergenceError, ParameterError
 from .stepping import march
 
-__all__ = ["ArcLength", "follow"]
+__all__ = ["ArcLength", "follow", "linear_step", "load_rate"]
 
 log = logging.getLogger(__name__)
 
@@ -112,14 +112,8 @@ class ArcLength:
         return self.g.copy()
 
     def load_vector(self, solver):
-        """:math:`\\partial R/\\partial\\lambda` at the current state (difference quotient of the lifted
-        residual, Dirichlet rows included)."""
-        self.fem._set_loads(self.lam + self.eps)
-        q = solver.assemble_residual().copy()
-        self.fem._set_loads(self.lam)
-        q.axpy(-1.0, solver.assemble_residual())
-        q.scale(1.0 / self.eps)
-        return q
+        """:math:`\\partial R/\\partial\\lambda` at the current state (:func:`load_rate`)."""
+        return load_rate(self.fem, solver, self.lam, self.eps)
 
     def rate(self, load):
         """d(load)/d(lambda) of a scalar load at the current load factor."""
@@ -142,6 +136,38 @@ class ArcLength:
 
     def destroy(self):
         self.g.destroy()
+
+
+def load_rate(fem, solver, t, eps):
+    """:math:`\\partial R/\\partial t` at the current state and load factor ``t``: the difference quotient of the
+    lifted residual over ``eps``, Dirichlet rows included (there: the rate of the prescribed displacement). A new
+    PETSc vector (the caller destroys it); the loads are left at ``t``."""
+    fem._set_loads(t + eps)
+    q = solver.assemble_residual().copy()
+    fem._set_loads(t)
+    q.axpy(-1.0, solver.assemble_residual())
+    q.scale(1.0 / eps)
+    return q
+
+
+def linear_step(fem, solver, fraction, eps, t=0.0):
+    """The load-factor step whose linear response from the current (converged) state at load factor ``t`` moves
+    no point by more than ``fraction`` of the body's size: :math:`\\Delta t = f\\,D / \\max_i |u_{t,i}|`,
+    :math:`K u_t = -\\partial R/\\partial t` (:math:`D` the diagonal of the mesh's bounding box, the maximum over
+    the displacement unknowns); ``inf`` when no load moves the body (e.g. a volume control, whose load is not in
+    the residual)."""
+    from petsc4py import PETSc
+
+    solver.assemble_jacobian()
+    q = load_rate(fem, solver, t, eps)
+    u_t = q.duplicate()
+    solver.ksp.solve(q, u_t)
+    weight = _weight(fem, fem._built["W"])
+    u_t.pointwiseMult(u_t, weight)
+    peak = u_t.norm(PETSc.NormType.INFINITY)
+    for vec in (q, u_t, weight):
+        vec.destroy()
+    return fraction * fem._size() / peak if peak > 0 and math.isfinite(peak) else math.inf
 
 
 def _weight(fem, W):

@@ -652,7 +652,7 @@ class Fem:
 
     # ------------------------------------------------------------------------------------------ solve
     def solve(self, t_end=1.0, steps=10, min_step=None, max_step=None, max_iterations=25, predictor=True,
-              monitor_stability=False, progress=False):
+              monitor_stability=False, progress=False, linear_start=None):
         """March the load parameter from 0 to ``t_end`` in adaptive steps; return a :class:`Trajectory`.
 
         A step whose Newton iteration fails (no convergence in ``max_iterations``, a non-finite residual,
@@ -676,6 +676,11 @@ class Fem:
             loses stability (buckling, limit points).
         progress : bool
             Print one line per converged step (rank 0).
+        linear_start : float, optional
+            A fraction f of the body's size: the first step is cut so that its linear response moves no point by
+            more than f times the diagonal of the bounding box (:func:`sorofem.fem.continuation.linear_step`),
+            then grows after easy steps. For thin pressurized walls, whose unloaded tangent is far softer than
+            the inflated wall (the first Newton correction of a full step overshoots many times), e.g. 0.02.
         """
         from petsc4py import PETSc
 
@@ -683,6 +688,8 @@ class Fem:
             raise ParameterError(f"t_end must be positive, got {t_end}")
         if int(steps) < 1:
             raise ParameterError(f"steps must be >= 1, got {steps}")
+        if linear_start is not None and not (math.isfinite(linear_start) and linear_start > 0):
+            raise ParameterError(f"linear_start must be a positive fraction of the body's size, got {linear_start}")
         b = self._built or self._build()
         self._set_ramp(True)
         dt0 = t_end / int(steps)
@@ -698,6 +705,11 @@ class Fem:
                                    "supports prevent rigid motion and that the loads at t = 0 are reasonable")
         self._record(traj, 0.0, out.iterations, inputs, newton, monitor_stability)
         self._commit_contacts()   # after recording: the reported friction is that of the step's slip
+        dt_first = dt0
+        if linear_start is not None:
+            from .continuation import linear_step
+            dt_first = min(dt0, linear_step(self, newton, float(linear_start), 1e-6 * t_end))
+            self._set_loads(0.0)
         state = {"x_old": x.copy(), "x_prev": None, "dt_prev": None,
                  "p_old": [float(c.pressure.value) for c in controls]}
 
@@ -728,7 +740,7 @@ class Fem:
         wall = _time.perf_counter()
         t = 0.0
         try:
-            t = march(0.0, t_end, dt0, float(min_step or dt0 / 1024), float(max_step or dt0), attempt, accept,
+            t = march(0.0, t_end, dt_first, float(min_step or dt0 / 1024), float(max_step or dt0), attempt, accept,
                       reject, "more or smaller steps, degree=2 with mixed=True for nearly incompressible "
                       "materials, a displacement- or volume-controlled load past a limit point, or supports "
                       "that remove rigid-body motion")

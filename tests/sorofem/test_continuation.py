@@ -206,3 +206,29 @@ def test_limit_point_and_branch_switch_on_two_ranks():
         w = strut_end_offset(traj2)[k + 1:]
         ratio, _ = buckled_strut(w / L)
         np.testing.assert_allclose(-traj2.reactions["right"][k + 1:, 0] / P_CR, ratio, atol=6e-3)
+
+
+# ----------------------------------------------------------------------------------------------- first step
+def test_linear_start_cuts_the_first_step_to_a_fraction_of_the_body_size():
+    """``Fem.solve(linear_start=f)``: the first step moves no point of the linear response by more than f times
+    the diagonal D of the body's bounding box (for a linear material the response is exactly linear, so the first
+    step is f D / max|u(1)|, to round-off), then grows by 1.5x per easy step to the end."""
+    from sorofem import materials
+    from sorofem.fem import Fem
+    from sorofem.mesh import Mesh
+
+    def cantilever():
+        msh = Mesh.rectangle(0.1, 0.01, size=0.0025, center=(0.05, 0.0))
+        fem = Fem(msh, materials.LinearElastic(E=1e6, nu=0.3), formulation="plane_stress")
+        return fem.add_support("left").add_force("right", [0.0, -1000.0])
+
+    full = cantilever().solve(steps=1)
+    peak = np.abs(full.displacement[-1]).max()
+    D = np.hypot(0.1, 0.01)
+    assert peak > 0.1 * D   # one step would move the tip by more than a tenth of the body
+    traj = cantilever().solve(steps=1, linear_start=0.01)
+    assert traj.times[1] == pytest.approx(0.01 * D / peak, rel=1e-6)
+    assert traj.times[-1] == 1.0
+    np.testing.assert_allclose(traj.displacement[-1], full.displacement[-1], atol=1e-9 * peak)
+    with pytest.raises(ParameterError, match="linear_start"):
+        cantilever().solve(linear_start=0.0)
