@@ -88,6 +88,14 @@ def check_porous_buckling(report, out):
 def check_pneunet_inflation(report, out):
     assert report["reached_pressure_kPa_2d"] == pytest.approx(report["max_pressure_kPa"])
     assert report["tip_angle_deg_2d"] > 30 and report["tip_angle_deg_3d"] > 5  # curls toward the layer
+    # measured at the quick meshes: 59.32 deg (2D, 6.5 kPa) and 17.46 deg (3D, 10 kPa); the equilibrium at the
+    # end pressure does not depend on the steps taken to it (Newton to 1e-9), so 0.5 % leaves room for another
+    # DOLFINx's round-off, not for another branch
+    assert report["tip_angle_deg_2d"] == pytest.approx(59.32, rel=5e-3)
+    assert report["tip_angle_deg_3d"] == pytest.approx(17.46, rel=5e-3)
+    # the first step cut by its linear response (Fem.solve(linear_start=)): at most 8 Newton iterations in every
+    # step (measured 6 in 2D, 8 in 3D; 14 and 11 in the first steps before)
+    assert report["newton_iterations_max"] <= 8
     assert report["cavities_2d"] == report["chambers"]
     for name in ("angle_vs_pressure.png", "deformed_2d.png", "deformed_3d.png"):
         assert (out / name).stat().st_size > 0
@@ -216,8 +224,8 @@ def check_pneunet_design(report, out):
     from sorofem.sdf.export import read_stl
     tri, _ = read_stl(out / "design.stl")
     assert len(tri) == report["stl_triangles"] > 1000
-    for name in ("density.png", "density.xdmf", "density.h5", "history.png", "inflated.png", "actuator.png",
-                 "design.npz"):
+    for name in ("density.png", "density.xdmf", "density.h5", "history.png", "inflated.png", "design.npz",
+                 "actuator_optimized.png", "actuator_initial.png"):   # one image per design (not overwritten)
         assert (out / name).stat().st_size > 0
     assert len(list((out / "frames").glob("frame_*.png"))) == report["frames"]
 
