@@ -46,13 +46,15 @@ Steps and limits
 ----------------
 The first step is cut so that its linear response moves no point by more than 1 % of the body's size
 (``Fem.solve(linear_start=0.01)``): the unloaded thin walls are far softer than the inflated ones, and the
-Newton correction of a full first step overshot many times (14 and 11 iterations in the first steps before;
-at most 6 in 2D and 8 in 3D in the quick run now). The 3D actuator (7 chambers, 3 mm mesh) has a pressure
-maximum near 12.64 kPa: followed by arc length (``Fem.follow``) the load factor rises ever more slowly to
-0.7899 of 16 kPa (steps 0.0013, 0.0005, 0.0002, 0.00005 of the load factor at a fixed arc length) while the
-chambers keep inflating - the inflation instability of thin rubber walls, a limit point, not a solver failure.
-Under pressure control no equilibrium lies beyond it on this branch, so the 3D ramp stops there
-(``reached_pressure_kPa_3d``); the quick 3D model (2 chambers, 10 kPa) stays below its maximum.
+Newton correction of a full first step overshot many times (14 and 11 iterations in the first steps before).
+Measured: at most 6 iterations per step in 2D (quick and full) and 8 in the quick 3D run; the full 3D run still
+needs 16 in its first step (a step of 1.2 % of the load, where the relative residual test meets round-off; 9 at
+2 %) and 9-11 in the steps that approach the pressure maximum below. The 3D actuator (7 chambers, 3 mm mesh)
+has a pressure maximum at 12.64 kPa: followed by arc length (``Fem.follow``, at most 7 Newton iterations per
+step) the load factor rises to 0.78989 of 16 kPa and then falls (0.78586 ten steps later) while the chambers
+keep inflating - the inflation instability of thin rubber walls, a limit point, not a solver failure. Under
+pressure control no equilibrium lies beyond it on this branch, so the 3D ramp stops there
+(``reached_pressure_kPa_3d`` = 12.635); the quick 3D model (2 chambers, 10 kPa) stays below its maximum.
 
 Figures (in ``out``)
 --------------------
