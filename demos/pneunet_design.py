@@ -52,8 +52,9 @@ Figures (in ``out``)
 --------------------
 ``frames/frame_KKK.png`` (the design every few iterations), ``history.png`` (objective and volume),
 ``density.png`` and ``density.xdmf`` (the final densities), ``design.stl`` (three chambers extruded to 15 mm),
-``inflated.png`` (the validated actuator, reference and inflated), ``actuator.png`` (the three chambers and an
-end cap of 1.5 mm, the image that is re-meshed), ``design.npz`` (restartable design).
+``inflated.png`` (the validated actuator, reference and inflated), ``actuator_optimized.png`` and
+``actuator_initial.png`` (the three chambers of each design and an end cap of 1.5 mm, the images that are
+re-meshed), ``design.npz`` (restartable design).
 The dict returned holds ``iterations``, ``design_rotation_deg`` (the design model's face rotation),
 ``initial_rotation_deg``, ``volume_fraction``, ``flooded_cells``, ``cavities`` (of the re-meshed actuator),
 ``pressurized_cavities``, ``bending_angle_deg`` (the validated 3-chamber actuator at 80 kPa: the clockwise
@@ -134,10 +135,11 @@ def base_rotation(X, U, x_a, x_b):
     return -np.degrees(np.unwrap(np.arctan2(d[:, 1], d[:, 0])))
 
 
-def actuator_mesh(prob, x, size, chambers, workdir):
+def actuator_mesh(prob, x, size, chambers, workdir, name):
     """Mesh of ``chambers`` copies of the design side by side, closed by an end cap of ``END`` on the right
     (the free end wall of a PneuNet is thicker than the walls between chambers), from the smooth iso-contour
-    of the densities (:func:`sorofem.topopt.density_image` -> PNG -> :meth:`Mesh.from_image`)."""
+    of the densities (:func:`sorofem.topopt.density_image` -> PNG ``actuator_<name>.png`` ->
+    :meth:`Mesh.from_image`)."""
     import matplotlib.image
 
     from sorofem.mesh import Mesh
@@ -147,7 +149,7 @@ def actuator_mesh(prob, x, size, chambers, workdir):
     img = np.tile(img, (1, chambers))
     cap = np.ones((img.shape[0], int(round(END / px))))
     img = np.hstack([img, cap])
-    path = Path(workdir) / "actuator.png"
+    path = Path(workdir) / f"actuator_{name}.png"
     matplotlib.image.imsave(path, 1.0 - img, cmap="gray", vmin=0.0, vmax=1.0)
     return Mesh.from_image(path, pixel_size=px, threshold=0.5, size=size)
 
@@ -228,11 +230,11 @@ def main(out: Path, quick: bool = False) -> dict:
     # re-mesh the smooth iso-contour (three chambers) and inflate with the hyperelastic Fem
     t1 = time.perf_counter()
     steps = 8 if quick else 16
-    msh = actuator_mesh(prob, res.x, h_fem, CHAMBERS, out)
+    msh = actuator_mesh(prob, res.x, h_fem, CHAMBERS, out, "optimized")
     traj, names = inflate(msh, CHAMBERS, steps)
     length = CHAMBERS * W + END
     ang = base_rotation(traj.vertices, traj.displacement, length - END - W, length - END)
-    msh0 = actuator_mesh(prob, x0, h_fem, CHAMBERS, out)
+    msh0 = actuator_mesh(prob, x0, h_fem, CHAMBERS, out, "initial")
     traj0, names0 = inflate(msh0, CHAMBERS, steps)
     ang0 = base_rotation(traj0.vertices, traj0.displacement, length - END - W, length - END)
     t_fem = time.perf_counter() - t1

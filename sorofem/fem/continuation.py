@@ -33,13 +33,27 @@ critical point is placed by linear interpolation of :math:`\\mu(\\lambda)` and c
 **limit point** when the path itself runs along the mode (at a limit point :math:`d\\lambda/ds = 0`, so
 :math:`K\\,du/ds = 0`: the path's direction is the critical mode), :math:`|\\cos(\\phi, \\tau_u)|_W > 0.5`; a
 **bifurcation** otherwise (the mode is orthogonal to the path: a symmetric structure leaving along an
-antisymmetric mode). At a bifurcation, ``branch_switch=True``
-takes the next step along the critical mode (eigenvector injection): the tangent of that step is
-:math:`(\\phi/\\|\\phi\\|_W\\, s_u, 0)`, so the constraint puts the solution a distance :math:`\\Delta s` along
-:math:`\\phi` from the primary branch, which places it on the branch that leaves the critical point along
-:math:`\\phi` (for a symmetric pitchfork the sign of :math:`\\phi` picks one of the two mirror branches;
-``mode_sign`` chooses). Without it the path continues on the primary (now unstable) branch. No imperfection is
-added to the model.
+antisymmetric mode). At a bifurcation, ``branch_switch=True`` takes the next step along the critical mode
+(eigenvector injection): the tangent of that step is :math:`(\\hat\\phi_\\perp s_u, 0)`, with
+:math:`\\hat\\phi_\\perp` the mode made W-orthogonal to the primary path's tangent, of unit W-norm, so the
+constraint puts the solution a distance :math:`\\Delta s` along :math:`\\hat\\phi_\\perp` from the primary
+branch (whose points the step's hyperplane then excludes), which places it on the branch that leaves the
+critical point along :math:`\\phi` (for a symmetric pitchfork the sign of :math:`\\phi` picks one of the two
+mirror branches; ``mode_sign`` chooses). Without it the path continues on the primary (now unstable) branch. No
+imperfection is added to the model.
+
+Direction after the switch: the secant from the primary point (past the critical load) to the first point of
+the new branch can point back down in :math:`\\lambda` (when the primary step overshot the critical load by
+more than the new branch rises in one step), and its predictor then lands near the primary branch again,
+which Newton's method happily converges to: the path turns back and runs down the primary branch. So the step
+after the switch uses the tangent of the new branch at its first point, :math:`K\\,u_t = -\\partial R/\\partial
+\\lambda`, :math:`\\tau \\propto (u_t, 1)`, oriented so that the amplitude along the critical mode grows
+(:math:`a = \\langle\\hat\\phi_\\perp, u - u_c\\rangle_W / s_u`, with :math:`\\hat\\phi_\\perp` the mode made
+orthogonal to the primary path's tangent and :math:`u_c` the primary state the switch started from); on a
+supercritical branch the load factor then keeps rising as it did before the critical point. Two guards refuse
+a wrong path instead of returning it: the amplitude falling below half its value at the first point of the new
+branch (the path went back onto the primary branch) and the load factor falling below ``t_min`` both raise
+:class:`~sorofem.errors.ConvergenceError`, with the path up to there in its ``trajectory`` attribute.
 """
 import logging
 import math
@@ -50,7 +64,7 @@ from .. import _dolfinx
 from ..errors import ConvergenceError, ParameterError
 from .stepping import march
 
-__all__ = ["ArcLength", "follow"]
+__all__ = ["ArcLength", "follow", "linear_step", "load_rate"]
 
 log = logging.getLogger(__name__)
 
@@ -98,14 +112,8 @@ class ArcLength:
         return self.g.copy()
 
     def load_vector(self, solver):
-        """:math:`\\partial R/\\partial\\lambda` at the current state (difference quotient of the lifted
-        residual, Dirichlet rows included)."""
-        self.fem.set_load_level(self.lam + self.eps)
-        q = solver.assemble_residual().copy()
-        self.fem.set_load_level(self.lam)
-        q.axpy(-1.0, solver.assemble_residual())
-        q.scale(1.0 / self.eps)
-        return q
+        """:math:`\\partial R/\\partial\\lambda` at the current state (:func:`load_rate`)."""
+        return load_rate(self.fem, solver, self.lam, self.eps)
 
     def rate(self, load):
         """d(load)/d(lambda) of a scalar load at the current load factor."""
@@ -130,6 +138,38 @@ class ArcLength:
         self.g.destroy()
 
 
+def load_rate(fem, solver, t, eps):
+    """:math:`\\partial R/\\partial t` at the current state and load factor ``t``: the difference quotient of the
+    lifted residual over ``eps``, Dirichlet rows included (there: the rate of the prescribed displacement). A new
+    PETSc vector (the caller destroys it); the loads are left at ``t``."""
+    fem.set_load_level(t + eps)
+    q = solver.assemble_residual().copy()
+    fem.set_load_level(t)
+    q.axpy(-1.0, solver.assemble_residual())
+    q.scale(1.0 / eps)
+    return q
+
+
+def linear_step(fem, solver, fraction, eps, t=0.0):
+    """The load-factor step whose linear response from the current (converged) state at load factor ``t`` moves
+    no point by more than ``fraction`` of the body's size: :math:`\\Delta t = f\\,D / \\max_i |u_{t,i}|`,
+    :math:`K u_t = -\\partial R/\\partial t` (:math:`D` the diagonal of the mesh's bounding box, the maximum over
+    the displacement unknowns); ``inf`` when no load moves the body (e.g. a volume control, whose load is not in
+    the residual)."""
+    from petsc4py import PETSc
+
+    solver.assemble_jacobian()
+    q = load_rate(fem, solver, t, eps)
+    u_t = q.duplicate()
+    solver.ksp.solve(q, u_t)
+    weight = _weight(fem, fem.function_space)
+    u_t.pointwiseMult(u_t, weight)
+    peak = u_t.norm(PETSc.NormType.INFINITY)
+    for vec in (q, u_t, weight):
+        vec.destroy()
+    return fraction * fem.size / peak if peak > 0 and math.isfinite(peak) else math.inf
+
+
 def _weight(fem, W):
     """1 on the displacement unknowns (the first field of a mixed state), 0 elsewhere."""
     import dolfinx.fem
@@ -147,8 +187,14 @@ def _wdot(a, b, weight, tmp):
     return tmp.dot(b)
 
 
+#: the amplitude along the critical mode, as a fraction of its value at the first point of the new branch, below
+#: which the path is taken to have gone back onto the primary branch
+RETURN_FRACTION = 0.5
+
+
 def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, max_step=None,
-           max_iterations=15, monitor_stability=False, branch_switch=False, mode_sign=1.0, progress=False):
+           max_iterations=15, monitor_stability=False, branch_switch=False, mode_sign=1.0, t_min=0.0,
+           progress=False):
     """Follow the equilibrium path of ``fem`` by pseudo-arc-length continuation (see the module docstring).
 
     The load factor starts at 0 and the path is followed until it reaches ``t_end`` (the step that would pass it
@@ -179,6 +225,9 @@ def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, m
         (needs ``monitor_stability``).
     mode_sign : float
         +1 or -1: which of the two directions of the critical mode to take.
+    t_min : float
+        Smallest load factor [-] the path may reach (default 0: the path came back past the unloaded state,
+        which is rarely meant); ``-inf`` lets it run on.
 
     Returns
     -------
@@ -188,12 +237,15 @@ def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, m
     Raises
     ------
     ConvergenceError
-        A step failed down to ``min_step``; the converged part is in its ``trajectory`` attribute.
+        A step failed down to ``min_step``, the load factor fell below ``t_min``, or after a branch switch the
+        path went back onto the primary branch; the converged part is in its ``trajectory`` attribute.
     """
     from petsc4py import PETSc
 
     if not (math.isfinite(t_end) and t_end > 0):
         raise ParameterError(f"t_end must be a positive load factor, got {t_end}")
+    if not t_min < t_end:
+        raise ParameterError(f"t_min must be below t_end (the path starts at 0 and ends at t_end), got {t_min}")
     if int(steps) < 1 or int(max_steps) < 1:
         raise ParameterError(f"steps and max_steps must be >= 1, got {steps} and {max_steps}")
     if branch_switch and not monitor_stability:
@@ -212,6 +264,7 @@ def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, m
     weight = _weight(fem, b.space)
     tmp = weight.duplicate()
     arc = ArcLength(fem, weight, 1.0, 1e-6 * t_end)
+    state = {}
     try:
         inputs = arc.set(0.0)
         out = newton.solve()
@@ -221,7 +274,7 @@ def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, m
         fem.record(traj, 0.0, out.iterations, inputs, newton, monitor_stability)
         for con, (_, load, _) in zip(controls, b.volume_controls):   # volume targets move with the load factor
             con.target_rate = lambda other, load=load: arc.rate(load) if other is arc else 0.0
-        u_t = _initial_tangent(newton, arc, controls)
+        u_t = _tangent(newton, arc, controls)
         s_u = math.sqrt(max(_wdot(u_t, u_t, weight, tmp), 0.0))
         if not (math.isfinite(s_u) and s_u > 0):
             raise ParameterError("no load of the model moves the body (dR/dt = 0 at t = 0): add a pressure, "
@@ -229,9 +282,9 @@ def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, m
         arc.s_u = s_u
         tau_u = u_t
         tau_u.scale(1 / math.sqrt(2))
-        state = {"x": x.copy(), "lam": 0.0, "tau_u": tau_u, "tau_l": 1 / math.sqrt(2),
-                 "p": [float(c.pressure.value) for c in controls], "inject": None, "switched": False,
-                 "stopped": "max_steps"}
+        state.update({"x": x.copy(), "lam": 0.0, "tau_u": tau_u, "tau_l": 1 / math.sqrt(2),
+                      "p": [float(c.pressure.value) for c in controls], "inject": None, "switched": False,
+                      "branch": None, "stopped": "max_steps"})
         newton.constraints.append(arc)
         ds0 = math.sqrt(2) * t_end / int(steps)
 
@@ -258,9 +311,17 @@ def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, m
             lam = arc.lam
             inputs = fem.set_load_level(lam)
             fem.record(traj, lam, out.iterations, inputs, newton, monitor_stability)
-            d = x.copy()
-            d.axpy(-1.0, state["x"])
-            dl = lam - state["lam"]
+            injected = state["inject"] is not None
+            if injected:   # the first point of the new branch: its tangent, pointing away from the primary branch
+                d = _tangent(newton, arc, controls)
+                dl = 1.0
+                if _wdot(d, state["branch"]["mode"], weight, tmp) < 0:
+                    d.scale(-1.0)
+                    dl = -1.0
+            else:          # the secant of the step
+                d = x.copy()
+                d.axpy(-1.0, state["x"])
+                dl = lam - state["lam"]
             norm = math.sqrt(_wdot(d, d, weight, tmp) / s_u**2 + dl**2)
             if norm > 0:
                 d.scale(1.0 / norm)
@@ -268,12 +329,12 @@ def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, m
                 state.update(tau_u=d, tau_l=dl / norm)
             else:
                 d.destroy()
-            injected = state["inject"] is not None
             if injected:   # the step that left the primary branch: its sign change of the lowest eigenvalue is
                 state["inject"].destroy()   # the change of branch, not another critical point
                 state["inject"] = None
             state["x"].destroy()
             state.update(x=x.copy(), lam=lam, p=[float(c.pressure.value) for c in controls])
+            _check_direction(traj, state, x, weight, tmp, s_u, t_min, injected)
             if monitor_stability and not injected:
                 _critical(fem, traj, newton, arc, weight, tmp, state, branch_switch, mode_sign)
             if progress and fem.mesh.comm.rank == 0:
@@ -309,10 +370,13 @@ def follow(fem, t_end=1.0, steps=10, until=None, max_steps=200, min_step=None, m
             e.trajectory = traj
             raise
         traj.metadata["stopped"] = state["stopped"]
+    finally:
         for key in ("x", "tau_u", "inject"):
             if state.get(key) is not None:
                 state[key].destroy()
-    finally:
+        if state.get("branch") is not None:
+            for key in ("mode", "origin"):
+                state["branch"][key].destroy()
         for con in controls:
             con.target_rate = None
         arc.destroy()
@@ -329,8 +393,8 @@ def _on_root(comm, fn):
     return comm.bcast(on_root(comm, fn), root=0)
 
 
-def _initial_tangent(newton, arc, controls):
-    """:math:`du/d\\lambda` at the converged initial state: :math:`K\\,du + q + \\sum_j f_j\\,dp_j = 0` with
+def _tangent(newton, arc, controls):
+    """:math:`du/d\\lambda` at the current converged state: :math:`K\\,du + q + \\sum_j f_j\\,dp_j = 0` with
     :math:`q = \\partial R/\\partial\\lambda`, and for each volume control :math:`g_i\\cdot du + \\partial c_i/
     \\partial\\lambda = 0` (its pressure :math:`p_j` free): :math:`du = -K^{-1}q - \\sum_j a_j\\,dp_j`,
     :math:`K a_j = f_j`, :math:`\\sum_j (g_i\\cdot a_j)\\,dp_j = \\partial c_i/\\partial\\lambda - g_i\\cdot K^{-1}q`."""
@@ -384,13 +448,65 @@ def _critical(fem, traj, newton, arc, weight, tmp, state, branch_switch, mode_si
                                              "mode_path_cosine": cosine})
     log.info("%s point near load factor %.5g (lowest eigenvalue %.3g -> %.3g)", kind, lam_c, mu[-2], mu[-1])
     if kind == "bifurcation" and branch_switch and not state["switched"]:
-        norm = math.sqrt(_wdot(phi, phi, weight, tmp))
         # the eigensolver's sign is arbitrary: make the largest component of the mode positive, then apply
         # mode_sign (the same branch on every run and every number of ranks)
         vals = phi.getArray(readonly=True)
         big = (float(np.abs(vals).max()), float(vals[np.argmax(np.abs(vals))])) if len(vals) else (0.0, 0.0)
         largest = max(fem.mesh.comm.allgather(big))[1]
-        phi.scale(float(np.sign(mode_sign) or 1.0) * (1.0 if largest >= 0 else -1.0) * arc.s_u / norm)
-        state.update(inject=phi, switched=True)
+        phi.scale(float(np.sign(mode_sign) or 1.0) * (1.0 if largest >= 0 else -1.0))
+        # inject the mode made W-orthogonal to the primary path: the step's hyperplane then excludes the primary
+        # branch (with the raw mode, a primary step past several critical loads could land back on it)
+        if tt > 0:
+            phi.axpy(-_wdot(phi, tau, weight, tmp) / tt, tau)
+        pn = math.sqrt(max(_wdot(phi, phi, weight, tmp), 0.0))
+        if pn == 0:
+            phi.destroy()
+            return
+        phi.scale(1.0 / pn)
+        unit = phi.copy()   # the amplitude of the new branch is measured along it (unit W-norm)
+        phi.scale(arc.s_u)
+        state.update(inject=phi, switched=True,
+                     branch={"mode": unit, "origin": state["x"].copy(), "load": lam_c, "first": None})
     else:
         phi.destroy()
+
+
+def _check_direction(traj, state, x, weight, tmp, s_u, t_min, first):
+    """Refuse a path that fell below ``t_min`` or, after a branch switch, went back onto the primary branch (its
+    amplitude along the critical mode below :data:`RETURN_FRACTION` of the amplitude at the new branch's first
+    point, ``first``)."""
+    lam = state["lam"]
+    if lam < t_min:
+        e = ConvergenceError(
+            f"the path turned back to load factor {lam:.4g} < t_min = {t_min:.4g} at step {len(traj) - 1}"
+            + (" after the branch switch" if state["branch"] is not None else "")
+            + ": the continuation reversed the load. Try smaller steps (steps=, max_step=); pass a lower t_min "
+            "if the path really goes there")
+        e.trajectory = traj
+        raise e
+    branch = state["branch"]
+    if branch is None:
+        return
+    d = x.copy()
+    d.axpy(-1.0, branch["origin"])
+    amp = _wdot(d, branch["mode"], weight, tmp) / s_u
+    d.destroy()
+    if first:
+        branch["first"] = amp
+        traj.metadata["branch_switch"] = {"step": len(traj) - 1, "load": branch["load"], "amplitude": amp}
+        if not amp > 0:
+            e = ConvergenceError(
+                f"the branch switch at load factor {branch['load']:.4g} did not leave the primary branch (amplitude "
+                f"along the critical mode {amp:.3g} at step {len(traj) - 1}). Try smaller steps near the critical "
+                "point (max_step=)")
+            e.trajectory = traj
+            raise e
+        return
+    if amp < RETURN_FRACTION * branch["first"]:
+        e = ConvergenceError(
+            f"after the branch switch at load factor {branch['load']:.4g} the path went back towards the primary "
+            f"branch at step {len(traj) - 1} (load factor {lam:.4g}; amplitude along the critical mode "
+            f"{amp:.3g}, {branch['first']:.3g} at the switch). Try smaller steps near the critical point "
+            "(max_step=) or the other side of the mode (mode_sign=-1)")
+        e.trajectory = traj
+        raise e

@@ -720,7 +720,7 @@ class Fem:
 
     # ------------------------------------------------------------------------------------------ solve
     def solve(self, load_level=1.0, steps=10, min_step=None, max_step=None, max_iterations=25, predictor=True,
-              monitor_stability=False, progress=None, *, t_end=None):
+              monitor_stability=False, progress=None, linear_start=None, *, t_end=None):
         """March the load level from 0 to ``load_level`` in adaptive steps; return a :class:`Trajectory`.
 
         A step whose Newton iteration fails (no convergence in ``max_iterations``, a non-finite residual,
@@ -748,6 +748,11 @@ class Fem:
             step when not on a terminal; ``False``: never (:class:`sorofem.io.Progress`, rank 0).
         t_end : float, optional
             Deprecated name of ``load_level`` (it is not a time): warns, then works as ``load_level``.
+        linear_start : float, optional
+            A fraction f of the body's size: the first step is cut so that its linear response moves no point by
+            more than f times the diagonal of the bounding box (:func:`sorofem.fem.continuation.linear_step`),
+            then grows after easy steps. For thin pressurized walls, whose unloaded tangent is far softer than
+            the inflated wall (the first Newton correction of a full step overshoots many times), e.g. 0.02.
         """
         from petsc4py import PETSc
 
@@ -760,6 +765,8 @@ class Fem:
             raise ParameterError(f"load_level must be positive, got {t_end}")
         if int(steps) < 1:
             raise ParameterError(f"steps must be >= 1, got {steps}")
+        if linear_start is not None and not (math.isfinite(linear_start) and linear_start > 0):
+            raise ParameterError(f"linear_start must be a positive fraction of the body's size, got {linear_start}")
         b = self.forms
         self.use_ramps(True)
         dt0 = t_end / int(steps)
@@ -775,6 +782,11 @@ class Fem:
                                    "supports prevent rigid motion and that the loads at t = 0 are reasonable")
         self.record(traj, 0.0, out.iterations, inputs, newton, monitor_stability)
         self.commit_contacts()   # after recording: the reported friction is that of the step's slip
+        dt_first = dt0
+        if linear_start is not None:
+            from .continuation import linear_step
+            dt_first = min(dt0, linear_step(self, newton, float(linear_start), 1e-6 * t_end))
+            self.set_load_level(0.0)
         state = {"x_old": x.copy(), "x_prev": None, "dt_prev": None,
                  "p_old": [float(c.pressure.value) for c in controls]}
 
@@ -805,7 +817,7 @@ class Fem:
         t = 0.0
         bar = Progress(t_end, "Fem.solve", progress, self.mesh.comm, unit="load")
         try:
-            t = march(0.0, t_end, dt0, float(min_step or dt0 / 1024), float(max_step or dt0), attempt, accept,
+            t = march(0.0, t_end, dt_first, float(min_step or dt0 / 1024), float(max_step or dt0), attempt, accept,
                       reject, "more or smaller steps, degree=2 with mixed=True for nearly incompressible "
                       "materials, a displacement- or volume-controlled load past a limit point, or supports "
                       "that remove rigid-body motion")
@@ -821,8 +833,8 @@ class Fem:
         return traj
 
     def follow(self, load_level=1.0, steps=10, until=None, max_steps=200, min_step=None, max_step=None,
-               max_iterations=15, monitor_stability=False, branch_switch=False, mode_sign=1.0, progress=False, *,
-               t_end=None):
+               max_iterations=15, monitor_stability=False, branch_switch=False, mode_sign=1.0, t_min=0.0,
+               progress=False, *, t_end=None):
         """Follow the equilibrium path by pseudo-arc-length continuation, the load factor ``t`` being an
         unknown: through limit points of pressure, force or displacement control (where :meth:`solve` stops),
         with bifurcation detection and branch switching (``monitor_stability=True, branch_switch=True``),
@@ -840,7 +852,7 @@ class Fem:
 
         return follow(self, t_end=t_end, steps=steps, until=until, max_steps=max_steps, min_step=min_step,
                       max_step=max_step, max_iterations=max_iterations, monitor_stability=monitor_stability,
-                      branch_switch=branch_switch, mode_sign=mode_sign, progress=progress)
+                      branch_switch=branch_switch, mode_sign=mode_sign, t_min=t_min, progress=progress)
 
     def newton_solver(self, R, J, max_iterations=25):
         """A :class:`~sorofem.fem.newton.NewtonSolver` for the compiled residual/Jacobian forms ``R``, ``J``

@@ -100,6 +100,65 @@ def test_strut_buckles_onto_the_elastica_by_branch_switching():
     assert max(traj.newton_iterations[post][1:]) <= 5
 
 
+def test_after_an_overshooting_primary_step_the_path_stays_on_the_buckled_branch():
+    """Direction control after the switch: the primary step overshoots the Euler load threefold (steps=12) and the
+    switch takes a small step (max_step=0.01), so the secant from the primary point to the first buckled point
+    points steeply down in load; its predictor landed next to the straight branch and the path turned back down
+    it into tension (before the fix: load factor 0.026 -> -0.048 in ten steps, offset 0; the porous block's full
+    run ended at +37.9 % strain that way). With the new branch's tangent the load keeps rising, the offset keeps
+    growing and the buckled points match the elastica."""
+    from analytic import buckled_strut
+
+    traj = strut().follow(t_end=1.0, steps=12, max_step=0.01, max_steps=12, monitor_stability=True,
+                          branch_switch=True)
+    assert traj.metadata["stopped"] == "max_steps"
+    (crit,) = traj.metadata["critical_points"]
+    k = crit["step"] + 1   # the first point of the buckled branch
+    assert k == 2 and traj.times[1] > 3 * crit["load"]   # the overshoot
+    w, lam = strut_end_offset(traj)[k:], traj.times[k:]
+    assert np.all(np.diff(lam) > 0) and np.all(np.diff(w) > 0) and w[-1] > 1e-3 * L
+    ratio, _ = buckled_strut(w / L)
+    np.testing.assert_allclose(-traj.reactions["right"][k:, 0] / P_CR, ratio, atol=6e-3)
+    assert traj.metadata["branch_switch"]["step"] == k
+
+
+def test_a_path_below_t_min_is_refused_with_the_path_so_far():
+    """The load-reversal guard: the same switch lands at a load factor of 0.026 (the Euler load) after the
+    primary step to 0.083; with t_min = 0.05 that is a reversal past the user's bound, refused with a
+    ConvergenceError that carries the path up to there."""
+    from sorofem.errors import ConvergenceError
+
+    with pytest.raises(ConvergenceError, match="t_min") as info:
+        strut().follow(t_end=1.0, steps=12, max_step=0.01, max_steps=12, monitor_stability=True,
+                       branch_switch=True, t_min=0.05)
+    traj = info.value.trajectory
+    assert len(traj) == 3 and traj.times[-1] < 0.05 < traj.times[-2]
+
+
+def test_a_return_onto_the_primary_branch_is_refused():
+    """The return guard on its own (the direction control above keeps it from firing on the strut): an amplitude
+    along the critical mode below half its value at the new branch's first point raises ConvergenceError."""
+    from petsc4py import PETSc
+
+    from sorofem.errors import ConvergenceError
+    from sorofem.fem.continuation import _check_direction
+
+    class Path(list):
+        metadata = {}
+
+    def vec(values):
+        return PETSc.Vec().createWithArray(np.array(values, dtype=float), comm=PETSc.COMM_SELF)
+
+    mode, origin, weight, tmp = vec([0, 1, 0]), vec([0, 0, 0]), vec([1, 1, 0]), vec([0, 0, 0])
+    state = {"lam": 0.5, "branch": {"mode": mode, "origin": origin, "load": 0.4, "first": None}}
+    traj = Path([0, 1, 2])
+    _check_direction(traj, state, vec([0.3, 0.2, 0]), weight, tmp, 2.0, 0.0, True)    # first point: amplitude 0.1
+    assert state["branch"]["first"] == pytest.approx(0.1)
+    _check_direction(traj, state, vec([9.0, 0.12, 5.0]), weight, tmp, 2.0, 0.0, False)   # 0.06: still on it
+    with pytest.raises(ConvergenceError, match="back towards the primary branch"):
+        _check_direction(traj, state, vec([0.3, 0.08, 0]), weight, tmp, 2.0, 0.0, False)  # 0.04 < 0.05
+
+
 def test_without_branch_switching_the_perfect_strut_stays_straight():
     """The same continuation without switching stays on the straight (now unstable) branch: the buckled branch
     above is taken deliberately, not by round-off."""
@@ -115,6 +174,8 @@ def test_bad_arguments():
         fem.follow(branch_switch=True)
     with pytest.raises(ParameterError, match="t_end"):
         fem.follow(load_level=0.0)
+    with pytest.raises(ParameterError, match="t_min"):
+        fem.follow(load_level=1.0, t_min=1.0)
     with pytest.raises(ParameterError, match="no load"):
         strut(shortening=0.0).follow()
 
@@ -145,3 +206,29 @@ def test_limit_point_and_branch_switch_on_two_ranks():
         w = strut_end_offset(traj2)[k + 1:]
         ratio, _ = buckled_strut(w / L)
         np.testing.assert_allclose(-traj2.reactions["right"][k + 1:, 0] / P_CR, ratio, atol=6e-3)
+
+
+# ----------------------------------------------------------------------------------------------- first step
+def test_linear_start_cuts_the_first_step_to_a_fraction_of_the_body_size():
+    """``Fem.solve(linear_start=f)``: the first step moves no point of the linear response by more than f times
+    the diagonal D of the body's bounding box (for a linear material the response is exactly linear, so the first
+    step is f D / max|u(1)|, to round-off), then grows by 1.5x per easy step to the end."""
+    from sorofem import materials
+    from sorofem.fem import Fem
+    from sorofem.mesh import Mesh
+
+    def cantilever():
+        msh = Mesh.rectangle(0.1, 0.01, size=0.0025, center=(0.05, 0.0))
+        fem = Fem(msh, materials.LinearElastic(E=1e6, nu=0.3), formulation="plane_stress")
+        return fem.add_support("left").add_force("right", [0.0, -1000.0])
+
+    full = cantilever().solve(steps=1)
+    peak = np.abs(full.displacement[-1]).max()
+    D = np.hypot(0.1, 0.01)
+    assert peak > 0.1 * D   # one step would move the tip by more than a tenth of the body
+    traj = cantilever().solve(steps=1, linear_start=0.01)
+    assert traj.times[1] == pytest.approx(0.01 * D / peak, rel=1e-6)
+    assert traj.times[-1] == 1.0
+    np.testing.assert_allclose(traj.displacement[-1], full.displacement[-1], atol=1e-9 * peak)
+    with pytest.raises(ParameterError, match="linear_start"):
+        cantilever().solve(linear_start=0.0)
