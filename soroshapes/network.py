@@ -52,6 +52,7 @@ from ._beam import _lu, _lu_solve
 from ._beam import forward_dynamics as _fd
 from ._beam import kinematics as _kinematics
 from ._beam import mass_coriolis_gravity as _mcg
+from ._contact import contact_force as _contact_force
 from .numerics import FD_STEP
 
 __all__ = ["StateMap", "Schedule", "lower", "assemble", "rhs", "jacobian", "warm_up"]
@@ -269,6 +270,29 @@ def _lower_impedance(spec, blocks, index, free_rows):
     return ctimes, np.ascontiguousarray(cvals, float), cper, cint, cflt
 
 
+def _lower_fixed_contact(shp, ld, name):
+    """The term of a beam's contact with a fixed obstacle (:class:`soroshapes.beam.Contact`), or
+    NotImplementedError naming the SDF node without a program form."""
+    from ._contact import lower_contact
+    try:
+        par, prog = lower_contact(shp, ld.obstacle, ld.stiffness, ld.damping, ld.friction, ld.regularization)
+    except NotImplementedError as why:
+        raise NotImplementedError(f"beam {name!r} (contact with an obstacle whose {why})") from None
+    return ("contact", par, prog)
+
+
+def _add_term(term, bb, wterm, wflt, sops, sconsts):
+    """Append one wrench term (kind, floats, SDF program or None) acting with beam block ``bb`` (-1: none)."""
+    tk, par, prog = term
+    row = [_TERMS[tk], sum(len(v) for v in wflt), len(par), bb, 0, 0, 0, 0, 0]
+    if prog is not None:
+        row[4:] = [sum(len(v) for v in sops), len(prog.ops), sum(len(v) for v in sconsts), prog.values, prog.points]
+        sops.append(prog.ops)
+        sconsts.append(prog.consts)
+    wterm.append(row)
+    wflt.append(np.asarray(par, dtype=float))
+
+
 class Lowered:
     """The network as the kernel's arrays (see :func:`lower`); ``arrays`` is the argument tuple."""
 
@@ -290,13 +314,17 @@ def lower(blocks, links, volumes, controller, free):
     free_list, free_rows = free
     index = {b["name"]: i for i, b in enumerate(blocks)}
     kind = np.zeros(len(blocks), np.int64)
-    table = np.zeros((len(blocks), 6), np.int64)         # kind, xoff, n, woff, nw, aux
+    table = np.zeros((len(blocks), 7), np.int64)         # kind, xoff, n, woff, nw, aux, costly (see _cheap_rows)
     bint, bflt, bwork, bintb = [], [], [], []
     fpar = []
     maps, mapint = [], []
     lint, lflt = [], []
     rflt = []
-    wsum, wterm, wflt = [], [], []                  # body wrench sums: [first term, count, body]; terms; floats
+    # wrench sums: [first term, count, body (-1: a fixed obstacle's contacts), pose kind, pose floats]; terms:
+    # [kind, float offset, float count, beam, SDF ops offset, ops count, SDF consts offset, value and point stack
+    # depths]; floats
+    wsum, wterm, wflt = [], [], []
+    sops, sconsts = [], []                          # SDF programs of contact terms (soroshapes._contact)
     extra_feeds = []                                # (block, block whose state it reads) through contact terms
 
     def add_map(smap):
@@ -316,10 +344,17 @@ def lower(blocks, links, volumes, controller, free):
         table[i, 1:5] = b["xoff"], b["n"], b["woff"], b["nw"]
         if b["kind"] == "shapes":
             shp = b["system"]
-            from .beam import LoadPlan
+            from .beam import Contact, LoadPlan
             mdl = shp.model
             # forces that a coupling puts on the beam and that the network evaluates itself (a grasp)
             own = [ld for ld in shp.loads if not getattr(getattr(ld, "fn", None), "network_term", False)]
+            contacts = [ld for ld in own if isinstance(ld, Contact)]
+            if contacts:                            # contact with fixed obstacles: a wrench sum without a body
+                terms = [_lower_fixed_contact(shp, ld, b["name"]) for ld in contacts]
+                wsum.append([len(wterm), len(terms), -1, _FIXED, 0])
+                for term in terms:
+                    _add_term(term, i, wterm, wflt, sops, sconsts)
+                own = [ld for ld in own if not isinstance(ld, Contact)]
             plan = LoadPlan.of(mdl, own, shp.damping)
             if not plan.compiled:
                 raise NotImplementedError(f"beam {b['name']!r} ({shp.evaluation_path})")
@@ -377,13 +412,21 @@ def lower(blocks, links, volumes, controller, free):
         if getattr(src, "compiled_terms", False) is not False:       # a body's WrenchSum (soroshapes.rigid)
             terms = src.compiled_terms
             if terms is None:
-                raise NotImplementedError(f"a Python wrench on body {tname!r}")
-            if kind[index[tname]] != RIGID:
-                raise NotImplementedError(f"contact on body {tname!r} (compiled for free rigid bodies)")
-            wsum.append([len(wterm), len(terms), index[tname]])
-            for tk, par, beam in terms:
+                raise NotImplementedError(src.python_reason)
+            body = blocks[index[tname]]["system"]
+            if kind[index[tname]] == RIGID:
+                pose_kind, pose_off = _FREE, 0
+            elif getattr(body, "spinning_parameters", None) is not None:
+                pose_kind, pose_off = _SPINNING, sum(len(v) for v in wflt)
+                wflt.append(np.asarray(body.spinning_parameters, dtype=float))
+            else:
+                raise NotImplementedError(f"contact on body {tname!r} (compiled for free and spinning rigid bodies)")
+            wsum.append([len(wterm), len(terms), index[tname], pose_kind, pose_off])
+            for tk, par, beam, *program in terms:
                 if tk not in _TERMS:
                     raise NotImplementedError(f"a {tk} wrench on body {tname!r}")
+                if tk == "contact":
+                    table[index[tname], 6] = 1          # its inputs need the beams' kinematics and SDFs
                 bb = -1
                 if beam is not None:
                     if beam not in index or blocks[index[beam]]["kind"] != "shapes":
@@ -392,8 +435,7 @@ def lower(blocks, links, volumes, controller, free):
                     bb = index[beam]
                     extra_feeds.append((index[tname], bb))          # the body's wrench reads the beam,
                     extra_feeds.append((bb, index[tname]))          # the beam's force reads the body
-                wterm.append([_TERMS[tk], sum(len(v) for v in wflt), len(par), bb])
-                wflt.append(np.asarray(par, dtype=float))
+                _add_term((tk, par, program[0] if program else None), bb, wterm, wflt, sops, sconsts)
             lk, ls, size = 2, len(wsum) - 1, 6
         elif isinstance(src, str):
             sb = blocks[index[src]]
@@ -506,8 +548,9 @@ def lower(blocks, links, volumes, controller, free):
               np.int64(ckind), np.ascontiguousarray(ctimes, float), np.ascontiguousarray(cvals, float).reshape(
                   len(ctimes), -1), float(cper), np.asarray(free_rows, np.int64), G, dep, col_block, comps, block_comp,
               np.array(lint, np.int64).reshape(-1, 4), cat(lflt), np.array(rflt, float).reshape(-1, _RIGID_FLOATS),
-              np.array(wsum, np.int64).reshape(-1, 3), np.array(wterm, np.int64).reshape(-1, 4), cat(wflt),
-              np.asarray(cint, np.int64), np.asarray(cflt, float), np.zeros(N))
+              np.array(wsum, np.int64).reshape(-1, 5), np.array(wterm, np.int64).reshape(-1, 9), cat(wflt),
+              np.asarray(cint, np.int64), np.asarray(cflt, float), np.zeros(N),
+              np.concatenate(sops).astype(np.int64) if sops else np.zeros((0, 3), np.int64), cat(sconsts))
     return Lowered(arrays, N, NW, groups, dep)
 
 
@@ -569,7 +612,7 @@ def _assemble(t, x, net, w, only):
     the inputs of a block left out is not evaluated (its inputs are not read)."""
     (table, bint, bflt, bwork, bintb, fpar, mapint, maps, link_tab, link_rows, ckind, ctimes, cvals, cper,
      free_rows, groups, dep, col_block, comps, block_comp, lint, lflt, rflt, wsum, wterm, wflt, cint, cflt,
-     bext) = net
+     bext, sops, sconsts) = net
     for j in range(w.shape[0]):
         w[j] = 0.0
     for j in range(bext.shape[0]):
@@ -585,6 +628,10 @@ def _assemble(t, x, net, w, only):
             if not (V > 0.0 and math.isfinite(V)):
                 ok = False
             w[table[i, 3] + 1] = V
+    for si in range(wsum.shape[0]):                   # contact of beams with fixed obstacles: forces into bext
+        if wsum[si, 2] < 0 and _wrench_needed(net, si, only):
+            if not _wrench_sum(t, net, si, x, np.zeros(6)):
+                ok = False
     if ckind == 2:
         if only[cint[0]] and not _impedance(t, x, net, w):
             ok = False
@@ -596,6 +643,8 @@ def _assemble(t, x, net, w, only):
     for li in range(link_tab.shape[0]):
         lk, src, ro, nr = link_tab[li, 0], link_tab[li, 1], link_tab[li, 2], link_tab[li, 3]
         if lk == 2:
+            if not _wrench_needed(net, src, only):
+                continue
             W = np.zeros(6)
             if not _wrench_sum(t, net, src, x, W):
                 ok = False
@@ -852,8 +901,10 @@ def _linear_rhs(li, x, xo, w, wo, lint, lflt, out):
         out[xo + r] = s
 
 
-_GROUND, _GRASP = 0, 1
-_TERMS = {"ground": _GROUND, "grasp": _GRASP}
+_GROUND, _GRASP, _CONTACT = 0, 1, 2
+_TERMS = {"ground": _GROUND, "grasp": _GRASP, "contact": _CONTACT}
+#: pose of a wrench sum's body: a free rigid body's state, a spinning body's angle, none (fixed obstacles)
+_FREE, _SPINNING, _FIXED = 0, 1, 2
 
 
 @njit(cache=True)
@@ -978,21 +1029,90 @@ def _grasp(t, net, par, bb, R, p, eta, x, W):
 
 
 @njit(cache=True)
+def _wrench_needed(net, si, only):
+    """Whether an evaluation of the blocks marked in ``only`` reads wrench sum si: its body's inputs or the force of
+    one of its terms on a beam."""
+    wsum, wterm = net[23], net[24]
+    if wsum[si, 2] >= 0 and only[wsum[si, 2]]:
+        return True
+    for tt in range(wsum[si, 0], wsum[si, 0] + wsum[si, 1]):
+        if wterm[tt, 3] >= 0 and only[wterm[tt, 3]]:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _body_pose(net, si, x):
+    """Pose (R, p) and body twist of the body of wrench sum si at the state x: a free rigid body's state, a
+    spinning body's g0 exp(theta a) and (a theta_dot, 0) (:class:`soroshapes.rigid.SpinningBody`), or the identity
+    and zero for fixed obstacles."""
+    table, wsum, wflt = net[0], net[23], net[25]
+    body, kind, o = wsum[si, 2], wsum[si, 3], wsum[si, 4]
+    if kind == _FREE:
+        xo = table[body, 1]
+        R = _polar3(np.ascontiguousarray(x[xo + 3:xo + 12]).reshape((3, 3)))
+        return R, np.ascontiguousarray(x[xo:xo + 3]), np.ascontiguousarray(x[xo + 12:xo + 18])
+    R = np.eye(3)
+    p = np.zeros(3)
+    eta = np.zeros(6)
+    if kind == _SPINNING:                             # floats: R0 (9, row by row), p0 (3), axis (3)
+        xo = table[body, 1]
+        th, rate = x[xo], x[xo + 1]
+        a0, a1, a2 = wflt[o + 12], wflt[o + 13], wflt[o + 14]
+        s, cth = math.sin(th), 1.0 - math.cos(th)
+        K = np.array([[0.0, -a2, a1], [a2, 0.0, -a0], [-a1, a0, 0.0]])
+        Q = np.eye(3) + s * K + cth * (K @ K)
+        R0 = wflt[o:o + 9].reshape((3, 3))
+        R = R0 @ Q
+        for i in range(3):
+            p[i] = wflt[o + 9 + i]
+            eta[i] = wflt[o + 12 + i] * rate
+    return R, p, eta
+
+
+@njit(cache=True)
 def _wrench_sum(t, net, si, x, W):
-    """The summed wrench (body coordinates) of wrench sum si on its (free rigid) body at the state x (and the
-    beams' share of its grasp terms into the external-force buffer). False if a beam's state is out of range."""
-    table, wsum, wterm, wflt = net[0], net[23], net[24], net[25]
-    first, count, body = wsum[si, 0], wsum[si, 1], wsum[si, 2]
-    xo = table[body, 1]
-    R = _polar3(np.ascontiguousarray(x[xo + 3:xo + 12]).reshape((3, 3)))
-    p = x[xo:xo + 3]
-    eta = x[xo + 12:xo + 18]
+    """The summed wrench (body coordinates) of wrench sum si on its body at the state x (and the beams' share of
+    its grasp and contact terms into the external-force buffer). False if a beam's state is out of range or a
+    force is not finite."""
+    wsum, wterm, wflt = net[23], net[24], net[25]
+    first, count = wsum[si, 0], wsum[si, 1]
+    R, p, eta = _body_pose(net, si, x)
     for tt in range(first, first + count):
         o, m = wterm[tt, 1], wterm[tt, 2]
         if wterm[tt, 0] == _GROUND:
             _ground(wflt[o:o + m], R, p, eta, W)
+        elif wterm[tt, 0] == _CONTACT:
+            if not _contact_term(net, tt, R, p, eta, x, W):
+                return False
         elif not _grasp(t, net, wflt[o:o + m], wterm[tt, 3], R, p, eta, x, W):
             return False
+    return True
+
+
+@njit(cache=True)
+def _contact_term(net, tt, R, p, eta, x, W):
+    """Contact term tt (:func:`soroshapes._contact.contact_force`) between its beam, at its state in x, and the
+    body at pose (R, p) with twist eta: the beam's force into the external-force buffer, the wrench into W.
+    False if the beam's state is out of range or a force is not finite."""
+    table, wterm, wflt, bext, sops, sconsts = net[0], net[24], net[25], net[28], net[29], net[30]
+    bb, o, m = wterm[tt, 3], wterm[tt, 1], wterm[tt, 2]
+    xo = table[bb, 1]
+    (n, _, order, Kb, D, Gin, h, B, X0, base, wts, Md, ag, brows, piv, G, J, Jd, eta_b, etad, S, E, V, Op, AJ, Wb,
+     M, C, fg, Rr, qdd, f_in, wko, end) = _beam_views(table[bb, 5], net)
+    q = np.ascontiguousarray(x[xo:xo + n])
+    qd = np.ascontiguousarray(x[xo + n:xo + 2 * n])
+    dOp = np.zeros((6, n))
+    _kinematics(q, qd, False, order, h, B, brows, X0, base, G, J, Jd, eta_b, S, E, V, Op, dOp, AJ)
+    f = np.zeros(n)
+    so, sn, co = wterm[tt, 4], wterm[tt, 5], wterm[tt, 6]
+    if not _contact_force(wflt[o:o + m], sops[so:so + sn], sconsts[co:], wterm[tt, 7], wterm[tt, 8], G, J, eta_b,
+                          R, p, eta, f, W):
+        return False
+    for k in range(n):
+        if not math.isfinite(f[k]):
+            return False
+        bext[xo + k] += f[k]
     return True
 
 
@@ -1136,12 +1256,15 @@ def _fd_rows(t, x, net, scale, w, f0, fp, xp, rows, out):
 @njit(cache=True)
 def _cheap_rows(t, x, net, scale, w, f0, fp, xp, JF):
     """Refresh the rows of JF that belong to systems other than beams (reservoirs: cheap to evaluate, and
-    non-smooth where a valve saturates, so a stale row makes Newton contract slowly) by :func:`_fd_rows`. False
-    if an evaluation fails."""
+    non-smooth where a valve saturates, so a stale row makes Newton contract slowly) by :func:`_fd_rows`; a body
+    whose inputs are beam-SDF contacts (``table[b, 6]``) is not cheap: each of its columns evaluates every
+    contact's beam kinematics. False if an evaluation fails."""
     table = net[0]
     cheap = np.zeros(table.shape[0], np.bool_)
     for b in range(table.shape[0]):
-        cheap[b] = table[b, 0] != BEAM
+        cheap[b] = table[b, 0] != BEAM and table[b, 6] == 0
+    if not cheap.any():
+        return True
     return _fd_rows(t, x, net, scale, w, f0, fp, xp, cheap, JF)
 
 
