@@ -166,7 +166,7 @@ def main(out: Path, quick: bool = False) -> dict:
         "grasp_force_N": round(float(grasp_force[grasp].mean()), 4) if grasp.any() else 0.0,
         "screw_force_N_max": round(float(grasp_force[screw].max()), 4),
         "drive_frequency_hz": FREQ, "simulated_s": T, "wall_time_s_sim": round(wall, 2),
-        "real_time_factor": round(T / wall, 4), "evaluation_path": tr.stats.get("evaluation_path"),
+        "real_time_factor": round(T / wall, 4), "evaluation_path": tr.stats.get("path"),
         "newton_iterations": int(tr.stats.get("newton_iterations", 0)) if isinstance(tr.stats, dict) else None,
         "png": "suzumori_gripper.png",
     }

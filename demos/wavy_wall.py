@@ -118,7 +118,7 @@ def main(out: Path, quick: bool = False) -> dict:
     t0 = time.perf_counter()
     tr = mdl.simulate(T, 4e-3, "bdf2")
     wall_s = time.perf_counter() - t0
-    path = tr.stats.get("evaluation_path")
+    path = tr.stats.get("path")
 
     q, qd = tr["arm"].q, tr["arm"].qd
     tips = np.array([shp.positions(qi)[-1] for qi in q])
