@@ -6,7 +6,8 @@ What is lowered
 when every part of it has a compiled form:
 
 * systems: :class:`~soroshapes.shapes.Shapes` beams whose loads run compiled (gravity, chambers and linear
-  actuators: ``Shapes.evaluation_path == "compiled"``, no point loads), every :class:`~soroshapes.model.Fluidic`
+  actuators: ``Shapes.evaluation_path == "compiled"``, no point loads; contact with fixed obstacles,
+  ``Shapes.add_contact``, whose SDF has a program form, :mod:`sorofem.sdf.program`), every :class:`~soroshapes.model.Fluidic`
   reservoir (isothermal or polytropic, regulated or not) whose volume is constant or given by a
   :class:`StateMap`, linear systems (:meth:`StateSpace.linear <soroshapes.model.StateSpace.linear>`, and
   :class:`~soroshapes.rigid.SpinningBody`, which is one) and free rigid bodies (:class:`~soroshapes.rigid.RigidBody`,
@@ -14,16 +15,21 @@ when every part of it has a compiled form:
 * couplings: the output of a named system (a beam's state, a reservoir's gauge pressure, a linear system's
   :math:`Cx + Du`) into inputs of another, and :class:`StateMap` (an affine map of one system's state through an optional ``tanh``), as an
   input or as a reservoir's volume; the wrenches on a free rigid body (a :class:`~soroshapes.rigid.WrenchSum`)
-  of ground contact (:func:`~soroshapes.rigid.couple_ground`) and of a grasp
+  of ground contact (:func:`~soroshapes.rigid.couple_ground`), of beam-body contact
+  (:func:`~soroshapes.rigid.couple_contact`, also on a :class:`~soroshapes.rigid.SpinningBody`; the body's
+  shape as an SDF program evaluated by one interpreter, :mod:`soroshapes._contact`) and of a grasp
   (:func:`~soroshapes.rigid.couple_grasp`, engaged always or by a one-column :class:`Schedule`; its force on
   the beam is added to the beam's inputs' force);
 * the controller: none, a :class:`Schedule` (a piecewise-linear table of the free inputs against time,
   optionally periodic), or :func:`soroshapes.control.impedance` with a constant or :class:`Schedule`
   set-point (its parameters as data: the same equations, from the beam's kinematics, M, C and f_g in the
-  kernel; evaluated only when the beam it drives is).
+  kernel; evaluated only when the beam it drives is), and the joint-space controllers and feed-forwards of
+  :mod:`soroshapes.control` (compensation, PD, PID with constant set-point, feed-forward inputs, torques or
+  configurations from a Schedule, and :func:`~soroshapes.control.combine` of them).
 
 Anything else (a Python callable coupling or controller, a :class:`~soroshapes.model.StateSpace` with a
-Python ``f``, beams with contact, tendons or user forces, beam-body contact, adaptive steps) runs on the Python path of
+Python ``f``, beams with tendons or user forces, contact with an SDF node without program form, adaptive steps)
+runs on the Python path of
 :mod:`soroshapes.model`; :attr:`Model.evaluation_paths <soroshapes.model.Model.evaluation_paths>` names the
 first part that forces it. :class:`StateMap` and :class:`Schedule` are also callables of the model, so the
 same network runs on both paths (the tests compare them).
@@ -293,6 +299,71 @@ def _add_term(term, bb, wterm, wflt, sops, sconsts):
     wflt.append(np.asarray(par, dtype=float))
 
 
+_JOINT, _FF_INPUTS, _FF_TORQUE, _FF_CONFIGURATION = 0, 1, 2, 3
+#: ints of a controller term before its input rows: kind, beam block, inputs m, gravity, elastic, integral block
+#: (-1: none), float offset, table rows K, table columns
+_TERM_HEAD = 9
+
+
+def _table(v, cols, what):
+    """(times, values (K, cols), period) of a constant (cols,) or a :class:`Schedule` with an array table."""
+    if v is None:
+        times, vals, per = np.array([0.0, 1.0]), np.zeros((2, cols)), 0.0
+    elif isinstance(v, Schedule) and not isinstance(v.values, dict):
+        times, vals, per = v.times, v.values, v.period or 0.0
+    elif callable(v):
+        raise NotImplementedError(f"the {what} {getattr(v, '__name__', v)!r} (a Python callable; a Schedule runs "
+                                  "compiled)")
+    else:
+        vals = np.asarray(v, dtype=float).reshape(1, -1)
+        times, vals, per = np.array([0.0, 1.0]), np.vstack([vals, vals]), 0.0
+    if vals.shape[1] != cols:
+        raise ParameterError(f"the {what} gives {vals.shape[1]} values per row, expected {cols}")
+    return times, np.ascontiguousarray(vals, float), float(per)
+
+
+def _lower_terms(spec, blocks, index, free_rows):
+    """The integer and float records of a joint-space controller, a feed-forward or a combination of them
+    (``compiled`` of :mod:`soroshapes.control`), and the (block, block it reads) pairs; NotImplementedError for
+    a part without compiled form."""
+    specs = spec["terms"] if spec["kind"] == "combine" else [spec]
+    cint, cflt, reads = [len(specs)], [], []
+    for sp in specs:
+        if sp is None or sp["kind"] not in ("joint", "feedforward"):
+            raise NotImplementedError(f"a {'Python' if sp is None else sp['kind']} controller inside combine")
+        name = sp["system"]
+        if name not in index:
+            raise ParameterError(f"the controller acts on system {name!r}, which is not in the model")
+        b = blocks[index[name]]
+        if b["kind"] != "shapes":
+            raise NotImplementedError(f"a controller on {name!r}, which is not a beam")
+        n = b["system"].n
+        rows = [r for r in free_rows if b["woff"] <= r < b["woff"] + b["nw"]]
+        if len(rows) != b["m"]:
+            raise NotImplementedError(f"a controller on beam {name!r} whose inputs are also coupled")
+        integral = -1
+        if sp["kind"] == "joint":
+            kind = _JOINT
+            Kp, Ki, Kd = sp["gains"](n)
+            times, vals, per = _table(sp["setpoint"], n, "set-point")
+            if sp.get("integral") is not None:
+                if sp["integral"] not in index:
+                    raise ParameterError(f"the PID integral {sp['integral']!r} is not in the model")
+                integral = index[sp["integral"]]
+                reads.append((index[name], integral))
+            floats = [Kp.ravel(), Ki.ravel(), Kd.ravel()]
+            grav, elas = sp["gravity"], sp["elastic"]
+        else:
+            kind = {"inputs": _FF_INPUTS, "torque": _FF_TORQUE, "configuration": _FF_CONFIGURATION}[sp["space"]]
+            times, vals, per = _table(sp["profile"], b["m"] if kind == _FF_INPUTS else n, "feed-forward profile")
+            floats, grav, elas = [], True, True
+        floats += [[per], times, vals.ravel()]
+        cint += [kind, index[name], len(rows), int(grav), int(elas), integral, sum(len(f) for f in cflt),
+                 len(times), vals.shape[1], *rows]
+        cflt.extend(np.ravel(f) for f in floats)
+    return cint, np.concatenate(cflt) if cflt else np.zeros(0), reads
+
+
 class Lowered:
     """The network as the kernel's arrays (see :func:`lower`); ``arrays`` is the argument tuple."""
 
@@ -457,9 +528,14 @@ def lower(blocks, links, volumes, controller, free):
     elif isinstance(controller, Schedule):
         ctimes, cvals = controller.times, np.ascontiguousarray(controller.table(free_list))
         cper, ckind = (controller.period or 0.0), 1
-    elif getattr(controller, "compiled", None) is not None:     # a controller of soroshapes.control
-        ckind = 2
+    elif getattr(controller, "compiled", None) is not None and controller.compiled["kind"] == "impedance":
+        ckind = 2                                               # soroshapes.control.impedance
         ctimes, cvals, cper, cint, cflt = _lower_impedance(controller.compiled, blocks, index, free_rows)
+    elif getattr(controller, "compiled", None) is not None:     # the other controllers of soroshapes.control
+        ckind = 3
+        ctimes, cvals, cper = np.zeros(2), np.zeros((2, 0)), 0.0
+        cint, cflt, reads = _lower_terms(controller.compiled, blocks, index, free_rows)
+        extra_feeds.extend(reads)
     else:
         raise NotImplementedError(f"the Python controller {getattr(controller, '__name__', controller)!r}")
 
@@ -634,6 +710,9 @@ def _assemble(t, x, net, w, only):
                 ok = False
     if ckind == 2:
         if only[cint[0]] and not _impedance(t, x, net, w):
+            ok = False
+    elif ckind == 3:
+        if not _controller_terms(t, x, net, w, only):
             ok = False
     elif ckind == 1 and free_rows.shape[0] > 0:
         u = np.empty(free_rows.shape[0])
@@ -848,6 +927,78 @@ def _impedance(t, x, net, w):
         u = np.linalg.lstsq(np.ascontiguousarray(Gin), tau, rcond=1e-10)[0]
     for j in range(m):
         w[cint[8 + k + j]] = u[j]
+    return True
+
+
+@njit(cache=True)
+def _controller_terms(t, x, net, w, only):
+    r"""The inputs of the joint-space controllers and feed-forwards of :mod:`soroshapes.control` (the same
+    equations as their Python closures), summed into w: :math:`\tau = K_p(q_d(t) - q) + K_i z - K_d\dot q + Kq
+    - f_g(q)` (the compensation terms optional, z a PID's integral block), feed-forward inputs, torques or the
+    static inputs of a configuration; :math:`u = G^+\tau`. Terms whose beam is not in ``only`` are skipped.
+    False if a beam's state is out of range."""
+    table, cint, cflt = net[0], net[26], net[27]
+    o = 1
+    for _ in range(cint[0]):
+        kind, blk, m, grav, elas, integ, fo, K, cols = (cint[o], cint[o + 1], cint[o + 2], cint[o + 3], cint[o + 4],
+                                                       cint[o + 5], cint[o + 6], cint[o + 7], cint[o + 8])
+        rows = cint[o + _TERM_HEAD:o + _TERM_HEAD + m]
+        o += _TERM_HEAD + m
+        if not only[blk]:
+            continue
+        bi, xo = table[blk, 5], table[blk, 1]
+        (n, _, order, Kb, D, Gin, h, B, X0, base, wts, Md, ag, brows, piv, G, J, Jd, eta, etad, S, E, V, Op, AJ, W,
+         M, C, fg, R, qdd, f_in, wko, end) = _beam_views(bi, net)
+        q = np.ascontiguousarray(x[xo:xo + n])
+        qd = np.ascontiguousarray(x[xo + n:xo + 2 * n])
+        f = fo
+        if kind == _JOINT:
+            f += 3 * n * n
+        per = cflt[f]
+        times = cflt[f + 1:f + 1 + K]
+        vals = cflt[f + 1 + K:f + 1 + K + K * cols].reshape((K, cols))
+        v = np.empty(cols)
+        _interp_row(times, vals, per, t, v)
+        if kind == _FF_INPUTS:
+            for j in range(m):
+                w[rows[j]] += v[j]
+            continue
+        tau = np.zeros(n)
+        qc = q
+        if kind == _JOINT:
+            Kp = cflt[fo:fo + n * n].reshape((n, n))
+            Ki = cflt[fo + n * n:fo + 2 * n * n].reshape((n, n))
+            Kd = cflt[fo + 2 * n * n:fo + 3 * n * n].reshape((n, n))
+            tau += Kp @ (v - q) - Kd @ qd
+            if integ >= 0:
+                zo = table[integ, 1]
+                tau += Ki @ np.ascontiguousarray(x[zo:zo + n])
+        elif kind == _FF_TORQUE:
+            tau += v
+            grav, elas = 0, 0
+        else:
+            qc = v
+        if elas:
+            tau += Kb @ qc
+        if grav and (ag[0] != 0.0 or ag[1] != 0.0 or ag[2] != 0.0):
+            dOp = np.zeros((6, n))
+            Mc, Cc, fgc = np.empty((n, n)), np.empty((n, n)), np.empty(n)
+            zero = np.zeros(n)
+            _kinematics(np.ascontiguousarray(qc), zero, True, order, h, B, brows, X0, base, G, J, Jd, eta, S, E, V,
+                        Op, dOp, AJ)
+            _mcg(J, Jd, eta, G, wts, Md, ag, Mc, Cc, fgc, True, S, V, AJ)
+            tau -= fgc
+        s = 0.0
+        for k in range(n):
+            s += tau[k]
+        if not math.isfinite(s):
+            return False
+        if Gin.shape[0] == Gin.shape[1] and abs(np.linalg.det(Gin)) > 0.0:
+            u = np.linalg.solve(np.ascontiguousarray(Gin), tau)
+        else:
+            u = np.linalg.lstsq(np.ascontiguousarray(Gin), tau, rcond=1e-10)[0]
+        for j in range(m):
+            w[rows[j]] += u[j]
     return True
 
 

@@ -465,3 +465,65 @@ def test_beam_body_contact_compiled_equals_python(spinning):
     assert close(a.x, b.x, rtol, atol) < 50
     moved = abs(a["bolt"].x[-1, 0]) if spinning else np.abs(a["bolt"].x[-1, :3] - a["bolt"].x[0, :3]).max()
     assert moved > 1e-4
+
+
+# ------------------------------------------------------------------------------------------------------------
+# the joint-space controllers and feed-forwards of soroshapes.control, compiled
+# ------------------------------------------------------------------------------------------------------------
+def controlled_arm(kind):
+    """A three-segment PCC arm (one unit actuator per coordinate, gravity, damping) under one controller of
+    soroshapes.control, starting bent."""
+    from soroshapes import control
+
+    shp = Shapes(Basis.pcc(3), dofs=(0, 3, 0, 0, 0, 0), length=0.3, section=sdf.Circle(0.01),
+                 material=materials.NeoHookean(E=2e5, nu=0.45, density=1000), damping=0.02,
+                 segments=12).add_gravity()
+    for i in range(3):
+        shp.add_actuator(np.eye(3)[i])
+    mdl = Model().add(shp, "arm", x0=[2.0, -1.0, 1.5, 0.0, 0.0, 0.0])
+    goal = np.array([3.0, 1.0, -2.0])
+    table = Schedule([0.0, 0.1, 0.3], np.array([[0.0, 0.0, 0.0], [2.0, 1.0, 0.5], [1.0, -1.0, 2.0]]))
+    if kind == "compensation":
+        ctrl = control.gravity_compensation("arm")
+    elif kind == "pd":
+        ctrl = control.pd("arm", kp=[2e-3, 1e-3, 5e-4], kd=2e-4, setpoint=goal)
+    elif kind == "pd_schedule":
+        ctrl = control.pd("arm", kp=2e-3, kd=2e-4, setpoint=table, gravity=False)
+    elif kind == "pid":
+        ctrl = control.pid(mdl, "arm", kp=2e-3, ki=4e-3, kd=2e-4, setpoint=goal, elastic=False)
+    elif kind == "ff_inputs":
+        ctrl = control.feedforward("arm", Schedule([0.0, 0.3], [[0.0, 0.0, 0.0], [1e-3, -2e-3, 1e-3]]))
+    elif kind == "ff_torque":
+        ctrl = control.feedforward("arm", Schedule([0.0, 0.3], [[0.0, 0.0, 0.0], [1e-3, -2e-3, 1e-3]]),
+                                   space="torque")
+    elif kind == "ff_configuration":
+        ctrl = control.feedforward("arm", table, space="configuration")
+    else:                                                                 # combine
+        ctrl = control.combine(control.pd("arm", kp=1e-3, kd=2e-4, setpoint=goal, gravity=False, elastic=False),
+                               control.gravity_compensation("arm"))
+    return mdl.set_controller(ctrl)
+
+
+@pytest.mark.parametrize("kind", ["compensation", "pd", "pd_schedule", "pid", "ff_inputs", "ff_torque",
+                                  "ff_configuration", "combine"])
+def test_joint_controllers_and_feedforward_compiled_equal_python(kind):
+    """Each controller's parameters as data (gains, constant or Schedule set-points and profiles, the PID's
+    integral as a linear block fed by a StateMap) in the compiled network against its Python closure."""
+    rtol, atol = 1e-7, 1e-9
+    assert controlled_arm(kind).evaluation_path == "compiled"
+    a, b = both(lambda: controlled_arm(kind), 0.3, 2e-3, "bdf2", rtol=rtol, atol=atol)
+    assert a.stats["cut_steps"] == b.stats["cut_steps"] == 0
+    assert close(a.x, b.x, rtol, atol) < 10
+    assert np.allclose(a.u, b.u, rtol=1e-5, atol=1e-9)
+    assert np.abs(a.u).max() > 1e-4                                      # the controller did act
+
+
+def test_a_pid_with_a_moving_setpoint_or_a_python_part_keeps_the_python_path():
+    from soroshapes import control
+
+    mdl = controlled_arm("compensation")
+    ctrl = control.pid(mdl, "arm", kp=1e-3, ki=1e-3, kd=1e-4, setpoint=lambda t: np.zeros(3))
+    assert mdl.set_controller(ctrl).evaluation_path.startswith("python: ")
+    mdl = controlled_arm("compensation")
+    mdl.set_controller(control.combine(control.gravity_compensation("arm"), lambda m: {"arm": np.zeros(3)}))
+    assert mdl.evaluation_path.startswith("python: ")
