@@ -4,7 +4,11 @@ Every controller here is a closure ``fn(model) -> {system name: inputs}``, the c
 :meth:`Model.set_controller <soroshapes.model.Model.set_controller>`; :func:`combine` sums several of them. The
 model evaluates the controller at every stage and Newton iterate of its implicit integrator, so a controller
 keeps no Python memory: the integral of :func:`pid` lives in a :class:`~soroshapes.model.StateSpace` that
-:func:`pid` adds to the model.
+:func:`pid` adds to the model. Each closure also carries its parameters as data (``control.compiled``), so a
+network runs it inside the compiled kernel (:mod:`soroshapes.network`, the same equations) when its set-points
+and profiles are constants or :class:`~soroshapes.network.Schedule` tables (a PID's set-point: a constant);
+a Python callable there keeps the network on the Python path, which :attr:`Model.evaluation_path
+<soroshapes.model.Model.evaluation_path>` names.
 
 The beam obeys (``soroshapes.shapes``)
 
@@ -149,7 +153,17 @@ def combine(*controllers):
                 out[name] = out[name] + u if name in out else u
         return out
 
+    parts = [getattr(c, "compiled", None) for c in controllers]
+    control.compiled = dict(kind="combine", terms=parts)          # a part None keeps the Python path
     return control
+
+
+def _joint(system, kp, ki, kd, setpoint, gravity, elastic, integral=None):
+    """The parameters of a joint-space controller as data, for the compiled network (soroshapes.network)."""
+    def gains(n):
+        return _gain(kp, n, "kp"), _gain(ki, n, "ki"), _gain(kd, n, "kd")
+    return dict(kind="joint", system=system, gains=gains, setpoint=setpoint, gravity=bool(gravity),
+                elastic=bool(elastic), integral=integral)
 
 
 def gravity_compensation(system, *, gravity=True, elastic=True):
@@ -159,6 +173,7 @@ def gravity_compensation(system, *, gravity=True, elastic=True):
         shp, q, _ = _beam(model, system)
         return {system: torque_to_inputs(shp, q, _compensation(shp, q, gravity, elastic))}
 
+    control.compiled = _joint(system, 0.0, 0.0, 0.0, None, gravity, elastic)     # no set-point: zeros
     return control
 
 
@@ -184,6 +199,7 @@ def pd(system, kp, kd, setpoint, *, gravity=True, elastic=True):
         tau = Kp @ (_at(qdes, model.t) - q) - Kd @ qd + _compensation(shp, q, gravity, elastic)
         return {system: torque_to_inputs(shp, q, tau)}
 
+    control.compiled = _joint(system, kp, 0.0, kd, setpoint, gravity, elastic)
     return control
 
 
@@ -201,8 +217,13 @@ def pid(model, system, kp, ki, kd, setpoint, *, gravity=True, elastic=True, name
     Kp, Ki, Kd = _gain(kp, n, "kp"), _gain(ki, n, "ki"), _gain(kd, n, "kd")
     qdes = _vector(setpoint, n, "setpoint")
     name = name or f"{system}_pid"
-    integ = StateSpace(lambda z, e, t: e, n, n, jacobian=lambda z, e, t: (np.zeros((n, n)), np.eye(n)))
-    model.add(integ, name).connect(lambda mdl: _at(qdes, mdl.t) - mdl[system].x[:n], name)
+    if callable(qdes):                 # the error of a moving set-point: a Python coupling
+        integ = StateSpace(lambda z, e, t: e, n, n, jacobian=lambda z, e, t: (np.zeros((n, n)), np.eye(n)))
+        model.add(integ, name).connect(lambda mdl: _at(qdes, mdl.t) - mdl[system].x[:n], name)
+    else:                              # z' = e = q_d - q: a linear block fed by a StateMap (runs compiled)
+        from .network import StateMap
+        model.add(StateSpace.linear(np.zeros((n, n)), np.eye(n)), name)
+        model.connect(StateMap(system, -np.eye(n), index=np.arange(n), offset=qdes), name)
 
     def control(mdl):
         shp_, q, qd = _beam(mdl, system)
@@ -210,6 +231,7 @@ def pid(model, system, kp, ki, kd, setpoint, *, gravity=True, elastic=True, name
         tau = Kp @ (_at(qdes, mdl.t) - q) + Ki @ z - Kd @ qd + _compensation(shp_, q, gravity, elastic)
         return {system: torque_to_inputs(shp_, q, tau)}
 
+    control.compiled = _joint(system, kp, ki, kd, setpoint, gravity, elastic, integral=name)
     return control
 
 
@@ -229,7 +251,7 @@ def feedforward(system, profile, *, space="inputs"):
 
     def control(model):
         shp, q, _ = _beam(model, system)
-        v = np.asarray(profile(model.t), dtype=float).reshape(-1)
+        v = _at(profile, model.t)
         if space == "inputs":
             return {system: v}
         if v.shape != (shp.n,):
@@ -239,6 +261,7 @@ def feedforward(system, profile, *, space="inputs"):
             return {system: torque_to_inputs(shp, q, v)}
         return {system: torque_to_inputs(shp, v, _compensation(shp, v, True, True))}
 
+    control.compiled = dict(kind="feedforward", system=system, profile=profile, space=space)
     return control
 
 

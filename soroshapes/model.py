@@ -672,8 +672,11 @@ class Model:
         inputs and point loads still evaluate in one compiled call each, and reservoirs, StateSpace and
         rigid-body right-hand sides, beams with contact, tendons or user forces, and every coupling and the
         controller run in Python. Also in a trajectory's ``stats``."""
+        return self._paths(self._lowered())
+
+    def _paths(self, net):
+        """:attr:`evaluation_paths` for the lowered network ``net`` (or the reason it has none)."""
         paths = {name: getattr(b.system, "evaluation_path", "python") for name, b in self._blocks.items()}
-        net = self._lowered()
         compiled = not isinstance(net, str)
         if self._links:
             paths["couplings"] = "compiled" if compiled else "python"
@@ -689,7 +692,10 @@ class Model:
         :mod:`soroshapes.network`) or ``"python: ..."`` naming the first part that has no compiled form (a Python
         callable coupling or controller, a StateSpace with a Python f, a beam with contact, tendons or user
         forces). Also in a trajectory's ``stats``."""
-        net = self._lowered()
+        return self._path(self._lowered())
+
+    @staticmethod
+    def _path(net):
         return f"python: {net}" if isinstance(net, str) else "compiled"
 
     def _lowered(self):
@@ -1045,6 +1051,8 @@ class Model:
                 raise ParameterError("simulate(compiled=True) runs fixed steps: use adaptive=False")
             if not isinstance(net, str) and not adaptive:
                 return self._simulate_compiled(net, x, t0, t_end, dt, method, record_every, min_dt, rec_w[0])
+        else:
+            net = None
         wall = _time.perf_counter()
         if adaptive:
             self._run_adaptive(x, t0, t0 + t_end, dt, method, rec_t, rec_x, rec_w)
@@ -1078,7 +1086,7 @@ class Model:
         self._stats["wall_time"] = _time.perf_counter() - wall
         self._stats["method"] = method
         self._stats["path"] = "python"
-        return self._trajectory(np.array(rec_t), np.array(rec_x), np.array(rec_w))
+        return self._trajectory(np.array(rec_t), np.array(rec_x), np.array(rec_w), net)
 
     def _simulate_compiled(self, net, x, t0, t_end, dt, method, record_every, min_dt, w0):
         """Fixed steps by :func:`soroshapes.integrate.integrate` (the methods, refresh rule and splitting of the
@@ -1107,7 +1115,7 @@ class Model:
                                    "for their range, or loosen rtol (compiled=False gives the failing system's own "
                                    "message)")
         out_t[-1] = t0 + t_end
-        return self._trajectory(out_t[:got], out_x[:got], out_w[:got])
+        return self._trajectory(out_t[:got], out_x[:got], out_w[:got], net)
 
     def _split(self, method, t, x, h, hh, min_dt):
         """Cover [t, t+h] with steps of hh (halved on failure) after a failed step."""
@@ -1230,9 +1238,10 @@ class Model:
                 raise ConvergenceError(f"Model.simulate (adaptive): the step fell below {min_dt:.3g} s at t = {t:.6g} "
                                        "s; loosen rtol/atol or check the model for discontinuities")
 
-    def _trajectory(self, t, X, W):
-        self._stats["evaluation_paths"] = self.evaluation_paths
-        self._stats["evaluation_path"] = self.evaluation_path
+    def _trajectory(self, t, X, W, net=None):
+        net = self._lowered() if net is None else net          # lowered once per simulate
+        self._stats["evaluation_paths"] = self._paths(net)
+        self._stats["evaluation_path"] = self._path(net)
         systems, U = {}, []
         for b in self._blocks.values():
             x, w = X[:, b.sl], W[:, b.wsl]

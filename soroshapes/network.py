@@ -6,7 +6,8 @@ What is lowered
 when every part of it has a compiled form:
 
 * systems: :class:`~soroshapes.shapes.Shapes` beams whose loads run compiled (gravity, chambers and linear
-  actuators: ``Shapes.evaluation_path == "compiled"``, no point loads), every :class:`~soroshapes.model.Fluidic`
+  actuators: ``Shapes.evaluation_path == "compiled"``, no point loads; contact with fixed obstacles,
+  ``Shapes.add_contact``, whose SDF has a program form, :mod:`sorofem.sdf.program`), every :class:`~soroshapes.model.Fluidic`
   reservoir (isothermal or polytropic, regulated or not) whose volume is constant or given by a
   :class:`StateMap`, linear systems (:meth:`StateSpace.linear <soroshapes.model.StateSpace.linear>`, and
   :class:`~soroshapes.rigid.SpinningBody`, which is one) and free rigid bodies (:class:`~soroshapes.rigid.RigidBody`,
@@ -14,16 +15,21 @@ when every part of it has a compiled form:
 * couplings: the output of a named system (a beam's state, a reservoir's gauge pressure, a linear system's
   :math:`Cx + Du`) into inputs of another, and :class:`StateMap` (an affine map of one system's state through an optional ``tanh``), as an
   input or as a reservoir's volume; the wrenches on a free rigid body (a :class:`~soroshapes.rigid.WrenchSum`)
-  of ground contact (:func:`~soroshapes.rigid.couple_ground`) and of a grasp
+  of ground contact (:func:`~soroshapes.rigid.couple_ground`), of beam-body contact
+  (:func:`~soroshapes.rigid.couple_contact`, also on a :class:`~soroshapes.rigid.SpinningBody`; the body's
+  shape as an SDF program evaluated by one interpreter, :mod:`soroshapes._contact`) and of a grasp
   (:func:`~soroshapes.rigid.couple_grasp`, engaged always or by a one-column :class:`Schedule`; its force on
   the beam is added to the beam's inputs' force);
 * the controller: none, a :class:`Schedule` (a piecewise-linear table of the free inputs against time,
   optionally periodic), or :func:`soroshapes.control.impedance` with a constant or :class:`Schedule`
   set-point (its parameters as data: the same equations, from the beam's kinematics, M, C and f_g in the
-  kernel; evaluated only when the beam it drives is).
+  kernel; evaluated only when the beam it drives is), and the joint-space controllers and feed-forwards of
+  :mod:`soroshapes.control` (compensation, PD, PID with constant set-point, feed-forward inputs, torques or
+  configurations from a Schedule, and :func:`~soroshapes.control.combine` of them).
 
 Anything else (a Python callable coupling or controller, a :class:`~soroshapes.model.StateSpace` with a
-Python ``f``, beams with contact, tendons or user forces, beam-body contact, adaptive steps) runs on the Python path of
+Python ``f``, beams with tendons or user forces, contact with an SDF node without program form, adaptive steps)
+runs on the Python path of
 :mod:`soroshapes.model`; :attr:`Model.evaluation_paths <soroshapes.model.Model.evaluation_paths>` names the
 first part that forces it. :class:`StateMap` and :class:`Schedule` are also callables of the model, so the
 same network runs on both paths (the tests compare them).
@@ -52,6 +58,7 @@ from ._beam import _lu, _lu_solve
 from ._beam import forward_dynamics as _fd
 from ._beam import kinematics as _kinematics
 from ._beam import mass_coriolis_gravity as _mcg
+from ._contact import contact_force as _contact_force
 from .numerics import FD_STEP
 
 __all__ = ["StateMap", "Schedule", "lower", "assemble", "rhs", "jacobian", "warm_up"]
@@ -269,6 +276,94 @@ def _lower_impedance(spec, blocks, index, free_rows):
     return ctimes, np.ascontiguousarray(cvals, float), cper, cint, cflt
 
 
+def _lower_fixed_contact(shp, ld, name):
+    """The term of a beam's contact with a fixed obstacle (:class:`soroshapes.beam.Contact`), or
+    NotImplementedError naming the SDF node without a program form."""
+    from ._contact import lower_contact
+    try:
+        par, prog = lower_contact(shp, ld.obstacle, ld.stiffness, ld.damping, ld.friction, ld.regularization)
+    except NotImplementedError as why:
+        raise NotImplementedError(f"beam {name!r} (contact with an obstacle whose {why})") from None
+    return ("contact", par, prog)
+
+
+def _add_term(term, bb, wterm, wflt, sops, sconsts):
+    """Append one wrench term (kind, floats, SDF program or None) acting with beam block ``bb`` (-1: none)."""
+    tk, par, prog = term
+    row = [_TERMS[tk], sum(len(v) for v in wflt), len(par), bb, 0, 0, 0, 0, 0]
+    if prog is not None:
+        row[4:] = [sum(len(v) for v in sops), len(prog.ops), sum(len(v) for v in sconsts), prog.values, prog.points]
+        sops.append(prog.ops)
+        sconsts.append(prog.consts)
+    wterm.append(row)
+    wflt.append(np.asarray(par, dtype=float))
+
+
+_JOINT, _FF_INPUTS, _FF_TORQUE, _FF_CONFIGURATION = 0, 1, 2, 3
+#: ints of a controller term before its input rows: kind, beam block, inputs m, gravity, elastic, integral block
+#: (-1: none), float offset, table rows K, table columns
+_TERM_HEAD = 9
+
+
+def _table(v, cols, what):
+    """(times, values (K, cols), period) of a constant (cols,) or a :class:`Schedule` with an array table."""
+    if v is None:
+        times, vals, per = np.array([0.0, 1.0]), np.zeros((2, cols)), 0.0
+    elif isinstance(v, Schedule) and not isinstance(v.values, dict):
+        times, vals, per = v.times, v.values, v.period or 0.0
+    elif callable(v):
+        raise NotImplementedError(f"the {what} {getattr(v, '__name__', v)!r} (a Python callable; a Schedule runs "
+                                  "compiled)")
+    else:
+        vals = np.asarray(v, dtype=float).reshape(1, -1)
+        times, vals, per = np.array([0.0, 1.0]), np.vstack([vals, vals]), 0.0
+    if vals.shape[1] != cols:
+        raise ParameterError(f"the {what} gives {vals.shape[1]} values per row, expected {cols}")
+    return times, np.ascontiguousarray(vals, float), float(per)
+
+
+def _lower_terms(spec, blocks, index, free_rows):
+    """The integer and float records of a joint-space controller, a feed-forward or a combination of them
+    (``compiled`` of :mod:`soroshapes.control`), and the (block, block it reads) pairs; NotImplementedError for
+    a part without compiled form."""
+    specs = spec["terms"] if spec["kind"] == "combine" else [spec]
+    cint, cflt, reads = [len(specs)], [], []
+    for sp in specs:
+        if sp is None or sp["kind"] not in ("joint", "feedforward"):
+            raise NotImplementedError(f"a {'Python' if sp is None else sp['kind']} controller inside combine")
+        name = sp["system"]
+        if name not in index:
+            raise ParameterError(f"the controller acts on system {name!r}, which is not in the model")
+        b = blocks[index[name]]
+        if b["kind"] != "shapes":
+            raise NotImplementedError(f"a controller on {name!r}, which is not a beam")
+        n = b["system"].n
+        rows = [r for r in free_rows if b["woff"] <= r < b["woff"] + b["nw"]]
+        if len(rows) != b["m"]:
+            raise NotImplementedError(f"a controller on beam {name!r} whose inputs are also coupled")
+        integral = -1
+        if sp["kind"] == "joint":
+            kind = _JOINT
+            Kp, Ki, Kd = sp["gains"](n)
+            times, vals, per = _table(sp["setpoint"], n, "set-point")
+            if sp.get("integral") is not None:
+                if sp["integral"] not in index:
+                    raise ParameterError(f"the PID integral {sp['integral']!r} is not in the model")
+                integral = index[sp["integral"]]
+                reads.append((index[name], integral))
+            floats = [Kp.ravel(), Ki.ravel(), Kd.ravel()]
+            grav, elas = sp["gravity"], sp["elastic"]
+        else:
+            kind = {"inputs": _FF_INPUTS, "torque": _FF_TORQUE, "configuration": _FF_CONFIGURATION}[sp["space"]]
+            times, vals, per = _table(sp["profile"], b["m"] if kind == _FF_INPUTS else n, "feed-forward profile")
+            floats, grav, elas = [], True, True
+        floats += [[per], times, vals.ravel()]
+        cint += [kind, index[name], len(rows), int(grav), int(elas), integral, sum(len(f) for f in cflt),
+                 len(times), vals.shape[1], *rows]
+        cflt.extend(np.ravel(f) for f in floats)
+    return cint, np.concatenate(cflt) if cflt else np.zeros(0), reads
+
+
 class Lowered:
     """The network as the kernel's arrays (see :func:`lower`); ``arrays`` is the argument tuple."""
 
@@ -290,13 +385,17 @@ def lower(blocks, links, volumes, controller, free):
     free_list, free_rows = free
     index = {b["name"]: i for i, b in enumerate(blocks)}
     kind = np.zeros(len(blocks), np.int64)
-    table = np.zeros((len(blocks), 6), np.int64)         # kind, xoff, n, woff, nw, aux
+    table = np.zeros((len(blocks), 7), np.int64)         # kind, xoff, n, woff, nw, aux, costly (see _cheap_rows)
     bint, bflt, bwork, bintb = [], [], [], []
     fpar = []
     maps, mapint = [], []
     lint, lflt = [], []
     rflt = []
-    wsum, wterm, wflt = [], [], []                  # body wrench sums: [first term, count, body]; terms; floats
+    # wrench sums: [first term, count, body (-1: a fixed obstacle's contacts), pose kind, pose floats]; terms:
+    # [kind, float offset, float count, beam, SDF ops offset, ops count, SDF consts offset, value and point stack
+    # depths]; floats
+    wsum, wterm, wflt = [], [], []
+    sops, sconsts = [], []                          # SDF programs of contact terms (soroshapes._contact)
     extra_feeds = []                                # (block, block whose state it reads) through contact terms
 
     def add_map(smap):
@@ -316,10 +415,17 @@ def lower(blocks, links, volumes, controller, free):
         table[i, 1:5] = b["xoff"], b["n"], b["woff"], b["nw"]
         if b["kind"] == "shapes":
             shp = b["system"]
-            from .beam import LoadPlan
+            from .beam import Contact, LoadPlan
             mdl = shp.model
             # forces that a coupling puts on the beam and that the network evaluates itself (a grasp)
             own = [ld for ld in shp.loads if not getattr(getattr(ld, "fn", None), "network_term", False)]
+            contacts = [ld for ld in own if isinstance(ld, Contact)]
+            if contacts:                            # contact with fixed obstacles: a wrench sum without a body
+                terms = [_lower_fixed_contact(shp, ld, b["name"]) for ld in contacts]
+                wsum.append([len(wterm), len(terms), -1, _FIXED, 0])
+                for term in terms:
+                    _add_term(term, i, wterm, wflt, sops, sconsts)
+                own = [ld for ld in own if not isinstance(ld, Contact)]
             plan = LoadPlan.of(mdl, own, shp.damping)
             if not plan.compiled:
                 raise NotImplementedError(f"beam {b['name']!r} ({shp.evaluation_path})")
@@ -377,13 +483,21 @@ def lower(blocks, links, volumes, controller, free):
         if getattr(src, "compiled_terms", False) is not False:       # a body's WrenchSum (soroshapes.rigid)
             terms = src.compiled_terms
             if terms is None:
-                raise NotImplementedError(f"a Python wrench on body {tname!r}")
-            if kind[index[tname]] != RIGID:
-                raise NotImplementedError(f"contact on body {tname!r} (compiled for free rigid bodies)")
-            wsum.append([len(wterm), len(terms), index[tname]])
-            for tk, par, beam in terms:
+                raise NotImplementedError(src.python_reason)
+            body = blocks[index[tname]]["system"]
+            if kind[index[tname]] == RIGID:
+                pose_kind, pose_off = _FREE, 0
+            elif getattr(body, "spinning_parameters", None) is not None:
+                pose_kind, pose_off = _SPINNING, sum(len(v) for v in wflt)
+                wflt.append(np.asarray(body.spinning_parameters, dtype=float))
+            else:
+                raise NotImplementedError(f"contact on body {tname!r} (compiled for free and spinning rigid bodies)")
+            wsum.append([len(wterm), len(terms), index[tname], pose_kind, pose_off])
+            for tk, par, beam, *program in terms:
                 if tk not in _TERMS:
                     raise NotImplementedError(f"a {tk} wrench on body {tname!r}")
+                if tk == "contact":
+                    table[index[tname], 6] = 1          # its inputs need the beams' kinematics and SDFs
                 bb = -1
                 if beam is not None:
                     if beam not in index or blocks[index[beam]]["kind"] != "shapes":
@@ -392,8 +506,7 @@ def lower(blocks, links, volumes, controller, free):
                     bb = index[beam]
                     extra_feeds.append((index[tname], bb))          # the body's wrench reads the beam,
                     extra_feeds.append((bb, index[tname]))          # the beam's force reads the body
-                wterm.append([_TERMS[tk], sum(len(v) for v in wflt), len(par), bb])
-                wflt.append(np.asarray(par, dtype=float))
+                _add_term((tk, par, program[0] if program else None), bb, wterm, wflt, sops, sconsts)
             lk, ls, size = 2, len(wsum) - 1, 6
         elif isinstance(src, str):
             sb = blocks[index[src]]
@@ -415,9 +528,14 @@ def lower(blocks, links, volumes, controller, free):
     elif isinstance(controller, Schedule):
         ctimes, cvals = controller.times, np.ascontiguousarray(controller.table(free_list))
         cper, ckind = (controller.period or 0.0), 1
-    elif getattr(controller, "compiled", None) is not None:     # a controller of soroshapes.control
-        ckind = 2
+    elif getattr(controller, "compiled", None) is not None and controller.compiled["kind"] == "impedance":
+        ckind = 2                                               # soroshapes.control.impedance
         ctimes, cvals, cper, cint, cflt = _lower_impedance(controller.compiled, blocks, index, free_rows)
+    elif getattr(controller, "compiled", None) is not None:     # the other controllers of soroshapes.control
+        ckind = 3
+        ctimes, cvals, cper = np.zeros(2), np.zeros((2, 0)), 0.0
+        cint, cflt, reads = _lower_terms(controller.compiled, blocks, index, free_rows)
+        extra_feeds.extend(reads)
     else:
         raise NotImplementedError(f"the Python controller {getattr(controller, '__name__', controller)!r}")
 
@@ -506,8 +624,9 @@ def lower(blocks, links, volumes, controller, free):
               np.int64(ckind), np.ascontiguousarray(ctimes, float), np.ascontiguousarray(cvals, float).reshape(
                   len(ctimes), -1), float(cper), np.asarray(free_rows, np.int64), G, dep, col_block, comps, block_comp,
               np.array(lint, np.int64).reshape(-1, 4), cat(lflt), np.array(rflt, float).reshape(-1, _RIGID_FLOATS),
-              np.array(wsum, np.int64).reshape(-1, 3), np.array(wterm, np.int64).reshape(-1, 4), cat(wflt),
-              np.asarray(cint, np.int64), np.asarray(cflt, float), np.zeros(N))
+              np.array(wsum, np.int64).reshape(-1, 5), np.array(wterm, np.int64).reshape(-1, 9), cat(wflt),
+              np.asarray(cint, np.int64), np.asarray(cflt, float), np.zeros(N),
+              np.concatenate(sops).astype(np.int64) if sops else np.zeros((0, 3), np.int64), cat(sconsts))
     return Lowered(arrays, N, NW, groups, dep)
 
 
@@ -569,7 +688,7 @@ def _assemble(t, x, net, w, only):
     the inputs of a block left out is not evaluated (its inputs are not read)."""
     (table, bint, bflt, bwork, bintb, fpar, mapint, maps, link_tab, link_rows, ckind, ctimes, cvals, cper,
      free_rows, groups, dep, col_block, comps, block_comp, lint, lflt, rflt, wsum, wterm, wflt, cint, cflt,
-     bext) = net
+     bext, sops, sconsts) = net
     for j in range(w.shape[0]):
         w[j] = 0.0
     for j in range(bext.shape[0]):
@@ -585,8 +704,15 @@ def _assemble(t, x, net, w, only):
             if not (V > 0.0 and math.isfinite(V)):
                 ok = False
             w[table[i, 3] + 1] = V
+    for si in range(wsum.shape[0]):                   # contact of beams with fixed obstacles: forces into bext
+        if wsum[si, 2] < 0 and _wrench_needed(net, si, only):
+            if not _wrench_sum(t, net, si, x, np.zeros(6)):
+                ok = False
     if ckind == 2:
         if only[cint[0]] and not _impedance(t, x, net, w):
+            ok = False
+    elif ckind == 3:
+        if not _controller_terms(t, x, net, w, only):
             ok = False
     elif ckind == 1 and free_rows.shape[0] > 0:
         u = np.empty(free_rows.shape[0])
@@ -596,6 +722,8 @@ def _assemble(t, x, net, w, only):
     for li in range(link_tab.shape[0]):
         lk, src, ro, nr = link_tab[li, 0], link_tab[li, 1], link_tab[li, 2], link_tab[li, 3]
         if lk == 2:
+            if not _wrench_needed(net, src, only):
+                continue
             W = np.zeros(6)
             if not _wrench_sum(t, net, src, x, W):
                 ok = False
@@ -803,6 +931,78 @@ def _impedance(t, x, net, w):
 
 
 @njit(cache=True)
+def _controller_terms(t, x, net, w, only):
+    r"""The inputs of the joint-space controllers and feed-forwards of :mod:`soroshapes.control` (the same
+    equations as their Python closures), summed into w: :math:`\tau = K_p(q_d(t) - q) + K_i z - K_d\dot q + Kq
+    - f_g(q)` (the compensation terms optional, z a PID's integral block), feed-forward inputs, torques or the
+    static inputs of a configuration; :math:`u = G^+\tau`. Terms whose beam is not in ``only`` are skipped.
+    False if a beam's state is out of range."""
+    table, cint, cflt = net[0], net[26], net[27]
+    o = 1
+    for _ in range(cint[0]):
+        kind, blk, m, grav, elas, integ, fo, K, cols = (cint[o], cint[o + 1], cint[o + 2], cint[o + 3], cint[o + 4],
+                                                       cint[o + 5], cint[o + 6], cint[o + 7], cint[o + 8])
+        rows = cint[o + _TERM_HEAD:o + _TERM_HEAD + m]
+        o += _TERM_HEAD + m
+        if not only[blk]:
+            continue
+        bi, xo = table[blk, 5], table[blk, 1]
+        (n, _, order, Kb, D, Gin, h, B, X0, base, wts, Md, ag, brows, piv, G, J, Jd, eta, etad, S, E, V, Op, AJ, W,
+         M, C, fg, R, qdd, f_in, wko, end) = _beam_views(bi, net)
+        q = np.ascontiguousarray(x[xo:xo + n])
+        qd = np.ascontiguousarray(x[xo + n:xo + 2 * n])
+        f = fo
+        if kind == _JOINT:
+            f += 3 * n * n
+        per = cflt[f]
+        times = cflt[f + 1:f + 1 + K]
+        vals = cflt[f + 1 + K:f + 1 + K + K * cols].reshape((K, cols))
+        v = np.empty(cols)
+        _interp_row(times, vals, per, t, v)
+        if kind == _FF_INPUTS:
+            for j in range(m):
+                w[rows[j]] += v[j]
+            continue
+        tau = np.zeros(n)
+        qc = q
+        if kind == _JOINT:
+            Kp = cflt[fo:fo + n * n].reshape((n, n))
+            Ki = cflt[fo + n * n:fo + 2 * n * n].reshape((n, n))
+            Kd = cflt[fo + 2 * n * n:fo + 3 * n * n].reshape((n, n))
+            tau += Kp @ (v - q) - Kd @ qd
+            if integ >= 0:
+                zo = table[integ, 1]
+                tau += Ki @ np.ascontiguousarray(x[zo:zo + n])
+        elif kind == _FF_TORQUE:
+            tau += v
+            grav, elas = 0, 0
+        else:
+            qc = v
+        if elas:
+            tau += Kb @ qc
+        if grav and (ag[0] != 0.0 or ag[1] != 0.0 or ag[2] != 0.0):
+            dOp = np.zeros((6, n))
+            Mc, Cc, fgc = np.empty((n, n)), np.empty((n, n)), np.empty(n)
+            zero = np.zeros(n)
+            _kinematics(np.ascontiguousarray(qc), zero, True, order, h, B, brows, X0, base, G, J, Jd, eta, S, E, V,
+                        Op, dOp, AJ)
+            _mcg(J, Jd, eta, G, wts, Md, ag, Mc, Cc, fgc, True, S, V, AJ)
+            tau -= fgc
+        s = 0.0
+        for k in range(n):
+            s += tau[k]
+        if not math.isfinite(s):
+            return False
+        if Gin.shape[0] == Gin.shape[1] and abs(np.linalg.det(Gin)) > 0.0:
+            u = np.linalg.solve(np.ascontiguousarray(Gin), tau)
+        else:
+            u = np.linalg.lstsq(np.ascontiguousarray(Gin), tau, rcond=1e-10)[0]
+        for j in range(m):
+            w[rows[j]] += u[j]
+    return True
+
+
+@njit(cache=True)
 def _beam_mass(bi, net):
     """The mass matrix that the last evaluation of beam bi left in its workspace (a view)."""
     bint, bwork = net[1], net[3]
@@ -852,8 +1052,10 @@ def _linear_rhs(li, x, xo, w, wo, lint, lflt, out):
         out[xo + r] = s
 
 
-_GROUND, _GRASP = 0, 1
-_TERMS = {"ground": _GROUND, "grasp": _GRASP}
+_GROUND, _GRASP, _CONTACT = 0, 1, 2
+_TERMS = {"ground": _GROUND, "grasp": _GRASP, "contact": _CONTACT}
+#: pose of a wrench sum's body: a free rigid body's state, a spinning body's angle, none (fixed obstacles)
+_FREE, _SPINNING, _FIXED = 0, 1, 2
 
 
 @njit(cache=True)
@@ -978,21 +1180,90 @@ def _grasp(t, net, par, bb, R, p, eta, x, W):
 
 
 @njit(cache=True)
+def _wrench_needed(net, si, only):
+    """Whether an evaluation of the blocks marked in ``only`` reads wrench sum si: its body's inputs or the force of
+    one of its terms on a beam."""
+    wsum, wterm = net[23], net[24]
+    if wsum[si, 2] >= 0 and only[wsum[si, 2]]:
+        return True
+    for tt in range(wsum[si, 0], wsum[si, 0] + wsum[si, 1]):
+        if wterm[tt, 3] >= 0 and only[wterm[tt, 3]]:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _body_pose(net, si, x):
+    """Pose (R, p) and body twist of the body of wrench sum si at the state x: a free rigid body's state, a
+    spinning body's g0 exp(theta a) and (a theta_dot, 0) (:class:`soroshapes.rigid.SpinningBody`), or the identity
+    and zero for fixed obstacles."""
+    table, wsum, wflt = net[0], net[23], net[25]
+    body, kind, o = wsum[si, 2], wsum[si, 3], wsum[si, 4]
+    if kind == _FREE:
+        xo = table[body, 1]
+        R = _polar3(np.ascontiguousarray(x[xo + 3:xo + 12]).reshape((3, 3)))
+        return R, np.ascontiguousarray(x[xo:xo + 3]), np.ascontiguousarray(x[xo + 12:xo + 18])
+    R = np.eye(3)
+    p = np.zeros(3)
+    eta = np.zeros(6)
+    if kind == _SPINNING:                             # floats: R0 (9, row by row), p0 (3), axis (3)
+        xo = table[body, 1]
+        th, rate = x[xo], x[xo + 1]
+        a0, a1, a2 = wflt[o + 12], wflt[o + 13], wflt[o + 14]
+        s, cth = math.sin(th), 1.0 - math.cos(th)
+        K = np.array([[0.0, -a2, a1], [a2, 0.0, -a0], [-a1, a0, 0.0]])
+        Q = np.eye(3) + s * K + cth * (K @ K)
+        R0 = wflt[o:o + 9].reshape((3, 3))
+        R = R0 @ Q
+        for i in range(3):
+            p[i] = wflt[o + 9 + i]
+            eta[i] = wflt[o + 12 + i] * rate
+    return R, p, eta
+
+
+@njit(cache=True)
 def _wrench_sum(t, net, si, x, W):
-    """The summed wrench (body coordinates) of wrench sum si on its (free rigid) body at the state x (and the
-    beams' share of its grasp terms into the external-force buffer). False if a beam's state is out of range."""
-    table, wsum, wterm, wflt = net[0], net[23], net[24], net[25]
-    first, count, body = wsum[si, 0], wsum[si, 1], wsum[si, 2]
-    xo = table[body, 1]
-    R = _polar3(np.ascontiguousarray(x[xo + 3:xo + 12]).reshape((3, 3)))
-    p = x[xo:xo + 3]
-    eta = x[xo + 12:xo + 18]
+    """The summed wrench (body coordinates) of wrench sum si on its body at the state x (and the beams' share of
+    its grasp and contact terms into the external-force buffer). False if a beam's state is out of range or a
+    force is not finite."""
+    wsum, wterm, wflt = net[23], net[24], net[25]
+    first, count = wsum[si, 0], wsum[si, 1]
+    R, p, eta = _body_pose(net, si, x)
     for tt in range(first, first + count):
         o, m = wterm[tt, 1], wterm[tt, 2]
         if wterm[tt, 0] == _GROUND:
             _ground(wflt[o:o + m], R, p, eta, W)
+        elif wterm[tt, 0] == _CONTACT:
+            if not _contact_term(net, tt, R, p, eta, x, W):
+                return False
         elif not _grasp(t, net, wflt[o:o + m], wterm[tt, 3], R, p, eta, x, W):
             return False
+    return True
+
+
+@njit(cache=True)
+def _contact_term(net, tt, R, p, eta, x, W):
+    """Contact term tt (:func:`soroshapes._contact.contact_force`) between its beam, at its state in x, and the
+    body at pose (R, p) with twist eta: the beam's force into the external-force buffer, the wrench into W.
+    False if the beam's state is out of range or a force is not finite."""
+    table, wterm, wflt, bext, sops, sconsts = net[0], net[24], net[25], net[28], net[29], net[30]
+    bb, o, m = wterm[tt, 3], wterm[tt, 1], wterm[tt, 2]
+    xo = table[bb, 1]
+    (n, _, order, Kb, D, Gin, h, B, X0, base, wts, Md, ag, brows, piv, G, J, Jd, eta_b, etad, S, E, V, Op, AJ, Wb,
+     M, C, fg, Rr, qdd, f_in, wko, end) = _beam_views(table[bb, 5], net)
+    q = np.ascontiguousarray(x[xo:xo + n])
+    qd = np.ascontiguousarray(x[xo + n:xo + 2 * n])
+    dOp = np.zeros((6, n))
+    _kinematics(q, qd, False, order, h, B, brows, X0, base, G, J, Jd, eta_b, S, E, V, Op, dOp, AJ)
+    f = np.zeros(n)
+    so, sn, co = wterm[tt, 4], wterm[tt, 5], wterm[tt, 6]
+    if not _contact_force(wflt[o:o + m], sops[so:so + sn], sconsts[co:], wterm[tt, 7], wterm[tt, 8], G, J, eta_b,
+                          R, p, eta, f, W):
+        return False
+    for k in range(n):
+        if not math.isfinite(f[k]):
+            return False
+        bext[xo + k] += f[k]
     return True
 
 
@@ -1136,12 +1407,15 @@ def _fd_rows(t, x, net, scale, w, f0, fp, xp, rows, out):
 @njit(cache=True)
 def _cheap_rows(t, x, net, scale, w, f0, fp, xp, JF):
     """Refresh the rows of JF that belong to systems other than beams (reservoirs: cheap to evaluate, and
-    non-smooth where a valve saturates, so a stale row makes Newton contract slowly) by :func:`_fd_rows`. False
-    if an evaluation fails."""
+    non-smooth where a valve saturates, so a stale row makes Newton contract slowly) by :func:`_fd_rows`; a body
+    whose inputs are beam-SDF contacts (``table[b, 6]``) is not cheap: each of its columns evaluates every
+    contact's beam kinematics. False if an evaluation fails."""
     table = net[0]
     cheap = np.zeros(table.shape[0], np.bool_)
     for b in range(table.shape[0]):
-        cheap[b] = table[b, 0] != BEAM
+        cheap[b] = table[b, 0] != BEAM and table[b, 6] == 0
+    if not cheap.any():
+        return True
     return _fd_rows(t, x, net, scale, w, f0, fp, xp, cheap, JF)
 
 

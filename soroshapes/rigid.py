@@ -373,6 +373,12 @@ class SpinningBody(StateSpace):
         u = _wrench(u)
         return np.array([x[1], (self.axis @ u[:3] - self.damping * x[1]) / self.inertia])
 
+    @property
+    def spinning_parameters(self):
+        """(15,) the pose data a compiled network needs (:mod:`soroshapes.network`): the initial rotation row by
+        row (9), its position [m] (3) and the unit axis (3)."""
+        return np.concatenate([self.pose0[:3, :3].reshape(-1), self.pose0[:3, 3], self.axis])
+
     def pose(self, x):
         r"""Pose :math:`g_0 (\exp(\theta\hat a), 0)` (4, 4) at state ``x = (angle, rate)``."""
         g = self.pose0.copy()
@@ -481,13 +487,23 @@ def couple_contact(model, beam, body, stiffness, damping=0.0, friction=0.0, regu
             cache["key"] = key
         return cache["val"]
 
-    shp.add_force(lambda s, q, qd, t: evaluate(np.asarray(q, float), np.asarray(qd, float),
-                                               np.array(model.state(body)))[0])
+    def force(s, q, qd, t):
+        return evaluate(np.asarray(q, float), np.asarray(qd, float), np.array(model.state(body)))[0]
+    force.network_term = True          # the compiled network evaluates it with the body's contact term below
+
+    shp.add_force(force)
 
     def wrench(mdl):
         xs = np.array(mdl.state(beam))
         return evaluate(xs[:n], xs[n:], np.array(mdl.state(body)))[1]
 
+    from ._contact import lower_contact
+    try:                               # the compiled form (soroshapes.network): the shape as an SDF program
+        par, program = lower_contact(shp, bdy.shape, stiffness, damping, friction, regularization)
+        wrench.compiled = ("contact", par, beam, program)
+    except NotImplementedError as why:
+        wrench.compiled = None
+        wrench.python_reason = f"contact of beam {beam!r} with body {body!r} whose {why}"
     _add_body_wrench(model, body, wrench)
     return model
 
@@ -509,6 +525,14 @@ class WrenchSum:
         Python callable."""
         out = [getattr(w, "compiled", None) for w in self.terms]
         return None if any(c is None for c in out) else out
+
+    @property
+    def python_reason(self):
+        """Why the first term without a compiled form has none (a str), or None."""
+        for w in self.terms:
+            if getattr(w, "compiled", None) is None:
+                return getattr(w, "python_reason", f"a Python wrench on body {self.system!r}")
+        return None
 
 
 class _GroundTerm:

@@ -95,9 +95,10 @@ def test_evaluation_paths_say_which_path_runs_and_why():
     assert mdl.simulate(0.01, 2e-3).stats["path"] == "python"
 
 
-def test_a_contact_beam_or_statespace_keeps_the_python_path():
-    shp = finger().add_contact(sdf.Sphere(0.01).translate((0.05, -0.1, 0.0)), stiffness=1e4)
-    assert "beam" in Model().add(shp, "f").evaluation_path
+def test_contact_with_a_shape_without_program_or_a_statespace_keeps_the_python_path():
+    shp = finger().add_contact(sdf.Torus(0.01, 0.003).translate((0.05, -0.1, 0.0)), stiffness=1e4)
+    path = Model().add(shp, "f").evaluation_path
+    assert path.startswith("python: beam 'f'") and "torus" in path
     from soroshapes import StateSpace
     ss = StateSpace(lambda x, u, t: -x, 1, 0)
     assert "StateSpace" in Model().add(ss, "s").evaluation_path
@@ -400,3 +401,129 @@ def test_grasp_compiled_equals_python():
     assert a.stats["cut_steps"] == b.stats["cut_steps"] == 0
     assert close(a.x, b.x, rtol, atol) < 200
     assert a["cylinder"].x[-1, 2] > 0.02 + 0.003                # lifted by the grasp (3.5 mm at 0.2 s)
+
+
+# ------------------------------------------------------------------------------------------------------------
+# beam-SDF contact (soroshapes._contact, the obstacle as an SDF program)
+# ------------------------------------------------------------------------------------------------------------
+def finger_on_a_wall(obstacle):
+    """A two-mode finger bent by its chamber against a fixed obstacle (Shapes.add_contact: penalty, damping,
+    regularized friction), its chamber pressure ramped by a Schedule."""
+    shp = finger().add_contact(obstacle, stiffness=2e5, damping=20.0, friction=0.4, regularization=1e-3)
+    mdl = Model().add(shp, "f")
+    return mdl.set_controller(Schedule([0.0, 0.05, 0.2], {"f": [[0.0], [0.0], [80e3]]}))
+
+
+WALLS = {"plane": sdf.Plane(point=(0.0, -0.012, 0.0), normal=(0.0, 1.0, 0.0)),
+         "grooved": sdf.Plane(point=(0.0, -0.012, 0.0), normal=(0.0, 1.0, 0.0)).smooth_difference(
+             sdf.Cylinder(0.004, 0.05, center=(0.07, -0.014, 0.0), axis=(0.0, 0.0, 1.0)), 0.002)}
+
+
+@pytest.mark.parametrize("wall", sorted(WALLS))
+def test_contact_with_a_fixed_obstacle_compiled_equals_python(wall):
+    """The compiled contact (the wall's SDF program, its gradient analytic) against Shapes.add_contact on the
+    Python path, through the impact and sliding of the bending finger; the finger does touch the wall."""
+    rtol, atol = 1e-7, 1e-9
+    assert finger_on_a_wall(WALLS[wall]).evaluation_path == "compiled"
+    a, b = both(lambda: finger_on_a_wall(WALLS[wall]), 0.2, 5e-4, "bdf2", rtol=rtol, atol=atol)
+    assert a.stats["cut_steps"] == b.stats["cut_steps"] == 0
+    assert close(a.x, b.x, rtol, atol) < 50
+    shp = finger_on_a_wall(WALLS[wall])["f"].system
+    force = np.linalg.norm(shp.contact_forces(a["f"].q[-1], a["f"].qd[-1]).sum(axis=0))
+    assert force > 1e-3                                              # in contact at the end
+
+
+def finger_and_bolt(spinning):
+    """A finger pressed on a hexagonal bolt head (an extruded polygon) that spins about z (SpinningBody) or is a
+    free body held by a soft ground plane: couple_contact, friction drags the bolt."""
+    from soroshapes.rigid import RigidBody, couple_contact, couple_ground
+
+    hexagon = sdf.Polygon([(0.01 * np.cos(t), 0.01 * np.sin(t)) for t in np.arange(6) * np.pi / 3]).extrude(0.02)
+    pose = np.eye(4)
+    pose[:3, 3] = (0.06, -0.02, 0.0)
+    if spinning:
+        body = RigidBody.spinning((0.0, 0.0, 1.0), 2e-6, 1e-5, hexagon, pose0=pose, name="bolt")
+    else:
+        body = RigidBody(0.02, 2e-6, shape=hexagon, pose0=pose, gravity=(0.0, 0.0, 0.0), damping=(0.5, 1e-4),
+                         name="bolt")
+    mdl = Model().add(finger(), "f").add(body)
+    couple_contact(mdl, "f", "bolt", stiffness=2e5, damping=20.0, friction=0.5, regularization=2e-3)
+    if not spinning:
+        rim = np.array([[0.0, 0.0, -0.01], [0.0, 0.0, 0.01]])
+        couple_ground(mdl, "bolt", rim, stiffness=50.0, damping=0.5, plane=((0.0, 0.0, -0.01), (0.0, 0.0, 1.0)))
+    return mdl.set_controller(Schedule([0.0, 0.05, 0.2], {"f": [[0.0], [0.0], [80e3]]}))
+
+
+@pytest.mark.parametrize("spinning", [True, False], ids=["spinning", "free"])
+def test_beam_body_contact_compiled_equals_python(spinning):
+    """couple_contact against a spinning or a free body: the compiled term (the bolt's SDF program, the body's
+    pose and twist, equal and opposite forces) against beam_contact on the Python path; the bolt turns."""
+    rtol, atol = 1e-7, 1e-9
+    assert finger_and_bolt(spinning).evaluation_path == "compiled"
+    a, b = both(lambda: finger_and_bolt(spinning), 0.2, 5e-4, "bdf2", rtol=rtol, atol=atol)
+    assert a.stats["cut_steps"] == b.stats["cut_steps"]             # the impact splits the same steps on both
+    assert close(a.x, b.x, rtol, atol) < 50
+    moved = abs(a["bolt"].x[-1, 0]) if spinning else np.abs(a["bolt"].x[-1, :3] - a["bolt"].x[0, :3]).max()
+    assert moved > 1e-4
+
+
+# ------------------------------------------------------------------------------------------------------------
+# the joint-space controllers and feed-forwards of soroshapes.control, compiled
+# ------------------------------------------------------------------------------------------------------------
+def controlled_arm(kind):
+    """A three-segment PCC arm (one unit actuator per coordinate, gravity, damping) under one controller of
+    soroshapes.control, starting bent."""
+    from soroshapes import control
+
+    shp = Shapes(Basis.pcc(3), dofs=(0, 3, 0, 0, 0, 0), length=0.3, section=sdf.Circle(0.01),
+                 material=materials.NeoHookean(E=2e5, nu=0.45, density=1000), damping=0.02,
+                 segments=12).add_gravity()
+    for i in range(3):
+        shp.add_actuator(np.eye(3)[i])
+    mdl = Model().add(shp, "arm", x0=[2.0, -1.0, 1.5, 0.0, 0.0, 0.0])
+    goal = np.array([3.0, 1.0, -2.0])
+    table = Schedule([0.0, 0.1, 0.3], np.array([[0.0, 0.0, 0.0], [2.0, 1.0, 0.5], [1.0, -1.0, 2.0]]))
+    if kind == "compensation":
+        ctrl = control.gravity_compensation("arm")
+    elif kind == "pd":
+        ctrl = control.pd("arm", kp=[2e-3, 1e-3, 5e-4], kd=2e-4, setpoint=goal)
+    elif kind == "pd_schedule":
+        ctrl = control.pd("arm", kp=2e-3, kd=2e-4, setpoint=table, gravity=False)
+    elif kind == "pid":
+        ctrl = control.pid(mdl, "arm", kp=2e-3, ki=4e-3, kd=2e-4, setpoint=goal, elastic=False)
+    elif kind == "ff_inputs":
+        ctrl = control.feedforward("arm", Schedule([0.0, 0.3], [[0.0, 0.0, 0.0], [1e-3, -2e-3, 1e-3]]))
+    elif kind == "ff_torque":
+        ctrl = control.feedforward("arm", Schedule([0.0, 0.3], [[0.0, 0.0, 0.0], [1e-3, -2e-3, 1e-3]]),
+                                   space="torque")
+    elif kind == "ff_configuration":
+        ctrl = control.feedforward("arm", table, space="configuration")
+    else:                                                                 # combine
+        ctrl = control.combine(control.pd("arm", kp=1e-3, kd=2e-4, setpoint=goal, gravity=False, elastic=False),
+                               control.gravity_compensation("arm"))
+    return mdl.set_controller(ctrl)
+
+
+@pytest.mark.parametrize("kind", ["compensation", "pd", "pd_schedule", "pid", "ff_inputs", "ff_torque",
+                                  "ff_configuration", "combine"])
+def test_joint_controllers_and_feedforward_compiled_equal_python(kind):
+    """Each controller's parameters as data (gains, constant or Schedule set-points and profiles, the PID's
+    integral as a linear block fed by a StateMap) in the compiled network against its Python closure."""
+    rtol, atol = 1e-7, 1e-9
+    assert controlled_arm(kind).evaluation_path == "compiled"
+    a, b = both(lambda: controlled_arm(kind), 0.3, 2e-3, "bdf2", rtol=rtol, atol=atol)
+    assert a.stats["cut_steps"] == b.stats["cut_steps"] == 0
+    assert close(a.x, b.x, rtol, atol) < 10
+    assert np.allclose(a.u, b.u, rtol=1e-5, atol=1e-9)
+    assert np.abs(a.u).max() > 1e-4                                      # the controller did act
+
+
+def test_a_pid_with_a_moving_setpoint_or_a_python_part_keeps_the_python_path():
+    from soroshapes import control
+
+    mdl = controlled_arm("compensation")
+    ctrl = control.pid(mdl, "arm", kp=1e-3, ki=1e-3, kd=1e-4, setpoint=lambda t: np.zeros(3))
+    assert mdl.set_controller(ctrl).evaluation_path.startswith("python: ")
+    mdl = controlled_arm("compensation")
+    mdl.set_controller(control.combine(control.gravity_compensation("arm"), lambda m: {"arm": np.zeros(3)}))
+    assert mdl.evaluation_path.startswith("python: ")

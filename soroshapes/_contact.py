@@ -1,0 +1,111 @@
+r"""Compiled beam-SDF contact: the penalty + regularized-Coulomb law of :func:`soroshapes.rigid.beam_contact` and
+:meth:`Shapes.add_contact <soroshapes.shapes.Shapes.add_contact>` in one numba kernel, with the obstacle's SDF
+evaluated by the program interpreter (:mod:`soroshapes._sdfeval`), so any supported shape runs without a
+compile per shape.
+
+Law (the same as the Python path): the beam's tube of radius :math:`r` around its nodes :math:`P_i`; the
+obstacle's SDF :math:`\phi` in its own frame :math:`(R, p)` (identity for a fixed obstacle), node in body
+coordinates :math:`P^b_i = R^T(P_i - p)`, :math:`d_i = \phi(P^b_i)`, normal :math:`n_i = R\nabla\phi/|\nabla\phi|`;
+relative velocity :math:`v^{rel}_i = R_i\eta_{i,v} - R(v + \omega\times P^b_i)` (body twist :math:`(\omega, v)`,
+zero for a fixed obstacle); where :math:`d_i < r`,
+
+.. math:: F_i = w_i\left(f_n n_i - \mu f_n \frac{v_t}{\sqrt{|v_t|^2+\epsilon^2}}\right),\quad
+          f_n = \max(0, k(r - d_i) - c\,v^{rel}_i\cdot n_i),
+
+on the beam the generalized force :math:`\sum_i J_{i,v}^T R_i^T F_i`, on the body the wrench
+:math:`\sum_i (P^b_i\times f^b_i, f^b_i)`, :math:`f^b_i = -R^TF_i`.
+
+Data of one contact (:func:`lower_contact`): floats ``(k, c, mu, eps, r, stride, N+1, w_0 .. w_N)`` and the
+obstacle's :class:`~sorofem.sdf.program.Program`.
+"""
+import math
+
+import numpy as np
+
+from sorofem._numba import njit
+from sorofem.errors import ParameterError
+from sorofem.sdf.program import to_program
+
+from ._sdfeval import evaluate
+
+__all__ = ["lower_contact", "contact_force", "CONTACT_HEAD"]
+
+#: floats before the node weights
+CONTACT_HEAD = 7
+
+
+def lower_contact(beam, shape, stiffness, damping, friction, regularization):
+    """(floats, program) of a contact of ``beam`` (a :class:`~soroshapes.shapes.Shapes`, its tube
+    ``contact_radius``) with the 3D SDF ``shape``; ``NotImplementedError`` when the SDF has no program form."""
+    if getattr(shape, "dim", None) != 3:
+        raise ParameterError("a contact obstacle must be a 3D SDF of sorofem.sdf")
+    prog = to_program(shape)
+    mdl = beam.model
+    w = np.asarray(mdl.node_weights, dtype=float)
+    head = [stiffness, damping, friction, regularization, beam.contact_radius, mdl.stride, len(w)]
+    return np.concatenate([np.asarray(head, dtype=float), w]), prog
+
+
+@njit(cache=True)
+def contact_force(par, ops, consts, depth_values, depth_points, G, J, eta, Rb, pb, etab, f, W):
+    """Add the contact's generalized force on the beam to ``f`` (n,) and its wrench on the body (body
+    coordinates, about the body origin) to ``W`` (6,), for the beam's kinematics (frames ``G``, Jacobians ``J``,
+    velocities ``eta`` at its chain of points) and the body pose (Rb, pb) and twist etab. False if a force is
+    not finite."""
+    k, c, mu, eps, r = par[0], par[1], par[2], par[3], par[4]
+    stride, nn = int(par[5]), int(par[6])
+    n = J.shape[2]
+    Pb = np.empty((nn, 3))
+    for i in range(nn):
+        a = i * stride
+        for j in range(3):
+            Pb[i, j] = ((G[a, 0, 3] - pb[0]) * Rb[0, j] + (G[a, 1, 3] - pb[1]) * Rb[1, j]) + (G[a, 2, 3] - pb[2]) * Rb[2, j]
+    d = np.empty(nn)
+    gr = np.empty((nn, 3))
+    S, T = max(depth_values, 1), max(depth_points, 1)
+    evaluate(ops, consts, Pb, d, gr, np.empty(S), np.empty((S, 3)), np.empty((T, 3)), np.empty((T, 3, 3)),
+             np.empty(T))
+    ns = np.empty(3)
+    vrel = np.empty(3)
+    F = np.empty(3)
+    for i in range(nn):
+        if not d[i] < r:
+            continue
+        a = i * stride
+        g0, g1, g2 = gr[i, 0], gr[i, 1], gr[i, 2]
+        gn = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+        g0, g1, g2 = g0 / gn, g1 / gn, g2 / gn
+        # body velocity at the node: v + omega x Pb (body), then spatial
+        b0 = etab[3] + etab[1] * Pb[i, 2] - etab[2] * Pb[i, 1]
+        b1 = etab[4] + etab[2] * Pb[i, 0] - etab[0] * Pb[i, 2]
+        b2 = etab[5] + etab[0] * Pb[i, 1] - etab[1] * Pb[i, 0]
+        vn = 0.0
+        for j in range(3):
+            ns[j] = Rb[j, 0] * g0 + Rb[j, 1] * g1 + Rb[j, 2] * g2
+            vrel[j] = (G[a, j, 0] * eta[a, 3] + G[a, j, 1] * eta[a, 4] + G[a, j, 2] * eta[a, 5]) \
+                - (Rb[j, 0] * b0 + Rb[j, 1] * b1 + Rb[j, 2] * b2)
+        for j in range(3):
+            vn += vrel[j] * ns[j]
+        fn = max(0.0, k * (r - d[i]) - c * vn)
+        vt0, vt1, vt2 = vrel[0] - vn * ns[0], vrel[1] - vn * ns[1], vrel[2] - vn * ns[2]
+        slip = math.sqrt(vt0 * vt0 + vt1 * vt1 + vt2 * vt2 + eps * eps)
+        wi = par[CONTACT_HEAD + i]
+        F[0] = wi * (fn * ns[0] - mu * (fn / slip) * vt0)
+        F[1] = wi * (fn * ns[1] - mu * (fn / slip) * vt1)
+        F[2] = wi * (fn * ns[2] - mu * (fn / slip) * vt2)
+        if not (math.isfinite(F[0]) and math.isfinite(F[1]) and math.isfinite(F[2])):
+            return False
+        for j in range(3):                                   # J_v^T R_i^T F on the beam
+            fl = G[a, 0, j] * F[0] + G[a, 1, j] * F[1] + G[a, 2, j] * F[2]
+            for col in range(n):
+                f[col] += J[a, 3 + j, col] * fl
+        fb0 = -(Rb[0, 0] * F[0] + Rb[1, 0] * F[1] + Rb[2, 0] * F[2])     # -R^T F on the body
+        fb1 = -(Rb[0, 1] * F[0] + Rb[1, 1] * F[1] + Rb[2, 1] * F[2])
+        fb2 = -(Rb[0, 2] * F[0] + Rb[1, 2] * F[1] + Rb[2, 2] * F[2])
+        W[0] += Pb[i, 1] * fb2 - Pb[i, 2] * fb1
+        W[1] += Pb[i, 2] * fb0 - Pb[i, 0] * fb2
+        W[2] += Pb[i, 0] * fb1 - Pb[i, 1] * fb0
+        W[3] += fb0
+        W[4] += fb1
+        W[5] += fb2
+    return True
