@@ -109,7 +109,7 @@ def test_after_an_overshooting_primary_step_the_path_stays_on_the_buckled_branch
     growing and the buckled points match the elastica."""
     from analytic import buckled_strut
 
-    traj = strut().follow(t_end=1.0, steps=12, max_step=0.01, max_steps=12, monitor_stability=True,
+    traj = strut().follow(load_level=1.0, steps=12, max_step=0.01, max_steps=12, monitor_stability=True,
                           branch_switch=True)
     assert traj.metadata["stopped"] == "max_steps"
     (crit,) = traj.metadata["critical_points"]
@@ -129,7 +129,7 @@ def test_a_path_below_t_min_is_refused_with_the_path_so_far():
     from sorofem.errors import ConvergenceError
 
     with pytest.raises(ConvergenceError, match="t_min") as info:
-        strut().follow(t_end=1.0, steps=12, max_step=0.01, max_steps=12, monitor_stability=True,
+        strut().follow(load_level=1.0, steps=12, max_step=0.01, max_steps=12, monitor_stability=True,
                        branch_switch=True, t_min=0.05)
     traj = info.value.trajectory
     assert len(traj) == 3 and traj.times[-1] < 0.05 < traj.times[-2]
