@@ -220,7 +220,7 @@ def test_linear_start_cuts_the_first_step_to_a_fraction_of_the_body_size():
     def cantilever():
         msh = Mesh.rectangle(0.1, 0.01, size=0.0025, center=(0.05, 0.0))
         fem = Fem(msh, materials.LinearElastic(E=1e6, nu=0.3), formulation="plane_stress")
-        return fem.add_support("left").add_force("right", [0.0, -1000.0])
+        return fem.add_support("left").add_traction("right", [0.0, -1000.0])
 
     full = cantilever().solve(steps=1)
     peak = np.abs(full.displacement[-1]).max()

@@ -86,7 +86,7 @@ def test_linear_patch_test_on_the_sub_triangulated_mesh():
     assert len(triangles) == sum(len(c) for c in pm.polygons)   # a fan per polygon
     assert msh.area == pytest.approx(side**2, rel=1e-12)
     fem = Fem(msh, materials.LinearElastic(E=E, nu=nu), formulation="plane_stress")
-    fem.add_support("left", "x").add_support("bottom", "y").add_force("right", [s, 0.0])
+    fem.add_support("left", "x").add_support("bottom", "y").add_traction("right", [s, 0.0])
     traj = fem.solve(steps=1)
     X, U = traj.vertices, traj.displacement[-1]
     exact = np.column_stack([s * X[:, 0] / E, -nu * s * X[:, 1] / E])
