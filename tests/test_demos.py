@@ -1,9 +1,63 @@
-"""Every demo runs in its short mode and reports its key figure (checked here against the reference)."""
+"""Every demo runs in its short mode; its key figures are checked against tests/demo_reference.toml.
+
+The reference table holds each figure's measured value, a relative tolerance with its reason and the physical
+bounds; the ``check_*`` functions below hold what a table cannot (files written, relations between figures).
+"""
 import json
+import math
+import re
+import tomllib
+from pathlib import Path
 
 import pytest
 
 from soro import demo
+
+REFERENCE = Path(__file__).with_name("demo_reference.toml")
+ROW_KEYS = {"value", "rel", "abs", "min", "max", "why"}
+
+
+def load_reference(path=REFERENCE):
+    """The reference table: ``{demo: {path: row}}`` (see the header of tests/demo_reference.toml)."""
+    with open(path, "rb") as f:
+        return tomllib.load(f)
+
+
+def figure(report, path):
+    """The figure at ``path`` ("a.b[2]", "c[-1]") of a demo's report."""
+    node = report
+    for part in path.split("."):
+        m = re.fullmatch(r"([^\[\]]+)((?:\[-?\d+\])*)", part)
+        if m is None:
+            raise KeyError(f"bad figure path {path!r}: keys joined by '.', list elements as [i]")
+        node = node[m.group(1)]
+        for index in re.findall(r"\[(-?\d+)\]", m.group(2)):
+            node = node[int(index)]
+    return node
+
+
+def reference_failures(report, rows):
+    """What in ``report`` is off its reference ``rows``: a list of messages, empty when every figure holds."""
+    failures = []
+    for path, row in rows.items():
+        try:
+            got = figure(report, path)
+        except (KeyError, IndexError, TypeError):
+            failures.append(f"{path}: not in the report (the demo no longer reports it? edit the table)")
+            continue
+        if isinstance(got, bool) or not isinstance(got, (int, float)) or not math.isfinite(got):
+            failures.append(f"{path}: {got!r} is not a finite number")
+            continue
+        value, rel, abs_ = row["value"], row["rel"], row.get("abs", 0.0)
+        if abs(got - value) > rel * abs(value) + abs_:
+            off = abs(got - value) / abs(value) if value else math.inf
+            failures.append(f"{path}: {got:.6g}, reference {value:.6g} +- {rel:g} relative ({off:.2g} off; "
+                            f"{row['why']}); if the change is intended, edit tests/demo_reference.toml")
+        if "min" in row and got < row["min"]:
+            failures.append(f"{path}: {got:.6g} below its physical bound {row['min']:g}")
+        if "max" in row and got > row["max"]:
+            failures.append(f"{path}: {got:.6g} above its physical bound {row['max']:g}")
+    return failures
 
 
 def _run(name, tmp_path):
@@ -15,6 +69,30 @@ def _run(name, tmp_path):
 
 def test_every_demo_has_a_check():
     assert set(demo.list_demos()) == set(CHECKS), "add a check for each demo to CHECKS below"
+    assert set(demo.list_demos()) == set(load_reference()), "add each demo's key figures to demo_reference.toml"
+
+
+def test_reference_table_is_well_formed():
+    for name, rows in load_reference().items():
+        assert rows, f"{name}: no figure"
+        for path, row in rows.items():
+            where = f"{name}.{path}"
+            assert set(row) <= ROW_KEYS and {"value", "rel", "why"} <= set(row), f"{where}: keys {sorted(row)}"
+            assert 0 <= row["rel"] <= 0.25 and row["why"].strip(), f"{where}: rel in [0, 0.25] and a reason"
+            # the reference sits inside its own physical bounds and tolerance band
+            assert reference_failures({"x": row["value"]}, {"x": row}) == [], where
+
+
+def test_reference_check_fails_on_a_drifted_figure():
+    rows = {"a.b[1]": {"value": 10.0, "rel": 0.01, "min": 5.0, "why": "test"},
+            "c": {"value": 0.0, "rel": 0, "abs": 1e-6, "why": "test"}}
+    assert reference_failures({"a": {"b": [0, 10.09]}, "c": 1e-7}, rows) == []
+    drifted = reference_failures({"a": {"b": [0, 10.2]}, "c": 0.0}, rows)
+    assert len(drifted) == 1 and drifted[0].startswith("a.b[1]: 10.2, reference 10 +- 0.01 relative")
+    assert "below its physical bound 5" in reference_failures({"a": {"b": [0, 4.0]}, "c": 0.0},
+                                                               dict(rows, **{"a.b[1]": dict(rows["a.b[1]"], rel=1)}))[0]
+    assert "not in the report" in reference_failures({"c": 0.0}, rows)[0]
+    assert "not a finite number" in reference_failures({"a": {"b": [0, math.nan]}, "c": 0.0}, rows)[0]
 
 
 def check_chain(report, out):
@@ -316,4 +394,6 @@ CHECKS = {
 @pytest.mark.parametrize("name", sorted(CHECKS))
 def test_demo(name, tmp_path):
     report, out = _run(name, tmp_path)
+    failures = reference_failures(report, load_reference()[name])
+    assert not failures, f"{name}: key figures off tests/demo_reference.toml:\n" + "\n".join(failures)
     CHECKS[name](report, out)
