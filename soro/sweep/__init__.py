@@ -60,7 +60,7 @@ The builder (the contract)::
 ``params`` holds the ``[fixed]`` values and the case's parameters (plain floats, ints, strings, bools and
 lists); ``comm`` is the MPI communicator the case runs on: build the mesh on it
 (``Mesh.from_sdf(shape, size=..., comm=comm)``; the Fem follows its mesh). Return the model with its
-supports and loads added (numbers are ramped by ``solve`` from 0 to their value at ``t_end = 1``), or
+supports and loads added (numbers are ramped by ``solve`` from 0 to their value at ``load_level = 1``), or
 ``(fem, solve_kwargs)``, whose keyword arguments override ``[solve]`` for this case. The sweep calls
 ``fem.solve(**solve)`` and saves the trajectory; ``[solve]`` accepts the arguments of :meth:`Fem.solve`
 listed in :data:`SOLVE_KEYS`, of the types in :data:`SOLVE_TYPES` (checked when the configuration is loaded:
