@@ -154,6 +154,7 @@ def drift(tr):
 
 def plots(out, imp, exp, tip_static):
     from matplotlib.figure import Figure
+    from sorofem.io import save_figure
 
     fig = Figure(figsize=(7, 6))
     ax = fig.subplots(2, 1, sharex=True)
@@ -168,8 +169,7 @@ def plots(out, imp, exp, tip_static):
     ax[0].legend(fontsize=8, loc="upper center", ncol=3)
     ax[0].set_title("undamped cantilever released under gravity: tip position")
     ax[1].set_xlabel("time [s]")
-    fig.tight_layout()
-    fig.savefig(out / "tip.png", dpi=110)
+    save_figure(fig, out / "tip.png", dpi=110)
 
     fig = Figure(figsize=(7, 6))
     ax = fig.subplots(2, 1, sharex=True)
@@ -187,8 +187,7 @@ def plots(out, imp, exp, tip_static):
     ax[1].legend(fontsize=8)
     for a in ax:
         a.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(out / "energy.png", dpi=110)
+    save_figure(fig, out / "energy.png", dpi=110)
 
 
 if __name__ == "__main__":

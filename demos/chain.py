@@ -210,6 +210,7 @@ def control_stage(out, beam, p_max, angle_steps):
     """Closed-loop control of the bending angle of ``beam`` on a simulated board: steps to the fractions
     ``angle_steps`` of the static angle range, each held ``HOLD`` s; returns the figures."""
     from matplotlib.figure import Figure
+    from sorofem.io import save_figure
 
     from sorocontrol import Board
 
@@ -252,8 +253,7 @@ def control_stage(out, beam, p_max, angle_steps):
     bx.plot(log[:, 0], log[:, 4] / kPa, lw=1, label="measured")
     bx.set(xlabel="t [s]", ylabel="pressure [kPa]")
     bx.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out / "control.png", dpi=120)
+    save_figure(fig, out / "control.png", dpi=120)
     return {"reference_deg": [round(r, 3) for r in refs], "end_error_deg": [round(e, 4) for e in end_err],
             "rms_error_second_half_deg": [round(r, 4) for r in rms],
             "static_range_deg": [round(float(angles[0]), 3), round(float(angles[-1]), 3)],
@@ -264,6 +264,7 @@ def control_stage(out, beam, p_max, angle_steps):
 def plot_mesh(msh, path):
     """The mesh with its regions, axes in mm."""
     from matplotlib.figure import Figure
+    from sorofem.io import save_figure
     from matplotlib.ticker import FuncFormatter
 
     fig = Figure(figsize=(8, 2.8))
@@ -273,18 +274,17 @@ def plot_mesh(msh, path):
     ax.xaxis.set_major_formatter(in_mm)
     ax.yaxis.set_major_formatter(in_mm)
     ax.set(xlabel="x [mm]", ylabel="y [mm]", title=f"{msh.num_cells} triangles, cavities: {', '.join(msh.cavities)}")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
 
 
 def plot_bending(pressure, angles, path):
     """Bending angle [deg] against the chamber pressure [kPa]."""
     from matplotlib.figure import Figure
+    from sorofem.io import save_figure
 
     fig = Figure(figsize=(4.5, 3.2))
     ax = fig.subplots()
     ax.plot(pressure, angles, "o-")
     ax.set(xlabel="pressure [kPa]", ylabel="bending angle [deg]")
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)

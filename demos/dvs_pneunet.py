@@ -54,6 +54,7 @@ QUICK = dict(chambers=4, size=1.2 * mm, p_max=5 * kPa, steps=10)
 
 def main(out: Path, quick: bool = False, tolerance: float = 0.03) -> dict:
     from matplotlib.figure import Figure
+    from sorofem.io import save_figure
     from matplotlib.patches import Circle
 
     from soro.trade import trade_report
@@ -103,8 +104,7 @@ def main(out: Path, quick: bool = False, tolerance: float = 0.03) -> dict:
     ax.set_title(f"DVS bending modes of the PneuNet ({100 * info[2]['energy']:.3f} % of the variance)")
     ax.legend()
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(out / "modes.png", dpi=120)
+    save_figure(fig, out / "modes.png", dpi=120)
 
     fig = Figure(figsize=(6, 4.5))
     ax = fig.subplots()
@@ -130,8 +130,7 @@ def main(out: Path, quick: bool = False, tolerance: float = 0.03) -> dict:
     ax.set_title("PneuNet backbone: FEM vs DVS beam")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(out / "shapes.png", dpi=120)
+    save_figure(fig, out / "shapes.png", dpi=120)
 
     return {
         "chambers": chambers, "length_mm": length / mm, "p_max_kPa": p_max / kPa, "p_test_kPa": p_test / kPa,

@@ -206,6 +206,7 @@ def wrap_angle(P):
 def plane_plot(path, shp, q_first, P):
     """The finger in its radial plane (r, z) [mm]: pre-deformed, first pass, final, targets, sphere."""
     from matplotlib.figure import Figure
+    from sorofem.io import save_figure
 
     def rz(X):
         return np.hypot(X[:, 0], X[:, 1]) * np.sign(X[:, 0] + 1e-15) / mm, X[:, 2] / mm
@@ -226,8 +227,7 @@ def plane_plot(path, shp, q_first, P):
     ax.set_title("finger 0 in its radial plane")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="upper left")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
 
 
 if __name__ == "__main__":

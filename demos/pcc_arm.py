@@ -179,6 +179,7 @@ def linear_decay(shp, q, dofs):
 def plots(out, shp, tr, q_static, decay):
     from matplotlib import cm
     from matplotlib.figure import Figure
+    from sorofem.io import save_figure
 
     from soroshapes.render import render_png
 
@@ -212,8 +213,7 @@ def plots(out, shp, tr, q_static, decay):
     ax.set_title("release from straight: backbones and 60 mm section outline")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.02, 0.5))
-    fig.tight_layout()
-    fig.savefig(out / "snapshots.png", dpi=120)
+    save_figure(fig, out / "snapshots.png", dpi=120)
 
     d = np.linalg.norm(tr.tip - tip_s, axis=1)
     fig = Figure(figsize=(13, 4))
@@ -244,8 +244,7 @@ def plots(out, shp, tr, q_static, decay):
     ax[2].legend(fontsize=8)
     for a in ax:
         a.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(out / "tip.png", dpi=110)
+    save_figure(fig, out / "tip.png", dpi=110)
 
 
 if __name__ == "__main__":

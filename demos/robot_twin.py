@@ -119,6 +119,7 @@ def dvs_twin(train_file, backbone, dofs, section, base, inputs, degree, samples)
 def bending(out, prm):
     """(a): FEM ramp, DVS beam, held-out check, with the parameter set ``prm["bending"]``; returns the report."""
     from matplotlib.figure import Figure
+    from sorofem.io import save_figure
 
     from soroshapes.dvs import Backbone
     from soro import robots
@@ -167,8 +168,7 @@ def bending(out, prm):
     ax.set_title(f"bending actuator (a), {p['n_bellows']} bellows, {L / mm:g} mm")
     ax.grid(alpha=0.3)
     ax.legend()
-    fig.tight_layout()
-    fig.savefig(out / "tip_angle.png", dpi=120)
+    save_figure(fig, out / "tip_angle.png", dpi=120)
     err = 100 * cmp["tip_error"]
     return {
         "n_bellows": int(p["n_bellows"]), "length_mm": L / mm, "p_max_kPa": p_max / kPa,
@@ -208,6 +208,7 @@ def planar(out, prm):
     """(b): FEM of both networks along one load path, DVS beam, held-out check, with the parameter set
     ``prm["planar"]``; returns the report dict."""
     from matplotlib.figure import Figure
+    from sorofem.io import save_figure
 
     from soroshapes.dvs import Backbone
     from soro import robots
@@ -280,8 +281,7 @@ def planar(out, prm):
         ax.grid(alpha=0.3)
     axs[0].legend()
     fig.suptitle(f"planar actuator (b), {n} bellows per network, {p['length'] / mm:g} mm")
-    fig.tight_layout()
-    fig.savefig(out / "tip.png", dpi=120)
+    save_figure(fig, out / "tip.png", dpi=120)
     return {
         "n_bellows": int(n), "length_mm": p["length"] / mm, "backbone_mm": backbone.length / mm,
         "p_max_kPa": p_max / kPa, "fem_cells": int(msh.num_cells), "fem_degree": degree, "fem_s": t_fem,

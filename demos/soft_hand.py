@@ -264,6 +264,7 @@ def first_harmonic_phase(t, y, omega):
 def plots(out, fingers, tr, angles, window):
     from matplotlib import colormaps
     from matplotlib.figure import Figure
+    from sorofem.io import save_figure
 
     from soroshapes.render import render_png
 
@@ -293,8 +294,7 @@ def plots(out, fingers, tr, angles, window):
     ax[2].set_title("reservoir pressures (solid) and oscillator set points (dotted)")
     for a in ax:
         a.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(out / "trajectories.png", dpi=110)
+    save_figure(fig, out / "trajectories.png", dpi=110)
 
     beams = [{"frames": f.forward_kinematics(tr[n].q[-1]), "radius": 0.5 * THICK} for f, n in zip(fingers, NAMES)]
     render_png(out / "hand.png", beams, view=(30, -120), size=(7, 6), dpi=120,
