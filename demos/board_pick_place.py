@@ -51,6 +51,82 @@ P_MAX = 90 * kPa
 GRIP = 60 * kPa
 
 
+#: The full run and the short one (`--quick`, what the tests run): the waypoints played (indices into the
+#: sequence of main), each held [s].
+FULL = dict(waypoints=tuple(range(9)), hold=1.2)
+QUICK = dict(waypoints=(1, 3, 5, 8), hold=1.0)
+
+
+def main(out: Path, quick: bool = False) -> dict:
+    from sorocontrol import Board
+
+    shp = arm()
+    home = shp.positions(shp.statics(u=pressures([0, 0], 0)))[-1]
+    # waypoints: (name, x, z, gripper) -- above the object, at it, (grip), lift, above the place, place, release
+    # in the arm's workspace (a crescent 100-120 mm out, -69..47 mm high: two segments of fixed length)
+    seq = [("above_pick", 0.106, -0.050, 0.0), ("pick", 0.101, -0.058, 0.0), ("grip", 0.101, -0.058, GRIP),
+           ("lift", 0.111, -0.040, GRIP), ("above_place", 0.114, 0.036, GRIP), ("place", 0.116, 0.026, GRIP),
+           ("release", 0.116, 0.026, 0.0), ("retreat", 0.119, 0.010, 0.0), ("home", home[0], home[2], 0.0)]
+    prm = QUICK if quick else FULL
+    seq = [seq[i] for i in prm["waypoints"]]
+    hold = prm["hold"]
+    t0 = time.perf_counter()
+    plans = plan(shp, [(x, z) for _, x, z, _ in seq])
+    plan_s = time.perf_counter() - t0
+
+    log_t, log_tip, log_p = [], [], []
+    # keepalive: the session survives any pause before brd.loop starts (which then feeds the watchdog itself)
+    with Board.simulated(channels=5, beam=shp, board_rate=200.0, keepalive=True) as brd:
+        for t in brd.loop(duration=hold * len(seq), rate=100.0):
+            i = min(int(t // hold), len(seq) - 1)
+            (a, _), grip = plans[i], seq[i][3]
+            s = brd.set_pressure(pressures(a, grip))
+            log_t.append(t)
+            log_tip.append(s.sensors[:3].copy())
+            log_p.append(s.measured.copy())
+        stats = brd.loop_stats
+    log_t, log_tip, log_p = np.array(log_t), np.array(log_tip), np.array(log_p)
+    # each waypoint's tip: the last sample of its hold, found by time (a loaded machine skips loop
+    # iterations, so an iteration count would land in a later hold)
+    reached = [log_tip[np.searchsorted(log_t, (i + 1) * hold, side="left") - 1] for i in range(len(seq))]
+    errors = [float(np.hypot(r[0] - x, r[2] - z)) for r, (_, x, z, _) in zip(reached, seq)]
+
+    from matplotlib.figure import Figure
+
+    from sorofem.io import save_figure
+
+    fig = Figure(figsize=(10, 4))
+    (ax, bx) = fig.subplots(1, 2)
+    ax.plot(log_tip[:, 0] / mm, log_tip[:, 2] / mm, lw=1, label="tip (board sensors)")
+    for (name, x, z, g), r in zip(seq, reached):
+        ax.plot(x / mm, z / mm, "o", mfc="none", color="C3" if g else "C2")
+        ax.annotate(name, (x / mm, z / mm), fontsize=7, xytext=(3, 3), textcoords="offset points")
+    for q in (shp.statics(u=pressures(plans[0][0], 0)), shp.statics(u=pressures(plans[-1][0], 0))):
+        P = shp.positions(q)
+        ax.plot(P[:, 0] / mm, P[:, 2] / mm, color="0.6", lw=4, alpha=0.5)
+    ax.set(xlabel="x [mm]", ylabel="z [mm]", aspect="equal", title="open-loop pick and place")
+    ax.legend(fontsize=7)
+    for c in range(5):
+        bx.plot(log_t, log_p[:, c] / kPa, lw=1, label=["s1 low", "s1 up", "s2 low", "s2 up", "gripper"][c])
+    bx.set(xlabel="t [s]", ylabel="measured pressure [kPa]")
+    bx.legend(fontsize=7)
+    save_figure(fig, out / "pick_place.png")
+
+    return {
+        "waypoints": [name for name, *_ in seq],
+        "waypoint_error_mm": [round(e / mm, 3) for e in errors],
+        "max_waypoint_error_mm": round(max(errors) / mm, 3),
+        "plan_error_mm": round(max(e for _, e in plans) / mm, 6),
+        "activations_kPa": [[round(v / kPa, 3) for v in a] for a, _ in plans],
+        "plan_time_s": round(plan_s, 3),
+        "gripper_peak_kPa": round(float(log_p[:, 4].max()) / kPa, 2),
+        "loop_rate_hz": round(stats.rate, 2), "loop_jitter_p99_us": round(stats.jitter_p99 * 1e6, 1),
+        "loop_missed": stats.missed,
+        "png": "pick_place.png",
+    }
+
+
+# ------------------------------------------------------------------------------------------------- the steps
 def arm():
     """The manipulator beam: 4 chamber inputs (segment 1 lower/upper, segment 2 lower/upper) + gripper."""
     from soroshapes import Basis, Shapes
@@ -85,76 +161,6 @@ def plan(shp, targets):
         a0 = sol.x
         out.append((sol.x, float(np.linalg.norm(sol.fun)) * mm))
     return out
-
-
-def main(out: Path, quick: bool = False) -> dict:
-    from sorocontrol import Board
-
-    shp = arm()
-    home = shp.positions(shp.statics(u=pressures([0, 0], 0)))[-1]
-    # waypoints: (name, x, z, gripper) -- above the object, at it, (grip), lift, above the place, place, release
-    # in the arm's workspace (a crescent 100-120 mm out, -69..47 mm high: two segments of fixed length)
-    seq = [("above_pick", 0.106, -0.050, 0.0), ("pick", 0.101, -0.058, 0.0), ("grip", 0.101, -0.058, GRIP),
-           ("lift", 0.111, -0.040, GRIP), ("above_place", 0.114, 0.036, GRIP), ("place", 0.116, 0.026, GRIP),
-           ("release", 0.116, 0.026, 0.0), ("retreat", 0.119, 0.010, 0.0), ("home", home[0], home[2], 0.0)]
-    if quick:
-        seq = [seq[1], seq[3], seq[5], seq[8]]
-    hold = 1.0 if quick else 1.2
-    t0 = time.perf_counter()
-    plans = plan(shp, [(x, z) for _, x, z, _ in seq])
-    plan_s = time.perf_counter() - t0
-
-    log_t, log_tip, log_p = [], [], []
-    # keepalive: the session survives any pause before brd.loop starts (which then feeds the watchdog itself)
-    with Board.simulated(channels=5, beam=shp, board_rate=200.0, keepalive=True) as brd:
-        for t in brd.loop(duration=hold * len(seq), rate=100.0):
-            i = min(int(t // hold), len(seq) - 1)
-            (a, _), grip = plans[i], seq[i][3]
-            s = brd.set_pressure(pressures(a, grip))
-            log_t.append(t)
-            log_tip.append(s.sensors[:3].copy())
-            log_p.append(s.measured.copy())
-        stats = brd.loop_stats
-    log_t, log_tip, log_p = np.array(log_t), np.array(log_tip), np.array(log_p)
-    # each waypoint's tip: the last sample of its hold, found by time (a loaded machine skips loop
-    # iterations, so an iteration count would land in a later hold)
-    reached = [log_tip[np.searchsorted(log_t, (i + 1) * hold, side="left") - 1] for i in range(len(seq))]
-    errors = [float(np.hypot(r[0] - x, r[2] - z)) for r, (_, x, z, _) in zip(reached, seq)]
-
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from sorofem.io import save_figure
-
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(10, 4))
-    ax.plot(log_tip[:, 0] / mm, log_tip[:, 2] / mm, lw=1, label="tip (board sensors)")
-    for (name, x, z, g), r in zip(seq, reached):
-        ax.plot(x / mm, z / mm, "o", mfc="none", color="C3" if g else "C2")
-        ax.annotate(name, (x / mm, z / mm), fontsize=7, xytext=(3, 3), textcoords="offset points")
-    for q in (shp.statics(u=pressures(plans[0][0], 0)), shp.statics(u=pressures(plans[-1][0], 0))):
-        P = shp.positions(q)
-        ax.plot(P[:, 0] / mm, P[:, 2] / mm, color="0.6", lw=4, alpha=0.5)
-    ax.set(xlabel="x [mm]", ylabel="z [mm]", aspect="equal", title="open-loop pick and place")
-    ax.legend(fontsize=7)
-    for c in range(5):
-        bx.plot(log_t, log_p[:, c] / kPa, lw=1, label=["s1 low", "s1 up", "s2 low", "s2 up", "gripper"][c])
-    bx.set(xlabel="t [s]", ylabel="measured pressure [kPa]")
-    bx.legend(fontsize=7)
-    save_figure(fig, out / "pick_place.png")
-
-    return {
-        "waypoints": [name for name, *_ in seq],
-        "waypoint_error_mm": [round(e / mm, 3) for e in errors],
-        "max_waypoint_error_mm": round(max(errors) / mm, 3),
-        "plan_error_mm": round(max(e for _, e in plans) / mm, 6),
-        "activations_kPa": [[round(v / kPa, 3) for v in a] for a, _ in plans],
-        "plan_time_s": round(plan_s, 3),
-        "gripper_peak_kPa": round(float(log_p[:, 4].max()) / kPa, 2),
-        "loop_rate_hz": round(stats.rate, 2), "loop_jitter_p99_us": round(stats.jitter_p99 * 1e6, 1),
-        "loop_missed": stats.missed,
-        "png": "pick_place.png",
-    }
 
 
 def scene(quick=False):

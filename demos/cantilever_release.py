@@ -60,6 +60,58 @@ from sorofem.units import mm
 LENGTH, RADIUS, MODES = 200 * mm, 5 * mm, 4
 
 
+#: The full run and the short one (`--quick`, what the tests run): simulated time [s].
+FULL = dict(t_end=2.0)
+QUICK = dict(t_end=0.5)
+
+
+def main(out: Path, quick: bool = False) -> dict:
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    shp = build()
+    t_end = (QUICK if quick else FULL)["t_end"]
+    f_straight = float(shp.natural_frequencies(1)[0])
+    q_static = shp.statics(steps=4)
+    tip_static = shp.positions(q_static)[-1]
+    f_sag = sag_frequency(shp, q_static)
+
+    shp.simulate(0.01, 1e-3)                                       # compile the kernels before timing
+    shp.simulate(0.01, 1e-3, method="explicit")
+    imp = shp.simulate(t_end, 1e-3, method="implicit")
+    limit = shp.explicit_step_limit()
+    dt_e = t_end / math.ceil(t_end / limit)
+    exp = shp.simulate(t_end, dt_e, method="explicit")
+
+    ref = np.column_stack([np.interp(exp.t, imp.t, imp.tip[:, k]) for k in range(3)])
+    period = swing_period(imp.t, imp.tip[:, 0])
+    plots(out, imp, exp, tip_static)
+    return {
+        "t_end_s": t_end,
+        "energy_drift_implicit": drift(imp),
+        "energy_drift_explicit": drift(exp),
+        "period_s": period,
+        "swing_frequency_Hz": 1.0 / period if period else None,
+        "natural_frequency_straight_Hz": f_straight,
+        "natural_frequency_sag_Hz": f_sag,
+        "static_tip_mm": [float(v) for v in tip_static / mm],
+        "lowest_tip_z_mm": float(imp.tip[:, 2].min() / mm),
+        "min_tip_x_mm": float(imp.tip[:, 0].min() / mm),
+        "max_kinetic_mJ": float(imp.kinetic.max() * 1e3),
+        "max_tip_difference_mm": float(np.abs(exp.tip - ref).max() / mm),
+        "dt_implicit_s": 1e-3,
+        "dt_explicit_s": dt_e,
+        "explicit_step_limit_s": limit,
+        "wall_time_implicit_s": float(imp.stats["wall_time"]),
+        "wall_time_explicit_s": float(exp.stats["wall_time"]),
+        "real_time_factor_implicit": float(t_end / imp.stats["wall_time"]),
+        "real_time_factor_explicit": float(t_end / exp.stats["wall_time"]),
+        "steps_implicit": int(imp.stats["steps"]),
+        "steps_explicit": int(exp.stats["steps"]),
+        "newton_iterations_mean": float(np.mean(imp.stats["newton_iterations"])),
+    }
+
+
+# ------------------------------------------------------------------------------------------------- the steps
 def build():
     from soroshapes import Basis, Shapes
 
@@ -101,11 +153,11 @@ def drift(tr):
 
 
 def plots(out, imp, exp, tip_static):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
+    from sorofem.io import save_figure
 
-    fig, ax = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
+    fig = Figure(figsize=(7, 6))
+    ax = fig.subplots(2, 1, sharex=True)
     for a, k, name in ((ax[0], 0, "x"), (ax[1], 2, "z")):
         a.plot(imp.t, imp.tip[:, k] / mm, "-", color="tab:blue", label="implicit midpoint, h = 1 ms")
         a.plot(exp.t, exp.tip[:, k] / mm, "--", color="tab:orange",
@@ -117,11 +169,10 @@ def plots(out, imp, exp, tip_static):
     ax[0].legend(fontsize=8, loc="upper center", ncol=3)
     ax[0].set_title("undamped cantilever released under gravity: tip position")
     ax[1].set_xlabel("time [s]")
-    fig.tight_layout()
-    fig.savefig(out / "tip.png", dpi=110)
-    plt.close(fig)
+    save_figure(fig, out / "tip.png", dpi=110)
 
-    fig, ax = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
+    fig = Figure(figsize=(7, 6))
+    ax = fig.subplots(2, 1, sharex=True)
     ax[0].plot(imp.t, imp.kinetic * 1e3, label="kinetic")
     ax[0].plot(imp.t, imp.potential * 1e3, label="potential (elastic + gravity)")
     ax[0].plot(imp.t, imp.total * 1e3, "k", label="total")
@@ -136,55 +187,7 @@ def plots(out, imp, exp, tip_static):
     ax[1].legend(fontsize=8)
     for a in ax:
         a.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(out / "energy.png", dpi=110)
-    plt.close(fig)
-
-
-def main(out: Path, quick: bool = False) -> dict:
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    shp = build()
-    t_end = 0.5 if quick else 2.0
-    f_straight = float(shp.natural_frequencies(1)[0])
-    q_static = shp.statics(steps=4)
-    tip_static = shp.positions(q_static)[-1]
-    f_sag = sag_frequency(shp, q_static)
-
-    shp.simulate(0.01, 1e-3)                                       # compile the kernels before timing
-    shp.simulate(0.01, 1e-3, method="explicit")
-    imp = shp.simulate(t_end, 1e-3, method="implicit")
-    limit = shp.explicit_step_limit()
-    dt_e = t_end / math.ceil(t_end / limit)
-    exp = shp.simulate(t_end, dt_e, method="explicit")
-
-    ref = np.column_stack([np.interp(exp.t, imp.t, imp.tip[:, k]) for k in range(3)])
-    period = swing_period(imp.t, imp.tip[:, 0])
-    plots(out, imp, exp, tip_static)
-    return {
-        "t_end_s": t_end,
-        "energy_drift_implicit": drift(imp),
-        "energy_drift_explicit": drift(exp),
-        "period_s": period,
-        "swing_frequency_Hz": 1.0 / period if period else None,
-        "natural_frequency_straight_Hz": f_straight,
-        "natural_frequency_sag_Hz": f_sag,
-        "static_tip_mm": [float(v) for v in tip_static / mm],
-        "lowest_tip_z_mm": float(imp.tip[:, 2].min() / mm),
-        "min_tip_x_mm": float(imp.tip[:, 0].min() / mm),
-        "max_kinetic_mJ": float(imp.kinetic.max() * 1e3),
-        "max_tip_difference_mm": float(np.abs(exp.tip - ref).max() / mm),
-        "dt_implicit_s": 1e-3,
-        "dt_explicit_s": dt_e,
-        "explicit_step_limit_s": limit,
-        "wall_time_implicit_s": float(imp.stats["wall_time"]),
-        "wall_time_explicit_s": float(exp.stats["wall_time"]),
-        "real_time_factor_implicit": float(t_end / imp.stats["wall_time"]),
-        "real_time_factor_explicit": float(t_end / exp.stats["wall_time"]),
-        "steps_implicit": int(imp.stats["steps"]),
-        "steps_explicit": int(exp.stats["steps"]),
-        "newton_iterations_mean": float(np.mean(imp.stats["newton_iterations"])),
-    }
+    save_figure(fig, out / "energy.png", dpi=110)
 
 
 if __name__ == "__main__":

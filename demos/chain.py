@@ -41,9 +41,110 @@ from pathlib import Path
 import numpy as np
 
 from sorofem import materials, sdf
+from sorofem.snapshots import input_name
 from sorofem.units import kPa, mm
 
-L, H, N, WALL, BASE, LAYER = 60 * mm, 14 * mm, 5, 1.5 * mm, 4 * mm, 1 * mm
+# ------------------------------------------------------------------------------------------------ parameters
+L, H, N, WALL, BASE, LAYER = 60 * mm, 14 * mm, 5, 1.5 * mm, 4 * mm, 1 * mm   # section (see Parameters above)
+P_TEST_FRACTION = 0.55          # the DVS test solve's pressure, as a fraction of p_max [-]
+HOLD, LOOP_RATE = 1.5, 100.0    # control: each angle step held [s], the host loop's rate [Hz]
+#: The full run and the short one (`--quick`, what the tests run): element size [m], top pressure [Pa], load
+#: steps of the training ramp and of the test solve, angle steps as fractions of the static angle range [-].
+FULL = dict(size=1.0 * mm, p_max=16 * kPa, steps=8, test_steps=4, angle_steps=(0.35, 0.75, 0.55))
+QUICK = dict(size=1.6 * mm, p_max=8 * kPa, steps=4, test_steps=2, angle_steps=(0.4, 0.7))
+
+
+def main(out: Path, quick: bool = False) -> dict:
+    """Run the chain's stages in order into ``out``; returns the report (see Figure above)."""
+    from mpi4py import MPI
+
+    from sorofem.io import Progress
+    from sorofem.mesh import Mesh
+
+    prm = QUICK if quick else FULL
+    rank0 = MPI.COMM_WORLD.rank == 0
+    timings = {}
+    stages = ["design", "mesh", "fem_snapshots", "dvs_beam_model", "board_control"]
+    with Progress(len(stages), "chain", comm=MPI.COMM_WORLD, unit="stage") as bar:
+        # 1. design
+        t0 = time.perf_counter()
+        shape = pneunet_section()
+        props = shape.section_properties()
+        if rank0:
+            shape.to_png(out / "design.png", title="PneuNet section (SDF)")
+        timings["design_s"] = time.perf_counter() - t0
+        bar.to(1, stage="mesh")
+
+        # 2. mesh: the chambers become the cavities cavity_0 ...; the strain-limiting layer a cell region
+        t0 = time.perf_counter()
+        msh = Mesh.from_sdf(shape, size=prm["size"])
+        msh.add_region("layer", lambda x: x[1] < LAYER, kind="cells")
+        if rank0:
+            plot_mesh(msh, out / "mesh.png")
+        timings["mesh_s"] = time.perf_counter() - t0
+        bar.to(2, stage="fem")
+
+        # 3. FEM snapshots: the pressure ramp 0 -> p_max on every chamber
+        t0 = time.perf_counter()
+        traj = inflation_problem(msh, prm["p_max"]).solve(steps=prm["steps"])
+        traj.save(out / "pneunet_inflation.h5", cavities=())
+        timings["fem_s"] = time.perf_counter() - t0
+        bar.to(3, stage="dvs")
+
+        # 4. DVS beam model from the snapshots, tested at a pressure between the training steps
+        t0 = time.perf_counter()
+        fem_test = inflation_problem(msh, prm["p_max"])
+        t1 = time.perf_counter()
+        fem_test.solve(load_level=P_TEST_FRACTION, steps=prm["test_steps"]).save(out / "pneunet_test.h5",
+                                                                                   cavities=())
+        fem_test_s = time.perf_counter() - t1
+        plant, dvs = dvs_stage(out, msh.cavities[0], fem_test_s) if rank0 else (None, {})
+        timings["dvs_s"] = time.perf_counter() - t0
+        bar.to(4, stage="control")
+
+        # 5. closed-loop control of the DVS beam on the simulated board
+        t0 = time.perf_counter()
+        control = control_stage(out, plant, prm["p_max"], prm["angle_steps"]) if rank0 else {}
+        timings["control_s"] = time.perf_counter() - t0
+        bar.to(5)
+
+    # 6. report
+    summary = {
+        "stages": stages,
+        "section_area_mm2": props.area / mm**2,
+        "cells": msh.num_cells,
+        "cavities": len(msh.cavities),
+        "min_angle_deg": msh.quality["min_angle"],
+        "max_pressure_kPa": prm["p_max"] / kPa,
+        "newton_iterations_max": int(traj.newton_iterations.max()),
+        "snapshot": "pneunet_inflation.h5",
+        "timings_s": timings,
+    }
+    if rank0:
+        summary.update(dvs)
+        summary["control"] = control
+        angles = np.degrees(np.unwrap([tip_angle(traj, k) for k in range(len(traj))]))
+        summary["bending_angle_deg"] = float(angles[-1])
+        volume = sum(traj.cavity_volumes[c] for c in msh.cavities)
+        summary["cavity_volume_change_rel"] = float(volume[-1] / volume[0] - 1)
+        traj.plot(out / "deformed.png", title=f"p = {prm['p_max'] / kPa:g} kPa, von Mises stress")
+        pressure = traj.inputs[input_name("pressure", msh.cavities[0])] / kPa
+        plot_bending(pressure, angles, out / "bending.png")
+    return summary
+
+
+# ------------------------------------------------------------------------------------------------- the steps
+def inflation_problem(msh, p_max):
+    """The plane-strain inflation case: Dragon Skin 10 body, Elastic 50A layer, clamped at x = 0, the pressure
+    ``p_max`` [Pa] on every chamber (reached at load level 1)."""
+    from sorofem.fem import Fem
+
+    fem = Fem(msh, materials.DragonSkin10(), degree=2)
+    fem.add_material("layer", materials.Elastic50A())
+    fem.add_support("left")
+    for cavity in msh.cavities:
+        fem.add_pressure(cavity, p_max)
+    return fem
 
 
 def pneunet_section():
@@ -51,7 +152,8 @@ def pneunet_section():
     channel joining them would cut the walls off the base in a plane section)."""
     pitch = L / N
     body = sdf.Rectangle(L, BASE, center=(L / 2, BASE / 2))
-    blocks = sdf.RoundedRectangle(pitch - 0.6 * mm, H - BASE + 1 * mm, 1.5 * mm, center=(pitch / 2, (H + BASE - 1 * mm) / 2))
+    blocks = sdf.RoundedRectangle(pitch - 0.6 * mm, H - BASE + 1 * mm, 1.5 * mm,
+                                  center=(pitch / 2, (H + BASE - 1 * mm) / 2))
     chamber = sdf.Rectangle(pitch - 2 * WALL, H - BASE - WALL, center=(pitch / 2, BASE + (H - BASE - WALL) / 2))
     return (body | blocks.repeat((pitch, 0), (N, 1))) - chamber.repeat((pitch, 0), (N, 1))
 
@@ -78,7 +180,7 @@ def dvs_stage(out, cavity, fem_test_s):
     train = recover_strains(out / "pneunet_inflation.h5", backbone, samples=61)
     test = recover_strains(out / "pneunet_test.h5", backbone, samples=61)
     test = test.select([len(test.times) - 1])
-    inputs = [f"pressure/{cavity}"]
+    inputs = [input_name("pressure", cavity)]
 
     def make(bases, dofs, damping=0.0):   # the section's stiffness scale is absorbed by the identified actuation
         return Shapes(bases, dofs, length=L, section=sdf.Rectangle(10 * mm, H), material=materials.DragonSkin10(),
@@ -104,18 +206,19 @@ def bend_angle(beam, q):
     return float(np.degrees(np.arctan2(-R[1, 0], R[0, 0])))
 
 
-def control_stage(out, beam, p_max, quick):
-    """Closed-loop control of the bending angle of ``beam`` on a simulated board; returns the figures."""
-    import matplotlib.pyplot as plt
+def control_stage(out, beam, p_max, angle_steps):
+    """Closed-loop control of the bending angle of ``beam`` on a simulated board: steps to the fractions
+    ``angle_steps`` of the static angle range, each held ``HOLD`` s; returns the figures."""
+    from matplotlib.figure import Figure
+    from sorofem.io import save_figure
 
     from sorocontrol import Board
 
     # the static angle-pressure map of the model: feed-forward, and the reachable range
     grid = np.linspace(0.0, p_max, 9)
     angles = np.array([bend_angle(beam, beam.statics(u=[p], steps=2)) for p in grid])
-    steps = [0.35, 0.75, 0.55] if not quick else [0.4, 0.7]
-    refs = [float(angles[0] + f * (angles[-1] - angles[0])) for f in steps]
-    hold, rate = 1.5, 100.0
+    refs = [float(angles[0] + f * (angles[-1] - angles[0])) for f in angle_steps]
+    hold, rate = HOLD, LOOP_RATE
     # integral feedback only, crossing over at ~1 rad/s: well below the beam's lightly damped first mode and
     # the regulator's lag (a proportional term made the loop ring at the first mode)
     ki = 1.0 * (grid[-1] - grid[0]) / (angles[-1] - angles[0])      # Pa/(deg s)
@@ -140,7 +243,8 @@ def control_stage(out, beam, p_max, quick):
         sel = (log[:, 0] >= i * hold + hold / 2) & (log[:, 0] < (i + 1) * hold)
         rms.append(float(np.sqrt(np.mean((log[sel, 1] - log[sel, 2]) ** 2))))
         end_err.append(float(abs(log[sel, 1][-1] - log[sel, 2][-1])))
-    fig, (ax, bx) = plt.subplots(2, 1, figsize=(6, 4.5), sharex=True)
+    fig = Figure(figsize=(6, 4.5))
+    ax, bx = fig.subplots(2, 1, sharex=True)
     ax.plot(log[:, 0], log[:, 1], "k--", lw=1, label="reference")
     ax.plot(log[:, 0], log[:, 2], lw=1.2, label="DVS beam on the board")
     ax.set_ylabel("bending angle [deg]")
@@ -149,9 +253,7 @@ def control_stage(out, beam, p_max, quick):
     bx.plot(log[:, 0], log[:, 4] / kPa, lw=1, label="measured")
     bx.set(xlabel="t [s]", ylabel="pressure [kPa]")
     bx.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out / "control.png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, out / "control.png", dpi=120)
     return {"reference_deg": [round(r, 3) for r in refs], "end_error_deg": [round(e, 4) for e in end_err],
             "rms_error_second_half_deg": [round(r, 4) for r in rms],
             "static_range_deg": [round(float(angles[0]), 3), round(float(angles[-1]), 3)],
@@ -159,98 +261,30 @@ def control_stage(out, beam, p_max, quick):
             "loop_missed": stats.missed}
 
 
-def main(out: Path, quick: bool = False) -> dict:
-    from mpi4py import MPI
+def plot_mesh(msh, path):
+    """The mesh with its regions, axes in mm."""
+    from matplotlib.figure import Figure
+    from sorofem.io import save_figure
+    from matplotlib.ticker import FuncFormatter
 
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    fig = Figure(figsize=(8, 2.8))
+    ax = fig.subplots()
+    msh.plot(ax=ax)
+    in_mm = FuncFormatter(lambda v, _: f"{v / mm:g}")
+    ax.xaxis.set_major_formatter(in_mm)
+    ax.yaxis.set_major_formatter(in_mm)
+    ax.set(xlabel="x [mm]", ylabel="y [mm]", title=f"{msh.num_cells} triangles, cavities: {', '.join(msh.cavities)}")
+    save_figure(fig, path, dpi=120)
 
-    from sorofem.fem import Fem
-    from sorofem.mesh import Mesh
 
-    rank0 = MPI.COMM_WORLD.rank == 0
-    timings = {}
+def plot_bending(pressure, angles, path):
+    """Bending angle [deg] against the chamber pressure [kPa]."""
+    from matplotlib.figure import Figure
+    from sorofem.io import save_figure
 
-    # 1. design
-    t0 = time.perf_counter()
-    shape = pneunet_section()
-    props = shape.section_properties()
-    if rank0:
-        shape.to_png(out / "design.png", title="PneuNet section (SDF)")
-    timings["design_s"] = time.perf_counter() - t0
-
-    # 2. mesh
-    t0 = time.perf_counter()
-    msh = Mesh.from_sdf(shape, size=1.6 * mm if quick else 1.0 * mm)
-    msh.add_region("layer", lambda x: x[1] < LAYER, kind="cells")
-    if rank0:
-        fig, ax = plt.subplots(figsize=(8, 2.6))
-        msh.plot(ax=ax)
-        ax.set_title(f"{msh.num_cells} triangles, cavities: {', '.join(msh.cavities)}")
-        fig.tight_layout()
-        fig.savefig(out / "mesh.png", dpi=120)
-        plt.close(fig)
-    timings["mesh_s"] = time.perf_counter() - t0
-
-    # 3. FEM snapshots
-    t0 = time.perf_counter()
-    p_max = (8 if quick else 16) * kPa
-    fem = Fem(msh, materials.DragonSkin10(), degree=2)
-    fem.add_material("layer", materials.Elastic50A())
-    fem.add_support("left")
-    for cavity in msh.cavities:
-        fem.add_pressure(cavity, p_max)
-    traj = fem.solve(steps=4 if quick else 8)
-    traj.save(out / "pneunet_inflation.h5", cavities=())
-    timings["fem_s"] = time.perf_counter() - t0
-
-    # 4. DVS beam model from the snapshots (and a test solve at a pressure between the training steps)
-    t0 = time.perf_counter()
-    p_test = 0.55 * p_max
-    fem_t = Fem(msh, materials.DragonSkin10(), degree=2)
-    fem_t.add_material("layer", materials.Elastic50A())
-    fem_t.add_support("left")
-    for cavity in msh.cavities:
-        fem_t.add_pressure(cavity, p_max)
-    t1 = time.perf_counter()
-    fem_t.solve(load_level=p_test / p_max, steps=2 if quick else 4).save(out / "pneunet_test.h5", cavities=())
-    fem_test_s = time.perf_counter() - t1
-    plant, dvs = dvs_stage(out, msh.cavities[0], fem_test_s) if rank0 else (None, {})
-    timings["dvs_s"] = time.perf_counter() - t0
-
-    # 5. closed-loop control of the DVS beam on the simulated board
-    t0 = time.perf_counter()
-    control = control_stage(out, plant, p_max, quick) if rank0 else {}
-    timings["control_s"] = time.perf_counter() - t0
-
-    # 5. report
-    summary = {
-        "stages": ["design", "mesh", "fem_snapshots", "dvs_beam_model", "board_control"],
-        "section_area_mm2": props.area / mm**2,
-        "cells": msh.num_cells,
-        "cavities": len(msh.cavities),
-        "min_angle_deg": msh.quality["min_angle"],
-        "max_pressure_kPa": p_max / kPa,
-        "newton_iterations_max": int(traj.newton_iterations.max()),
-        "snapshot": "pneunet_inflation.h5",
-        "timings_s": timings,
-    }
-    if rank0:
-        summary.update(dvs)
-        summary["control"] = control
-        angles = np.degrees(np.unwrap([tip_angle(traj, k) for k in range(len(traj))]))
-        pressure = traj.inputs[f"pressure/{msh.cavities[0]}"] / kPa
-        summary["bending_angle_deg"] = float(angles[-1])
-        volume = sum(traj.cavity_volumes[c] for c in msh.cavities)
-        summary["cavity_volume_change_rel"] = float(volume[-1] / volume[0] - 1)
-        traj.plot(out / "deformed.png", title=f"p = {p_max / kPa:g} kPa, von Mises stress")
-        fig, ax = plt.subplots(figsize=(4.5, 3.2))
-        ax.plot(pressure, angles, "o-")
-        ax.set_xlabel("pressure [kPa]")
-        ax.set_ylabel("bending angle [deg]")
-        ax.grid(alpha=0.3)
-        fig.tight_layout()
-        fig.savefig(out / "bending.png", dpi=120)
-        plt.close(fig)
-    return summary
+    fig = Figure(figsize=(4.5, 3.2))
+    ax = fig.subplots()
+    ax.plot(pressure, angles, "o-")
+    ax.set(xlabel="pressure [kPa]", ylabel="bending angle [deg]")
+    ax.grid(alpha=0.3)
+    save_figure(fig, path, dpi=120)

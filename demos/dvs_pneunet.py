@@ -40,11 +40,115 @@ from pathlib import Path
 
 import numpy as np
 
+from sorofem.snapshots import input_name
 from sorofem.units import kPa, mm
 
 HERE = Path(__file__).resolve().parent
 
 
+#: The full run and the short one (`--quick`, what the tests run): chambers, element size [m], top pressure
+#: [Pa] and load steps of the training ramp.
+FULL = dict(chambers=7, size=0.8 * mm, p_max=6 * kPa, steps=16)
+QUICK = dict(chambers=4, size=1.2 * mm, p_max=5 * kPa, steps=10)
+
+
+def main(out: Path, quick: bool = False, tolerance: float = 0.03) -> dict:
+    from matplotlib.figure import Figure
+    from sorofem.io import save_figure
+    from matplotlib.patches import Circle
+
+    from soro.trade import trade_report
+    from soroshapes.dvs import Backbone, compare, dvs_basis, identify, recover_strains
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    prm = QUICK if quick else FULL
+    chambers, size, p_max, steps = prm["chambers"], prm["size"], prm["p_max"], prm["steps"]
+    p_test = 0.55 * p_max
+    train_h5, test_h5, wrap_h5, length, t_train, t_test, pn = fem_snapshots(out, chambers, size, p_max, steps,
+                                                                             p_test)
+
+    backbone = Backbone.line([0.0, pn.LAYER / 2], [length, pn.LAYER / 2])
+    train = recover_strains(train_h5, backbone, samples=81)
+    test = recover_strains(test_h5, backbone, samples=81)
+    test = test.select([len(test.times) - 1])
+    wrap = recover_strains(wrap_h5, backbone, samples=81)
+    wrap = wrap.select([len(wrap.times) - 1])
+    inputs = [input_name("pressure", "cavity_0")]
+    make = beam_factory(length, pn)
+    r, c = cylinder(length)
+
+    def add_cylinder(shp):   # the backbone lies LAYER/2 above the bottom face: that is the radius that touches
+        from sorofem import sdf
+        shp.contact_radius = pn.LAYER / 2
+        return shp.add_contact(sdf.Cylinder(r, 1.0, center=(c[0], c[1], 0.0)))
+
+    bases, kept, info = dvs_basis([train, wrap], (0, 0, 3, 0, 0, 0))
+    shp = make(bases, kept)
+    ident = identify(shp, train, inputs=inputs)
+    cmp_train, cmp_test = compare(shp, train, inputs), compare(shp, test, inputs)
+    best = min(compare(shp, test, inputs)["solve_time"] for _ in range(3))
+    q_free = [shp.statics(u=[float(u)]) for u in train.inputs[inputs[0]]]
+    cmp_wrap = compare(add_cylinder(shp), wrap, inputs)
+
+    rows, pick = trade_report(train, test, make, inputs, out, tolerance=tolerance, contact=(wrap, add_cylinder))
+
+    # figures
+    s = train.sigma / length
+    fig = Figure(figsize=(6, 3.5))
+    ax = fig.subplots()
+    for k in range(kept[2]):
+        ax.plot(s, bases[2](s)[:, k], label=f"mode {k + 1}")
+    ax.set_xlabel("sigma / L")
+    ax.set_ylabel("bending mode [1/sqrt(m)]")
+    ax.set_title(f"DVS bending modes of the PneuNet ({100 * info[2]['energy']:.3f} % of the variance)")
+    ax.legend()
+    ax.grid(alpha=0.3)
+    save_figure(fig, out / "modes.png", dpi=120)
+
+    fig = Figure(figsize=(6, 4.5))
+    ax = fig.subplots()
+    P_fem = train.positions()
+    for k in range(0, len(train.times), max(1, len(train.times) // 5)):
+        ax.plot(P_fem[k, :, 0] / mm, P_fem[k, :, 1] / mm, "k-", lw=2, alpha=0.5)
+        Pb = shp.positions(q_free[k])
+        ax.plot(Pb[:, 0] / mm, Pb[:, 1] / mm, "C1--", lw=1.5)
+    Pt = test.positions()[0]
+    ax.plot(Pt[:, 0] / mm, Pt[:, 1] / mm, "C2-", lw=2, alpha=0.6, label=f"FEM test {p_test / kPa:.2f} kPa")
+    Pb = shp.positions(cmp_test["q"][0])
+    ax.plot(Pb[:, 0] / mm, Pb[:, 1] / mm, "C3--", lw=1.5, label="beam, test")
+    Pw = wrap.positions()[0]
+    ax.plot(Pw[:, 0] / mm, Pw[:, 1] / mm, "C4-", lw=2, alpha=0.6, label="FEM wrapping the cylinder")
+    Pb = shp.positions(cmp_wrap["q"][0])
+    ax.plot(Pb[:, 0] / mm, Pb[:, 1] / mm, "C5--", lw=1.5, label="beam with contact")
+    ax.add_patch(Circle((c[0] / mm, c[1] / mm), r / mm, color="0.8", zorder=0))
+    ax.plot([], [], "k-", alpha=0.5, label="FEM training ramp (no obstacle)")
+    ax.plot([], [], "C1--", label="3-mode DVS beam")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("y [mm]")
+    ax.set_title("PneuNet backbone: FEM vs DVS beam")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    save_figure(fig, out / "shapes.png", dpi=120)
+
+    return {
+        "chambers": chambers, "length_mm": length / mm, "p_max_kPa": p_max / kPa, "p_test_kPa": p_test / kPa,
+        "training_steps": int(len(train.times)), "dvs_modes": int(kept[2]),
+        "dvs_energy": info[2]["energy"], "fit_error": ident.fit_error,
+        "tip_error_train": 100 * float(cmp_train["tip_error"].max()),
+        "tip_error_test": 100 * float(cmp_test["tip_error"].max()),
+        "tip_error_contact": 100 * float(cmp_wrap["tip_error"].max()),
+        "shape_error_contact": 100 * float(cmp_wrap["shape_error"].max()),
+        "shape_error_train": 100 * float(cmp_train["shape_error"].max()),
+        "shape_error_test": 100 * float(cmp_test["shape_error"].max()),
+        "beam_solve_ms": 1e3 * best, "fem_solve_s": t_test, "fem_ramp_s": t_train,
+        "speedup": t_test / best,
+        "trade": rows, "selected": pick,
+    }
+
+
+# ------------------------------------------------------------------------------------------------- the steps
 def _pneunet():
     spec = importlib.util.spec_from_file_location("pneunet_inflation", HERE / "pneunet_inflation.py")
     mod = importlib.util.module_from_spec(spec)
@@ -95,100 +199,3 @@ def beam_factory(length, pn):
                       material=materials.Ecoflex0030(), base=np.array([0.0, pn.LAYER / 2, 0.0]), damping=0.0,
                       segments=40)
     return make
-
-
-def main(out: Path, quick: bool = False, tolerance: float = 0.03) -> dict:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from soro.trade import trade_report
-    from soroshapes.dvs import Backbone, compare, dvs_basis, identify, recover_strains
-
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    chambers, size, p_max, steps = (4, 1.2 * mm, 5 * kPa, 10) if quick else (7, 0.8 * mm, 6 * kPa, 16)
-    p_test = 0.55 * p_max
-    train_h5, test_h5, wrap_h5, length, t_train, t_test, pn = fem_snapshots(out, chambers, size, p_max, steps,
-                                                                             p_test)
-
-    backbone = Backbone.line([0.0, pn.LAYER / 2], [length, pn.LAYER / 2])
-    train = recover_strains(train_h5, backbone, samples=81)
-    test = recover_strains(test_h5, backbone, samples=81)
-    test = test.select([len(test.times) - 1])
-    wrap = recover_strains(wrap_h5, backbone, samples=81)
-    wrap = wrap.select([len(wrap.times) - 1])
-    inputs = ["pressure/cavity_0"]
-    make = beam_factory(length, pn)
-    r, c = cylinder(length)
-
-    def add_cylinder(shp):   # the backbone lies LAYER/2 above the bottom face: that is the radius that touches
-        from sorofem import sdf
-        shp.contact_radius = pn.LAYER / 2
-        return shp.add_contact(sdf.Cylinder(r, 1.0, center=(c[0], c[1], 0.0)))
-
-    bases, kept, info = dvs_basis([train, wrap], (0, 0, 3, 0, 0, 0))
-    shp = make(bases, kept)
-    ident = identify(shp, train, inputs=inputs)
-    cmp_train, cmp_test = compare(shp, train, inputs), compare(shp, test, inputs)
-    best = min(compare(shp, test, inputs)["solve_time"] for _ in range(3))
-    q_free = [shp.statics(u=[float(u)]) for u in train.inputs[inputs[0]]]
-    cmp_wrap = compare(add_cylinder(shp), wrap, inputs)
-
-    rows, pick = trade_report(train, test, make, inputs, out, tolerance=tolerance, contact=(wrap, add_cylinder))
-
-    # figures
-    s = train.sigma / length
-    fig, ax = plt.subplots(figsize=(6, 3.5))
-    for k in range(kept[2]):
-        ax.plot(s, bases[2](s)[:, k], label=f"mode {k + 1}")
-    ax.set_xlabel("sigma / L")
-    ax.set_ylabel("bending mode [1/sqrt(m)]")
-    ax.set_title(f"DVS bending modes of the PneuNet ({100 * info[2]['energy']:.3f} % of the variance)")
-    ax.legend()
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(out / "modes.png", dpi=120)
-    plt.close(fig)
-
-    fig, ax = plt.subplots(figsize=(6, 4.5))
-    P_fem = train.positions()
-    for k in range(0, len(train.times), max(1, len(train.times) // 5)):
-        ax.plot(P_fem[k, :, 0] / mm, P_fem[k, :, 1] / mm, "k-", lw=2, alpha=0.5)
-        Pb = shp.positions(q_free[k])
-        ax.plot(Pb[:, 0] / mm, Pb[:, 1] / mm, "C1--", lw=1.5)
-    Pt = test.positions()[0]
-    ax.plot(Pt[:, 0] / mm, Pt[:, 1] / mm, "C2-", lw=2, alpha=0.6, label=f"FEM test {p_test / kPa:.2f} kPa")
-    Pb = shp.positions(cmp_test["q"][0])
-    ax.plot(Pb[:, 0] / mm, Pb[:, 1] / mm, "C3--", lw=1.5, label="beam, test")
-    Pw = wrap.positions()[0]
-    ax.plot(Pw[:, 0] / mm, Pw[:, 1] / mm, "C4-", lw=2, alpha=0.6, label="FEM wrapping the cylinder")
-    Pb = shp.positions(cmp_wrap["q"][0])
-    ax.plot(Pb[:, 0] / mm, Pb[:, 1] / mm, "C5--", lw=1.5, label="beam with contact")
-    ax.add_patch(plt.Circle((c[0] / mm, c[1] / mm), r / mm, color="0.8", zorder=0))
-    ax.plot([], [], "k-", alpha=0.5, label="FEM training ramp (no obstacle)")
-    ax.plot([], [], "C1--", label="3-mode DVS beam")
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [mm]")
-    ax.set_ylabel("y [mm]")
-    ax.set_title("PneuNet backbone: FEM vs DVS beam")
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(out / "shapes.png", dpi=120)
-    plt.close(fig)
-
-    return {
-        "chambers": chambers, "length_mm": length / mm, "p_max_kPa": p_max / kPa, "p_test_kPa": p_test / kPa,
-        "training_steps": int(len(train.times)), "dvs_modes": int(kept[2]),
-        "dvs_energy": info[2]["energy"], "fit_error": ident.fit_error,
-        "tip_error_train": 100 * float(cmp_train["tip_error"].max()),
-        "tip_error_test": 100 * float(cmp_test["tip_error"].max()),
-        "tip_error_contact": 100 * float(cmp_wrap["tip_error"].max()),
-        "shape_error_contact": 100 * float(cmp_wrap["shape_error"].max()),
-        "shape_error_train": 100 * float(cmp_train["shape_error"].max()),
-        "shape_error_test": 100 * float(cmp_test["shape_error"].max()),
-        "beam_solve_ms": 1e3 * best, "fem_solve_s": t_test, "fem_ramp_s": t_train,
-        "speedup": t_test / best,
-        "trade": rows, "selected": pick,
-    }

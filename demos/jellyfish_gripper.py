@@ -81,6 +81,74 @@ MAX_PASSES = 20
 CONTACT_TOL = 0.5 * mm   # a node within this of the offset sphere counts as wrapped (wrap angle)
 
 
+#: The full run and the short one (`--quick`, what the tests run): Magnus segments per finger.
+FULL = dict(segments=40)
+QUICK = dict(segments=20)
+
+
+def main(out: Path, quick: bool = False) -> dict:
+    from soroshapes import Basis, Shapes
+    from soroshapes.render import render_png
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    segments = (QUICK if quick else FULL)["segments"]
+    material = materials.NeoHookean(E=materials.gent_modulus(20), nu=0.45, density=1070.0)
+    section = sdf.Rectangle(WIDTH, THICK)
+
+    res = {k: [] for k in ("ik_error_m", "ik_iterations", "ik_converged", "projection_passes", "penetration_mm",
+                           "wrap_angle_deg", "time_per_ik_s")}
+    first_err, first_pen, tips, effect, beams = [], [], [], [], []
+    warm = Shapes(Basis.chebyshev(3), dofs=(0, 3, 3, 0, 0, 0), length=LENGTH, section=section, material=material)
+    warm.inverse_kinematics(warm.positions(Q_PRE)[-1], max_iterations=2)  # compile the kernels before timing
+    for k in range(FINGERS):
+        shp = Shapes(Basis.chebyshev(3), dofs=(0, 3, 3, 0, 0, 0), length=LENGTH, section=section,
+                     material=material, base=base_pose(2 * np.pi * k / FINGERS), segments=segments)
+        step = segments // 20                       # the same 11 target positions at both resolutions
+        idx = np.arange(segments // 2, segments + 1, step)
+        r, passes, its, times, first = wrap(shp, idx, Q_PRE)
+        P = shp.positions(r.q)
+        plain = shp.inverse_kinematics([(shp.sigma[i], p) for i, p in zip(idx, project(P[idx], THICK / 2))],
+                                       q0=r.q)
+        effect.append(float(np.abs(plain.q - r.q).max()))
+        res["ik_error_m"].append(float(r.error))
+        res["ik_iterations"].append(int(its))
+        res["ik_converged"].append(bool(r.converged))
+        res["projection_passes"].append(int(passes))
+        res["penetration_mm"].append(float(max(0.0, -clearance(P).min()) / mm))
+        res["wrap_angle_deg"].append(wrap_angle(P))
+        res["time_per_ik_s"].append(float(np.mean(times)))
+        first_err.append(float(first[0]))
+        first_pen.append(float(first[1] / mm))
+        tips.append(float(np.hypot(*P[-1, :2]) / mm))
+        beams.append({"frames": shp.forward_kinematics(r.q), "radius": THICK / 2})
+        if k == 0:
+            shapes0, q_first, P0 = shp, first[2], P
+
+    sphere = {"type": "sphere", "center": CENTER, "radius": RADIUS, "color": "tab:orange", "alpha": 0.35}
+    title = f"six fingers wrapping a {2 * RADIUS / mm:.0f} mm sphere (IK, max penetration " \
+            f"{max(res['penetration_mm']):.2f} mm)"
+    render_png(out / "jellyfish.png", beams, obstacles=[sphere], view=(12, -60), title=title, size=(6.5, 6),
+               dpi=130, color="tab:blue")
+    plane_plot(out / "finger_plane.png", shapes0, q_first, P0)
+    return {
+        "fingers": FINGERS,
+        "segments": segments,
+        "targets_per_finger": int(len(idx)),
+        "youngs_modulus_MPa": material.E / 1e6,
+        **res,
+        "max_penetration_mm": max(res["penetration_mm"]),
+        "max_ik_error_m": max(res["ik_error_m"]),
+        "first_pass_penetration_mm": max(first_pen),
+        "first_pass_ik_error_m": max(first_err),
+        "mean_wrap_angle_deg": float(np.mean(res["wrap_angle_deg"])),
+        "tip_radius_mm": tips,
+        "subtask_effect_max": max(effect),
+        "png_files": 2,
+    }
+
+
+# ------------------------------------------------------------------------------------------------- the steps
 def base_pose(phi):
     """Clamp pose (4, 4) of the finger at hub angle ``phi`` [rad]: on the circle r_b, pointing down (-z),
     body z radial (outward), body y tangential."""
@@ -137,13 +205,13 @@ def wrap_angle(P):
 
 def plane_plot(path, shp, q_first, P):
     """The finger in its radial plane (r, z) [mm]: pre-deformed, first pass, final, targets, sphere."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
+    from sorofem.io import save_figure
 
     def rz(X):
         return np.hypot(X[:, 0], X[:, 1]) * np.sign(X[:, 0] + 1e-15) / mm, X[:, 2] / mm
-    fig, ax = plt.subplots(figsize=(5.5, 6))
+    fig = Figure(figsize=(5.5, 6))
+    ax = fig.subplots()
     a = np.linspace(0, 2 * np.pi, 400)
     ax.fill(RADIUS / mm * np.cos(a), CENTER[2] / mm + RADIUS / mm * np.sin(a), color="tab:orange", alpha=0.3,
             label=f"sphere R = {RADIUS / mm:.0f} mm")
@@ -159,71 +227,7 @@ def plane_plot(path, shp, q_first, P):
     ax.set_title("finger 0 in its radial plane")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="upper left")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-
-
-def main(out: Path, quick: bool = False) -> dict:
-    from soroshapes import Basis, Shapes
-    from soroshapes.render import render_png
-
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    segments = 20 if quick else 40
-    material = materials.NeoHookean(E=materials.gent_modulus(20), nu=0.45, density=1070.0)
-    section = sdf.Rectangle(WIDTH, THICK)
-
-    res = {k: [] for k in ("ik_error_m", "ik_iterations", "ik_converged", "projection_passes", "penetration_mm",
-                           "wrap_angle_deg", "time_per_ik_s")}
-    first_err, first_pen, tips, effect, beams = [], [], [], [], []
-    warm = Shapes(Basis.chebyshev(3), dofs=(0, 3, 3, 0, 0, 0), length=LENGTH, section=section, material=material)
-    warm.inverse_kinematics(warm.positions(Q_PRE)[-1], max_iterations=2)  # compile the kernels before timing
-    for k in range(FINGERS):
-        shp = Shapes(Basis.chebyshev(3), dofs=(0, 3, 3, 0, 0, 0), length=LENGTH, section=section,
-                     material=material, base=base_pose(2 * np.pi * k / FINGERS), segments=segments)
-        step = segments // 20                       # the same 11 target positions at both resolutions
-        idx = np.arange(segments // 2, segments + 1, step)
-        r, passes, its, times, first = wrap(shp, idx, Q_PRE)
-        P = shp.positions(r.q)
-        plain = shp.inverse_kinematics([(shp.sigma[i], p) for i, p in zip(idx, project(P[idx], THICK / 2))],
-                                       q0=r.q)
-        effect.append(float(np.abs(plain.q - r.q).max()))
-        res["ik_error_m"].append(float(r.error))
-        res["ik_iterations"].append(int(its))
-        res["ik_converged"].append(bool(r.converged))
-        res["projection_passes"].append(int(passes))
-        res["penetration_mm"].append(float(max(0.0, -clearance(P).min()) / mm))
-        res["wrap_angle_deg"].append(wrap_angle(P))
-        res["time_per_ik_s"].append(float(np.mean(times)))
-        first_err.append(float(first[0]))
-        first_pen.append(float(first[1] / mm))
-        tips.append(float(np.hypot(*P[-1, :2]) / mm))
-        beams.append({"frames": shp.forward_kinematics(r.q), "radius": THICK / 2})
-        if k == 0:
-            shapes0, q_first, P0 = shp, first[2], P
-
-    sphere = {"type": "sphere", "center": CENTER, "radius": RADIUS, "color": "tab:orange", "alpha": 0.35}
-    title = f"six fingers wrapping a {2 * RADIUS / mm:.0f} mm sphere (IK, max penetration " \
-            f"{max(res['penetration_mm']):.2f} mm)"
-    render_png(out / "jellyfish.png", beams, obstacles=[sphere], view=(12, -60), title=title, size=(6.5, 6),
-               dpi=130, color="tab:blue")
-    plane_plot(out / "finger_plane.png", shapes0, q_first, P0)
-    return {
-        "fingers": FINGERS,
-        "segments": segments,
-        "targets_per_finger": int(len(idx)),
-        "youngs_modulus_MPa": material.E / 1e6,
-        **res,
-        "max_penetration_mm": max(res["penetration_mm"]),
-        "max_ik_error_m": max(res["ik_error_m"]),
-        "first_pass_penetration_mm": max(first_pen),
-        "first_pass_ik_error_m": max(first_err),
-        "mean_wrap_angle_deg": float(np.mean(res["wrap_angle_deg"])),
-        "tip_radius_mm": tips,
-        "subtask_effect_max": max(effect),
-        "png_files": 2,
-    }
+    save_figure(fig, path, dpi=120)
 
 
 if __name__ == "__main__":

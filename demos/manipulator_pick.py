@@ -49,37 +49,10 @@ PICK, PLACE = (0.10, 0.0), (-0.06, 0.0)
 TOP = H_CYL + 2 * mm          # tip height when holding the top (the grasp spring's rest is at the tip)
 
 
-def arm():
-    from soroshapes import Basis, Shapes
-
-    down = np.eye(4)
-    down[:3, :3] = [[0, 0, 1], [0, 1, 0], [-1, 0, 0]]
-    down[2, 3] = BASE_Z
-    shp = Shapes(Basis.pcc(3), (0, 3, 0, 0, 0, 0), length=3 * SEG, section=sdf.Circle(12 * mm),
-                 material=materials.DragonSkin30(), base=down, segments=12)
-    shp.add_gravity((0.0, 0.0, -9.81))
-    for i in range(3):
-        shp.add_actuator(np.eye(3)[i], name=f"segment{i}")
-    return shp
-
-
-def cylinder():
-    from soroshapes import RigidBody
-
-    Ixx = M_CYL * (3 * R_CYL**2 + H_CYL**2) / 12
-    pose = np.eye(4)
-    pose[:3, 3] = (PICK[0], PICK[1], H_CYL / 2)
-    return RigidBody(M_CYL, [Ixx, Ixx, M_CYL * R_CYL**2 / 2], pose0=pose, damping=(0.05, 1e-4), name="cylinder",
-                     normalization=20.0)
-
-
-def schedule(quick):
-    """Waypoints [(t_start, (x, z), grip)]: the set-point moves to (x, z) from t_start on; grip in {0, 1}."""
-    hold = [(0.0, (PICK[0], 0.06), 0), (0.9, (PICK[0], TOP), 0), (1.8, (PICK[0], TOP), 1), (2.3, (PICK[0], 0.10), 1)]
-    if quick:
-        return hold, 3.4
-    return hold + [(3.3, (PLACE[0], 0.10), 1), (4.3, (PLACE[0], TOP), 1), (5.2, (PLACE[0], TOP), 0),
-                   (5.6, (PLACE[0], 0.08), 0)], 6.6
+#: The full run and the short one (`--quick`, what the tests run): pick, lift and place (full), or pick and
+#: lift only (quick).
+FULL = dict(place=True)
+QUICK = dict(place=False)
 
 
 def main(out: Path, quick: bool = False) -> dict:
@@ -89,7 +62,8 @@ def main(out: Path, quick: bool = False) -> dict:
     from soroshapes.rigid import couple_grasp, couple_ground, grasp_force
 
     shp, cyl = arm(), cylinder()
-    waypoints, T = schedule(quick)
+    prm = QUICK if quick else FULL
+    waypoints, T = schedule(prm["place"])
     times = np.array([w[0] for w in waypoints])
 
     def setpoint(t):
@@ -130,20 +104,20 @@ def main(out: Path, quick: bool = False) -> dict:
         i = int(np.searchsorted(tr.t, t_end)) - 1
         wp_err.append(float(np.hypot(tips[i, 0] - p[0], tips[i, 2] - p[1])))
     final = centre[-1]
-    target = PICK if quick else PLACE
+    target = PLACE if prm["place"] else PICK
 
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Rectangle
     from sorofem.io import save_figure
 
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.4))
+    fig = Figure(figsize=(11, 4.4))
+    (ax, bx) = fig.subplots(1, 2)
     ax.axhline(0, color="0.3", lw=2)
     for k in np.linspace(0, len(q) - 1, 7).astype(int):
         P = shp.positions(q[k])
         ax.plot(P[:, 0], P[:, 2], lw=5, alpha=0.25 + 0.75 * k / len(q), color="C0")
         c = centre[k]
-        ax.add_patch(plt.Rectangle((c[0] - R_CYL, c[2] - H_CYL / 2), 2 * R_CYL, H_CYL, alpha=0.3, color="C3"))
+        ax.add_patch(Rectangle((c[0] - R_CYL, c[2] - H_CYL / 2), 2 * R_CYL, H_CYL, alpha=0.3, color="C3"))
     ax.plot(centre[:, 0], centre[:, 2], "C3", lw=1, label="cylinder centre")
     ax.plot(tips[:, 0], tips[:, 2], "C1", lw=1, label="tip")
     ax.set(aspect="equal", xlabel="x [m]", ylabel="z [m]", title="pick and place")
@@ -167,6 +141,41 @@ def main(out: Path, quick: bool = False) -> dict:
         "simulated_s": T, "wall_time_s_sim": round(wall, 2), "real_time_factor": round(T / wall, 3),
         "png": "manipulator_pick.png",
     }
+
+
+# ------------------------------------------------------------------------------------------------- the steps
+def arm():
+    from soroshapes import Basis, Shapes
+
+    down = np.eye(4)
+    down[:3, :3] = [[0, 0, 1], [0, 1, 0], [-1, 0, 0]]
+    down[2, 3] = BASE_Z
+    shp = Shapes(Basis.pcc(3), (0, 3, 0, 0, 0, 0), length=3 * SEG, section=sdf.Circle(12 * mm),
+                 material=materials.DragonSkin30(), base=down, segments=12)
+    shp.add_gravity((0.0, 0.0, -9.81))
+    for i in range(3):
+        shp.add_actuator(np.eye(3)[i], name=f"segment{i}")
+    return shp
+
+
+def cylinder():
+    from soroshapes import RigidBody
+
+    Ixx = M_CYL * (3 * R_CYL**2 + H_CYL**2) / 12
+    pose = np.eye(4)
+    pose[:3, 3] = (PICK[0], PICK[1], H_CYL / 2)
+    return RigidBody(M_CYL, [Ixx, Ixx, M_CYL * R_CYL**2 / 2], pose0=pose, damping=(0.05, 1e-4), name="cylinder",
+                     normalization=20.0)
+
+
+def schedule(place):
+    """Waypoints [(t_start, (x, z), grip)] and the end time [s]: the set-point moves to (x, z) from t_start on;
+    grip in {0, 1}. Pick and lift; with ``place``, also carry, place and release."""
+    hold = [(0.0, (PICK[0], 0.06), 0), (0.9, (PICK[0], TOP), 0), (1.8, (PICK[0], TOP), 1), (2.3, (PICK[0], 0.10), 1)]
+    if not place:
+        return hold, 3.4
+    return hold + [(3.3, (PLACE[0], 0.10), 1), (4.3, (PLACE[0], TOP), 1), (5.2, (PLACE[0], TOP), 0),
+                   (5.6, (PLACE[0], 0.08), 0)], 6.6
 
 
 def scene(quick=False):

@@ -70,115 +70,10 @@ WIDTH, HEIGHT = 20 * mm, 60 * mm      # body y (across), body z (in the bending 
 SETTLE_TOL = 1 * mm
 
 
-def build():
-    """The arm (a :class:`soroshapes.Shapes` with gravity) and its density [kg/m^3]."""
-    from sorofem.sdf.properties import section_properties
-    from soroshapes import Basis, Shapes
-
-    section = sdf.RoundedRectangle(WIDTH, HEIGHT)
-    density = SEG_MASS / (section_properties(section).area * SEG_LEN)
-    shp = Shapes(Basis.pcc(SEGMENTS), dofs=(0, SEGMENTS, SEGMENTS, 0, 0, 0), length=SEGMENTS * SEG_LEN,
-                 section=section, material=materials.DragonSkin30(density=density), segments=4 * SEGMENTS)
-    shp.add_gravity((0.0, 0.0, -9.81))
-    return shp, density
-
-
-def tangent_stiffness(shp, q):
-    """K_t = d(K q - f_g(q))/dq by central differences (n, n)."""
-    def r(x):
-        return shp.K @ x - shp.dynamics(x, np.zeros_like(x))[2]
-    Kt = np.empty((shp.n, shp.n))
-    for k in range(shp.n):
-        e = np.zeros(shp.n)
-        e[k] = 1e-6 * max(1.0, abs(q[k]))
-        Kt[:, k] = (r(q + e) - r(q - e)) / (2 * e[k])
-    return 0.5 * (Kt + Kt.T)
-
-
-def linear_decay(shp, q, dofs):
-    """(lowest damped frequency [Hz], slowest decay rate [1/s]) of the linearization about q restricted to the
-    coordinates ``dofs`` (the in-plane and out-of-plane bendings decouple about a planar state)."""
-    ix = np.ix_(dofs, dofs)
-    M, Kt, D = shp.mass_matrix(q)[ix], tangent_stiffness(shp, q)[ix], shp.damping_matrix[ix]
-    n = len(dofs)
-    A = np.block([[np.zeros((n, n)), np.eye(n)], [-np.linalg.solve(M, Kt), -np.linalg.solve(M, D)]])
-    lam = np.linalg.eigvals(A)
-    osc = lam[np.abs(lam.imag) > 1e-9]
-    return float(np.abs(osc.imag).min() / (2 * np.pi)), float(-lam.real.max())
-
-
-def plots(out, shp, tr, q_static, decay):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib import cm
-
-    from soroshapes.render import render_png
-
-    P_static = shp.positions(q_static)
-    tip_s = P_static[-1]
-    render_png(out / "static.png", [{"frames": shp.forward_kinematics(q_static), "radius": 10 * mm}],
-               view=(20, -70), size=(6, 5), dpi=120, color="tab:red",
-               limits=((-20 * mm, 300 * mm), (-60 * mm, 60 * mm), (-250 * mm, 20 * mm)),
-               title="static sag under gravity (tube radius 10 mm)")
-
-    # snapshots in the bending plane, drawn with the section's 60 mm height
-    picks = np.unique(np.searchsorted(tr.t, [0.0, 0.1, 0.2, 0.3, 0.45, 0.6, 0.8, 1.2]).clip(0, len(tr.t) - 1))
-    fig, ax = plt.subplots(figsize=(8.5, 5.5))
-    for i, k in enumerate(picks):
-        G = shp.forward_kinematics(tr.q[k])
-        up = G[:, :3, 3] + 0.5 * HEIGHT * G[:, :3, 2]
-        lo = G[:, :3, 3] - 0.5 * HEIGHT * G[:, :3, 2]
-        poly = np.vstack([up, lo[::-1]])
-        c = cm.viridis(i / max(1, len(picks) - 1))
-        ax.fill(poly[:, 0] / mm, poly[:, 2] / mm, color=c, alpha=0.25)
-        ax.plot(G[:, 0, 3] / mm, G[:, 2, 3] / mm, color=c, lw=1.5, label=f"t = {tr.t[k]:.2f} s")
-    G = shp.forward_kinematics(q_static)
-    ax.plot(G[:, 0, 3] / mm, G[:, 2, 3] / mm, "--", color="tab:red", lw=2, label="static")
-    seg = np.searchsorted(shp.sigma, np.arange(SEGMENTS + 1) * SEG_LEN - 1e-12)
-    ax.plot(G[seg, 0, 3] / mm, G[seg, 2, 3] / mm, "o", color="tab:red", ms=4, label="segment ends (static)")
-    ax.plot(0, 0, "ks", ms=8)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [mm]")
-    ax.set_ylabel("z [mm]")
-    ax.set_title("release from straight: backbones and 60 mm section outline")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.02, 0.5))
-    fig.tight_layout()
-    fig.savefig(out / "snapshots.png", dpi=120)
-    plt.close(fig)
-
-    d = np.linalg.norm(tr.tip - tip_s, axis=1)
-    fig, ax = plt.subplots(1, 3, figsize=(13, 4))
-    ax[0].plot(P_static[:, 0] / mm, P_static[:, 2] / mm, "-", color="tab:red", lw=2, label="static backbone")
-    ax[0].plot(tr.tip[:, 0] / mm, tr.tip[:, 2] / mm, "-", color="tab:blue", lw=1, label="tip path (dynamic)")
-    ax[0].plot(tip_s[0] / mm, tip_s[2] / mm, "*", color="tab:red", ms=12, label="static tip")
-    ax[0].plot(0, 0, "ks", label="clamp")
-    ax[0].set_aspect("equal")
-    ax[0].set_xlabel("x [mm]")
-    ax[0].set_ylabel("z [mm]")
-    ax[0].set_title("tip path in the bending plane")
-    ax[0].legend(fontsize=8)
-    ax[1].semilogy(tr.t, np.maximum(d, 1e-6) / mm)
-    ax[1].semilogy(tr.t, d[0] * np.exp(-decay * tr.t) / mm, "--", color="gray",
-                   label=f"linearized envelope, decay {decay:.2f} 1/s")
-    ax[1].axhline(SETTLE_TOL / mm, color="k", ls=":", lw=1, label="1 mm")
-    ax[1].set_xlabel("time [s]")
-    ax[1].set_ylabel("|tip - static tip| [mm]")
-    ax[1].set_title("settling")
-    ax[1].legend(fontsize=8)
-    ax[2].plot(tr.t, tr.kinetic, label="kinetic")
-    ax[2].plot(tr.t, tr.potential, label="potential (elastic + gravity)")
-    ax[2].plot(tr.t, tr.total, "k", label="total")
-    ax[2].set_xlabel("time [s]")
-    ax[2].set_ylabel("energy [J]")
-    ax[2].set_title("energy (damped)")
-    ax[2].legend(fontsize=8)
-    for a in ax:
-        a.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(out / "tip.png", dpi=110)
-    plt.close(fig)
+#: The full run and the short one (`--quick`, what the tests run): simulated time and time step [s] (the
+#: quick run keeps the 4 s: 0.5 s would stop mid-swing).
+FULL = dict(t_end=4.0, dt=1e-3)
+QUICK = dict(t_end=4.0, dt=4e-3)
 
 
 def main(out: Path, quick: bool = False) -> dict:
@@ -196,7 +91,8 @@ def main(out: Path, quick: bool = False) -> dict:
     E_static = shp.energy(q_static)["total"]
 
     # (b) dynamic release from straight
-    t_end, dt = 4.0, (4e-3 if quick else 1e-3)
+    prm = QUICK if quick else FULL
+    t_end, dt = prm["t_end"], prm["dt"]
     tr = shp.simulate(t_end, dt, method="implicit")
     d = np.linalg.norm(tr.tip - tip_s, axis=1)
     above = np.flatnonzero(d > SETTLE_TOL)
@@ -240,6 +136,115 @@ def main(out: Path, quick: bool = False) -> dict:
         "steps": int(tr.stats["steps"]),
     }
     return summary
+
+
+# ------------------------------------------------------------------------------------------------- the steps
+def build():
+    """The arm (a :class:`soroshapes.Shapes` with gravity) and its density [kg/m^3]."""
+    from sorofem.sdf.properties import section_properties
+    from soroshapes import Basis, Shapes
+
+    section = sdf.RoundedRectangle(WIDTH, HEIGHT)
+    density = SEG_MASS / (section_properties(section).area * SEG_LEN)
+    shp = Shapes(Basis.pcc(SEGMENTS), dofs=(0, SEGMENTS, SEGMENTS, 0, 0, 0), length=SEGMENTS * SEG_LEN,
+                 section=section, material=materials.DragonSkin30(density=density), segments=4 * SEGMENTS)
+    shp.add_gravity((0.0, 0.0, -9.81))
+    return shp, density
+
+
+def tangent_stiffness(shp, q):
+    """K_t = d(K q - f_g(q))/dq by central differences (n, n)."""
+    def r(x):
+        return shp.K @ x - shp.dynamics(x, np.zeros_like(x))[2]
+    Kt = np.empty((shp.n, shp.n))
+    for k in range(shp.n):
+        e = np.zeros(shp.n)
+        e[k] = 1e-6 * max(1.0, abs(q[k]))
+        Kt[:, k] = (r(q + e) - r(q - e)) / (2 * e[k])
+    return 0.5 * (Kt + Kt.T)
+
+
+def linear_decay(shp, q, dofs):
+    """(lowest damped frequency [Hz], slowest decay rate [1/s]) of the linearization about q restricted to the
+    coordinates ``dofs`` (the in-plane and out-of-plane bendings decouple about a planar state)."""
+    ix = np.ix_(dofs, dofs)
+    M, Kt, D = shp.mass_matrix(q)[ix], tangent_stiffness(shp, q)[ix], shp.damping_matrix[ix]
+    n = len(dofs)
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-np.linalg.solve(M, Kt), -np.linalg.solve(M, D)]])
+    lam = np.linalg.eigvals(A)
+    osc = lam[np.abs(lam.imag) > 1e-9]
+    return float(np.abs(osc.imag).min() / (2 * np.pi)), float(-lam.real.max())
+
+
+def plots(out, shp, tr, q_static, decay):
+    from matplotlib import cm
+    from matplotlib.figure import Figure
+    from sorofem.io import save_figure
+
+    from soroshapes.render import render_png
+
+    P_static = shp.positions(q_static)
+    tip_s = P_static[-1]
+    render_png(out / "static.png", [{"frames": shp.forward_kinematics(q_static), "radius": 10 * mm}],
+               view=(20, -70), size=(6, 5), dpi=120, color="tab:red",
+               limits=((-20 * mm, 300 * mm), (-60 * mm, 60 * mm), (-250 * mm, 20 * mm)),
+               title="static sag under gravity (tube radius 10 mm)")
+
+    # snapshots in the bending plane, drawn with the section's 60 mm height
+    picks = np.unique(np.searchsorted(tr.t, [0.0, 0.1, 0.2, 0.3, 0.45, 0.6, 0.8, 1.2]).clip(0, len(tr.t) - 1))
+    fig = Figure(figsize=(8.5, 5.5))
+    ax = fig.subplots()
+    for i, k in enumerate(picks):
+        G = shp.forward_kinematics(tr.q[k])
+        up = G[:, :3, 3] + 0.5 * HEIGHT * G[:, :3, 2]
+        lo = G[:, :3, 3] - 0.5 * HEIGHT * G[:, :3, 2]
+        poly = np.vstack([up, lo[::-1]])
+        c = cm.viridis(i / max(1, len(picks) - 1))
+        ax.fill(poly[:, 0] / mm, poly[:, 2] / mm, color=c, alpha=0.25)
+        ax.plot(G[:, 0, 3] / mm, G[:, 2, 3] / mm, color=c, lw=1.5, label=f"t = {tr.t[k]:.2f} s")
+    G = shp.forward_kinematics(q_static)
+    ax.plot(G[:, 0, 3] / mm, G[:, 2, 3] / mm, "--", color="tab:red", lw=2, label="static")
+    seg = np.searchsorted(shp.sigma, np.arange(SEGMENTS + 1) * SEG_LEN - 1e-12)
+    ax.plot(G[seg, 0, 3] / mm, G[seg, 2, 3] / mm, "o", color="tab:red", ms=4, label="segment ends (static)")
+    ax.plot(0, 0, "ks", ms=8)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("z [mm]")
+    ax.set_title("release from straight: backbones and 60 mm section outline")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.02, 0.5))
+    save_figure(fig, out / "snapshots.png", dpi=120)
+
+    d = np.linalg.norm(tr.tip - tip_s, axis=1)
+    fig = Figure(figsize=(13, 4))
+    ax = fig.subplots(1, 3)
+    ax[0].plot(P_static[:, 0] / mm, P_static[:, 2] / mm, "-", color="tab:red", lw=2, label="static backbone")
+    ax[0].plot(tr.tip[:, 0] / mm, tr.tip[:, 2] / mm, "-", color="tab:blue", lw=1, label="tip path (dynamic)")
+    ax[0].plot(tip_s[0] / mm, tip_s[2] / mm, "*", color="tab:red", ms=12, label="static tip")
+    ax[0].plot(0, 0, "ks", label="clamp")
+    ax[0].set_aspect("equal")
+    ax[0].set_xlabel("x [mm]")
+    ax[0].set_ylabel("z [mm]")
+    ax[0].set_title("tip path in the bending plane")
+    ax[0].legend(fontsize=8)
+    ax[1].semilogy(tr.t, np.maximum(d, 1e-6) / mm)
+    ax[1].semilogy(tr.t, d[0] * np.exp(-decay * tr.t) / mm, "--", color="gray",
+                   label=f"linearized envelope, decay {decay:.2f} 1/s")
+    ax[1].axhline(SETTLE_TOL / mm, color="k", ls=":", lw=1, label="1 mm")
+    ax[1].set_xlabel("time [s]")
+    ax[1].set_ylabel("|tip - static tip| [mm]")
+    ax[1].set_title("settling")
+    ax[1].legend(fontsize=8)
+    ax[2].plot(tr.t, tr.kinetic, label="kinetic")
+    ax[2].plot(tr.t, tr.potential, label="potential (elastic + gravity)")
+    ax[2].plot(tr.t, tr.total, "k", label="total")
+    ax[2].set_xlabel("time [s]")
+    ax[2].set_ylabel("energy [J]")
+    ax[2].set_title("energy (damped)")
+    ax[2].legend(fontsize=8)
+    for a in ax:
+        a.grid(alpha=0.3)
+    save_figure(fig, out / "tip.png", dpi=110)
 
 
 if __name__ == "__main__":

@@ -49,9 +49,36 @@ from pathlib import Path
 
 import numpy as np
 
+from sorofem.errors import ParameterError
+from sorofem.snapshots import input_name
 from sorofem.units import kPa, mm
 
 
+#: The full run and the short one (`--quick`, what the tests run), for (a) and (b): the design's parameters
+#: (:func:`soro.robots.design`), element size [m], displacement degree, top pressure [Pa] and load steps of (a),
+#: load steps per leg of (b)'s path.
+FULL = dict(bending=dict(design={}, size=2.5 * mm, degree=2, p_max=100 * kPa, steps=8),
+            planar=dict(design={}, size=2.5 * mm, degree=2, per_leg=4))
+QUICK = dict(bending=dict(design=dict(n_bellows=3, length=50 * mm), size=3.0 * mm, degree=1, p_max=40 * kPa,
+                          steps=6),
+             planar=dict(design=dict(n_bellows=4, length=56 * mm), size=3.0 * mm, degree=1, per_leg=4))
+
+
+def main(out: Path, quick: bool = False, robot: str = "all") -> dict:
+    """Run (a) and/or (b) (``robot``: "all", "bending_actuator" or "planar_actuator") into ``out/a``, ``out/b``."""
+    prm = QUICK if quick else FULL
+    out = Path(out)
+    if robot not in ("all", "bending_actuator", "planar_actuator"):
+        raise ParameterError(f"robot must be 'all', 'bending_actuator' or 'planar_actuator', got {robot!r}")
+    report = {}
+    if robot in ("all", "bending_actuator"):
+        report.update(bending(out / "a", prm["bending"]))
+    if robot in ("all", "planar_actuator"):
+        report["planar"] = planar(out / "b", prm["planar"])
+    return report
+
+
+# ------------------------------------------------------------------------------------------------- the steps
 def tip_angle(frames):
     """Tip angle [rad] from tip frames (steps, 4, 4): the rotation of the tangent (first column) about y,
     positive when the actuator curls towards its base layer (-z)."""
@@ -89,9 +116,10 @@ def dvs_twin(train_file, backbone, dofs, section, base, inputs, degree, samples)
     return shp, data, cmp, ident, kept, info, tr
 
 
-def bending(out, quick):
-    """(a): FEM ramp, DVS beam, held-out check. Returns the report dict."""
-    import matplotlib.pyplot as plt
+def bending(out, prm):
+    """(a): FEM ramp, DVS beam, held-out check, with the parameter set ``prm["bending"]``; returns the report."""
+    from matplotlib.figure import Figure
+    from sorofem.io import save_figure
 
     from soroshapes.dvs import Backbone
     from soro import robots
@@ -100,10 +128,7 @@ def bending(out, quick):
     from sorofem.mesh import Mesh
 
     out.mkdir(parents=True, exist_ok=True)
-    if quick:
-        params, size, degree, p_max, steps = dict(n_bellows=3, length=50 * mm), 3.0 * mm, 1, 40 * kPa, 6
-    else:
-        params, size, degree, p_max, steps = {}, 2.5 * mm, 2, 100 * kPa, 8
+    params, size, degree, p_max, steps = (prm[k] for k in ("design", "size", "degree", "p_max", "steps"))
     # the printed design with sharp edges (fillet 0: an exact OpenCASCADE rebuild of the tree) and the port
     # bore filled flush with the block's back face: the chamber network becomes one closed cavity
     dsg = robots.design("bending_actuator", fillet=0.0, **params)
@@ -124,7 +149,7 @@ def bending(out, quick):
     # backbone: the base layer's mid-plane, from the block's front face to the tip
     blk, base, L = p["block"], p["base"], p["length"]
     backbone = Backbone.line([blk, 0.0, base / 2], [L - 0.3 * mm, 0.0, base / 2], normal=[0.0, 1.0, 0.0])
-    inputs = ["pressure/cavity_0"]
+    inputs = [input_name("pressure", "cavity_0")]
     shp, data, cmp, ident, kept, info, tr = dvs_twin(out / "train.h5", backbone, (0, 3, 0, 0, 0, 0),
                                                      twin.section, [blk, 0.0, base / 2], inputs, 3, 61)
     ho = np.setdiff1d(np.arange(len(data.times)), tr)
@@ -132,7 +157,8 @@ def bending(out, quick):
     a_fem = tip_angle(data.frames[:, -1])
     a_beam = tip_angle(np.array([shp.forward_kinematics(q)[-1] for q in cmp["q"]]))
 
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig = Figure(figsize=(6, 4))
+    ax = fig.subplots()
     ax.plot(pressures / kPa, np.degrees(a_fem), "k-", lw=0.8)
     ax.plot(pressures[tr] / kPa, np.degrees(a_fem[tr]), "ko", label="3D FEM, training pressures")
     ax.plot(pressures[ho] / kPa, np.degrees(a_fem[ho]), "kD", mfc="w", label="3D FEM, held-out pressures")
@@ -142,9 +168,7 @@ def bending(out, quick):
     ax.set_title(f"bending actuator (a), {p['n_bellows']} bellows, {L / mm:g} mm")
     ax.grid(alpha=0.3)
     ax.legend()
-    fig.tight_layout()
-    fig.savefig(out / "tip_angle.png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, out / "tip_angle.png", dpi=120)
     err = 100 * cmp["tip_error"]
     return {
         "n_bellows": int(p["n_bellows"]), "length_mm": L / mm, "p_max_kPa": p_max / kPa,
@@ -180,9 +204,11 @@ def planar_path(p_max, side):
     return lambda t: p_max * float(np.clip(t - 1.0, 0.0, 1.0))
 
 
-def planar(out, quick):
-    """(b): FEM of both networks along one load path, DVS beam, held-out check. Returns the report dict."""
-    import matplotlib.pyplot as plt
+def planar(out, prm):
+    """(b): FEM of both networks along one load path, DVS beam, held-out check, with the parameter set
+    ``prm["planar"]``; returns the report dict."""
+    from matplotlib.figure import Figure
+    from sorofem.io import save_figure
 
     from soroshapes.dvs import Backbone
     from soro import robots
@@ -191,10 +217,7 @@ def planar(out, quick):
     from sorofem.mesh import Mesh
 
     out.mkdir(parents=True, exist_ok=True)
-    if quick:
-        params, size, degree, per_leg = dict(n_bellows=4, length=56 * mm), 3.0 * mm, 1, 4
-    else:
-        params, size, degree, per_leg = {}, 2.5 * mm, 2, 4
+    params, size, degree, per_leg = (prm[k] for k in ("design", "size", "degree", "per_leg"))
     dsg = robots.design("planar_actuator", fillet=0.0, **params)
     p_max = dsg.channels["left"][1]
     part, twin = dsg.parts[0], dsg.twins[0]
@@ -224,7 +247,7 @@ def planar(out, quick):
     yc, zb = p["width"] / 2 + p["separation"] / 2, H / 2 + p["channel"] / 2 + p["wall"] / 2
     x0 = blk + gap / 2
     backbone = Backbone.line([x0, yc, zb], [x0 + n * pitch, yc, zb], normal=[0.0, 1.0, 0.0])
-    inputs = [f"pressure/{side['left']}", f"pressure/{side['right']}"]
+    inputs = [input_name("pressure", side["left"]), input_name("pressure", side["right"])]
     shp, data, cmp, ident, kept, info, tr = dvs_twin(out / "train.h5", backbone, (0, 0, 2, 2, 0, 0),
                                                      twin.section, [x0, yc, zb], inputs, 2, n + 1)
     ho = np.setdiff1d(np.arange(len(data.times)), tr)
@@ -245,7 +268,8 @@ def planar(out, quick):
     fem_centre = np.array([(data.frames[k, -1] @ np.append(centre, 1.0))[:3] for k in range(len(data.times))])
     seed = dsg.workspace
 
-    fig, axs = plt.subplots(1, 2, figsize=(10, 4))
+    fig = Figure(figsize=(10, 4))
+    axs = fig.subplots(1, 2)
     s = np.asarray(data.times)
     for ax, k, lab in ((axs[0], 1, "left chain's tip: y [mm]"), (axs[1], 0, "left chain's tip: x displacement [mm]")):
         ax.plot(s, tip_fem[:, k] / mm, "k-", lw=0.8)
@@ -257,9 +281,7 @@ def planar(out, quick):
         ax.grid(alpha=0.3)
     axs[0].legend()
     fig.suptitle(f"planar actuator (b), {n} bellows per network, {p['length'] / mm:g} mm")
-    fig.tight_layout()
-    fig.savefig(out / "tip.png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, out / "tip.png", dpi=120)
     return {
         "n_bellows": int(n), "length_mm": p["length"] / mm, "backbone_mm": backbone.length / mm,
         "p_max_kPa": p_max / kPa, "fem_cells": int(msh.num_cells), "fem_degree": degree, "fem_s": t_fem,
@@ -275,18 +297,3 @@ def planar(out, quick):
         "fem_tip_centre_mm": (fem_centre / mm).tolist(),
         "seed_workspace_mm": [v / mm for v in seed],
     }
-
-
-def main(out: Path, quick: bool = False, robot: str = "all") -> dict:
-    import matplotlib
-    matplotlib.use("Agg")
-
-    out = Path(out)
-    if robot not in ("all", "bending_actuator", "planar_actuator"):
-        raise ValueError(f"robot must be 'all', 'bending_actuator' or 'planar_actuator', got {robot!r}")
-    report = {}
-    if robot in ("all", "bending_actuator"):
-        report.update(bending(out / "a", quick))
-    if robot in ("all", "planar_actuator"):
-        report["planar"] = planar(out / "b", quick)
-    return report

@@ -46,9 +46,75 @@ from sorofem import robots, sdf
 from sorofem.units import mm
 
 
+# ------------------------------------------------------------------------------------------------ parameters
 PNEUNET_DEPTH = 15 * mm       # the finger's thickness (z)
 PNEUNET_SIDE = 2 * mm         # side walls closing the chambers and the channel (z)
+#: Grid steps [m] of the full run and the short one (`--quick`, what the tests run): the STL files (None: the
+#: default from the bounds), the sphere's STL, the PneuNet section's properties, the lattice's and the
+#: finger's volumes.
+FULL = dict(stl_resolution=None, sphere_resolution=None, section_resolution=0.05 * mm,
+            lattice_resolution=0.1 * mm, finger_resolution=0.2 * mm)
+QUICK = dict(stl_resolution=1.0 * mm, sphere_resolution=0.5 * mm, section_resolution=0.2 * mm,
+             lattice_resolution=0.4 * mm, finger_resolution=0.6 * mm)
 
+
+def main(out: Path, quick: bool = False) -> dict:
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    """Build, export and measure the gallery's shapes into ``out``; returns the figures (see Figures above)."""
+    prm = QUICK if quick else FULL
+
+    # 1. 2D: the paper's example and a PneuNet section, their section properties
+    seed2d, seed3d = seed_shapes()
+    section = pneunet_section()
+    sp_seed = seed2d.section_properties()
+    sp_pn = section.section_properties(resolution=prm["section_resolution"])
+    pngs = [seed2d.to_png(out / "seed2d.png", title="Rectangle.rotate(45 deg) - Circle"),
+            section.to_png(out / "pneunet_section.png", title="PneuNet section")]
+
+    # 2. 3D: solids, STL + slices
+    finger, plug, chamber_points = pneunet_finger()
+    bel = bellows()
+    lat = lattice()
+    sphere = sdf.Sphere(10 * mm)
+    solids = {"seed3d": seed3d, "finger": finger, "bellows": bel, "lattice": lat}
+    stls = {name: s.to_stl(out / f"{name}.stl", resolution=prm["stl_resolution"]) for name, s in solids.items()}
+    stls["sphere"] = sphere.to_stl(out / "sphere.stl", resolution=prm["sphere_resolution"])
+    pngs += [bel.to_png(out / "bellows_xz.png", plane="xz", title="bellows, slice y = 0"),
+             lat.to_png(out / "lattice_xy.png", plane="xy", at=0.0, title="lattice, slice z = 0"),
+             finger.to_png(out / "finger_xz.png", plane="xz", at=7 * mm, title="finger, slice y = 7 mm")]
+
+    # 3. checks: the finger is one watertight shell with one chamber network; volumes against closed forms
+    chk = sdf.surface_check(sdf.read_stl(stls["finger"])[0])
+    net = robots.Network("pneunet", plug, tuple(chamber_points), (0.0, 0.0))
+    flood = robots.chamber_check(robots.Part("finger", finger, "Elastic80A", (net,), feature=1.5 * mm))
+    v_sphere, _ = _stl_volume(stls["sphere"])
+    v_exact = 4 / 3 * math.pi * (10 * mm) ** 3
+    _, n_bellows = _stl_volume(stls["bellows"])
+    v_lat = lat.mass_properties(resolution=prm["lattice_resolution"]).volume
+    v_finger = finger.mass_properties(resolution=prm["finger_resolution"]).volume
+
+    seed_area_exact = (20 * mm) * (10 * mm) - math.pi * (3 * mm) ** 2
+    return {
+        "shapes": 2 + len(solids) + 1,
+        "stl_files": len(stls),
+        "png_files": len(pngs),
+        "sphere_volume_error_rel": abs(v_sphere - v_exact) / v_exact,
+        "pneunet_section_area_mm2": sp_pn.area / mm**2,
+        "pneunet_section_Iy_mm4": sp_pn.Iy / mm**4,
+        "pneunet_section_Iz_mm4": sp_pn.Iz / mm**4,
+        "seed2d_area_mm2": sp_seed.area / mm**2,
+        "seed2d_area_error_rel": abs(sp_seed.area - seed_area_exact) / seed_area_exact,
+        "finger_volume_mm3": v_finger / mm**3,
+        "finger_check": {"watertight": bool(chk["watertight"]), "shells": int(chk["shells"]),
+                         "volume_mm3": float(chk["volume"] / mm**3)},
+        "finger_network": flood["pneunet"],
+        "lattice_porosity": 1.0 - v_lat / (20 * mm) ** 3,
+        "bellows_triangles": n_bellows,
+    }
+
+
+# ------------------------------------------------------------------------------------------------ the shapes
 
 def _pneunet_2d():
     """The PneuNet's side-view outline and voids in the (x, y) plane [m]: (outline, chambers, channel).
@@ -119,60 +185,6 @@ def seed_shapes():
 def _stl_volume(path):
     tri, _ = sdf.read_stl(path)
     return float(np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6), len(tri)
-
-
-def main(out: Path, quick: bool = False) -> dict:
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    res = 1.0 * mm if quick else None            # STL grid step [m]; None = default from the bounds
-
-    # ---- 2D: the paper's example and a PneuNet section
-    seed2d, seed3d = seed_shapes()
-    section = pneunet_section()
-    sp_seed = seed2d.section_properties()
-    sp_pn = section.section_properties(resolution=0.2 * mm if quick else 0.05 * mm)
-    pngs = [seed2d.to_png(out / "seed2d.png", title="Rectangle.rotate(45 deg) - Circle"),
-            section.to_png(out / "pneunet_section.png", title="PneuNet section")]
-
-    # ---- 3D: solids, STL + slices
-    finger, plug, chamber_points = pneunet_finger()
-    bel = bellows()
-    lat = lattice()
-    sphere = sdf.Sphere(10 * mm)
-    solids = {"seed3d": seed3d, "finger": finger, "bellows": bel, "lattice": lat}
-    stls = {name: s.to_stl(out / f"{name}.stl", resolution=res) for name, s in solids.items()}
-    stls["sphere"] = sphere.to_stl(out / "sphere.stl", resolution=0.5 * mm if quick else None)
-    pngs += [bel.to_png(out / "bellows_xz.png", plane="xz", title="bellows, slice y = 0"),
-             lat.to_png(out / "lattice_xy.png", plane="xy", at=0.0, title="lattice, slice z = 0"),
-             finger.to_png(out / "finger_xz.png", plane="xz", at=7 * mm, title="finger, slice y = 7 mm")]
-
-    chk = sdf.surface_check(sdf.read_stl(stls["finger"])[0])
-    net = robots.Network("pneunet", plug, tuple(chamber_points), (0.0, 0.0))
-    flood = robots.chamber_check(robots.Part("finger", finger, "Elastic80A", (net,), feature=1.5 * mm))
-    v_sphere, _ = _stl_volume(stls["sphere"])
-    v_exact = 4 / 3 * math.pi * (10 * mm) ** 3
-    _, n_bellows = _stl_volume(stls["bellows"])
-    v_lat = lat.mass_properties(resolution=0.4 * mm if quick else 0.1 * mm).volume
-    v_finger = finger.mass_properties(resolution=0.6 * mm if quick else 0.2 * mm).volume
-
-    seed_area_exact = (20 * mm) * (10 * mm) - math.pi * (3 * mm) ** 2
-    return {
-        "shapes": 2 + len(solids) + 1,
-        "stl_files": len(stls),
-        "png_files": len(pngs),
-        "sphere_volume_error_rel": abs(v_sphere - v_exact) / v_exact,
-        "pneunet_section_area_mm2": sp_pn.area / mm**2,
-        "pneunet_section_Iy_mm4": sp_pn.Iy / mm**4,
-        "pneunet_section_Iz_mm4": sp_pn.Iz / mm**4,
-        "seed2d_area_mm2": sp_seed.area / mm**2,
-        "seed2d_area_error_rel": abs(sp_seed.area - seed_area_exact) / seed_area_exact,
-        "finger_volume_mm3": v_finger / mm**3,
-        "finger_check": {"watertight": bool(chk["watertight"]), "shells": int(chk["shells"]),
-                         "volume_mm3": float(chk["volume"] / mm**3)},
-        "finger_network": flood["pneunet"],
-        "lattice_porosity": 1.0 - v_lat / (20 * mm) ** 3,
-        "bellows_triangles": n_bellows,
-    }
 
 
 if __name__ == "__main__":

@@ -28,7 +28,6 @@ loop               20 Hz (the camera), bending angle steps 20, 50, 35 deg held 2
                    1.5 s), each smoothed by a first-order lag of 0.2 s
 =================  =====================================================================================
 """
-import time
 from pathlib import Path
 
 import numpy as np
@@ -40,26 +39,9 @@ LENGTH, P_MAX = 100 * mm, 60 * kPa
 NODES = [2, 4, 6, 8, 10]
 
 
-def finger():
-    from soroshapes import Basis, Shapes
-
-    shp = Shapes(Basis.chebyshev(3), (0, 3, 0, 0, 0, 0), length=LENGTH, section=sdf.Circle(8 * mm),
-                 material=materials.DragonSkin10(), segments=10)
-    shp.add_chamber(40 * mm**2, (0.0, -5 * mm), name="chamber")
-    shp.add_gravity((0.0, 0.0, -9.81))
-    return shp
-
-
-def angle(shp, q):
-    """Bending angle of the tip [deg] about -y (positive: the tip turns up, toward +z)."""
-    R = shp.forward_kinematics(q)[-1, :3, :3]
-    return float(np.degrees(np.arctan2(R[2, 0], R[0, 0])))
-
-
-def error_stats(err):
-    """Mean, 95th percentile and maximum of a series of errors (rounded for the report)."""
-    return {"mean": round(float(np.mean(err)), 4), "p95": round(float(np.percentile(err, 95)), 4),
-            "max": round(float(np.max(err)), 4)}
+#: The full run and the short one (`--quick`, what the tests run): bending angle steps [deg], each held [s].
+FULL = dict(refs=(20.0, 50.0, 35.0), hold=2.0)
+QUICK = dict(refs=(20.0, 45.0), hold=1.5)
 
 
 def main(out: Path, quick: bool = False) -> dict:
@@ -69,8 +51,8 @@ def main(out: Path, quick: bool = False) -> dict:
     shp = finger()
     grid = np.linspace(0.0, P_MAX, 13)
     static = np.array([angle(shp, shp.statics(u=[p], steps=2)) for p in grid])
-    refs = [20.0, 45.0] if quick else [20.0, 50.0, 35.0]
-    hold, rate = (1.5 if quick else 2.0), 20.0
+    prm = QUICK if quick else FULL
+    refs, hold, rate = list(prm["refs"]), prm["hold"], 20.0
     ki = 1.5 * (grid[-1] - grid[0]) / (static[-1] - static[0])        # Pa/(deg s): crossover ~1.5 rad/s
 
     cam = CameraModel.from_fov(60.0, pose=look_at((0.05, -0.15, 0.02), (0.05, 0.0, 0.02), up=(0, 0, 1)))
@@ -105,12 +87,11 @@ def main(out: Path, quick: bool = False) -> dict:
     t, ref, th, th_hat, tip_err = log[:, 0], log[:, 1], log[:, 2], log[:, 3], log[:, 4]
     end_err = [float(abs(ref[(t < (i + 1) * hold)][-1] - th[(t < (i + 1) * hold)][-1])) for i in range(len(refs))]
 
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
     from sorofem.io import save_figure
 
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4))
+    fig = Figure(figsize=(11, 4))
+    (ax, bx) = fig.subplots(1, 2)
     ax.plot(t, ref, "k--", lw=1, label="reference")
     ax.plot(t, th, lw=1.5, label="true angle (board)")
     ax.plot(t, th_hat, ".", ms=3, label="estimated from the camera")
@@ -130,3 +111,26 @@ def main(out: Path, quick: bool = False) -> dict:
         "loop_rate_hz": round(stats.rate, 2), "loop_missed": stats.missed,
         "png": "shape_sensing.png",
     }
+
+
+# ------------------------------------------------------------------------------------------------- the steps
+def finger():
+    from soroshapes import Basis, Shapes
+
+    shp = Shapes(Basis.chebyshev(3), (0, 3, 0, 0, 0, 0), length=LENGTH, section=sdf.Circle(8 * mm),
+                 material=materials.DragonSkin10(), segments=10)
+    shp.add_chamber(40 * mm**2, (0.0, -5 * mm), name="chamber")
+    shp.add_gravity((0.0, 0.0, -9.81))
+    return shp
+
+
+def angle(shp, q):
+    """Bending angle of the tip [deg] about -y (positive: the tip turns up, toward +z)."""
+    R = shp.forward_kinematics(q)[-1, :3, :3]
+    return float(np.degrees(np.arctan2(R[2, 0], R[0, 0])))
+
+
+def error_stats(err):
+    """Mean, 95th percentile and maximum of a series of errors (rounded for the report)."""
+    return {"mean": round(float(np.mean(err)), 4), "p95": round(float(np.percentile(err, 95)), 4),
+            "max": round(float(np.max(err)), 4)}

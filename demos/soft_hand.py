@@ -107,6 +107,90 @@ DRIVE_TABLE_DT = 1e-4        # [s] the drive as a periodic table (interpolation 
 R_AIR, T_AIR = 287.05, 293.15
 
 
+#: The full run and the short one (`--quick`, what the tests run): simulated time [s], drive periods analysed
+#: at its end (a quick run has ~1.1 periods: the last one).
+FULL = dict(t_end=5.0, analysis_periods=2)
+QUICK = dict(t_end=1.0, analysis_periods=1)
+
+
+def main(out: Path, quick: bool = False) -> dict:
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    mdl, fingers = build()
+    prm = QUICK if quick else FULL
+    t_end, dt, method, rtol, atol = prm["t_end"], 2e-3, "bdf2", 1e-4, 1e-6
+    tr = mdl.simulate(t_end, dt, method=method, rtol=rtol, atol=atol)
+    st = tr.stats
+
+    angles = [tip_angle(f, tr[n].q) for f, n in zip(fingers, NAMES)]
+    period = 2 * np.pi / OMEGA
+    # steady state needs a few decay times of the first mode (zeta omega ~ 2/s): analyse the last whole
+    # period of a long run; a quick run has only ~1.1 periods, take the last period it has
+    window = (max(0.0, t_end - prm["analysis_periods"] * period), t_end)
+    sel = (tr.t >= window[0] - 1e-12)
+    ph, amp_h = zip(*(first_harmonic_phase(tr.t[sel], a[sel], OMEGA) for a in angles))
+    ph = np.unwrap(np.array(ph))
+    pph = np.unwrap([first_harmonic_phase(tr.t[sel], tr[f"p_{n}"].pressure[sel], OMEGA)[0] for n in NAMES])
+    last = tr.t >= t_end - period - 1e-12
+    amp = [0.5 * (a[last].max() - a[last].min()) for a in angles]
+
+    # pressure tracking on the plateaus: |p_d| above 79 kPa for at least the last 0.1 s
+    pd = np.array([set_point(t) for t in tr.t])
+    P = np.column_stack([tr[f"p_{n}"].pressure for n in NAMES])
+    high = np.abs(pd) > 79 * kPa
+    lag = int(round(0.1 / (tr.t[1] - tr.t[0])))
+    settled = np.array([[k >= lag and high[k - lag:k + 1, i].all() for i in range(5)] for k in range(len(tr.t))])
+    track = float(np.abs(P - pd)[settled].max()) if settled.any() else float("nan")
+    # valve saturation: |kp e + ki s| >= max_flow
+    kp = V0 / (R_AIR * T_AIR * TAU_P)
+    sat = np.mean([np.abs(kp * (pd[:, i] - P[:, i]) + kp / T_I * tr[f"p_{n}"].x[:, -1]) >= MAX_FLOW
+                   for i, n in enumerate(NAMES)])
+    vol = max(float(np.max(np.abs(tr[f"p_{n}"].volume / V0 - 1))) for n in NAMES)
+    EI = [f.E * f.section_properties.Iy for f in fingers]
+    tips = [np.array([f.forward_kinematics(q)[-1, :3, 3] for q in tr[n].q[last]]) for f, n in zip(fingers, NAMES)]
+    plots(out, fingers, tr, angles, window)
+
+    return {
+        "fingers": NAMES,
+        "lengths_mm": [L / mm for L in LENGTHS],
+        "modes": MODES,
+        "states": mdl.n,
+        "youngs_modulus_kPa": fingers[0].E / kPa,
+        "damping_tau_s": [f.damping for f in fingers],
+        "first_frequency_Hz": [float(f.natural_frequencies(1)[0]) for f in fingers],
+        "static_angle_80kPa_deg": [float(np.degrees(P_AMP * CH_AREA * CH_OFFSET * L / ei))
+                                   for L, ei in zip(LENGTHS, EI)],
+        "bending_amplitude_deg": [float(np.degrees(a)) for a in amp],
+        "first_harmonic_amplitude_deg": [float(np.degrees(a)) for a in amp_h],
+        "tip_angle_max_deg": [float(np.degrees(a[last].max())) for a in angles],
+        "tip_angle_min_deg": [float(np.degrees(a[last].min())) for a in angles],
+        "tip_excursion_mm": [float(np.linalg.norm(p.max(0) - p.min(0)) / mm) for p in tips],
+        "analysis_window_s": [float(w) for w in window],
+        "phase_deg": [float(v) for v in np.degrees(ph)],
+        "phase_step_deg": [float(v) for v in np.degrees(np.diff(ph))],
+        "phase_step_fingers_deg": [float(v) for v in np.degrees(np.diff(ph[1:]))],
+        "pressure_phase_step_deg": [float(v) for v in np.degrees(np.diff(pph))],
+        "max_pressure_kPa": [float(v) for v in P.max(0) / kPa],
+        "min_pressure_kPa": [float(v) for v in P.min(0) / kPa],
+        "plateau_tracking_error_kPa": track / kPa,
+        "volume_change_max_pct": 100 * vol,
+        "valve_saturated_fraction": float(sat),
+        "t_end_s": t_end,
+        "dt_s": dt,
+        "method": method,
+        "rtol": rtol,
+        "atol": atol,
+        "steps": int(st["steps"]),
+        "newton_iterations": int(st["newton_iterations"]),
+        "newton_per_step": st["newton_iterations"] / st["steps"],
+        "jacobians": int(st["jacobians"]),
+        "cut_steps": int(st["cut_steps"]),
+        "simulation_wall_time_s": float(st["wall_time"]),
+        "real_time_factor": float(t_end / st["wall_time"]),
+    }
+
+
+# ------------------------------------------------------------------------------------------------- the steps
 def base_pose(i):
     """Base pose (4, 4) of finger i on the palm: body x along the finger, body z = -spatial z (so that a
     positive q1, the flexion the chamber produces, curls the finger toward the palm side, +z)."""
@@ -178,14 +262,15 @@ def first_harmonic_phase(t, y, omega):
 
 
 def plots(out, fingers, tr, angles, window):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib import colormaps
+    from matplotlib.figure import Figure
+    from sorofem.io import save_figure
 
     from soroshapes.render import render_png
 
-    colors = plt.cm.viridis(np.linspace(0, 0.9, 5))
-    fig, ax = plt.subplots(3, 1, figsize=(10, 10), sharex=False)
+    colors = colormaps["viridis"](np.linspace(0, 0.9, 5))
+    fig = Figure(figsize=(10, 10))
+    ax = fig.subplots(3, 1, sharex=False)
     pd = np.array([set_point(t) for t in tr.t])
     for i, name in enumerate(NAMES):
         ax[0].plot(tr.t, np.degrees(angles[i]), color=colors[i], label=f"{name} (phi = {i}pi/6)")
@@ -209,91 +294,13 @@ def plots(out, fingers, tr, angles, window):
     ax[2].set_title("reservoir pressures (solid) and oscillator set points (dotted)")
     for a in ax:
         a.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(out / "trajectories.png", dpi=110)
-    plt.close(fig)
+    save_figure(fig, out / "trajectories.png", dpi=110)
 
     beams = [{"frames": f.forward_kinematics(tr[n].q[-1]), "radius": 0.5 * THICK} for f, n in zip(fingers, NAMES)]
     render_png(out / "hand.png", beams, view=(30, -120), size=(7, 6), dpi=120,
                obstacles=[{"type": "plane", "point": (-45 * mm, 0.0, -0.5 * THICK), "normal": (0, 0, 1),
                            "size": 90 * mm, "color": "tan", "alpha": 0.4}],
                title=f"soft hand at t = {tr.t[-1]:.2f} s (palm below, fingers curl toward +z)")
-
-
-def main(out: Path, quick: bool = False) -> dict:
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    mdl, fingers = build()
-    t_end, dt, method, rtol, atol = (1.0 if quick else 5.0), 2e-3, "bdf2", 1e-4, 1e-6
-    tr = mdl.simulate(t_end, dt, method=method, rtol=rtol, atol=atol)
-    st = tr.stats
-
-    angles = [tip_angle(f, tr[n].q) for f, n in zip(fingers, NAMES)]
-    period = 2 * np.pi / OMEGA
-    # steady state needs a few decay times of the first mode (zeta omega ~ 2/s): analyse the last whole
-    # period of a long run; a quick run has only ~1.1 periods, take the last period it has
-    window = (max(0.0, t_end - period), t_end) if quick else (t_end - 2 * period, t_end)
-    sel = (tr.t >= window[0] - 1e-12)
-    ph, amp_h = zip(*(first_harmonic_phase(tr.t[sel], a[sel], OMEGA) for a in angles))
-    ph = np.unwrap(np.array(ph))
-    pph = np.unwrap([first_harmonic_phase(tr.t[sel], tr[f"p_{n}"].pressure[sel], OMEGA)[0] for n in NAMES])
-    last = tr.t >= t_end - period - 1e-12
-    amp = [0.5 * (a[last].max() - a[last].min()) for a in angles]
-
-    # pressure tracking on the plateaus: |p_d| above 79 kPa for at least the last 0.1 s
-    pd = np.array([set_point(t) for t in tr.t])
-    P = np.column_stack([tr[f"p_{n}"].pressure for n in NAMES])
-    high = np.abs(pd) > 79 * kPa
-    lag = int(round(0.1 / (tr.t[1] - tr.t[0])))
-    settled = np.array([[k >= lag and high[k - lag:k + 1, i].all() for i in range(5)] for k in range(len(tr.t))])
-    track = float(np.abs(P - pd)[settled].max()) if settled.any() else float("nan")
-    # valve saturation: |kp e + ki s| >= max_flow
-    kp = V0 / (R_AIR * T_AIR * TAU_P)
-    sat = np.mean([np.abs(kp * (pd[:, i] - P[:, i]) + kp / T_I * tr[f"p_{n}"].x[:, -1]) >= MAX_FLOW
-                   for i, n in enumerate(NAMES)])
-    vol = max(float(np.max(np.abs(tr[f"p_{n}"].volume / V0 - 1))) for n in NAMES)
-    EI = [f.E * f.section_properties.Iy for f in fingers]
-    tips = [np.array([f.forward_kinematics(q)[-1, :3, 3] for q in tr[n].q[last]]) for f, n in zip(fingers, NAMES)]
-    plots(out, fingers, tr, angles, window)
-
-    return {
-        "fingers": NAMES,
-        "lengths_mm": [L / mm for L in LENGTHS],
-        "modes": MODES,
-        "states": mdl.n,
-        "youngs_modulus_kPa": fingers[0].E / kPa,
-        "damping_tau_s": [f.damping for f in fingers],
-        "first_frequency_Hz": [float(f.natural_frequencies(1)[0]) for f in fingers],
-        "static_angle_80kPa_deg": [float(np.degrees(P_AMP * CH_AREA * CH_OFFSET * L / ei))
-                                   for L, ei in zip(LENGTHS, EI)],
-        "bending_amplitude_deg": [float(np.degrees(a)) for a in amp],
-        "first_harmonic_amplitude_deg": [float(np.degrees(a)) for a in amp_h],
-        "tip_angle_max_deg": [float(np.degrees(a[last].max())) for a in angles],
-        "tip_angle_min_deg": [float(np.degrees(a[last].min())) for a in angles],
-        "tip_excursion_mm": [float(np.linalg.norm(p.max(0) - p.min(0)) / mm) for p in tips],
-        "analysis_window_s": [float(w) for w in window],
-        "phase_deg": [float(v) for v in np.degrees(ph)],
-        "phase_step_deg": [float(v) for v in np.degrees(np.diff(ph))],
-        "phase_step_fingers_deg": [float(v) for v in np.degrees(np.diff(ph[1:]))],
-        "pressure_phase_step_deg": [float(v) for v in np.degrees(np.diff(pph))],
-        "max_pressure_kPa": [float(v) for v in P.max(0) / kPa],
-        "min_pressure_kPa": [float(v) for v in P.min(0) / kPa],
-        "plateau_tracking_error_kPa": track / kPa,
-        "volume_change_max_pct": 100 * vol,
-        "valve_saturated_fraction": float(sat),
-        "t_end_s": t_end,
-        "dt_s": dt,
-        "method": method,
-        "rtol": rtol,
-        "atol": atol,
-        "steps": int(st["steps"]),
-        "newton_iterations": int(st["newton_iterations"]),
-        "newton_per_step": st["newton_iterations"] / st["steps"],
-        "jacobians": int(st["jacobians"]),
-        "cut_steps": int(st["cut_steps"]),
-        "simulation_wall_time_s": float(st["wall_time"]),
-        "real_time_factor": float(t_end / st["wall_time"]),
-    }
 
 
 if __name__ == "__main__":

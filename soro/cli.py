@@ -40,7 +40,6 @@ This module imports only the standard library (and :mod:`sorofem.errors`) at loa
 imports what it needs.
 """
 import argparse
-import json
 import os
 import sys
 import time
@@ -176,7 +175,7 @@ def main(argv=None):
     if args.command == "demo":
         from sorofem.errors import SoroError
 
-        from .demo import list_demos, run_demo
+        from .demo import key_figures, list_demos, run_demo
         try:
             if args.list:
                 print("\n".join(list_demos()))
@@ -188,7 +187,7 @@ def main(argv=None):
         except SoroError as e:
             print(f"soro demo: {e}", file=sys.stderr)
             return 2
-        print(json.dumps(summary, indent=2, default=str))
+        print("\n".join(key_figures(summary)))
         print(f"report: {Path(args.out) / args.name / 'report.json'}")
         return 0
     if args.command == "trade":

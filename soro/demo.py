@@ -11,7 +11,7 @@ from pathlib import Path
 
 from sorofem.errors import DependencyError, ParameterError
 
-__all__ = ["DEFAULT_DEMO", "DemoNotFoundError", "demos_dir", "list_demos", "run_demo"]
+__all__ = ["DEFAULT_DEMO", "DemoNotFoundError", "demos_dir", "key_figures", "list_demos", "run_demo"]
 
 #: The demo ``soro demo`` runs without a name: the end-to-end job.
 DEFAULT_DEMO = "chain"
@@ -87,3 +87,31 @@ def run_demo(name=DEFAULT_DEMO, out="out", quick=False, **options):
     summary["wall_time_s"] = round(time.perf_counter() - t0, 3)
     write_json(out_dir / "report.json", summary)
     return summary
+
+
+def key_figures(summary, max_items=6):
+    """The lines ``soro demo`` prints: each top-level figure of ``summary`` that is a number, a string, a bool
+    or a list of at most ``max_items`` of those, as ``name: value``; tables and nested entries are named
+    only (they are in ``report.json``).
+
+    Returns
+    -------
+    list of str
+    """
+    def plain(v):
+        return v is None or isinstance(v, (bool, int, float, str))
+
+    def fmt(v):
+        return f"{v:.6g}" if isinstance(v, float) else str(v)
+
+    lines, nested = [], []
+    for key, value in summary.items():
+        if plain(value):
+            lines.append(f"{key}: {fmt(value)}")
+        elif isinstance(value, (list, tuple)) and len(value) <= max_items and all(plain(v) for v in value):
+            lines.append(f"{key}: [{', '.join(fmt(v) for v in value)}]")
+        else:
+            nested.append(key)
+    if nested:
+        lines.append(f"(in report.json: {', '.join(nested)})")
+    return lines

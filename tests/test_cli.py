@@ -82,6 +82,19 @@ def test_run_demo_writes_report(tmp_path, monkeypatch):
     assert (tmp_path / "out/tiny/x.txt").read_text() == "hi"
 
 
+def test_soro_demo_prints_the_key_figures_not_the_whole_report(tmp_path, monkeypatch, capsys):
+    demos = tmp_path / "demos"
+    demos.mkdir()
+    (demos / "tiny.py").write_text("def main(out, quick=False):\n"
+                                   "    return {'angle_deg': 40.27081, 'errors': [0.1, 0.2], 'ok': True,\n"
+                                   "            'trade': [{'modes': k} for k in range(30)], 'dvs': {'a': 1}}\n")
+    monkeypatch.setenv("SORO_DEMOS", str(demos))
+    assert cli.main(["demo", "tiny", "--quick", "--out", str(tmp_path / "out")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[:3] == ["angle_deg: 40.2708", "errors: [0.1, 0.2]", "ok: True"]
+    assert "(in report.json: trade, dvs)" in lines and lines[-1].startswith("report: ") and len(lines) < 10
+
+
 def test_sweep_subcommand_options_and_lazy_import(capsys):
     res = subprocess.run([sys.executable, "-c", "import sys, soro.cli; "
                           "print('soro.sweep' in sys.modules, 'numpy' in sys.modules)"],

@@ -1,9 +1,63 @@
-"""Every demo runs in its short mode and reports its key figure (checked here against the reference)."""
+"""Every demo runs in its short mode; its key figures are checked against tests/demo_reference.toml.
+
+The reference table holds each figure's measured value, a relative tolerance with its reason and the physical
+bounds; the ``check_*`` functions below hold what a table cannot (files written, relations between figures).
+"""
 import json
+import math
+import re
+import tomllib
+from pathlib import Path
 
 import pytest
 
 from soro import demo
+
+REFERENCE = Path(__file__).with_name("demo_reference.toml")
+ROW_KEYS = {"value", "rel", "abs", "min", "max", "why"}
+
+
+def load_reference(path=REFERENCE):
+    """The reference table: ``{demo: {path: row}}`` (see the header of tests/demo_reference.toml)."""
+    with open(path, "rb") as f:
+        return tomllib.load(f)
+
+
+def figure(report, path):
+    """The figure at ``path`` ("a.b[2]", "c[-1]") of a demo's report."""
+    node = report
+    for part in path.split("."):
+        m = re.fullmatch(r"([^\[\]]+)((?:\[-?\d+\])*)", part)
+        if m is None:
+            raise KeyError(f"bad figure path {path!r}: keys joined by '.', list elements as [i]")
+        node = node[m.group(1)]
+        for index in re.findall(r"\[(-?\d+)\]", m.group(2)):
+            node = node[int(index)]
+    return node
+
+
+def reference_failures(report, rows):
+    """What in ``report`` is off its reference ``rows``: a list of messages, empty when every figure holds."""
+    failures = []
+    for path, row in rows.items():
+        try:
+            got = figure(report, path)
+        except (KeyError, IndexError, TypeError):
+            failures.append(f"{path}: not in the report (the demo no longer reports it? edit the table)")
+            continue
+        if isinstance(got, bool) or not isinstance(got, (int, float)) or not math.isfinite(got):
+            failures.append(f"{path}: {got!r} is not a finite number")
+            continue
+        value, rel, abs_ = row["value"], row["rel"], row.get("abs", 0.0)
+        if abs(got - value) > rel * abs(value) + abs_:
+            off = abs(got - value) / abs(value) if value else math.inf
+            failures.append(f"{path}: {got:.6g}, reference {value:.6g} +- {rel:g} relative ({off:.2g} off; "
+                            f"{row['why']}); if the change is intended, edit tests/demo_reference.toml")
+        if "min" in row and got < row["min"]:
+            failures.append(f"{path}: {got:.6g} below its physical bound {row['min']:g}")
+        if "max" in row and got > row["max"]:
+            failures.append(f"{path}: {got:.6g} above its physical bound {row['max']:g}")
+    return failures
 
 
 def _run(name, tmp_path):
@@ -15,6 +69,30 @@ def _run(name, tmp_path):
 
 def test_every_demo_has_a_check():
     assert set(demo.list_demos()) == set(CHECKS), "add a check for each demo to CHECKS below"
+    assert set(demo.list_demos()) == set(load_reference()), "add each demo's key figures to demo_reference.toml"
+
+
+def test_reference_table_is_well_formed():
+    for name, rows in load_reference().items():
+        assert rows, f"{name}: no figure"
+        for path, row in rows.items():
+            where = f"{name}.{path}"
+            assert set(row) <= ROW_KEYS and {"value", "rel", "why"} <= set(row), f"{where}: keys {sorted(row)}"
+            assert 0 <= row["rel"] <= 0.25 and row["why"].strip(), f"{where}: rel in [0, 0.25] and a reason"
+            # the reference sits inside its own physical bounds and tolerance band
+            assert reference_failures({"x": row["value"]}, {"x": row}) == [], where
+
+
+def test_reference_check_fails_on_a_drifted_figure():
+    rows = {"a.b[1]": {"value": 10.0, "rel": 0.01, "min": 5.0, "why": "test"},
+            "c": {"value": 0.0, "rel": 0, "abs": 1e-6, "why": "test"}}
+    assert reference_failures({"a": {"b": [0, 10.09]}, "c": 1e-7}, rows) == []
+    drifted = reference_failures({"a": {"b": [0, 10.2]}, "c": 0.0}, rows)
+    assert len(drifted) == 1 and drifted[0].startswith("a.b[1]: 10.2, reference 10 +- 0.01 relative")
+    assert "below its physical bound 5" in reference_failures({"a": {"b": [0, 4.0]}, "c": 0.0},
+                                                               dict(rows, **{"a.b[1]": dict(rows["a.b[1]"], rel=1)}))[0]
+    assert "not in the report" in reference_failures({"c": 0.0}, rows)[0]
+    assert "not a finite number" in reference_failures({"a": {"b": [0, math.nan]}, "c": 0.0}, rows)[0]
 
 
 def check_chain(report, out):
@@ -32,10 +110,16 @@ def check_chain(report, out):
     assert report["selected"] is not None and len(report["trade"]) >= 15
     # closed-loop control of the DVS beam on the simulated board: each angle step reached (the model's own
     # static map + integral action; 0.1 deg measured, bound 1 deg). The loop's rate is a benchmark figure
-    # (bench_board), not checked here: a loaded machine misses deadlines.
+    # (bench_board), not checked here: a loaded machine misses deadlines, and then the real-time loop does not
+    # track (at load 11 on 2 cores: 43 Hz, 169 deadlines missed, 7 deg left at the end of a 1.5 s step). So the
+    # 1 deg bound holds when the loop kept 90 % of its 100 Hz; otherwise only that the angle stayed in range.
     assert report["stages"][4] == "board_control"
     ctrl = report["control"]
-    assert max(ctrl["end_error_deg"]) < 1.0 and (out / "control.png").stat().st_size
+    assert (out / "control.png").stat().st_size
+    if ctrl["loop_rate_hz"] >= 90.0:
+        assert max(ctrl["end_error_deg"]) < 1.0
+    else:
+        assert max(ctrl["end_error_deg"]) < ctrl["static_range_deg"][1], ctrl
 
 
 def check_sdf_gallery(report, out):
@@ -240,7 +324,11 @@ def check_shape_sensing(report, out):
     assert report["markers_found_min"] == 5
     assert report["tip_estimation_error_mm"]["p95"] < 0.5 and report["angle_estimation_error_deg"]["p95"] < 0.5
     assert report["tip_estimation_error_mm"]["max"] < 5.0 and report["angle_estimation_error_deg"]["max"] < 5.0
-    assert max(report["end_error_deg"]) < 3.0
+    # the end errors need the 20 Hz loop: at load 9-11 on 2 cores it ran at 4.7 Hz (45 frames missed) and the
+    # integral action tuned for 20 Hz overshot (32.6 deg left); the 3 deg bound holds when the loop kept 90 % of
+    # its rate (the estimation bounds above hold at any rate)
+    if report["loop_rate_hz"] >= 18.0:
+        assert max(report["end_error_deg"]) < 3.0
     assert report["frames"] > 0 and (out / report["png"]).stat().st_size > 0
 
 
@@ -338,4 +426,6 @@ CHECKS = {
 @pytest.mark.parametrize("name", sorted(CHECKS))
 def test_demo(name, tmp_path):
     report, out = _run(name, tmp_path)
+    failures = reference_failures(report, load_reference()[name])
+    assert not failures, f"{name}: key figures off tests/demo_reference.toml:\n" + "\n".join(failures)
     CHECKS[name](report, out)

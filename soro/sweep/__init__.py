@@ -60,11 +60,13 @@ The builder (the contract)::
 ``params`` holds the ``[fixed]`` values and the case's parameters (plain floats, ints, strings, bools and
 lists); ``comm`` is the MPI communicator the case runs on: build the mesh on it
 (``Mesh.from_sdf(shape, size=..., comm=comm)``; the Fem follows its mesh). Return the model with its
-supports and loads added (numbers are ramped by ``solve`` from 0 to their value at ``t_end = 1``), or
+supports and loads added (numbers are ramped by ``solve`` from 0 to their value at ``load_level = 1``), or
 ``(fem, solve_kwargs)``, whose keyword arguments override ``[solve]`` for this case. The sweep calls
 ``fem.solve(**solve)`` and saves the trajectory; ``[solve]`` accepts the arguments of :meth:`Fem.solve`
 listed in :data:`SOLVE_KEYS`, of the types in :data:`SOLVE_TYPES` (checked when the configuration is loaded:
-``steps = "four"``, ``steps = 2.5`` or ``predictor = 1`` are refused, naming the key).
+``steps = "four"``, ``steps = 2.5`` or ``predictor = 1`` are refused, naming the key). The final load level is
+``load_level``; the old name ``t_end`` is still read, with a ``FutureWarning`` naming the new one
+(:data:`RENAMED_SOLVE_KEYS`).
 
 The builder may declare the types of its parameters, so that a configuration is checked when it is loaded,
 not case by case (a bool is not a number, an integer is not a float: ``pressure = [true, false]`` and
@@ -172,7 +174,7 @@ groups).
 from .manifest import format_record, provenance_changes
 from .runner import Sweep
 from .sampling import grid, latin_hypercube
-from .schema import MAX_CELLS, MODES, PARAMETER_TYPES, SOLVE_KEYS, SOLVE_TYPES
+from .schema import MAX_CELLS, MODES, PARAMETER_TYPES, RENAMED_SOLVE_KEYS, SOLVE_KEYS, SOLVE_TYPES
 
-__all__ = ["Sweep", "grid", "latin_hypercube", "SOLVE_KEYS", "SOLVE_TYPES", "PARAMETER_TYPES", "MODES", "MAX_CELLS",
-           "format_record", "provenance_changes"]
+__all__ = ["Sweep", "grid", "latin_hypercube", "SOLVE_KEYS", "SOLVE_TYPES", "RENAMED_SOLVE_KEYS", "PARAMETER_TYPES",
+           "MODES", "MAX_CELLS", "format_record", "provenance_changes"]

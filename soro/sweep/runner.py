@@ -19,7 +19,8 @@ from .directory import MANIFEST, clean, take_lock
 from .manifest import _fmt, _provenance, format_record, provenance_changes
 from .sampling import _grid_values, _lhs_spec, grid, latin_hypercube
 from .schema import (MAX_CELLS, MODES, SOLVE_KEYS, _SWEEP_KEYS, _TOP_KEYS, _check_declared, _check_material,
-                     _check_solve, _check_value, _describe, _err, _is_material_key, _resolve)
+                     _check_solve, _check_value, _describe, _err, _is_material_key, _resolve,
+                     rename_solve_keys)
 
 __all__ = ["Sweep"]
 
@@ -533,6 +534,7 @@ class Sweep:
         if not isinstance(built, Fem):
             raise ParameterError(f"the builder {self.builder_spec} returned {type(built).__name__}; it must return "
                                  "a Fem, or (fem, solve_kwargs)")
+        rename_solve_keys(kwargs, f"the builder {self.builder_spec}")
         bad = sorted(set(kwargs) - set(SOLVE_KEYS))
         if bad:
             raise ParameterError(f"the builder {self.builder_spec} returned solve settings {bad}; use "

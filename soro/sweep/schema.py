@@ -7,15 +7,17 @@ import importlib.util
 import math
 import os
 import sys
+import warnings
 from pathlib import Path
 
 from sorofem.errors import ParameterError
 
-__all__ = ["MODES", "SOLVE_KEYS", "SOLVE_TYPES", "PARAMETER_TYPES", "MAX_CELLS"]
+__all__ = ["MODES", "SOLVE_KEYS", "SOLVE_TYPES", "RENAMED_SOLVE_KEYS", "PARAMETER_TYPES", "MAX_CELLS",
+           "rename_solve_keys"]
 
 MODES = ("grid", "lhs")
 #: Keyword arguments of :meth:`sorofem.fem.Fem.solve` that ``[solve]`` (or a builder) may set.
-SOLVE_KEYS = ("t_end", "steps", "min_step", "max_step", "max_iterations", "predictor", "monitor_stability")
+SOLVE_KEYS = ("load_level", "steps", "min_step", "max_step", "max_iterations", "predictor", "monitor_stability")
 _TOP_KEYS = ("builder", "summary", "sweep", "parameters", "fixed", "solve")
 _SWEEP_KEYS = ("mode", "samples", "seed", "max_cells")
 #: Default largest mesh (global cell count) a case may solve: a mistyped mesh size (1e-5 for 1e-3) fails the
@@ -23,8 +25,10 @@ _SWEEP_KEYS = ("mode", "samples", "seed", "max_cells")
 MAX_CELLS = 1_000_000
 #: The type of each ``[solve]`` setting: "number" (an int or a float, never a bool), "integer", "bool";
 #: all numbers must be positive.
-SOLVE_TYPES = {"t_end": "number", "steps": "integer", "min_step": "number", "max_step": "number",
+SOLVE_TYPES = {"load_level": "number", "steps": "integer", "min_step": "number", "max_step": "number",
                "max_iterations": "integer", "predictor": "bool", "monitor_stability": "bool"}
+#: Old ``[solve]`` names still accepted, with a warning naming the new one: ``{old: new}``.
+RENAMED_SOLVE_KEYS = {"t_end": "load_level"}
 #: Parameter types a builder may declare in its ``parameters`` attribute (see the module docstring).
 PARAMETER_TYPES = {float: "number", int: "integer", bool: "bool", str: "string", list: "list"}
 
@@ -72,7 +76,36 @@ def _check_type(v, want, key, source):
         raise _err(source, key, f"must be {article} {want}, got {_type_name(v)} {v!r}")
 
 
+def rename_solve_keys(solve, source=""):
+    """Rename the old ``[solve]`` keys of :data:`RENAMED_SOLVE_KEYS` in place, warning once per key.
+
+    Parameters
+    ----------
+    solve : dict
+        ``[solve]`` settings (or the keyword arguments a builder returns); changed in place.
+    source : str
+        Where the settings come from (the configuration file or the builder), named in the messages.
+
+    Raises
+    ------
+    ParameterError
+        When both the old and the new name are set.
+    """
+    for old, new in RENAMED_SOLVE_KEYS.items():
+        if old not in solve:
+            continue
+        if new in solve:
+            raise _err(source, f"solve.{old}", f"is the old name of solve.{new}, which is also set: keep only {new}")
+        where = f"{source}: " if source else ""
+        warnings.warn(f"{where}solve.{old} is deprecated: write solve.{new} (the final load level of "
+                      f"Fem.solve)", FutureWarning, stacklevel=3)
+        solve[new] = solve.pop(old)
+    return solve
+
+
 def _check_solve(solve, source):
+    """Check ``[solve]``'s keys, types and signs (old keys renamed in place first, with a warning)."""
+    rename_solve_keys(solve, source)
     for k, v in solve.items():
         if k not in SOLVE_KEYS:
             raise _err(source, f"solve.{k}", f"not a setting of Fem.solve; use one of {', '.join(SOLVE_KEYS)}")

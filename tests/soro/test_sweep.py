@@ -172,8 +172,10 @@ BAD = {
     # types, checked at load (the builder declares its parameters' types; [solve]'s are known)
     "solve steps a word": (dict(solve='steps = "four"'), "solve.steps: must be an integer, got string 'four'"),
     "solve steps not whole": (dict(solve="steps = 2.5"), "solve.steps: must be an integer, got number 2.5"),
-    "solve t_end a bool": (dict(solve="t_end = true"), "solve.t_end: must be a number, got bool True"),
-    "solve t_end negative": (dict(solve="t_end = -0.5"), "solve.t_end: must be positive, got -0.5"),
+    "solve load_level a bool": (dict(solve="load_level = true"), "solve.load_level: must be a number, got bool True"),
+    "solve load_level negative": (dict(solve="load_level = -0.5"), "solve.load_level: must be positive, got -0.5"),
+    "solve t_end and load_level": (dict(solve="t_end = 1.0\nload_level = 0.5"),
+                                   "solve.t_end: is the old name of solve.load_level, which is also set"),
     "solve predictor a number": (dict(solve="predictor = 1"), "solve.predictor: must be a bool, got integer 1"),
     "bools for a number": (dict(parameters='pressure = [true, false]\nmaterial = ["Ecoflex0030"]'),
                            "parameters.pressure: must be a number, got bool True"),
@@ -204,6 +206,13 @@ def test_bad_configs_name_the_key(tmp_path, name):
     cfg = _config(tmp_path, **kwargs)
     with pytest.raises(ParameterError, match=match):
         Sweep.from_toml(cfg)
+
+
+def test_the_old_solve_key_t_end_is_read_as_load_level_with_a_warning(tmp_path):
+    cfg = _config(tmp_path, 'pressure = [2e3]\nmaterial = ["Ecoflex0030"]', solve="steps = 2\nt_end = 0.5")
+    with pytest.warns(FutureWarning, match=r"solve.t_end is deprecated: write solve.load_level"):
+        sweep = Sweep.from_toml(cfg)
+    assert sweep.solve == {"steps": 2, "load_level": 0.5}
 
 
 def test_a_builder_file_that_does_not_import(tmp_path):
@@ -383,7 +392,7 @@ def _serial_mesh(params, comm):
 
 def test_builder_contract_violations_fail_the_case_with_a_clear_message(tmp_path):
     for builder, message in ((_not_a_fem, "returned dict; it must return a Fem, or (fem, solve_kwargs)"),
-                             (_wrong_settings, "returned solve settings ['stepz']; use t_end, steps")):
+                             (_wrong_settings, "returned solve settings ['stepz']; use load_level, steps")):
         m = Sweep(builder, {"x": [1.0]}).run(tmp_path / builder.__name__)
         assert m["counts"]["failed"] == 1
         assert m["cases"][0]["error"].startswith("ParameterError: the builder ")
@@ -452,8 +461,8 @@ def test_a_resume_with_another_builder_solve_or_fixed_is_refused(tmp_path, monke
     (tmp_path / "case.py").write_text(BUILDER)       # back to the original source: accepted, nothing runs
     assert Sweep.from_toml(cfg).run(out)["counts"]["done"] == 2 and sum(_marks(marks).values()) == 2
     manifest = (out / "manifest.json").read_text()
-    cfg = _one_case(tmp_path, marks, solve="steps = 2\nt_end = 0.5")
-    with pytest.raises(ParameterError, match=r"\[solve\] changed \(t_end null -> 0.5\) for case_0000"):
+    cfg = _one_case(tmp_path, marks, solve="steps = 2\nload_level = 0.5")
+    with pytest.raises(ParameterError, match=r"\[solve\] changed \(load_level null -> 0.5\) for case_0000"):
         Sweep.from_toml(cfg).run(out)
     cfg = _one_case(tmp_path, marks, fixed="size = 0.003")
     with pytest.raises(ParameterError, match=r"\[fixed\] changed \(size null -> 0.003\) for case_0000"):
