@@ -906,18 +906,21 @@ def _lu_solve(LU, piv, b):
 
 
 @njit(cache=True)
-def forward_dynamics(q, qd, f_in, K, D, pl_nodes, pl_W, pl_spatial, order, h, B, rows, xi0, g0, w, Md, ag, G, J, Jd,
-                     eta, etad, S, E, V, Op, AJ, W, M, C, fg, R, piv, qdd):
+def forward_dynamics(q, qd, f_in, K, D, pl_nodes, pl_W, pl_spatial, order, h, B, rows, xi0, g0, w, Md, ag, G, J,
+                     eta, acc, SA, SX, E, V, T, Y, Op, M, C, R, piv, qdd):
     r"""Accelerations :math:`\ddot q = M^{-1}(f_{in} - (C\dot q - f_g - \sum_p J_p^T W_p) - D\dot q - Kq)` in one
-    compiled call: one :func:`kinematics_vec` pass, :math:`M` (:func:`mass_coriolis_gravity` without C), the bias
-    from :func:`generalized_inertial_force` at zero acceleration, an LU solve. ``f_in`` (n,) the generalized
-    force of the inputs; ``R``, ``piv`` work vectors; result in ``qdd``. Returns False if M is singular."""
+    compiled call on the O(N) recursions: the bias :math:`C\dot q - f_g - \sum_p J_p^T W_p` is
+    :func:`newton_euler` at zero acceleration, :math:`M` comes from the operators of the same pass
+    (:func:`mass_matrix_pieces`), then an LU solve. ``f_in`` (n,) the generalized force of the inputs; leaves
+    the frames ``G``, twists ``eta``, Jacobians ``J`` and ``M`` of (q, qd) behind; ``T`` (6, 6), ``Y``
+    (P+1, 6, n), ``Op`` (6, n), ``C`` (n, n), ``R``, ``piv`` work arrays; ``V`` (32, 6) the recursions' work
+    array; result in ``qdd``. Returns False if M is singular or not finite."""
     n = q.shape[0]
-    kinematics_vec(q, qd, order, h, B, rows, xi0, g0, G, J, eta, etad, S, E, V, Op, AJ, W)
-    mass_coriolis_gravity(J, Jd, eta, G, w, Md, ag, M, C, fg, False, S, V, AJ)
     for k in range(n):
         qdd[k] = 0.0
-    generalized_inertial_force(J, eta, etad, G, w, Md, qdd, ag, pl_nodes, pl_W, pl_spatial, R)
+    newton_euler(q, qd, qdd, order, h, B, rows, xi0, g0, w, Md, ag, pl_nodes, pl_W, pl_spatial, G, eta, acc, SA, SX,
+                 E, V, R)
+    mass_matrix_pieces(order, h, B, rows, w, Md, SA, SX, T, J, Y, Op, M)
     for k in range(n):
         s = f_in[k] - R[k]
         for l in range(n):

@@ -308,8 +308,8 @@ def forward_dynamics(model, data, q, qd, f_in, D, gravity, point_loads=(), t=0.0
     nodes, spatial = plan.nodes, plan.spatial
     ok = _beam.forward_dynamics(q, qd, f_in, model.K, D, nodes, W, spatial, model.order, model.h, model.B,
                                 model.rows, model.X0, model.base, model.weights, model.Md, gravity, data.G, data.J,
-                                data.Jd, data.eta, data.etad, data.S, data.E, data.V, data.Op, data.AJ, data.W,
-                                data.M, data.C, data.fg, data.R, data.piv, data.qdd)
+                                data.eta, data.acc, data.SA, data.SX, data.E, data.NE, data.S[0], data.Jd, data.Op,
+                                data.M, data.C, data.R, data.piv, data.qdd)
     if not (ok and math.isfinite(data.qdd.sum())):          # a non-finite frame makes M and qdd non-finite
         raise _out_of_range(data, q, qd)
     return data.qdd

@@ -11,26 +11,36 @@ Methods (step :math:`h`, :math:`\dot x = F(t, x)`; all second order)
 
 Newton
 ------
-The residual's iteration matrix is :math:`I - cJ` (:math:`c = h/2` or :math:`2h/3`), block diagonal over the
-connected components of the network (systems that read each other's states, closed over couplings; see
-:func:`soroshapes.network.lower`), factorized per component every step from
-
-* the Jacobian :math:`J` of :func:`soroshapes.network.jacobian` (grouped forward differences), kept across steps
-  and refreshed when Newton contracts slowly (a correction above half the previous one from the third
-  iteration on) or fails; for beams it is kept as the *force* Jacobian :math:`M\,\partial\ddot q/\partial x`
-  and turned into accelerations with the mass matrix of the current iterate (the inertia changes with the
-  configuration much faster than the forces do), and
-* the rows of the cheap systems (reservoirs) refreshed at the first iterate of every step
-  (:func:`soroshapes.network._cheap_rows`).
+Every method solves :math:`x_1 = \hat x + \gamma F(t_e, x_e)` for :math:`x_1`, with the evaluation point
+:math:`x_e = x_1` (trapezoidal: :math:`\hat x = x_k + \tfrac h2 F_k`, :math:`\gamma = h/2`; BDF2:
+:math:`\hat x = \tfrac43 x_k - \tfrac13 x_{k-1}`, :math:`\gamma = 2h/3`) or the midpoint (:math:`\hat x = x_k`,
+:math:`\gamma = h`); :math:`c = \gamma\,\partial x_e/\partial x_1`. The residual (:func:`soroshapes.network.residual`)
+is :math:`x_1 - \hat x - \gamma F(t_e, x_e)` for every system but a beam, whose rows are second order: its
+coordinate rows as above and its rate rows the equations of motion in force units at the acceleration the step
+implies, :math:`M(q_e)(\dot q_1 - \hat{\dot q})/\gamma + C\dot q_e - f_g + D\dot q_e + Kq_e - f_{in}` (one pass of
+the O(N) recursions, no mass matrix solved). The iteration matrix is block diagonal over the connected
+components of the network (systems that read each other's states, closed over couplings; see
+:func:`soroshapes.network.lower`): :math:`I - cJ` in the rows of every system but a beam's rate rows, which are
+:math:`M/\gamma` on its rates minus :math:`c/\gamma` times its force Jacobian: the beam's *model* rows
+:math:`\partial f_{in}/\partial x - [K\;\;D]` (the input force differenced over the columns it reads, as in the
+beam's own iteration matrix :math:`2M/h + D + \tfrac h2 K`), or, once a fresh model matrix failed in a step, the
+differenced Jacobian :math:`M\,\partial\ddot q/\partial x` of :func:`soroshapes.network.jacobian` for the rest of
+the run (kept across steps, refreshed when Newton contracts slowly or fails). The rows of the other systems are
+differenced (:func:`soroshapes.network._cheap_rows`) and :math:`M` is formed from the per-piece operators of the
+first iterate's pass whenever the matrix is factored: at a step after one whose contraction rate exceeded
+``THETA_REFRESH`` or that needed more than ``REFRESH_ITS`` iterations, at most every ``REFRESH_STEPS`` steps,
+when :math:`c` changes, and on a retry after a failure (a kept matrix, then a fresh one, then the differenced
+Jacobian).
 
 Each component iterates on its own (one that has converged is no longer evaluated). It has converged when its
-correction :math:`\delta` satisfies :math:`\|\delta\| \le \kappa` or, from the second iteration on, the
-rate-based estimate of the remaining error :math:`\tfrac{\theta}{1-\theta}\|\delta\| \le \kappa` with
-:math:`\theta = \|\delta_k\|/\|\delta_{k-1}\|` (Hairer & Wanner, Solving ODEs II, IV.8), in the norm
-:math:`\|\delta\| = \max_j |\delta_j|/(\text{rtol}|x_j| + \text{atol}\,s_j)` and :math:`\kappa` = ``ntol``
-(1e-3 from :meth:`Model.simulate <soroshapes.model.Model.simulate>`). A step that fails (no convergence within
-``maxit`` iterations after a fresh Jacobian, or an evaluation out of range) is covered by halved steps down to
-``min_dt``; below it :func:`integrate` returns -1 with the time in ``st[7]``.
+correction :math:`\delta` satisfies :math:`\|\delta\| \le \kappa` or, from the second iteration on (the third
+with a kept matrix), the rate-based estimate of the remaining error :math:`\tfrac{\theta}{1-\theta}\|\delta\|
+\le \kappa` with :math:`\theta = \|\delta_k\|/\|\delta_{k-1}\|` (Hairer & Wanner, Solving ODEs II, IV.8), in the
+norm :math:`\|\delta\| = \max_j |\delta_j|/(\text{rtol}|x_j| + \text{atol}\,s_j)` and :math:`\kappa` = ``ntol``
+(1e-3 from :meth:`Model.simulate <soroshapes.model.Model.simulate>`; a tenth of it with a kept matrix, which
+converges linearly). A step that fails (no convergence within ``maxit`` iterations after the retries, or an
+evaluation out of range) is covered by halved steps down to ``min_dt``; below it :func:`integrate` returns -1
+with the time in ``st[7]``.
 
 The Python path of :meth:`Model.simulate <soroshapes.model.Model.simulate>` implements the same methods,
 predictors (linear for BDF2), refresh rule and splitting in Python over the whole network (any callable, sparse
@@ -42,8 +52,8 @@ import numpy as np
 
 from sorofem._numba import njit
 
-from ._beam import _lu_solve
-from .network import _cheap_rows, _iteration_matrix, jacobian, rhs, assemble
+from ._beam import REFRESH_ITS, REFRESH_STEPS, _lu_solve
+from .network import BEAM, _beam_mass_matrix, _cheap_rows, _iteration_matrix, assemble, jacobian, residual, rhs
 
 __all__ = ["TRAPEZOIDAL", "MIDPOINT", "BDF2", "integrate"]
 
@@ -71,57 +81,74 @@ def _solve_component(comps, k, LUc, pivc, r, rc, x1, rtol, atol, scale):
 
 #: method codes
 TRAPEZOIDAL, MIDPOINT, BDF2 = 0, 1, 2
+#: The factored iteration matrix is kept for the next step unless the step's Newton contraction rate (of the
+#: weighted corrections, largest over the components) exceeded THETA_REFRESH or it needed more than REFRESH_ITS
+#: iterations, and at most REFRESH_STEPS steps (the rule of the beam's own loop, soroshapes._beam; the rate here
+#: is looser: the network's corrections are measured against the tolerance, not against |v|).
+THETA_REFRESH = 0.1
 
 
 @njit(cache=True)
 def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, x1):
     """One implicit step from (t, x0) into x1; True on success. ``ws``: work arrays; ``st``: statistics and the
-    state of the reused iteration matrix (st[4] = 1 when the Jacobian is valid; st[5] = 1 when the quadratic
-    BDF2 predictor may use ``ws[12]``, the state before ``xprev``)."""
-    (w, f0, fp, xp, r, guess, Jac, JF, LUc, pivc, rc, fx0, pp) = ws
+    state of the iteration matrix (st[4] = 1 when the differenced Jacobian is valid; st[5] = 1 when the
+    quadratic BDF2 predictor may use ``ws[12]``, the state before ``xprev``; st[9] = 1 once the model rows of the
+    beams failed, so that differenced Jacobians serve the rest of the run; st[11] = 1 while the factored matrix
+    is valid, for c = st[12]; st[13] = 1 when the last step asks for a fresh one, st[14] the steps it served)."""
+    (w, f0, fp, xp, r, guess, Jac, JF, LUc, pivc, rc, fx0, pp, xhat, xe) = ws
     N = x0.shape[0]
-    nb = net[0].shape[0]
+    table = net[0]
+    nb = table.shape[0]
     comps, block_comp = net[18], net[19]
     nc = comps.shape[0]
     alls = np.ones(nb, np.bool_)
     only = np.ones(nb, np.bool_)
     conv = np.zeros(nc, np.bool_)
     prevc = np.zeros(nc)
+    # x1 = xhat + gam F(te, xe), xe = x1 or the midpoint; c = d xe/d x1 times gam
     if method == TRAPEZOIDAL:
         if not rhs(t, x0, net, w, fx0, alls):
             return False
-        c = 0.5 * h
-        tj = t + h
+        gam, c, te = 0.5 * h, 0.5 * h, t + h
         for i in range(N):
+            xhat[i] = x0[i] + gam * fx0[i]
             guess[i] = x0[i] + h * fx0[i]
     elif method == MIDPOINT:
         if not rhs(t, x0, net, w, fx0, alls):
             return False
-        c = 0.5 * h
-        tj = t + 0.5 * h
+        gam, c, te = h, 0.5 * h, t + 0.5 * h
         for i in range(N):
+            xhat[i] = x0[i]
             guess[i] = x0[i] + h * fx0[i]
     else:
-        c = 2.0 * h / 3.0
-        tj = t + h
+        gam, c, te = 2.0 * h / 3.0, 2.0 * h / 3.0, t + h
         for i in range(N):
+            xhat[i] = (4.0 * x0[i] - xprev[i]) / 3.0
             guess[i] = 2.0 * x0[i] - xprev[i]
         if st[5] == 1.0:                                # quadratic extrapolation through three states
             for i in range(N):
                 guess[i] = 3.0 * x0[i] - 3.0 * xprev[i] + pp[i]
     for i in range(N):
         x1[i] = guess[i]
-    for attempt in range(2):
-        fresh = st[4] == 0.0 or attempt == 1
-        if fresh:
+    force = False                   # rebuild the iteration matrix whatever the reuse rule says
+    for attempt in range(3):
+        # the beams' rows: their model Jacobian (M, K, D and the differenced input force), reused while Newton
+        # contracts fast; once a fresh one failed, the differenced Jacobian (st[9] = 1)
+        differenced = st[9] == 1.0
+        if differenced and (st[4] == 0.0 or force):
             for i in range(N):                         # the Jacobian at the guess (first) or at the failed iterate
                 xp[i] = x1[i] if method != MIDPOINT else 0.5 * (x0[i] + x1[i])
             xj = xp.copy()
-            if not jacobian(tj, xj, net, scale, w, f0, fp, xp, Jac, JF):
+            if not jacobian(te, xj, net, scale, w, f0, fp, xp, Jac, JF):
                 st[4] = 0.0
                 return False
             st[3] += 1
             st[4] = 1.0
+        rebuild = differenced or force or st[11] == 0.0 or st[12] != c or st[13] == 1.0
+        first_rate = 1 if rebuild else 2
+        # a matrix kept from earlier steps converges linearly (stale M, reservoir rows): stop at a tenth of the
+        # tolerance (at ntol the compiled and Python paths drifted apart by ~10 tolerances over 300 steps)
+        tol_it = ntol if rebuild else 0.1 * ntol
         for i in range(N):
             x1[i] = guess[i]
         # Newton per connected component: a component that has converged is no longer evaluated
@@ -131,39 +158,31 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
         for b in range(nb):
             only[b] = True
         ok = False
+        theta = 0.0
+        its = 0
         for it in range(maxit):
-            if method == TRAPEZOIDAL:
-                good = rhs(t + h, x1, net, w, r, only)
-                if good:
-                    for i in range(N):
-                        r[i] = x1[i] - x0[i] - 0.5 * h * (fx0[i] + r[i])
-            elif method == MIDPOINT:
-                for i in range(N):
-                    xp[i] = 0.5 * (x0[i] + x1[i])
-                good = rhs(t + 0.5 * h, xp, net, w, r, only)
-                if good:
-                    for i in range(N):
-                        r[i] = x1[i] - x0[i] - h * r[i]
-            else:
-                good = rhs(t + h, x1, net, w, r, only)
-                if good:
-                    for i in range(N):
-                        r[i] = x1[i] - 4.0 / 3.0 * x0[i] + xprev[i] / 3.0 - c * r[i]
+            for i in range(N):
+                xe[i] = x1[i] if method != MIDPOINT else 0.5 * (x0[i] + x1[i])
+            good = residual(te, xe, x1, xhat, gam, net, w, r, only)
             for bb in range(nb):
                 if only[bb]:
                     st[8] += 1
             if not good:
                 break
-            if it == 0:                 # M at the first iterate, the reservoirs' rows there
-                xj = x1.copy()
-                if method == MIDPOINT:
-                    for i in range(N):
-                        xj[i] = 0.5 * (x0[i] + x1[i])
-                if not (_cheap_rows(tj, xj, net, scale, w, f0, fp, xp, JF)
-                        and _iteration_matrix(c, net, JF, Jac, LUc, pivc)):
+            if it == 0 and rebuild:     # M at the first iterate, the cheap rows there
+                for b in range(nb):
+                    if table[b, 0] == BEAM:
+                        _beam_mass_matrix(table[b, 5], net)
+                xj = xe.copy()
+                if not (_cheap_rows(te, xj, net, scale, w, f0, fp, xp, JF, not differenced)
+                        and _iteration_matrix(c, gam, net, JF, Jac, LUc, pivc)):
                     st[4] = 0.0
+                    st[11] = 0.0
                     return False
+                st[11], st[12], st[13], st[14] = 1.0, c, 0.0, 0.0
+                st[15] += 1
             st[2] += 1
+            its += 1
             finite, slow, done = True, False, True
             for k in range(nc):
                 if conv[k]:
@@ -173,8 +192,14 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
                     finite = False
                     break
                 prev = prevc[k]
-                if nrm <= ntol or (it >= 1 and nrm < prev and nrm * nrm / (prev - nrm) <= ntol):
-                    conv[k] = True                     # the rate-based estimate of the remaining error
+                if it >= 1 and nrm / prev > theta:
+                    theta = nrm / prev
+                # the rate-based estimate of the remaining error: from the second correction with a matrix
+                # factored at this step's first iterate, from the third with one kept from earlier steps (its
+                # first two corrections also remove the predictor's error in the coordinates, which it solves
+                # exactly, so their ratio understates its contraction rate)
+                if nrm <= tol_it or (it >= first_rate and nrm < prev and nrm * nrm / (prev - nrm) <= tol_it):
+                    conv[k] = True
                 else:
                     done = False
                     if it >= 2 and nrm > 0.5 * prev:
@@ -188,6 +213,9 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
             for b in range(nb):
                 only[b] = not conv[block_comp[b]]
         if ok:
+            st[14] += 1                                # the matrix served one more step; refresh it next step
+            if theta > THETA_REFRESH or its > REFRESH_ITS or st[14] >= REFRESH_STEPS:      # when it was slow
+                st[13] = 1.0
             return True
         finite = True
         for i in range(N):
@@ -196,9 +224,15 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
         if not finite:
             for i in range(N):
                 x1[i] = guess[i]
-        if fresh and attempt == 1:
-            break
+        if differenced:
+            if force:
+                break                                  # a fresh differenced Jacobian failed
+        elif rebuild:
+            st[9] = 1.0                                # a fresh model matrix was not enough here
+            st[10] += 1
+        force = True
     st[4] = 0.0
+    st[11] = 0.0
     return False
 
 
@@ -232,7 +266,8 @@ def integrate(x, t0, h, nsteps, method, record_every, min_dt, net, scale, rtol, 
     0 trapezoidal, 1 midpoint, 2 BDF2 with a trapezoidal first step and after a split). Records (t, x, w) every
     ``record_every`` steps and at the end into out_t, out_x, out_w from row 1 (row 0: the caller's start).
     ``st``: steps, rejected, newton_iterations, jacobians, matrix valid, quadratic predictor valid, cut_steps,
-    failure time, system evaluations in Newton iterations.
+    failure time, system evaluations in Newton iterations, beam model rows given up (1 once), steps where the
+    beams' model rows failed, then the matrix reuse state (11-14, see :func:`_step`), matrices factored.
     Returns the number of recorded rows, or -1 when Newton failed down to ``min_dt`` (the time in st[7])."""
     N = x.shape[0]
     NW = out_w.shape[1]
@@ -240,7 +275,7 @@ def integrate(x, t0, h, nsteps, method, record_every, min_dt, net, scale, rtol, 
     nc, mc = comps.shape[0], comps.shape[1]
     ws = (np.zeros(NW), np.zeros(N), np.zeros(N), np.zeros(N), np.zeros(N), np.zeros(N), np.zeros((N, N)),
           np.zeros((N, N)), np.zeros((nc, mc, mc)), np.zeros((nc, mc), np.int64), np.zeros(mc), np.zeros(N),
-          np.zeros(N))
+          np.zeros(N), np.zeros(N), np.zeros(N))
     xn, prev, tmp = np.zeros(N), x.copy(), np.zeros(N)
     have_prev = False
     rec = 1

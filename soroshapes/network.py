@@ -38,7 +38,9 @@ The kernel
 ----------
 The network's right-hand side :math:`F(t, x)` is assembled as on the Python path: reservoir volumes, the
 controller's free inputs, then the couplings in declaration order, then every system's derivative (a beam by
-:func:`soroshapes._beam.forward_dynamics`, its input force :math:`G u` with the constant input matrix). The
+:func:`soroshapes._beam.forward_dynamics`, its input force :math:`G u` with the constant input matrix); an
+implicit step's residual (:func:`residual`) takes a beam second order, its equations of motion in force units
+by one pass of the O(N) recursions. The
 Jacobian :math:`J = \partial F/\partial x` (:func:`jacobian`) is taken by forward differences of :math:`F` whose
 columns are grouped (Curtis-Powell-Reid) over the block dependency pattern (a column of system :math:`j` changes
 only the derivatives of the systems that read :math:`j`). The implicit steps, Newton and the step splitting are
@@ -57,11 +59,13 @@ from sorofem.errors import ParameterError
 from ._beam import _lu, _lu_solve
 from ._beam import forward_dynamics as _fd
 from ._beam import kinematics as _kinematics
+from ._beam import mass_matrix_pieces as _mass_pieces
+from ._beam import newton_euler as _ne
 from ._beam import mass_coriolis_gravity as _mcg
 from ._contact import contact_force as _contact_force
 from .numerics import FD_STEP
 
-__all__ = ["StateMap", "Schedule", "lower", "assemble", "rhs", "jacobian", "warm_up"]
+__all__ = ["StateMap", "Schedule", "lower", "assemble", "rhs", "residual", "jacobian", "warm_up"]
 
 _FUNCTIONS = {"identity": 0, "tanh": 1}
 
@@ -243,6 +247,13 @@ def _beam_work(n, P):
     Np = P + 1
     return (Np * 16, Np * 6 * n, Np * 6 * n, Np * 6, Np * 6, 216, 16, 48, 6 * n, 6 * n, 48, n * n, n * n, n, n, n,
             n)
+
+
+def _beam_ne_work(n, P):
+    """Sizes of the work arrays of one beam's O(N) recursions (after those of :func:`_beam_work`): acc, SA, SX, V,
+    T, Jm, Ym, Opm, Mm, LU, a, v, R, f (see :func:`_beam_ne_views`)."""
+    Np = P + 1
+    return (Np * 6, P * 36, P * 24, 192, 36, Np * 6 * n, Np * 6 * n, 6 * n, n * n, n * n, n, n, n, n)
 
 
 def _lower_impedance(spec, blocks, index, free_rows):
@@ -444,7 +455,7 @@ def lower(blocks, links, volumes, controller, free):
             bintb.append(np.asarray(mdl.rows, dtype=np.int64))
             bint.append([n, m, P, ng, mdl.order, fo, wo, io, io + n])
             fo += sum(_beam_floats(n, m, P, ng))
-            wo += sum(_beam_work(n, P))
+            wo += sum(_beam_work(n, P)) + sum(_beam_ne_work(n, P))
             bintb.append(np.zeros(n, np.int64))             # pivots
             io += 2 * n
             kind[i], table[i, 5] = BEAM, len(bint) - 1
@@ -756,7 +767,13 @@ def _assemble(t, x, net, w, only):
 @njit(cache=True)
 def _beam_views(bi, net):
     """Views of beam bi's model arrays (in the float buffer) and work arrays (in the beam workspace)."""
-    bint, bflt, bwork, bintb = net[1], net[2], net[3], net[4]
+    return _beam_arrays(bi, net[1], net[2], net[3], net[4])
+
+
+@njit(cache=True)
+def _beam_arrays(bi, bint, bflt, bwork, bintb):
+    """:func:`_beam_views` from the four beam arrays of the network (what the hot loops pass: a call that
+    passes the whole network tuple costs the reference counting of its ~30 arrays, about 1 us)."""
     n, m, P, ng, order, fo, wko, io, po = (bint[bi, 0], bint[bi, 1], bint[bi, 2], bint[bi, 3], bint[bi, 4],
                                            bint[bi, 5], bint[bi, 6], bint[bi, 7], bint[bi, 8])
     Np = P + 1
@@ -822,35 +839,164 @@ def _beam_views(bi, net):
 
 
 @njit(cache=True)
-def _beam_rhs(bi, x, xo, w, wo, net, out):
-    """Derivative (qd, qdd) of beam bi into out[xo:xo+2n]; False if the state is out of range."""
-    bwork = net[3]
-    (n, m, order, K, D, Gin, h, B, X0, base, wts, Md, ag, rows, piv, G, J, Jd, eta, etad, S, E, V, Op, AJ, W, M, C,
-     fg, R, qdd, f_in, wko, end) = _beam_views(bi, net)
-    bext = net[28]
+def _beam_ne_views(bi, net):
+    """Views of the work arrays of beam bi's O(N) recursions (:func:`soroshapes._beam.newton_euler`,
+    :func:`soroshapes._beam.mass_matrix_pieces`), stored after those of :func:`_beam_views`: acc, SA, SX, V, T,
+    the Jacobians and their weighted copy (Jm, Ym), Opm, the mass matrix Mm of the last pass, an LU scratch, the
+    vectors a, v, R, f; the frames G, twists eta and E (of :func:`_beam_views`); and the (start, end) of the
+    beam's whole workspace."""
+    return _beam_ne_arrays(bi, net[1], net[3])
+
+
+@njit(cache=True)
+def _beam_ne_arrays(bi, bint, bwork):
+    """:func:`_beam_ne_views` from the network's beam arrays."""
+    n, P, wko = bint[bi, 0], bint[bi, 2], bint[bi, 6]
+    Np = P + 1
+    o = wko + Np * 16 + 12 * Np * n + 12 * Np + 216 + 16 + 48 + 12 * n + 48 + 2 * n * n + 4 * n
+    acc = bwork[o:o + Np * 6].reshape((Np, 6))
+    o += Np * 6
+    SA = bwork[o:o + P * 36].reshape((P, 6, 6))
+    o += P * 36
+    SX = bwork[o:o + P * 24].reshape((P, 4, 6))
+    o += P * 24
+    V = bwork[o:o + 192].reshape((32, 6))
+    o += 192
+    T = bwork[o:o + 36].reshape((6, 6))
+    o += 36
+    Jm = bwork[o:o + Np * 6 * n].reshape((Np, 6, n))
+    o += Np * 6 * n
+    Ym = bwork[o:o + Np * 6 * n].reshape((Np, 6, n))
+    o += Np * 6 * n
+    Opm = bwork[o:o + 6 * n].reshape((6, n))
+    o += 6 * n
+    Mm = bwork[o:o + n * n].reshape((n, n))
+    o += n * n
+    LU = bwork[o:o + n * n].reshape((n, n))
+    o += n * n
+    a = bwork[o:o + n]
+    o += n
+    v = bwork[o:o + n]
+    o += n
+    R = bwork[o:o + n]
+    o += n
+    f = bwork[o:o + n]
+    o += n
+    G = bwork[wko:wko + Np * 16].reshape((Np, 4, 4))
+    oe = wko + Np * 16 + 12 * Np * n
+    eta = bwork[oe:oe + Np * 6].reshape((Np, 6))
+    oE = oe + 12 * Np + 216
+    E = bwork[oE:oE + 16].reshape((4, 4))
+    return acc, SA, SX, V, T, Jm, Ym, Opm, Mm, LU, a, v, R, f, G, eta, E, wko, o
+
+
+@njit(cache=True)
+def _beam_model(bi, bint, bflt, bintb):
+    """The model arrays of beam bi that its residual reads (the first part of :func:`_beam_arrays`, without
+    the work arrays): n, m, order, K, D, h, B, X0, base, weights, Md, gravity, rows, and the offset of its input
+    matrix in bflt."""
+    n, m, P, ng, order, fo, io = bint[bi, 0], bint[bi, 1], bint[bi, 2], bint[bi, 3], bint[bi, 4], bint[bi, 5], bint[bi, 7]
+    Np = P + 1
+    K = bflt[fo:fo + n * n].reshape((n, n))
+    D = bflt[fo + n * n:fo + 2 * n * n].reshape((n, n))
+    go = fo + 2 * n * n
+    o = go + n * m
+    h = bflt[o:o + P]
+    o += P
+    B = bflt[o:o + P * ng * n].reshape((P, ng, n))
+    o += P * ng * n
+    X0 = bflt[o:o + P * ng * 6].reshape((P, ng, 6))
+    o += P * ng * 6
+    base = bflt[o:o + 16].reshape((4, 4))
+    o += 16
+    wts = bflt[o:o + Np]
+    o += Np
+    Md = bflt[o:o + Np * 6].reshape((Np, 6))
+    o += Np * 6
+    ag = bflt[o:o + 3]
+    return n, m, order, K, D, h, B, X0, base, wts, Md, ag, bintb[io:io + n], go
+
+
+@njit(cache=True)
+def _beam_input_force(xo, n, m, bflt, go, w, wo, bext, f_in):
+    """The generalized force of beam inputs and couplings, :math:`G u` plus a grasp's share, into f_in (G the
+    (n, m) input matrix at bflt[go:])."""
     for k in range(n):
         s = bext[xo + k]                            # forces of couplings (a grasp)
         for j in range(m):
-            s += Gin[k, j] * w[wo + j]
+            s += bflt[go + k * m + j] * w[wo + j]
         f_in[k] = s
+
+
+@njit(cache=True)
+def _beam_rhs(bi, x, xo, w, wo, bint, bflt, bwork, bintb, bext, out):
+    """Derivative (qd, qdd) of beam bi into out[xo:xo+2n] (:func:`soroshapes._beam.forward_dynamics`, the O(N)
+    recursions; leaves M at x in the workspace); False if the state is out of range."""
+    (n, m, order, K, D, Gin, h, B, X0, base, wts, Md, ag, rows, piv, G, J, Jd, eta, etad, S, E, V, Op, AJ, W, M, C,
+     fg, R, qdd, f_in, wko, end) = _beam_arrays(bi, bint, bflt, bwork, bintb)
+    acc, SA, SX, NV, T, Jm, Ym, Opm, Mm, LU, a, v, R, f, G, eta, E, start, stop = _beam_ne_arrays(bi, bint, bwork)
+    _beam_input_force(xo, n, m, bflt, bint[bi, 5] + 2 * n * n, w, wo, bext, f_in)
     q = x[xo:xo + n]
     qd = x[xo + n:xo + 2 * n]
     nodes = np.zeros(0, np.int64)
     pW = np.zeros((0, 6))
     spatial = np.zeros(0, np.bool_)
-    ok = _fd(q, qd, f_in, K, D, nodes, pW, spatial, order, h, B, rows, X0, base, wts, Md, ag, G, J, Jd, eta, etad, S,
-             E, V, Op, AJ, W, M, C, fg, R, piv, qdd)
+    ok = _fd(q, qd, f_in, K, D, nodes, pW, spatial, order, h, B, rows, X0, base, wts, Md, ag, G, Jm, eta, acc, SA,
+             SX, E, NV, T, Ym, Opm, Mm, LU, R, piv, qdd)
     s = 0.0
     for k in range(n):
         s += qdd[k]
     if not (ok and math.isfinite(s)):
-        for j in range(wko, end):                   # never keep a poisoned workspace (stale NaN times 0)
+        for j in range(start, stop):                # never keep a poisoned workspace (stale NaN times 0)
             bwork[j] = 0.0
         return False
     for k in range(n):
         out[xo + k] = qd[k]
         out[xo + n + k] = qdd[k]
     return True
+
+
+@njit(cache=True)
+def _beam_residual(bi, xe, x1, xhat, gam, xo, w, wo, bint, bflt, bwork, bintb, bext, out):
+    r"""The rows of beam bi in the residual of an implicit step (see :func:`residual`), second order: the
+    coordinate rows :math:`q_1 - \hat q - \gamma\dot q_e` and, in force units, the equations of motion at the
+    evaluation point with the acceleration the step implies, :math:`a = (\dot q_1 - \hat{\dot q})/\gamma`:
+    :math:`\rho = M(q_e)a + C\dot q_e - f_g + D\dot q_e + Kq_e - f_{in}` by one pass of the O(N) recursions
+    (:func:`soroshapes._beam.newton_euler`; no mass matrix is formed or solved). Leaves the pass's per-piece
+    operators for :func:`_beam_mass_matrix`. False if the state is out of range."""
+    n, m, order, K, D, h, B, X0, base, wts, Md, ag, rows, go = _beam_model(bi, bint, bflt, bintb)
+    acc, SA, SX, NV, T, Jm, Ym, Opm, Mm, LU, a, v, R, f_in, G, eta, E, start, stop = _beam_ne_arrays(bi, bint, bwork)
+    _beam_input_force(xo, n, m, bflt, go, w, wo, bext, f_in)
+    q = xe[xo:xo + n]
+    qd = xe[xo + n:xo + 2 * n]
+    for k in range(n):
+        a[k] = (x1[xo + n + k] - xhat[xo + n + k]) / gam
+    nodes = np.zeros(0, np.int64)
+    pW = np.zeros((0, 6))
+    spatial = np.zeros(0, np.bool_)
+    _ne(q, qd, a, order, h, B, rows, X0, base, wts, Md, ag, nodes, pW, spatial, G, eta, acc, SA, SX, E, NV, R)
+    s = 0.0
+    for k in range(n):
+        r = R[k] - f_in[k]
+        for l in range(n):
+            r += D[k, l] * qd[l] + K[k, l] * q[l]
+        out[xo + k] = x1[xo + k] - xhat[xo + k] - gam * qd[k]
+        out[xo + n + k] = r
+        s += r
+    if not math.isfinite(s):
+        for j in range(start, stop):                # never keep a poisoned workspace (stale NaN times 0)
+            bwork[j] = 0.0
+        return False
+    return True
+
+
+@njit(cache=True)
+def _beam_mass_matrix(bi, net):
+    """M of beam bi at the configuration of its last :func:`_beam_residual` pass, into its workspace (Mm), from
+    that pass's per-piece operators (:func:`soroshapes._beam.mass_matrix_pieces`)."""
+    n, m, order, K, D, h, B, X0, base, wts, Md, ag, rows, go = _beam_model(bi, net[1], net[2], net[4])
+    acc, SA, SX, NV, T, Jm, Ym, Opm, Mm, LU, a, v, R, f, G, eta, E, start, stop = _beam_ne_views(bi, net)
+    _mass_pieces(order, h, B, rows, wts, Md, SA, SX, T, Jm, Ym, Opm, Mm)
 
 
 @njit(cache=True)
@@ -1004,12 +1150,9 @@ def _controller_terms(t, x, net, w, only):
 
 @njit(cache=True)
 def _beam_mass(bi, net):
-    """The mass matrix that the last evaluation of beam bi left in its workspace (a view)."""
-    bint, bwork = net[1], net[3]
-    n, P = bint[bi, 0], bint[bi, 2]
-    Np = P + 1
-    o = bint[bi, 6] + Np * 16 + 2 * Np * 6 * n + 2 * Np * 6 + 216 + 16 + 48 + 12 * n + 48
-    return bwork[o:o + n * n].reshape((n, n))
+    """The mass matrix that the last :func:`_beam_rhs` or :func:`_beam_mass_matrix` of beam bi left in its
+    workspace (a view)."""
+    return _beam_ne_views(bi, net)[8]
 
 
 @njit(cache=True)
@@ -1301,31 +1444,98 @@ def _rigid_rhs(ri, x, xo, w, wo, rflt, out):
 
 
 @njit(cache=True)
-def rhs(t, x, net, w, out, only):
-    """F(t, x) into out (the blocks with ``only[i]`` True; inputs assembled into w). False if a state is out of
-    range or a volume is not positive."""
-    table, fpar = net[0], net[5]
-    if not _assemble(t, x, net, w, only):
-        return False
+def _system_rhs_a(i, x, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt, out):
+    """The derivative of system i (any kind) at x with its inputs in w, into its rows of out, from the network's
+    arrays (see :func:`_beam_arrays`); False if a beam's state is out of range."""
+    xo, nx, wo = table[i, 1], table[i, 2], table[i, 3]
+    if table[i, 0] == BEAM:
+        return _beam_rhs(table[i, 5], x, xo, w, wo, bint, bflt, bwork, bintb, bext, out)
+    if table[i, 0] == FLUIDIC:
+        _fluidic_rhs(table[i, 5], x, xo, nx, w, wo, fpar, out)
+    elif table[i, 0] == RIGID:
+        _rigid_rhs(table[i, 5], x, xo, w, wo, rflt, out)
+    else:
+        _linear_rhs(table[i, 5], x, xo, w, wo, lint, lflt, out)
+    return True
+
+
+@njit(cache=True)
+def _finite_rows(table, mode, out):
     for i in range(table.shape[0]):
-        if not only[i]:
-            continue
-        xo, nx, wo = table[i, 1], table[i, 2], table[i, 3]
-        if table[i, 0] == BEAM:
-            if not _beam_rhs(table[i, 5], x, xo, w, wo, net, out):
-                return False
-        elif table[i, 0] == FLUIDIC:
-            _fluidic_rhs(table[i, 5], x, xo, nx, w, wo, fpar, out)
-        elif table[i, 0] == RIGID:
-            _rigid_rhs(table[i, 5], x, xo, w, wo, net[22], out)
-        else:
-            _linear_rhs(table[i, 5], x, xo, w, wo, net[20], net[21], out)
-    for i in range(table.shape[0]):
-        if only[i]:
+        if mode[i]:
             for j in range(table[i, 1], table[i, 1] + table[i, 2]):
                 if not math.isfinite(out[j]):
                     return False
     return True
+
+
+@njit(cache=True)
+def rhs(t, x, net, w, out, only):
+    """F(t, x) into out (the blocks with ``only[i]`` True; inputs assembled into w). False if a state is out of
+    range or a volume is not positive."""
+    table, bint, bflt, bwork, bintb, fpar, bext = net[0], net[1], net[2], net[3], net[4], net[5], net[28]
+    rflt, lint, lflt = net[22], net[20], net[21]
+    if not _assemble(t, x, net, w, only):
+        return False
+    for i in range(table.shape[0]):
+        if only[i] and not _system_rhs_a(i, x, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt, out):
+            return False
+    return _finite_rows(table, only, out)
+
+
+#: what :func:`_evaluate` computes for a system: nothing, its derivative F, or (beams) its inputs' force
+_SKIP, _DERIVATIVE, _INPUT_FORCE = 0, 1, 2
+
+
+@njit(cache=True)
+def _evaluate(t, x, net, w, out, mode):
+    """Per system, by ``mode[i]``: nothing, its derivative (as :func:`rhs`), or for a beam the generalized force of
+    its inputs and couplings :math:`f_{in}(t, x)` in its rate rows (0 in its coordinate rows): the part of a
+    beam's equations that reads other systems, differenced by :func:`_fd_rows`. False as :func:`rhs`."""
+    table, bint, bflt, bwork, bintb, fpar, bext = net[0], net[1], net[2], net[3], net[4], net[5], net[28]
+    rflt, lint, lflt = net[22], net[20], net[21]
+    if not _assemble(t, x, net, w, mode):
+        return False
+    for i in range(table.shape[0]):
+        if mode[i] == _DERIVATIVE:
+            if not _system_rhs_a(i, x, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt, out):
+                return False
+        elif mode[i] == _INPUT_FORCE:
+            bi, xo, wo = table[i, 5], table[i, 1], table[i, 3]
+            n, m = bint[bi, 0], bint[bi, 1]
+            f_in = _beam_ne_arrays(bi, bint, bwork)[13]
+            _beam_input_force(xo, n, m, bflt, bint[bi, 5] + 2 * n * n, w, wo, bext, f_in)
+            for k in range(n):
+                out[xo + k] = 0.0
+                out[xo + n + k] = f_in[k]
+    return _finite_rows(table, mode, out)
+
+
+@njit(cache=True)
+def residual(t, xe, x1, xhat, gam, net, w, out, only):
+    r"""The residual of an implicit step of the systems with ``only[i]`` True into ``out``, at the evaluation
+    point ``xe`` (time t) for the new state ``x1``: :math:`x_1 - \hat x - \gamma F(t, x_e)` for every system but
+    a beam, whose rows are second order (:func:`_beam_residual`: the coordinate rows as above, the rate rows
+    the equations of motion in force units with the acceleration :math:`(\dot q_1 - \hat{\dot q})/\gamma`, no
+    mass matrix solved). The methods of :mod:`soroshapes.integrate` give :math:`\hat x`, :math:`\gamma` and
+    :math:`x_e`. False if a state is out of range or a volume is not positive."""
+    table, bint, bflt, bwork, bintb, fpar, bext = net[0], net[1], net[2], net[3], net[4], net[5], net[28]
+    rflt, lint, lflt = net[22], net[20], net[21]
+    if not _assemble(t, xe, net, w, only):
+        return False
+    for i in range(table.shape[0]):
+        if not only[i]:
+            continue
+        xo, nx = table[i, 1], table[i, 2]
+        if table[i, 0] == BEAM:
+            if not _beam_residual(table[i, 5], xe, x1, xhat, gam, xo, w, table[i, 3], bint, bflt, bwork, bintb, bext,
+                                  out):
+                return False
+            continue
+        _system_rhs_a(i, xe, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt, out)
+        for j in range(xo, xo + nx):
+            out[j] = x1[j] - xhat[j] - gam * out[j]
+    return _finite_rows(table, only, out)
 
 
 @njit(cache=True)
@@ -1337,13 +1547,13 @@ def jacobian(t, x, net, scale, w, f0, fp, xp, Jac, JF):
     table = net[0]
     nb = table.shape[0]
     N = x.shape[0]
-    alls = np.ones(nb, np.bool_)
+    alls = np.full(nb, _DERIVATIVE, np.int64)
     for i in range(N):
         for j in range(N):
             Jac[i, j] = 0.0
     if not _fd_rows(t, x, net, scale, w, f0, fp, xp, alls, Jac):
         return False
-    if not rhs(t, x, net, w, f0, alls):               # the workspaces at x again (their mass matrices)
+    if not _evaluate(t, x, net, w, f0, alls):         # the workspaces at x again (their mass matrices)
         return False
     for i in range(N):
         for j in range(N):
@@ -1364,33 +1574,34 @@ def jacobian(t, x, net, scale, w, f0, fp, xp, Jac, JF):
 
 @njit(cache=True)
 def _fd_rows(t, x, net, scale, w, f0, fp, xp, rows, out):
-    r"""The rows of the systems marked in ``rows`` (bool per system) of :math:`\partial F/\partial x` by grouped
-    forward differences (steps ``FD_STEP max(|x_j|, scale_j)``), evaluating only those systems, into ``out``
-    (other rows untouched). False if an evaluation fails."""
+    """The rows of the systems with ``rows[i]`` not ``_SKIP`` of the Jacobian of :func:`_evaluate` (what it
+    computes per system: F, or a beam's input force) by grouped forward differences (steps
+    ``FD_STEP max(|x_j|, scale_j)``), evaluating only those systems, into ``out`` (other rows untouched). False if
+    an evaluation fails."""
     table, groups, dep, col_block = net[0], net[15], net[16], net[17]
     nb = table.shape[0]
     N = x.shape[0]
-    if not rhs(t, x, net, w, f0, rows):
+    if not _evaluate(t, x, net, w, f0, rows):
         return False
-    sel = np.zeros(nb, np.bool_)
+    sel = np.zeros(nb, np.int64)
     for g in range(groups.shape[0]):
         for i in range(N):
             xp[i] = x[i]
         any_row = False
         for b in range(nb):
-            sel[b] = False
+            sel[b] = _SKIP
         for c in range(groups.shape[1]):
             j = groups[g, c]
             if j < 0:
                 break
             xp[j] = x[j] + FD_STEP * max(abs(x[j]), scale[j])
             for b in range(nb):
-                if rows[b] and dep[b, col_block[j]]:
-                    sel[b] = True
+                if rows[b] != _SKIP and dep[b, col_block[j]]:
+                    sel[b] = rows[b]
                     any_row = True
         if not any_row:
             continue
-        if not rhs(t, xp, net, w, fp, sel):
+        if not _evaluate(t, xp, net, w, fp, sel):
             return False
         for c in range(groups.shape[1]):
             j = groups[g, c]
@@ -1398,57 +1609,73 @@ def _fd_rows(t, x, net, scale, w, f0, fp, xp, rows, out):
                 break
             d = xp[j] - x[j]
             for b in range(nb):
-                if rows[b] and dep[b, col_block[j]]:
+                if rows[b] != _SKIP and dep[b, col_block[j]]:
                     for i in range(table[b, 1], table[b, 1] + table[b, 2]):
                         out[i, j] = (fp[i] - f0[i]) / d
     return True
 
 
 @njit(cache=True)
-def _cheap_rows(t, x, net, scale, w, f0, fp, xp, JF):
-    """Refresh the rows of JF that belong to systems other than beams (reservoirs: cheap to evaluate, and
-    non-smooth where a valve saturates, so a stale row makes Newton contract slowly) by :func:`_fd_rows`; a body
-    whose inputs are beam-SDF contacts (``table[b, 6]``) is not cheap: each of its columns evaluates every
-    contact's beam kinematics. False if an evaluation fails."""
-    table = net[0]
-    cheap = np.zeros(table.shape[0], np.bool_)
+def _cheap_rows(t, x, net, scale, w, f0, fp, xp, JF, beams):
+    r"""Refresh the rows of JF that are cheap to difference, by :func:`_fd_rows`: those of every system other
+    than a beam (reservoirs: non-smooth where a valve saturates, so a stale row makes Newton contract slowly),
+    and with ``beams`` the force rows of every beam as its model Jacobian
+    :math:`\partial f_{in}/\partial x - [K\;\; D]` (the inputs' force differenced, elasticity and damping
+    exact; the configuration and velocity derivatives of the inertial forces left out, as in the beam's own
+    iteration matrix :math:`2M/h + D + \tfrac h2 K`) and their coordinate rows :math:`[0\;\; I]`. False if an
+    evaluation fails."""
+    table, bint, bflt = net[0], net[1], net[2]
+    N = x.shape[0]
+    mode = np.zeros(table.shape[0], np.int64)
     for b in range(table.shape[0]):
-        cheap[b] = table[b, 0] != BEAM and table[b, 6] == 0
-    if not cheap.any():
-        return True
-    return _fd_rows(t, x, net, scale, w, f0, fp, xp, cheap, JF)
+        if table[b, 0] != BEAM:
+            if table[b, 6] == 0:   # a body whose inputs are beam-SDF contacts (table[b, 6]) is not cheap: each of
+                mode[b] = _DERIVATIVE   # its columns evaluates every contact's beam kinematics
+        elif beams:
+            mode[b] = _INPUT_FORCE
+            for i in range(table[b, 1], table[b, 1] + table[b, 2]):
+                for j in range(N):
+                    JF[i, j] = 0.0
+    if not _fd_rows(t, x, net, scale, w, f0, fp, xp, mode, JF):
+        return False
+    if beams:
+        for b in range(table.shape[0]):
+            if table[b, 0] != BEAM:
+                continue
+            bi, xo = table[b, 5], table[b, 1]
+            n, fo = bint[bi, 0], bint[bi, 5]
+            for k in range(n):
+                JF[xo + k, xo + n + k] = 1.0
+                for l in range(n):
+                    JF[xo + n + k, xo + l] -= bflt[fo + k * n + l]             # K
+                    JF[xo + n + k, xo + n + l] -= bflt[fo + n * n + k * n + l]  # D
+    return True
 
 
 @njit(cache=True)
-def _iteration_matrix(c, net, JF, Jac, LUc, pivc):
-    r"""Factor :math:`I - cJ` per connected component, with the acceleration rows of every beam taken as
-    :math:`M(q)^{-1}` (current, from the last evaluation) times the force Jacobian ``JF``: a stale Jacobian then
-    misses only the slow change of the forces, not that of the inertia (the configuration dependence of
-    :math:`M` is what makes a beam's stale iteration matrix contract slowly). False if singular."""
-    table, comps, block_comp = net[0], net[18], net[19]
+def _iteration_matrix(c, gam, net, JF, Jac, LUc, pivc):
+    r"""Factor the Newton matrix of :func:`residual` per connected component, :math:`I - cJ` (``c`` =
+    :math:`\gamma` times the weight of :math:`x_1` in the evaluation point) in the rows of every system but a
+    beam's force rows, which are :math:`\tfrac1\gamma M_{[\cdot, \dot q]} - \tfrac c\gamma J_F` with
+    :math:`M` the current mass matrix (:func:`_beam_mass_matrix`) and ``JF`` its force Jacobian (model rows of
+    :func:`_cheap_rows`, or the differenced :func:`jacobian`). False if singular."""
+    table, comps = net[0], net[18]
     N = JF.shape[0]
     for i in range(N):
         for j in range(N):
-            Jac[i, j] = JF[i, j]
+            Jac[i, j] = -c * JF[i, j]
+        Jac[i, i] += 1.0
     for b in range(table.shape[0]):
         if table[b, 0] == BEAM:
             n = table[b, 2] // 2
             r0 = table[b, 1] + n
-            Mf = _beam_mass(table[b, 5], net).copy()
-            piv = np.zeros(n, np.int64)
-            if not _lu(Mf, piv):
-                return False
-            col = np.empty(n)
-            k = block_comp[b]
-            for cc in range(comps.shape[1]):
-                j = comps[k, cc]
-                if j < 0:
-                    break
+            M = _beam_mass(table[b, 5], net)
+            f = c / gam
+            for k in range(n):
+                for j in range(N):
+                    Jac[r0 + k, j] = -f * JF[r0 + k, j]
                 for l in range(n):
-                    col[l] = JF[r0 + l, j]
-                _lu_solve(Mf, piv, col)
-                for l in range(n):
-                    Jac[r0 + l, j] = col[l]
+                    Jac[r0 + k, r0 + l] += M[k, l] / gam
     for k in range(comps.shape[0]):
         s = 0
         while s < comps.shape[1] and comps[k, s] >= 0:
@@ -1456,8 +1683,7 @@ def _iteration_matrix(c, net, JF, Jac, LUc, pivc):
         A = LUc[k, :s, :s]
         for a in range(s):
             for b2 in range(s):
-                A[a, b2] = -c * Jac[comps[k, a], comps[k, b2]]
-            A[a, a] += 1.0
+                A[a, b2] = Jac[comps[k, a], comps[k, b2]]
         if not _lu(A, pivc[k, :s]):
             return False
     return True

@@ -69,6 +69,17 @@ def test_beams_reservoirs_statemaps_and_schedules_compiled_equal_python(method):
     assert a["f0"].q.shape == b["f0"].q.shape and np.array_equal(a.t, b.t)
 
 
+def test_beams_run_second_order_on_their_model_matrix_kept_across_steps():
+    """The compiled step solves the beams second order with the model iteration matrix (M, K, D and the
+    differenced input force): no differenced Jacobian, no failed model matrix, and the factored matrix serves
+    several steps (the reuse rule), on the hand-like network whose trajectory the test above compares."""
+    tr = hand_like(2).simulate(0.2, 1e-3, "bdf2", rtol=1e-6, atol=1e-9, compiled=True)
+    st = tr.stats
+    assert st["path"] == "compiled" and st["cut_steps"] == 0
+    assert st["jacobians"] == 0 and st["model_matrix_failures"] == 0
+    assert 1 <= st["matrices"] < st["steps"]
+
+
 def test_recording_and_continuing_from_t0_on_the_compiled_path():
     full = hand_like(1).simulate(0.2, 2e-3, "trapezoidal", compiled=True)
     sparse = hand_like(1).simulate(0.2, 2e-3, "trapezoidal", compiled=True, record_every=7)
