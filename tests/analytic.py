@@ -6,7 +6,8 @@ import numpy as np
 from scipy.integrate import quad, solve_bvp
 
 __all__ = ["cylinder_inflation_pressure", "sphere_inflation_pressure", "elastica_tip", "elastica_gravity_tip",
-           "cantilever_frequencies", "EULER_BERNOULLI_BETA_L", "sphere_pressure_maximum", "buckled_strut"]
+           "cantilever_frequencies", "EULER_BERNOULLI_BETA_L", "sphere_pressure_maximum", "buckled_strut",
+           "clamped_elastica"]
 
 #: Roots of cos(bL) cosh(bL) = -1: clamped-free Euler-Bernoulli beam, first three bending modes.
 EULER_BERNOULLI_BETA_L = (1.8751040687, 4.6940911330, 7.8547574382)
@@ -167,3 +168,40 @@ def buckled_strut(w_over_L):
         ratios.append(4 * ellipk(m) ** 2 / np.pi**2)
         shortenings.append(2 - 2 * ellipe(m) / ellipk(m))
     return np.array(ratios), np.array(shortenings)
+
+
+def clamped_elastica(k, L, s):
+    """The first (symmetric) post-buckled shape of an inextensible strut of length ``L`` [m] clamped at both ends
+    (both ends held on the x axis with their tangents along x, one moved towards the other): for the elliptic
+    modulus ``k`` = sin(theta_0/2) (theta_0 the slope at the inflection points), returns ``(P/P_cr,
+    shortening/L, x, y)`` with the positions x, y [m] at arc lengths ``s`` [m] and :math:`P_{cr} =
+    4\\pi^2 EI/L^2`.
+
+    Derivation. The clamped-clamped strut in its first mode has inflection points at L/4 and 3L/4 and zero
+    transverse end forces (symmetry), so every quarter is the clamped-free elastica of length :math:`\\ell = L/4`
+    under the end load P, the curve of :func:`buckled_strut` (whose halves have length L/2) with the half-wave
+    period doubled: :math:`\\sqrt{P/EI}\\,\\ell = K(k)`, i.e. :math:`\\alpha L = 4K` with
+    :math:`\\alpha = \\sqrt{P/EI}`, and :math:`P/P_{cr} = 4K^2/\\pi^2`. Measured from the clamp (where the
+    curvature is largest and :math:`\\theta = 0`), :math:`EI\\theta'' + P\\sin\\theta = 0` is solved by
+    :math:`\\sin(\\theta/2) = k\\,\\mathrm{sn}(\\alpha s, k)`; then :math:`\\cos(\\theta/2) = \\mathrm{dn}`, so
+    :math:`x' = \\cos\\theta = 2\\,\\mathrm{dn}^2 - 1` and :math:`y' = \\sin\\theta = 2k\\,\\mathrm{sn}\\,\\mathrm{dn}`
+    integrate to
+
+    .. math:: x(s) = \\frac{2E(\\mathrm{am}(\\alpha s), k) - \\alpha s}{\\alpha}, \\qquad
+              y(s) = \\frac{2k}{\\alpha}\\left(1 - \\mathrm{cn}(\\alpha s, k)\\right).
+
+    At :math:`s = L` (:math:`\\alpha s = 4K`): :math:`y = 0`, :math:`\\theta = 0` and :math:`x = L(2E/K - 1)`,
+    so the shortening is :math:`\\Delta/L = 2 - 2E(k)/K(k)` (as :func:`buckled_strut`); the midpoint
+    deflection is :math:`y(L/2) = 4k/\\alpha = kL/K(k)`. Small k: :math:`y \\approx (kL/2\\pi)(1 - \\cos 2\\pi s/L)`,
+    the linear clamped-clamped mode.
+    """
+    from scipy.special import ellipe, ellipeinc, ellipj, ellipk
+
+    m = k * k
+    K, E = ellipk(m), ellipe(m)
+    alpha = 4 * K / L
+    u = alpha * np.asarray(s, dtype=float)
+    sn, cn, dn, ph = ellipj(u, m)
+    x = (2 * ellipeinc(ph, m) - u) / alpha
+    y = 2 * k / alpha * (1 - cn)
+    return 4 * K**2 / np.pi**2, 2 - 2 * E / K, x, y
