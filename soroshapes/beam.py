@@ -558,7 +558,8 @@ def statics(model, data, loads, u=None, q0=None, *, steps=1, tol=1e-9, max_itera
     ``constraints``: a :class:`soroshapes.constraints.ConstraintSet` (bound at ``q0``); the unknowns are then
     :math:`(q, \lambda)`, the residual :math:`(Kq - f - J_c^T\lambda,\ c)` and its tangent the bordered matrix
     (:mod:`soroshapes.constraints`); the targets ramp with the load factor; an increment also needs the drift
-    :math:`|c|` below ``tol`` times the length. Returns (q, multipliers, iterations, the bordered tangent at the
+    :math:`|c|` below ``tol`` times the length, and no increment turns a target by more than pi/4 (the drift is
+    a logarithm, defined modulo a turn: a larger increment could land a whole turn short). Returns (q, multipliers, iterations, the bordered tangent at the
     solution (n + m, n + m), the drift c (m,))."""
     from .numerics import fd_columns
     q = check_state(model, q0)
@@ -611,7 +612,8 @@ def statics(model, data, loads, u=None, q0=None, *, steps=1, tol=1e-9, max_itera
         return None, max_iterations
 
     x = np.concatenate([q, np.zeros(m)])
-    lam, dlam = 0.0, 1.0 / max(1, int(steps))
+    cap = 1.0 if constraints is None else constraints.max_load_step   # a turn of a target stays below pi/4
+    lam, dlam = 0.0, min(cap, 1.0 / max(1, int(steps)))
     iterations = []
     while lam < 1.0 - 1e-14:
         target = min(1.0, lam + dlam)
@@ -629,7 +631,7 @@ def statics(model, data, loads, u=None, q0=None, *, steps=1, tol=1e-9, max_itera
         x, lam = xn, target
         iterations.append(its)
         if its <= 4:
-            dlam = min(2 * dlam, 1.0)
+            dlam = min(2 * dlam, cap)
     if m:
         r = aug(x, 1.0)
         return x[:n], x[n:], iterations, fd_columns(lambda y: aug(y, 1.0), x, r, np.ones(n + m)), r[n:]

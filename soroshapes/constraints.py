@@ -154,6 +154,13 @@ class ConstraintSet:
         self.bound = tuple(bound)
         self.m = sum(len(b.sel) for b in bound)
 
+    @property
+    def max_load_step(self):
+        """Largest load-factor increment that turns every orientation target by at most pi/4 (1 if none turns):
+        the rotation drift is a logarithm, defined modulo a full turn."""
+        turn = max([float(np.linalg.norm(b.phi)) for b in self.bound if any(i >= 3 for i in b.sel)] + [0.0])
+        return 1.0 if turn <= np.pi / 4 else np.pi / 4 / turn
+
     def targets(self, scale):
         """[(p*, R*)] at load factor ``scale``."""
         from .lie import expSO3
