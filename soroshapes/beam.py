@@ -559,8 +559,8 @@ def statics(model, data, loads, u=None, q0=None, *, steps=1, tol=1e-9, max_itera
     :math:`(q, \lambda)`, the residual :math:`(Kq - f - J_c^T\lambda,\ c)` and its tangent the bordered matrix
     (:mod:`soroshapes.constraints`); the targets ramp with the load factor; an increment also needs the drift
     :math:`|c|` below ``tol`` times the length, and no increment turns a target by more than pi/4 (the drift is
-    a logarithm, defined modulo a turn: a larger increment could land a whole turn short). Returns (q, multipliers, iterations, the bordered tangent at the
-    solution (n + m, n + m), the drift c (m,))."""
+    a logarithm, defined modulo a turn: a larger increment could land a whole turn short). Returns (q,
+    multipliers, iterations, the bordered tangent at the solution (n + m, n + m), the drift c (m,))."""
     from .numerics import fd_columns
     q = check_state(model, q0)
     uv = inputs_at(loads, u, t)

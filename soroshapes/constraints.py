@@ -167,8 +167,8 @@ class ConstraintSet:
         return [(b.p0 + scale * b.dp, expSO3(scale * b.phi) @ b.R0) for b in self.bound]
 
     def _full(self, data, scale):
-        """[(c6, R, J)] per constraint: the drift of all six components at load factor ``scale``, the rotation
-        and body Jacobian of the frame."""
+        """[c6] per constraint: the drift of all six components (x, y, z [m], rx, ry, rz [rad]) at load factor
+        ``scale``."""
         from .lie import logSO3
         out = []
         for b, (p, R) in zip(self.bound, self.targets(scale)):
@@ -183,7 +183,7 @@ class ConstraintSet:
         """The drift c (m,) [m, rad] at the kinematics in ``data`` and the targets at load factor ``scale``."""
         return np.concatenate([c6[list(b.sel)] for b, c6 in zip(self.bound, self._full(data, scale))])
 
-    def jacobian(self, data, c=None, scale=None):
+    def jacobian(self, data, scale=None):
         r"""The exact :math:`\partial c/\partial q` (m, n) at the kinematics in ``data``: position rows
         :math:`R J_v`, rotation rows :math:`J_l^{-1}(c_R) R J_\omega` with the full rotation drift :math:`c_R`
         at load factor ``scale`` (None: at :math:`c_R = 0`, the Jacobian on the constraint manifold)."""
@@ -200,10 +200,8 @@ class ConstraintSet:
         return np.vstack(rows)
 
     def _names(self):
-        names = []
-        for b in self.bound:
-            names += [f"{b.label} {('position x', 'position y', 'position z', 'rotation about x', 'rotation about y', 'rotation about z')[i]}" for i in b.sel]
-        return names
+        what = ("position x", "position y", "position z", "rotation about x", "rotation about y", "rotation about z")
+        return [f"{b.label} {what[i]}" for b in self.bound for i in b.sel]
 
     def check(self, data):
         """Raise a :class:`ParameterError` if the constraints cannot be enforced from the kinematics in ``data``

@@ -28,6 +28,14 @@ Cases and tolerances:
   cantilever :math:`3wL/8` at the pinned end, clamped-clamped :math:`wL/2` and :math:`wL^2/12`; the rod is
   stiff (deflection 1e-5 L), so the tolerance is 1e-4 relative (the Gregory quadrature of the weight is exact
   for the straight rod).
+* Centrifugal stiffening of a rotating cantilever (flapwise, hub radius 0): the rod, clamped on the spin axis,
+  in the rotating frame under the centrifugal field :math:`\\rho A\\Omega^2 (x, y, 0)` (a user force; the
+  centrifugal load of the sections' rotary inertia is left out, :math:`(r/L)^2 = 4\\times10^{-6}`), linearized
+  about its steady stretched state (finite-difference tangent, mass matrix there); its first frequency against
+  the Euler-Bernoulli eigenproblem of :func:`analytic.rotating_cantilever_frequency` for dimensionless spins
+  :math:`\\Omega\\sqrt{\\rho A L^4/EI}` = 0 to 8 (measured within 6e-6 with Chebyshev(6), 20 segments; tolerance
+  1e-4), and Southwell's coefficient :math:`K_1 = 1.193` from the slope at small spin (the reference's own
+  slope is tested too).
 * Constraint drift below 1e-8 m (and 1e-8 rad) at every solution (the Newton loop stops at tol * L = 5e-10 m).
 """
 import sys
@@ -42,7 +50,7 @@ from soroshapes import Basis, Shapes
 from soroshapes.constraints import Align, ConstraintSet, Pin, Weld
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from analytic import clamped_elastica  # noqa: E402
+from analytic import clamped_elastica, rotating_cantilever_frequency  # noqa: E402
 
 L, R = 0.5, 1e-3
 MAT = materials.NeoHookean(E=1e6, nu=0.45, density=1000.0)
@@ -89,8 +97,10 @@ def test_euler_load_of_the_clamped_clamped_strut():
     assert abs(y[len(y) // 2]) == pytest.approx(np.max(np.abs(y)), rel=1e-2) and abs(y[-1]) < 1e-9
 
 
-def test_post_buckled_strut_matches_the_clamped_elastica():
-    shp = planar_rod(10)
+def post_buckled(k_final=0.3, modes=10):
+    """(largest position error / L, axial force error, equilibrium) of the clamped-clamped strut shortened as the
+    elastica of modulus ``k_final``, against :func:`analytic.clamped_elastica`."""
+    shp = planar_rod(modes)
     EI, EA, _ = stiffnesses(shp)
     PE = 4 * np.pi**2 * EI / L**2
 
@@ -106,15 +116,20 @@ def test_post_buckled_strut_matches_the_clamped_elastica():
         a = 0.5 * (lo + hi)
         lo, hi = (a, hi) if shp.positions(a * mode)[-1, 0] > L * (1 - short) else (lo, a)
     q = a * mode
-    for k in (0.1, 0.2, 0.3):
+    for k in np.arange(0.1, k_final + 0.05, 0.1):
         ratio, short, _, _ = clamped_elastica(k, L, [0.0])
         eq = shp.statics(q0=q, constraints=hold(L * short))
         q = eq.q
     p = shp.positions(q)
-    _, _, x, y = clamped_elastica(0.3, L, shp.sigma)
+    _, _, x, y = clamped_elastica(k, L, shp.sigma)
     y *= np.sign(p[len(p) // 2, 1])
-    assert np.max(np.hypot(p[:, 0] - x, p[:, 1] - y)) < 2e-4 * L
-    assert -eq.reactions[0, 3] / PE == pytest.approx(ratio, rel=5e-4)
+    return np.max(np.hypot(p[:, 0] - x, p[:, 1] - y)) / L, -eq.reactions[0, 3] / PE / ratio - 1, eq
+
+
+def test_post_buckled_strut_matches_the_clamped_elastica():
+    shape_error, force_error, eq = post_buckled(0.3)
+    assert shape_error < 2e-4
+    assert abs(force_error) < 5e-4
     assert eq.lowest_eigenvalue > 0           # the first buckled branch is stable under end shortening
     assert eq.drift_position < 1e-8 and eq.drift_rotation < 1e-8
 
@@ -184,3 +199,75 @@ def test_constraint_errors_name_the_fix():
                           material=MAT, damping=0.0)
     with pytest.raises(ParameterError, match="stretch dof"):
         inextensible.statics(constraints=[Pin(at=L, axes=("x", "y"))])
+
+
+class Centrifugal:
+    """The centrifugal force per length :math:`\\rho A\\Omega^2 (x, y, 0)` [N/m] of a spin ``spin`` [rad/s] about
+    the world z axis, as a generalized force (a user force of the rotating frame)."""
+
+    def __init__(self, spin):
+        self.spin = spin
+
+    def __call__(self, shp, q, qd, t):
+        G, _, J = shp.node_kinematics(q)
+        rho_a = shp.density * shp.section_properties.area
+        f = np.zeros(shp.n)
+        for g, Ji, w in zip(G, J, shp.model.weights):        # Gregory weights at the nodes (stride 1)
+            force = rho_a * self.spin**2 * np.array([g[0, 3], g[1, 3], 0.0])
+            f += w * Ji[3:].T @ (g[:3, :3].T @ force)
+        return f
+
+
+def spinning_frequency(spin_bar, modes=6):
+    """(first flapwise frequency of the spinning rod [rad/s], the reference, spin [rad/s])."""
+    from scipy.linalg import eigh
+    shp = Shapes(Basis.chebyshev(modes), dofs=(0, modes, 0, 1, 0, 0), length=L, section=sdf.Circle(R),
+                 material=MAT, segments=20, damping=0.0)
+    EI, rho_a = stiffnesses(shp)[0], shp.density * np.pi * R**2
+    spin = spin_bar * np.sqrt(EI / (rho_a * L**4))
+    shp.add_force(Centrifugal(spin))
+    q = shp.statics()
+    f0, h = shp.generalized_force(q), 1e-7
+    Kt = shp.K - np.column_stack([(shp.generalized_force(q + h * e) - f0) / h for e in np.eye(shp.n)])
+    w2 = eigh(0.5 * (Kt + Kt.T), shp.mass_matrix(q), eigvals_only=True)
+    return np.sqrt(w2[0]), rotating_cantilever_frequency(L, EI, rho_a, spin), spin
+
+
+@pytest.mark.parametrize("spin_bar", [0.0, 2.0, 8.0])
+def test_centrifugal_stiffening_of_a_rotating_cantilever(spin_bar):
+    w, ref, _ = spinning_frequency(spin_bar)
+    assert w == pytest.approx(ref, rel=1e-4)
+
+
+def test_southwell_coefficient():
+    w0, ref0, _ = spinning_frequency(0.0)
+    w, ref, spin = spinning_frequency(0.3)
+    assert (ref**2 - ref0**2) / spin**2 == pytest.approx(1.193, abs=1e-3)      # the reference's own slope
+    assert (w**2 - w0**2) / spin**2 == pytest.approx(1.193, abs=1e-3)
+
+
+if __name__ == "__main__":        # the figures of the report: python tests/soroshapes/test_constraints.py
+    shp = planar_rod(8)
+    EI, EA, GJ = stiffnesses(shp)
+    PE = 4 * np.pi**2 * EI / L**2
+    eq = critical(lambda d: shp.statics(constraints=[Weld(at=L, position=(L - d, 0, 0), axes=PLANAR)]),
+                  0.9 * PE / EA * L, 1.1 * PE / EA * L)
+    print(f"Euler load (chebyshev(8), 20 segments): P/P_E - 1 = {-eq.reactions[0, 3] / PE - 1:.2e}, "
+          f"drift {eq.drift_position:.1e} m {eq.drift_rotation:.1e} rad")
+    for kf in (0.3, 0.7):
+        err, ferr, eq = post_buckled(kf)
+        print(f"post-buckled clamped elastica k = {kf} (chebyshev(10), 20 segments): shape error {err:.2e} L, "
+              f"axial force error {ferr:.2e}, drift {eq.drift_position:.1e} m {eq.drift_rotation:.1e} rad")
+    shp = Shapes([Basis.chebyshev(1), Basis.chebyshev(10), Basis.chebyshev(10), Basis.chebyshev(1), None, None],
+                 dofs=(1, 10, 10, 1, 0, 0), length=L, section=sdf.Circle(R), material=MAT, segments=20, damping=0.0)
+    Mcr = 2 * 4.493409457909064 * EI / L
+    eq = critical(lambda phi: shp.statics(constraints=[Weld(at=L, rotation=(phi, 0, 0))]),
+                  0.95 * Mcr * L / GJ, 1.05 * Mcr * L / GJ)
+    print(f"twisting instability (chebyshev(10), 20 segments): M/M_cr - 1 = {eq.reactions[0, 0] / Mcr - 1:.2e}, "
+          f"drift {eq.drift_position:.1e} m {eq.drift_rotation:.1e} rad")
+    for sb in (0.0, 1.0, 2.0, 4.0, 8.0):
+        w, ref, _ = spinning_frequency(sb)
+        print(f"rotating cantilever, spin {sb:g}: omega/omega_ref - 1 = {w / ref - 1:.2e}")
+    w0, _, _ = spinning_frequency(0.0)
+    w, _, spin = spinning_frequency(0.3)
+    print(f"Southwell coefficient of the beam model: {(w**2 - w0**2) / spin**2:.4f} (published 1.193)")
