@@ -192,7 +192,7 @@ def clamped_elastica(k, L, s):
 
     At :math:`s = L` (:math:`\\alpha s = 4K`): :math:`y = 0`, :math:`\\theta = 0` and :math:`x = L(2E/K - 1)`,
     so the shortening is :math:`\\Delta/L = 2 - 2E(k)/K(k)` (as :func:`buckled_strut`); the midpoint
-    deflection is :math:`y(L/2) = 4k/\\alpha = kL/K(k)`. Small k: :math:`y \\approx (kL/2\\pi)(1 - \\cos 2\\pi s/L)`,
+    deflection is :math:`y(L/2) = 4k/\\alpha = kL/K(k)`. Small k: :math:`y \\approx (kL/\\pi)(1 - \\cos 2\\pi s/L)`,
     the linear clamped-clamped mode.
     """
     from scipy.special import ellipe, ellipeinc, ellipj, ellipk

@@ -82,6 +82,31 @@ def critical(solve, x0, x1):
     raise AssertionError("the lowest eigenvalue did not cross zero")
 
 
+def test_the_clamped_elastica_reference_solves_its_equation():
+    """The elliptic-function curve against a direct integration of EI theta'' + P sin(theta) = 0 from the clamp
+    (theta(0) = 0, theta'(0) = 2 k alpha), and its small-k limit, the linear mode (kL/pi)(1 - cos 2pi s/L)."""
+    from scipy.integrate import solve_ivp
+    from scipy.special import ellipk
+    s = np.linspace(0.0, L, 9)
+    for k in (0.3, 0.7):
+        ratio, short, x, y = clamped_elastica(k, L, s)
+        alpha = 4 * ellipk(k * k) / L
+        sol = solve_ivp(lambda _, z: [z[1], -alpha**2 * np.sin(z[0]), np.cos(z[0]), np.sin(z[0])], (0, L),
+                        [0.0, 2 * k * alpha, 0.0, 0.0], t_eval=s, rtol=1e-12, atol=1e-15)
+        assert np.allclose(sol.y[2], x, atol=1e-10 * L) and np.allclose(sol.y[3], y, atol=1e-10 * L)
+        assert x[-1] == pytest.approx(L * (1 - short), rel=1e-12) and abs(y[-1]) < 1e-12 * L
+        assert ratio == pytest.approx(alpha**2 * L**2 / (4 * np.pi**2), rel=1e-12)
+    k = 1e-4
+    _, _, x, y = clamped_elastica(k, L, s)
+    assert np.allclose(y, k * L / np.pi * (1 - np.cos(2 * np.pi * s / L)), atol=1e-6 * k * L)
+
+
+def test_the_rotating_cantilever_reference_at_rest_is_euler_bernoulli():
+    EI, rho_a = 2.0, 0.5
+    assert rotating_cantilever_frequency(L, EI, rho_a, 0.0) == pytest.approx(
+        1.8751040687**2 * np.sqrt(EI / (rho_a * L**4)), rel=1e-9)
+
+
 def test_euler_load_of_the_clamped_clamped_strut():
     shp = planar_rod(8)
     EI, EA, _ = stiffnesses(shp)
