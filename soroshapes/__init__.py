@@ -15,6 +15,9 @@ _SUBMODULES = ("lie", "basis", "beam", "shapes", "numerics", "render", "dvs", "m
 _CLASSES = {"Basis": "basis", "Shapes": "shapes", "BeamTrajectory": "shapes", "IKResult": "shapes",
             "Model": "model", "StateSpace": "model", "Fluidic": "model", "RigidBody": "rigid",
             "SpinningBody": "rigid"}
+# holonomic end constraints of beam statics (issue 25)
+_SUBMODULES += ("constraints",)
+_CLASSES.update(Weld="constraints", Pin="constraints", Align="constraints")
 
 __all__: list[str] = [*_SUBMODULES, *_CLASSES]
 

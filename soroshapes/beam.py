@@ -551,63 +551,91 @@ def compiled_loads(loads):
 # statics
 # ------------------------------------------------------------------------------------------------------------
 def statics(model, data, loads, u=None, q0=None, *, steps=1, tol=1e-9, max_iterations=40, min_step=1e-4, t=0.0,
-            owner=None):
+            owner=None, constraints=None):
     r"""Static equilibrium :math:`K q = f_g(q) + G(q)u + f_{ext}(q)` by Newton's method with load stepping
-    (see :meth:`soroshapes.shapes.Shapes.statics`). Returns (q, Newton iterations per accepted increment)."""
+    (see :meth:`soroshapes.shapes.Shapes.statics`). Returns (q, Newton iterations per accepted increment).
+
+    ``constraints``: a :class:`soroshapes.constraints.ConstraintSet` (bound at ``q0``); the unknowns are then
+    :math:`(q, \lambda)`, the residual :math:`(Kq - f - J_c^T\lambda,\ c)` and its tangent the bordered matrix
+    (:mod:`soroshapes.constraints`); the targets ramp with the load factor; an increment also needs the drift
+    :math:`|c|` below ``tol`` times the length, and no increment turns a target by more than pi/4 (the drift is
+    a logarithm, defined modulo a turn: a larger increment could land a whole turn short). Returns (q,
+    multipliers, iterations, the bordered tangent at the solution (n + m, n + m), the drift c (m,))."""
     from .numerics import fd_columns
     q = check_state(model, q0)
     uv = inputs_at(loads, u, t)
     K, n = model.K, model.n
+    m = 0 if constraints is None else constraints.m
+    kmax = float(np.abs(np.diag(K)).max())
+    c_weight = kmax / model.length**2          # drift [m] -> a force of the size of K's [N m per coordinate]
+    c_tol = tol * model.length
 
-    def residual(x, scale):
+    def aug(x, scale):
+        """(K q - f - J_c^T lambda, c) at x = (q, lambda): forces, then the drift on the same kinematic pass."""
         try:
-            x, xd = kinematics(model, data, x)
-            return K @ x - external_force(model, data, loads, x, xd, t, uv, scale, owner)
+            qx, qdx = kinematics(model, data, x[:n])
+            r = K @ qx - external_force(model, data, loads, qx, qdx, t, uv, scale, owner)
         except StateRangeError:              # an iterate left the finite range: the line search backs off
-            return np.full(n, np.nan)
+            return np.full(n + m, np.nan)
+        if not m:
+            return r
+        c = constraints.residual(data, scale)
+        return np.concatenate([r - constraints.jacobian(data, scale=scale).T @ x[n:], c])
 
-    def newton(q, scale):
-        r = residual(q, scale)
+    def merit(r):
+        return np.linalg.norm(r[:n]) + c_weight * np.linalg.norm(r[n:])
+
+    def newton(x, scale):
+        r = aug(x, scale)
         for it in range(1, max_iterations + 1):
-            Kt = fd_columns(lambda x: residual(x, scale), q, r, np.ones(n))
+            Kt = fd_columns(lambda y: aug(y, scale), x, r, np.ones(n + m))
             try:
-                dq = -np.linalg.solve(Kt, r)
+                dx = -np.linalg.solve(Kt, r)
             except np.linalg.LinAlgError:
                 return None, it
-            ref = np.linalg.norm(r)
+            ref = merit(r)
             step = 1.0
             while True:
-                qn = q + step * dq
-                rn = residual(qn, scale)
-                if np.all(np.isfinite(rn)) and np.linalg.norm(rn) <= (1 - 1e-4 * step) * ref or step < 1e-3:
+                xn = x + step * dx
+                rn = aug(xn, scale)
+                if np.all(np.isfinite(rn)) and merit(rn) <= (1 - 1e-4 * step) * ref or step < 1e-3:
                     break
                 step *= 0.5
             if not np.all(np.isfinite(rn)):
                 return None, it
-            q, r = qn, rn
+            x, r = xn, rn
+            q = x[:n]
             scale_ref = np.linalg.norm(K @ q) + 1e-12 * np.linalg.norm(np.diag(K))
-            if np.linalg.norm(r) <= tol * scale_ref and np.linalg.norm(step * dq) <= 1e-8 * (1 + np.linalg.norm(q)):
-                return q, it
+            if (np.linalg.norm(r[:n]) <= tol * scale_ref and np.linalg.norm(r[n:]) <= c_tol
+                    and np.linalg.norm(step * dx[:n]) <= 1e-8 * (1 + np.linalg.norm(q))):
+                return x, it
         return None, max_iterations
 
-    lam, dlam = 0.0, 1.0 / max(1, int(steps))
+    x = np.concatenate([q, np.zeros(m)])
+    cap = 1.0 if constraints is None else constraints.max_load_step   # a turn of a target stays below pi/4
+    lam, dlam = 0.0, min(cap, 1.0 / max(1, int(steps)))
     iterations = []
     while lam < 1.0 - 1e-14:
         target = min(1.0, lam + dlam)
-        qn, its = newton(q.copy(), target)
-        if qn is None:
+        xn, its = newton(x.copy(), target)
+        if xn is None:
             dlam *= 0.5
             if dlam < min_step:
                 from sorofem.errors import ConvergenceError
+                extra = ("; with constraints, also check that the targets are reachable by the basis and that "
+                         "the path does not cross a bifurcation (perturb q0 or add an imperfection)") if m else ""
                 raise ConvergenceError(f"statics: Newton failed at load level {target:.4g} (reached {lam:.4g}) "
                                        "with the minimum increment; use more steps, a better q0, or check "
-                                       "that the loads are reachable")
+                                       "that the loads are reachable" + extra)
             continue
-        q, lam = qn, target
+        x, lam = xn, target
         iterations.append(its)
         if its <= 4:
-            dlam = min(2 * dlam, 1.0)
-    return q, iterations
+            dlam = min(2 * dlam, cap)
+    if m:
+        r = aug(x, 1.0)
+        return x[:n], x[n:], iterations, fd_columns(lambda y: aug(y, 1.0), x, r, np.ones(n + m)), r[n:]
+    return x, iterations
 
 
 # ------------------------------------------------------------------------------------------------------------

@@ -720,7 +720,8 @@ class Shapes:
     # ------------------------------------------------------------------------------------------------
     # solvers
     # ------------------------------------------------------------------------------------------------
-    def statics(self, u=None, q0=None, *, steps=1, tol=1e-9, max_iterations=40, min_step=1e-4, t=0.0):
+    def statics(self, u=None, q0=None, *, steps=1, tol=1e-9, max_iterations=40, min_step=1e-4, t=0.0,
+                constraints=None):
         r"""Static equilibrium :math:`K q = f_g(q) + G(q)u + f_{ext}(q)` by Newton's method with load stepping.
 
         The loads (all but contact) are ramped by a factor :math:`\lambda \in (0, 1]` in ``steps`` equal
@@ -729,11 +730,35 @@ class Shapes:
         difference of the generalized forces (exact elastic part). Converged when the residual norm is below
         ``tol`` times the norm of the elastic + applied forces.
 
-        Returns the coordinates q (n,).
+        ``constraints``: a list of :class:`soroshapes.constraints.Weld`, ``Pin`` or ``Align`` (frames of the rod
+        held on world frames, or moved to them: their targets ramp with the load factor from where they are at
+        ``q0``), enforced with Lagrange multipliers on the bordered system; a constraint the basis cannot
+        move at ``q0`` raises a :class:`~sorofem.errors.ParameterError`. See :mod:`soroshapes.constraints`.
+
+        Returns the coordinates q (n,); with ``constraints``, an :class:`soroshapes.constraints.Equilibrium`
+        (q, reaction wrenches [N m, N] in the world frame, drift [m, rad], stiffness on the constraint manifold).
         """
-        q, self.newton_iterations = _bm.statics(self.model, self.data, self._loads, u, q0, steps=steps, tol=tol,
-                                                max_iterations=max_iterations, min_step=min_step, t=t, owner=self)
-        return q
+        if constraints is None:
+            q, self.newton_iterations = _bm.statics(self.model, self.data, self._loads, u, q0, steps=steps,
+                                                    tol=tol, max_iterations=max_iterations, min_step=min_step,
+                                                    t=t, owner=self)
+            return q
+        from scipy.linalg import null_space
+        from .constraints import ConstraintSet, Equilibrium
+        q0 = _bm.check_state(self.model, q0)
+        cs = ConstraintSet(self.model, self.data, constraints, q0)
+        cs.check(self.data)
+        q, lam, self.newton_iterations, Kt, c = _bm.statics(
+            self.model, self.data, self._loads, u, q0, steps=steps, tol=tol, max_iterations=max_iterations,
+            min_step=min_step, t=t, owner=self, constraints=cs)
+        n = self.n
+        _bm.kinematics(self.model, self.data, q)
+        Z = null_space(cs.jacobian(self.data, scale=1.0))
+        H = 0.5 * (Kt[:n, :n] + Kt[:n, :n].T)
+        dp, dr = cs.drift(c)
+        return Equilibrium(q=q, multipliers=lam, reactions=cs.reactions(lam), drift_position=dp,
+                           drift_rotation=dr, iterations=self.newton_iterations, stiffness=Z.T @ H @ Z,
+                           null_basis=Z)
 
     # ------------------------------------------------------------------------------------------------
     # dynamics

@@ -6,7 +6,8 @@ import numpy as np
 from scipy.integrate import quad, solve_bvp
 
 __all__ = ["cylinder_inflation_pressure", "sphere_inflation_pressure", "elastica_tip", "elastica_gravity_tip",
-           "cantilever_frequencies", "EULER_BERNOULLI_BETA_L", "sphere_pressure_maximum", "buckled_strut"]
+           "cantilever_frequencies", "EULER_BERNOULLI_BETA_L", "sphere_pressure_maximum", "buckled_strut",
+           "clamped_elastica", "rotating_cantilever_frequency"]
 
 #: Roots of cos(bL) cosh(bL) = -1: clamped-free Euler-Bernoulli beam, first three bending modes.
 EULER_BERNOULLI_BETA_L = (1.8751040687, 4.6940911330, 7.8547574382)
@@ -167,3 +168,81 @@ def buckled_strut(w_over_L):
         ratios.append(4 * ellipk(m) ** 2 / np.pi**2)
         shortenings.append(2 - 2 * ellipe(m) / ellipk(m))
     return np.array(ratios), np.array(shortenings)
+
+
+def clamped_elastica(k, L, s):
+    """The first (symmetric) post-buckled shape of an inextensible strut of length ``L`` [m] clamped at both ends
+    (both ends held on the x axis with their tangents along x, one moved towards the other): for the elliptic
+    modulus ``k`` = sin(theta_0/2) (theta_0 the slope at the inflection points), returns ``(P/P_cr,
+    shortening/L, x, y)`` with the positions x, y [m] at arc lengths ``s`` [m] and :math:`P_{cr} =
+    4\\pi^2 EI/L^2`.
+
+    Derivation. The clamped-clamped strut in its first mode has inflection points at L/4 and 3L/4 and zero
+    transverse end forces (symmetry), so every quarter is the clamped-free elastica of length :math:`\\ell = L/4`
+    under the end load P, the curve of :func:`buckled_strut` (whose halves have length L/2) with the half-wave
+    period doubled: :math:`\\sqrt{P/EI}\\,\\ell = K(k)`, i.e. :math:`\\alpha L = 4K` with
+    :math:`\\alpha = \\sqrt{P/EI}`, and :math:`P/P_{cr} = 4K^2/\\pi^2`. Measured from the clamp (where the
+    curvature is largest and :math:`\\theta = 0`), :math:`EI\\theta'' + P\\sin\\theta = 0` is solved by
+    :math:`\\sin(\\theta/2) = k\\,\\mathrm{sn}(\\alpha s, k)`; then :math:`\\cos(\\theta/2) = \\mathrm{dn}`, so
+    :math:`x' = \\cos\\theta = 2\\,\\mathrm{dn}^2 - 1` and :math:`y' = \\sin\\theta = 2k\\,\\mathrm{sn}\\,\\mathrm{dn}`
+    integrate to
+
+    .. math:: x(s) = \\frac{2E(\\mathrm{am}(\\alpha s), k) - \\alpha s}{\\alpha}, \\qquad
+              y(s) = \\frac{2k}{\\alpha}\\left(1 - \\mathrm{cn}(\\alpha s, k)\\right).
+
+    At :math:`s = L` (:math:`\\alpha s = 4K`): :math:`y = 0`, :math:`\\theta = 0` and :math:`x = L(2E/K - 1)`,
+    so the shortening is :math:`\\Delta/L = 2 - 2E(k)/K(k)` (as :func:`buckled_strut`); the midpoint
+    deflection is :math:`y(L/2) = 4k/\\alpha = kL/K(k)`. Small k: :math:`y \\approx (kL/\\pi)(1 - \\cos 2\\pi s/L)`,
+    the linear clamped-clamped mode.
+    """
+    from scipy.special import ellipe, ellipeinc, ellipj, ellipk
+
+    m = k * k
+    K, E = ellipk(m), ellipe(m)
+    alpha = 4 * K / L
+    u = alpha * np.asarray(s, dtype=float)
+    sn, cn, dn, ph = ellipj(u, m)
+    x = (2 * ellipeinc(ph, m) - u) / alpha
+    y = 2 * k / alpha * (1 - cn)
+    return 4 * K**2 / np.pi**2, 2 - 2 * E / K, x, y
+
+
+def rotating_cantilever_frequency(L, EI, rhoA, spin):
+    """First flapwise (out of the plane of rotation) natural frequency [rad/s] of a uniform Euler-Bernoulli
+    cantilever of length ``L`` [m], bending stiffness ``EI`` [N m^2] and mass per length ``rhoA`` [kg/m], clamped
+    on the axis of a hub spinning at ``spin`` [rad/s] (zero hub radius) and lying in the plane of rotation.
+
+    In the rotating frame the centrifugal field :math:`\\rho A\\Omega^2 x` stretches the beam with the tension
+    :math:`T(x) = \\rho A\\Omega^2 (L^2 - x^2)/2` and has no component along the flapwise deflection w (nor does
+    the Coriolis force of a flapwise velocity), so the modes solve
+
+    .. math:: EI\\,w'''' - (T w')' = \\rho A\\,\\omega^2 w, \\quad w(0) = w'(0) = 0,\\ w''(L) = w'''(L) = 0,
+
+    solved as a boundary-value problem for :math:`\\omega^2` (scipy's ``solve_bvp``, tolerance 1e-10, the
+    normalization :math:`w(L) = 1`, from the non-rotating mode). At small spin it follows Southwell's relation
+    :math:`\\omega^2 = \\omega_0^2 + K_1\\Omega^2` with :math:`K_1 = 1.193` for the first mode of the uniform
+    cantilever (e.g. Wright, Smith, Thresher & Wang, J. Appl. Mech. 49 (1982) 197-202; Bielawa, Rotary Wing
+    Structural Dynamics and Aeroelasticity, 2006); at larger spin the curve bends below that line.
+    """
+    bl = EULER_BERNOULLI_BETA_L[0]
+    s = np.linspace(0.0, 1.0, 200)
+    om2 = spin**2 * rhoA * L**4 / EI                      # dimensionless: L = EI = rhoA = 1
+
+    def rhs(x, y, p):
+        T, dT = om2 * (1 - x * x) / 2, -om2 * x
+        return np.vstack([y[1], y[2], y[3], dT * y[1] + T * y[2] + p[0] * y[0]])
+
+    def bc(ya, yb, p):
+        return np.array([ya[0], ya[1], yb[2], yb[3], yb[0] - 1.0])
+
+    b = bl * s
+    sig = (np.cosh(bl) + np.cos(bl)) / (np.sinh(bl) + np.sin(bl))
+    shape = [np.cosh(b) - np.cos(b) - sig * (np.sinh(b) - np.sin(b)),
+             bl * (np.sinh(b) + np.sin(b) - sig * (np.cosh(b) - np.cos(b))),
+             bl**2 * (np.cosh(b) + np.cos(b) - sig * (np.sinh(b) + np.sin(b))),
+             bl**3 * (np.sinh(b) - np.sin(b) - sig * (np.cosh(b) + np.cos(b)))]
+    tip = shape[0][-1]
+    sol = solve_bvp(rhs, bc, s, np.array(shape) / tip, p=[bl**4 + 1.193 * om2], tol=1e-10, max_nodes=100000)
+    if not sol.success:
+        raise RuntimeError(f"rotating cantilever eigenproblem did not converge: {sol.message}")
+    return float(np.sqrt(sol.p[0] * EI / (rhoA * L**4)))
