@@ -774,30 +774,10 @@ def _beam_views(bi, net):
 def _beam_arrays(bi, bint, bflt, bwork, bintb):
     """:func:`_beam_views` from the four beam arrays of the network (what the hot loops pass: a call that
     passes the whole network tuple costs the reference counting of its ~30 arrays, about 1 us)."""
-    n, m, P, ng, order, fo, wko, io, po = (bint[bi, 0], bint[bi, 1], bint[bi, 2], bint[bi, 3], bint[bi, 4],
-                                           bint[bi, 5], bint[bi, 6], bint[bi, 7], bint[bi, 8])
+    P, wko, po = bint[bi, 2], bint[bi, 6], bint[bi, 8]
     Np = P + 1
-    o = fo
-    K = bflt[o:o + n * n].reshape((n, n))
-    o += n * n
-    D = bflt[o:o + n * n].reshape((n, n))
-    o += n * n
-    Gin = bflt[o:o + n * m].reshape((n, m))
-    o += n * m
-    h = bflt[o:o + P]
-    o += P
-    B = bflt[o:o + P * ng * n].reshape((P, ng, n))
-    o += P * ng * n
-    X0 = bflt[o:o + P * ng * 6].reshape((P, ng, 6))
-    o += P * ng * 6
-    base = bflt[o:o + 16].reshape((4, 4))
-    o += 16
-    wts = bflt[o:o + Np]
-    o += Np
-    Md = bflt[o:o + Np * 6].reshape((Np, 6))
-    o += Np * 6
-    ag = bflt[o:o + 3]
-    rows = bintb[io:io + n]
+    n, m, order, K, D, h, B, X0, base, wts, Md, ag, rows, go = _beam_model(bi, bint, bflt, bintb)
+    Gin = bflt[go:go + n * m].reshape((n, m))
     piv = bintb[po:po + n]
     o = wko
     G = bwork[o:o + Np * 16].reshape((Np, 4, 4))
