@@ -22,7 +22,7 @@ Show the three ways into :class:`sorofem.mesh.Mesh` and check each against an ex
 4. **Voronoi polygons** (2D, the seed's Fig. 5, after PolyMesher). The PneuNet section tiled by ``N_POLY``
    Voronoi cells, seeds spread by Lloyd's iteration to a centroidal tessellation
    (:class:`sorofem.mesh.PolyMesh`): the sides are the tangent lines of the boundary, so the area error is
-   second order in the cell size; Lloyd's energy :math:`\sum_i\int_{V_i}|x - p_i|^2` is reported before and
+   second order in the cell size; Lloyd's energy :math:`\\sum_i\\int_{V_i}|x - p_i|^2` is reported before and
    after. For DOLFINx the cells are split into triangles from their centroids (``PolyMesh.to_mesh``).
 
 Outputs in ``out``: ``pneunet.png`` (mesh with named boundaries coloured), ``pneunet.xdmf``,

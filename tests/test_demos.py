@@ -172,11 +172,8 @@ def check_porous_buckling(report, out):
 def check_pneunet_inflation(report, out):
     assert report["reached_pressure_kPa_2d"] == pytest.approx(report["max_pressure_kPa"])
     assert report["tip_angle_deg_2d"] > 30 and report["tip_angle_deg_3d"] > 5  # curls toward the layer
-    # measured at the quick meshes: 59.32 deg (2D, 6.5 kPa) and 17.46 deg (3D, 10 kPa); the equilibrium at the
-    # end pressure does not depend on the steps taken to it (Newton to 1e-9), so 0.5 % leaves room for another
-    # DOLFINx's round-off, not for another branch
-    assert report["tip_angle_deg_2d"] == pytest.approx(59.32, rel=5e-3)
-    assert report["tip_angle_deg_3d"] == pytest.approx(17.46, rel=5e-3)
+    # the tip angles are rows of tests/demo_reference.toml (2D 1e-3; 3D 5 %: gmsh 4.11 and 4.13 mesh the 3D
+    # finger differently, 17.46 vs 17.63 deg measured on Debian 12 and 13)
     # the first step cut by its linear response (Fem.solve(linear_start=)): at most 8 Newton iterations in every
     # step (measured 6 in 2D, 8 in 3D; 14 and 11 in the first steps before)
     assert report["newton_iterations_max"] <= 8
