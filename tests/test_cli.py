@@ -68,13 +68,17 @@ def test_demo_list_and_unknown_demo(capsys):
     assert "soro demo: no demo named 'nope'" in capsys.readouterr().err
 
 
-def test_run_demo_writes_report(tmp_path, monkeypatch):
+def _tiny_demo(tmp_path, monkeypatch, body):
+    """A demo folder (found through $SORO_DEMOS) holding ``tiny.py`` whose ``main(out, quick)`` runs ``body``."""
     demos = tmp_path / "demos"
     demos.mkdir()
-    (demos / "tiny.py").write_text("def main(out, quick=False):\n"
-                                   "    (out / 'x.txt').write_text('hi')\n"
-                                   "    return {'value': 2.5}\n")
+    (demos / "tiny.py").write_text("def main(out, quick=False):\n" + body)
     monkeypatch.setenv("SORO_DEMOS", str(demos))
+
+
+def test_run_demo_writes_report(tmp_path, monkeypatch):
+    _tiny_demo(tmp_path, monkeypatch, "    (out / 'x.txt').write_text('hi')\n"
+                                      "    return {'value': 2.5}\n")
     summary = demo.run_demo("tiny", out=tmp_path / "out", quick=True)
     report = json.loads((tmp_path / "out/tiny/report.json").read_text())
     assert report["value"] == 2.5 and report["quick"] is True and report["demo"] == "tiny"
@@ -83,12 +87,8 @@ def test_run_demo_writes_report(tmp_path, monkeypatch):
 
 
 def test_soro_demo_prints_the_key_figures_not_the_whole_report(tmp_path, monkeypatch, capsys):
-    demos = tmp_path / "demos"
-    demos.mkdir()
-    (demos / "tiny.py").write_text("def main(out, quick=False):\n"
-                                   "    return {'angle_deg': 40.27081, 'errors': [0.1, 0.2], 'ok': True,\n"
-                                   "            'trade': [{'modes': k} for k in range(30)], 'dvs': {'a': 1}}\n")
-    monkeypatch.setenv("SORO_DEMOS", str(demos))
+    _tiny_demo(tmp_path, monkeypatch, "    return {'angle_deg': 40.27081, 'errors': [0.1, 0.2], 'ok': True,\n"
+                                      "            'trade': [{'modes': k} for k in range(30)], 'dvs': {'a': 1}}\n")
     assert cli.main(["demo", "tiny", "--quick", "--out", str(tmp_path / "out")]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[:3] == ["angle_deg: 40.2708", "errors: [0.1, 0.2]", "ok: True"]
