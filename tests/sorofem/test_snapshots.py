@@ -270,13 +270,18 @@ def test_a_truncated_file_is_a_data_error_naming_it(tmp_path):
             Snapshots(path).displacement()
 
 
+def _version_1_header(f, metadata):
+    """The root attributes a version-1 writer put on an open h5py file ``f``."""
+    f.attrs.update(format="soro-snapshots", version=1, units="SI", created="2026-01-01T00:00:00+00:00",
+                   metadata=metadata)
+
+
 def test_version_1_files_without_checksums_still_read(tmp_path):
     """Files written before checksums were added (same format version 1) are read as before."""
     X, cells = _square(1)
     path = tmp_path / "old.h5"
     with h5py.File(path, "w") as f:
-        f.attrs.update(format="soro-snapshots", version=1, units="SI", created="2026-01-01T00:00:00+00:00",
-                       metadata="{}")
+        _version_1_header(f, "{}")
         f.create_dataset("mesh/vertices", data=X)
         f.create_dataset("mesh/cells", data=cells).attrs["cell_type"] = "triangle"
         f["mesh"].attrs["cavities"] = "[]"
@@ -335,8 +340,7 @@ def test_a_version_1_file_reads_with_the_default_units(tmp_path):
     X, cells = _square(1)
     path = tmp_path / "v1.h5"
     with h5py.File(path, "w") as f:
-        f.attrs.update(format="soro-snapshots", version=1, units="SI", created="2026-01-01T00:00:00+00:00",
-                       metadata='{"formulation": "plane_strain"}')
+        _version_1_header(f, '{"formulation": "plane_strain"}')
         f.create_dataset("mesh/vertices", data=X, fletcher32=True)
         f.create_dataset("mesh/cells", data=cells, fletcher32=True).attrs["cell_type"] = "triangle"
         f["mesh"].attrs["cavities"] = '["cavity_0"]'
