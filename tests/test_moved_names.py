@@ -33,6 +33,7 @@ MOVED = {
                     "SOLVE_TYPES", "PARAMETER_TYPES", "MODES", "MAX_CELLS")},
     **{("soroshapes.dvs", name): ("soro.trade", name) for name in TRADE},
     **{("sorofem.robots", name): ("soro.robots", name) for name in ROBOTS},
+    ("soroshapes.network", "warm_up"): ("soroshapes.precompile", "warm_up"),
 }
 
 
@@ -75,3 +76,10 @@ def test_the_readme_lists_every_moved_name(repo):
                       if f"`{m}.*`" not in rows and f"`{n or m}`" not in rows and f"`{m}.{n}`" not in rows})
     assert not missing, f"add to README.md's 'Moved names': {missing}"
 
+
+def test_the_old_precompile_entry_names_the_new_one():
+    """``python -m soroshapes.network`` (the bootstrap's old precompile step) no longer warms up: the new step is
+    ``python -m soroshapes.precompile`` (tests/soroshapes/test_network.py runs it)."""
+    run = subprocess.run([sys.executable, "-c", "import soroshapes.network as n; n.warm_up"], capture_output=True,
+                         text=True, timeout=120)
+    assert run.returncode != 0 and "soroshapes.precompile.warm_up" in run.stderr
