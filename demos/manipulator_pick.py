@@ -114,13 +114,14 @@ def main(out: Path, quick: bool = False) -> dict:
     (ax, bx) = fig.subplots(1, 2)
     ax.axhline(0, color="0.3", lw=2)
     for k in np.linspace(0, len(q) - 1, 7).astype(int):
-        P = shp.positions(q[k])
+        P = shp.positions(q[k]) / mm
         ax.plot(P[:, 0], P[:, 2], lw=5, alpha=0.25 + 0.75 * k / len(q), color="C0")
-        c = centre[k]
-        ax.add_patch(Rectangle((c[0] - R_CYL, c[2] - H_CYL / 2), 2 * R_CYL, H_CYL, alpha=0.3, color="C3"))
-    ax.plot(centre[:, 0], centre[:, 2], "C3", lw=1, label="cylinder centre")
-    ax.plot(tips[:, 0], tips[:, 2], "C1", lw=1, label="tip")
-    ax.set(aspect="equal", xlabel="x [m]", ylabel="z [m]", title="pick and place")
+        c = centre[k] / mm
+        ax.add_patch(Rectangle((c[0] - R_CYL / mm, c[2] - H_CYL / 2 / mm), 2 * R_CYL / mm, H_CYL / mm, alpha=0.3,
+                               color="C3"))
+    ax.plot(centre[:, 0] / mm, centre[:, 2] / mm, "C3", lw=1, label="cylinder centre")
+    ax.plot(tips[:, 0] / mm, tips[:, 2] / mm, "C1", lw=1, label="tip")
+    ax.set(aspect="equal", xlabel="x [mm]", ylabel="z [mm]", title="pick and place")
     ax.legend(fontsize=7)
     bx.plot(tr.t, 1e3 * (centre[:, 2] - H_CYL / 2), label="cylinder lift [mm]")
     bx.plot(tr.t, 100 * force, label="grasp force [N] x 100")
