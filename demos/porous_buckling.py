@@ -60,8 +60,8 @@ where every hole flattens the same way).
 Figures (in ``out``)
 --------------------
 ``modes.png`` (first four eigenmodes at zero load and at -12.5 % on the post-critical branch, coloured by the
-horizontal mode displacement, like the seed's Fig. 7), ``stability.png`` (lowest eigenvalue vs nominal strain
-along the path), ``deformed.png`` (the compressed block coloured by the horizontal and the vertical
+horizontal mode displacement over its largest value, like the seed's Fig. 7; axes in mm), ``stability.png``
+(lowest eigenvalue vs nominal strain along the path), ``deformed.png`` (the compressed block coloured by the horizontal and the vertical
 displacement on the seed's scale, -5 ... 5 mm), ``porous.h5`` (snapshot, full run only). The returned dict
 holds ``critical_strain``, ``reference_strain_periodic``, ``holes``, ``porosity``, ``cells``, ``dofs``,
 ``steps``, ``newton_iterations_max``, ``lambda1_at_zero`` [1/s^2], ``lambda1_at_end`` [1/s^2] (positive: the
@@ -81,9 +81,88 @@ import numpy as np
 from sorofem import materials, sdf
 from sorofem.units import kPa, mm
 
-REFERENCE_STRAIN_PERIODIC = -0.045
+# ------------------------------------------------------------------------------------------------ parameters
+PITCH, POROSITY = 10 * mm, 0.5                       # cell pitch [m], hole area fraction [-]
+E, NU, RHO = 19 * kPa, 0.45, 1000.0                   # Neo-Hookean rubber [Pa], [-], [kg/m^3]
+STRAIN_END = -0.125                                   # nominal strain at the end of the path [-]
+MODES = 4                                             # eigenmodes drawn before and after
+REFERENCE_STRAIN_PERIODIC = -0.045                    # periodic solid, literature (see Reference above)
+#: The full run and the short one (`--quick`, what the tests run): holes per side, element size [m],
+#: continuation steps (initial step 1/steps), progress lines per step, snapshot file written.
+FULL = dict(holes=6, size=0.6 * mm, steps=50, progress=True, snapshot=True)
+QUICK = dict(holes=4, size=1.25 * mm, steps=16, progress=False, snapshot=False)
 
 
+def main(out: Path, quick: bool = False) -> dict:
+    """Compress the block past its critical point into ``out``; returns the report (see Figures above)."""
+    from mpi4py import MPI
+
+    from sorofem.fem import Fem
+    from sorofem.mesh import Mesh
+
+    wall = time.perf_counter()
+    prm = QUICK if quick else FULL
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    holes = prm["holes"]
+    shape, radius = porous_block(holes, PITCH, POROSITY)
+    H = holes * PITCH
+
+    # 1. mesh: P2 displacement on straight triangles
+    msh = Mesh.from_sdf(shape, size=prm["size"])
+
+    # 2. model: bonded plates, the top one moved down
+    fem = Fem(msh, material=materials.NeoHookean(E=E, nu=NU, density=RHO), degree=2)
+    fem.add_support("bottom")
+    fem.add_support("top", components="x")
+    fem.add_displacement("top", STRAIN_END * H, components="y")
+
+    # 3. eigenmodes of the unloaded block
+    before = fem.eigen(MODES)
+
+    # 4. path following: compression past the critical point onto the post-critical branch
+    traj = fem.follow(load_level=1.0, steps=prm["steps"], monitor_stability=True, branch_switch=True,
+                      progress=prm["progress"])
+    strain = traj.times * STRAIN_END
+    lam = np.array(traj.lowest_eigenvalue)
+    eps_cr = critical_strain(strain, lam)
+    switch = traj.metadata.get("branch_switch")   # the first step on the post-critical branch
+
+    # 5. eigenmodes of the compressed block on the post-critical branch
+    after = fem.eigen(MODES, shift=-abs(before.eigenvalues[0]))
+    if prm["snapshot"]:
+        traj.save(out / "porous.h5", regions=None, cavities=())   # every rank calls; rank 0 writes
+    if MPI.COMM_WORLD.rank != 0:
+        return {}
+
+    summary = {
+        "critical_strain": eps_cr,
+        "reference_strain_periodic": REFERENCE_STRAIN_PERIODIC,
+        "holes": holes * holes,
+        "porosity": POROSITY,
+        "hole_radius_mm": radius / mm,
+        "cells": int(msh.num_cells),
+        "dofs": int(fem.num_dofs),
+        "steps": len(traj) - 1,
+        "newton_iterations_max": int(traj.newton_iterations[1:].max()),
+        "lambda1_at_zero": float(before.eigenvalues[0]),
+        "lambda1_at_end": float(lam[-1]),
+        "ellipse_alternation": ellipse_alternation(traj.vertices, traj.displacement[-1], holes, PITCH, radius),
+        "strain_end": STRAIN_END,
+        "strain_reached": float(strain[-1]),
+        "branch_switch_step": switch["step"] if switch else None,
+        "reaction_at_end_N_per_m": float(traj.reactions["top"][-1][1]) if "top" in traj.reactions else float("nan"),
+        "wall_time_s": round(time.perf_counter() - wall, 1),
+    }
+
+    # 6. figures: the modes before and after, the lowest eigenvalue along the path, the compressed block
+    plot_modes(traj, before, after, holes, float(strain[-1]), out / "modes.png")
+    plot_stability(strain, lam, eps_cr, out / "stability.png")
+    plot_deformed(traj, float(strain[-1]), out / "deformed.png")
+    return summary
+
+
+# ------------------------------------------------------------------------------------------------- the steps
 def porous_block(holes, pitch=10 * mm, porosity=0.5):
     """A square block of ``holes`` x ``holes`` cells of ``pitch`` [m], each with a circular hole of the given
     area fraction; the lower-left corner at the origin."""
@@ -128,104 +207,57 @@ def critical_strain(strain, lam):
     return float("nan")
 
 
-def _plot_field(ax, X, cells, u, color, title, vmax=None):
+# ------------------------------------------------------------------------------------------------ the figures
+def _plot_field(ax, X, cells, u, color, title, vmin, vmax):
+    """The body displaced by ``u`` [m] drawn in mm, coloured by ``color`` (one value per vertex) on
+    [vmin, vmax]; returns the artist for a colour bar."""
     import matplotlib.tri as mtri
 
     x = (X + u) / mm
     tri = mtri.Triangulation(x[:, 0], x[:, 1], cells)
-    vmax = vmax or max(float(np.abs(color).max()), 1e-30)
-    art = ax.tripcolor(tri, color, shading="gouraud", cmap="coolwarm", vmin=-vmax, vmax=vmax)
+    art = ax.tripcolor(tri, color, shading="gouraud", cmap="coolwarm", vmin=vmin, vmax=vmax)
     ax.set_aspect("equal")
     ax.set_title(title, fontsize=8)
-    ax.set_xticks([])
-    ax.set_yticks([])
+    ax.tick_params(labelsize=6)
     return art
 
 
-def main(out: Path, quick: bool = False) -> dict:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from mpi4py import MPI
+def plot_modes(traj, before, after, holes, strain_reached, path):
+    """``modes.png``: the first eigenmodes at zero load (top row) and on the post-critical branch (bottom),
+    drawn with an amplitude of 8 % of the height, coloured by the horizontal mode displacement over its
+    largest value."""
+    from matplotlib.figure import Figure
 
-    from sorofem.fem import Fem
-    from sorofem.mesh import Mesh
-
-    wall = time.perf_counter()
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    rank0 = MPI.COMM_WORLD.rank == 0
-    holes = 4 if quick else 6
-    pitch, porosity = 10 * mm, 0.5
-    strain_end = -0.125
-    steps = 16 if quick else 50
-    shape, radius = porous_block(holes, pitch, porosity)
-    H = holes * pitch
-
-    # ---- mesh: P2 displacement on straight triangles
-    msh = Mesh.from_sdf(shape, size=(1.25 if quick else 0.6) * mm)
-
-    # ---- model: bonded plates, the top one moved down
-    rubber = materials.NeoHookean(E=19 * kPa, nu=0.45, density=1000.0)
-    fem = Fem(msh, material=rubber, degree=2)
-    fem.add_support("bottom")
-    fem.add_support("top", components="x")
-    fem.add_displacement("top", strain_end * H, components="y")
-
-    # ---- eigenmodes of the unloaded block
-    before = fem.eigen(4)
-    dofs = fem.num_dofs
-
-    # ---- path following: compression past the critical point onto the post-critical branch
-    traj = fem.follow(load_level=1.0, steps=steps, monitor_stability=True, branch_switch=True, progress=not quick)
-    strain = traj.times * strain_end
-    strain_reached = float(strain[-1])
-    lam = np.array(traj.lowest_eigenvalue)
-    eps_cr = critical_strain(strain, lam)
-    switch = traj.metadata.get("branch_switch")   # the first step on the post-critical branch
-
-    # ---- eigenmodes of the compressed block on the post-critical branch
-    after = fem.eigen(4, shift=-abs(before.eigenvalues[0]))
-
-    summary = {
-        "critical_strain": eps_cr,
-        "reference_strain_periodic": REFERENCE_STRAIN_PERIODIC,
-        "holes": holes * holes,
-        "porosity": porosity,
-        "hole_radius_mm": radius / mm,
-        "cells": int(msh.num_cells),
-        "dofs": int(dofs),
-        "steps": len(traj) - 1,
-        "newton_iterations_max": int(traj.newton_iterations[1:].max()),
-        "lambda1_at_zero": float(before.eigenvalues[0]),
-        "lambda1_at_end": float(lam[-1]),
-        "ellipse_alternation": (ellipse_alternation(traj.vertices, traj.displacement[-1], holes, pitch, radius)
-                                if rank0 else float("nan")),
-        "strain_end": strain_end,
-        "strain_reached": strain_reached,
-        "branch_switch_step": switch["step"] if switch else None,
-        "reaction_at_end_N_per_m": float(traj.reactions["top"][-1][1]) if "top" in traj.reactions else float("nan"),
-        "wall_time_s": round(time.perf_counter() - wall, 1),
-    }
-    if not rank0:
-        return summary
+    from sorofem.io import save_figure
 
     X, cells, U = traj.vertices, traj.cells, traj.displacement
-    amp = 0.08 * H  # drawn mode amplitude [m]
-    fig, axes = plt.subplots(2, 4, figsize=(11, 6))
+    amp = 0.08 * holes * PITCH  # drawn mode amplitude [m]
+    fig = Figure(figsize=(11.5, 6))
+    axes = fig.subplots(2, MODES + 1, gridspec_kw={"width_ratios": [1.0] * MODES + [0.06]})  # last: colour bars
     for row, (modes, u0, label) in enumerate(((before, np.zeros_like(X), "eps = 0"),
                                               (after, U[-1], f"eps = {strain_reached:.3g}"))):
-        for k in range(4):
+        for k in range(MODES):
             s = modes.shapes[k]
-            _plot_field(axes[row, k], X, cells, u0 + amp * s, s[:, 0],
-                        f"{label}: mode {k + 1}, lambda = {modes.eigenvalues[k]:.3g} 1/s^2")
-    fig.suptitle(f"Eigenmodes of K phi = lambda M phi ({holes}x{holes} holes, porosity {porosity}); "
-                 f"colour: horizontal mode displacement")
-    fig.tight_layout()
-    fig.savefig(out / "modes.png", dpi=110)
-    plt.close(fig)
+            art = _plot_field(axes[row, k], X, cells, u0 + amp * s, s[:, 0] / max(np.abs(s[:, 0]).max(), 1e-30),
+                              f"{label}: mode {k + 1}, lambda = {modes.eigenvalues[k]:.3g} 1/s^2", -1.0, 1.0)
+        fig.colorbar(art, cax=axes[row, -1], label="u_x / max |u_x| [-]")
+    for ax in axes[-1, :MODES]:
+        ax.set_xlabel("x [mm]", fontsize=7)
+    for ax in axes[:, 0]:
+        ax.set_ylabel("y [mm]", fontsize=7)
+    fig.suptitle(f"Eigenmodes of K phi = lambda M phi ({holes}x{holes} holes, porosity {POROSITY}); "
+                 "colour: horizontal mode displacement")
+    save_figure(fig, path, dpi=110)
 
-    fig, ax = plt.subplots(figsize=(5.5, 3.8))
+
+def plot_stability(strain, lam, eps_cr, path):
+    """``stability.png``: the lowest eigenvalue [1/s^2] against the nominal compressive strain [%]."""
+    from matplotlib.figure import Figure
+
+    from sorofem.io import save_figure
+
+    fig = Figure(figsize=(5.5, 3.8))
+    ax = fig.subplots()
     ax.plot(-strain * 100, lam, "o-", ms=3, label="lowest eigenvalue along the path")
     ax.axhline(0, color="k", lw=0.6)
     if math.isfinite(eps_cr):
@@ -234,22 +266,26 @@ def main(out: Path, quick: bool = False) -> dict:
     ax.set_xlabel("nominal compressive strain -eps [%]")
     ax.set_ylabel("lambda_1 [1/s^2]")
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out / "stability.png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, path, dpi=120)
 
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4.4))
+
+def plot_deformed(traj, strain_reached, path):
+    """``deformed.png``: the compressed block [mm] coloured by u_x and u_y [mm] on the seed's scale
+    (-5 ... 5 mm, wider if the displacement is larger)."""
+    from matplotlib.figure import Figure
+
+    from sorofem.io import save_figure
+
+    X, cells, u = traj.vertices, traj.cells, traj.displacement[-1]
+    fig = Figure(figsize=(10, 4.4))
+    axes = fig.subplots(1, 2)
     for ax, comp in zip(axes, (0, 1)):
-        art = _plot_field(ax, X, cells, U[-1], U[-1][:, comp] / mm,
-                          f"post-critical equilibrium, eps = {strain_reached:.3g}: u_{'xy'[comp]}",
-                          vmax=max(5.0, float(np.abs(U[-1][:, comp]).max()) / mm))
+        vmax = max(5.0, float(np.abs(u[:, comp]).max()) / mm)
+        art = _plot_field(ax, X, cells, u, u[:, comp] / mm,
+                          f"post-critical equilibrium, eps = {strain_reached:.3g}: u_{'xy'[comp]}", -vmax, vmax)
+        ax.set(xlabel="x [mm]", ylabel="y [mm]")
         fig.colorbar(art, ax=ax, shrink=0.8, label=f"u_{'xy'[comp]} [mm]")
-    fig.tight_layout()
-    fig.savefig(out / "deformed.png", dpi=120)
-    plt.close(fig)
-    if not quick:
-        traj.save(out / "porous.h5", regions=None, cavities=())
-    return summary
+    save_figure(fig, path, dpi=120)
 
 
 if __name__ == "__main__":
