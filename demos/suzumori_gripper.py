@@ -51,13 +51,64 @@ import numpy as np
 from sorofem import materials, sdf
 from sorofem.units import kPa, mm
 
+# ------------------------------------------------------------------------------------------------ parameters
 L, R, RING, R_BOLT, H_BOLT, Z_BOLT = 80 * mm, 6 * mm, 37.5 * mm, 24 * mm, 14 * mm, -72 * mm
-PHI = np.array([0.0, 2 * np.pi / 3, 4 * np.pi / 3])
+PHI = np.array([0.0, 2 * np.pi / 3, 4 * np.pi / 3])     # chambers' section angles [rad]
 E_K = -np.column_stack([np.cos(PHI), np.sin(PHI)])      # direction each chamber bends its finger, (y, z)
-BIAS, CIRCLE, P0, FREQ = 150 * kPa, 80 * kPa, 160 * kPa, 2.0
-T_GRASP, T_SCREW = 0.3, 0.4
+BIAS, CIRCLE, P0, FREQ = 150 * kPa, 80 * kPa, 160 * kPa, 2.0   # drive [Pa], [Pa], [Pa], [Hz]
+T_GRASP, T_SCREW = 0.3, 0.4                             # grasp ramp's end, the circle's start [s]
+BOLT_INERTIA, BOLT_DAMPING = 2e-5, 5e-4                 # [kg m^2], [N m s/rad]
+#: Finger-bolt contact: penalty [N/m^2], damping [N s/m^2], Coulomb friction [-], regularization [m/s].
+CONTACT = dict(stiffness=2e5, damping=20.0, friction=0.6, regularization=2e-3)
+DT, DRIVE_TABLE_DT = 2e-3, 5e-4                         # step [s]; the drive's table, a quarter step [s]
+#: The full run and the short one (`--quick`, what the tests run): simulated time [s].
+FULL = dict(t_end=3.4)
+QUICK = dict(t_end=1.4)
 
 
+def main(out: Path, quick: bool = False) -> dict:
+    """Grasp and screw the bolt into ``out``; returns the report (``suzumori_gripper.png`` drawn)."""
+    from soroshapes.network import Schedule
+
+    T = (QUICK if quick else FULL)["t_end"]
+
+    # 1. the model: four fingers, the bolt, contact between each finger and the bolt's head
+    mdl, fingers = gripper()
+
+    # 2. the drive as a table sampled at a quarter of the step (its kinks at 0.3, 0.4 and 0.5 s are samples):
+    #    a Schedule runs compiled inside the network, a Python callable would not
+    times = np.linspace(0.0, T, int(round(T / DRIVE_TABLE_DT)) + 1)
+    table = np.array([pressures(t) for t in times])
+    mdl.set_controller(Schedule(times, {f"finger{j}": table for j in range(4)}))
+
+    # 3. simulate
+    t0 = time.perf_counter()
+    tr = mdl.simulate(T, DT, "bdf2", rtol=1e-5, atol=1e-8)
+    wall = time.perf_counter() - t0
+
+    # 4. the bolt's rate after the first turn of the circle, the grasp's normal force
+    angle = tr["bolt"].x[:, 0]
+    screw = tr.t >= T_SCREW + 0.5
+    rate = np.polyfit(tr.t[screw], angle[screw], 1)[0]
+    force = grasp_force(mdl, fingers, tr)
+    grasp = (tr.t > T_GRASP) & (tr.t < T_SCREW)
+
+    # 5. figure: the gripper at the end (mm), the bolt's angle and the grasp force against time
+    plot(fingers, tr, angle, force, out / "suzumori_gripper.png")
+    return {
+        "revolutions_per_second": round(float(rate / (2 * np.pi)), 5),
+        "seed_rev_per_s": {"simulated": 0.16, "measured": 0.25},
+        "bolt_turns": round(float(angle[-1] / (2 * np.pi)), 4),
+        "grasp_force_N": round(float(force[grasp].mean()), 4) if grasp.any() else 0.0,
+        "screw_force_N_max": round(float(force[screw].max()), 4),
+        "drive_frequency_hz": FREQ, "simulated_s": T, "wall_time_s_sim": round(wall, 2),
+        "real_time_factor": round(T / wall, 4), "evaluation_path": tr.stats.get("path"),
+        "newton_iterations": int(tr.stats.get("newton_iterations", 0)) if isinstance(tr.stats, dict) else None,
+        "png": "suzumori_gripper.png",
+    }
+
+
+# ------------------------------------------------------------------------------------------------- the steps
 def finger(j):
     """Finger j: a Shapes hanging from the ring at angle j pi/2, with three chambers and gravity."""
     from soroshapes import Basis, Shapes
@@ -79,12 +130,30 @@ def finger(j):
 
 
 def bolt():
+    """The hexagonal bolt head spinning about z against its rotational damping."""
     from soroshapes import RigidBody
 
     hexagon = sdf.Polygon([(R_BOLT * np.cos(t), R_BOLT * np.sin(t)) for t in np.arange(6) * np.pi / 3])
     pose = np.eye(4)
     pose[2, 3] = Z_BOLT
-    return RigidBody.spinning((0.0, 0.0, 1.0), 2e-5, 5e-4, hexagon.extrude(H_BOLT), pose0=pose, name="bolt")
+    return RigidBody.spinning((0.0, 0.0, 1.0), BOLT_INERTIA, BOLT_DAMPING, hexagon.extrude(H_BOLT), pose0=pose,
+                              name="bolt")
+
+
+def gripper():
+    """The model: ``finger0..3`` and ``bolt``, each finger in contact with the bolt. Returns ``(model,
+    fingers)``."""
+    from soroshapes import Model
+    from soroshapes.rigid import couple_contact
+
+    fingers = [finger(j) for j in range(4)]
+    mdl = Model()
+    for j, f in enumerate(fingers):
+        mdl.add(f, f"finger{j}")
+    mdl.add(bolt())
+    for j in range(4):
+        couple_contact(mdl, f"finger{j}", "bolt", **CONTACT)
+    return mdl, fingers
 
 
 def pressures(t):
@@ -98,48 +167,32 @@ def pressures(t):
     return P0 * ramp + 2.0 / 3.0 * E_K @ delta
 
 
-def main(out: Path, quick: bool = False) -> dict:
-    from soroshapes import Model
-    from soroshapes.network import Schedule
-    from soroshapes.rigid import couple_contact
-
-    fingers = [finger(j) for j in range(4)]
-    mdl = Model()
-    for j, f in enumerate(fingers):
-        mdl.add(f, f"finger{j}")
-    mdl.add(bolt())
-    for j in range(4):
-        couple_contact(mdl, f"finger{j}", "bolt", stiffness=2e5, damping=20.0, friction=0.6, regularization=2e-3)
-    T = 1.4 if quick else 3.4
-    # the drive as a table sampled at a quarter of the step (its kinks at 0.3, 0.4 and 0.5 s are samples): a
-    # Schedule runs compiled inside the network, a Python callable would not
-    times = np.linspace(0.0, T, int(round(T / 5e-4)) + 1)
-    table = np.array([pressures(t) for t in times])
-    mdl.set_controller(Schedule(times, {f"finger{j}": table for j in range(4)}))
-    t0 = time.perf_counter()
-    tr = mdl.simulate(T, 2e-3, "bdf2", rtol=1e-5, atol=1e-8)
-    wall = time.perf_counter() - t0
-
-    angle = tr["bolt"].x[:, 0]
-    screw = tr.t >= T_SCREW + 0.5              # after the first turn of the circle
-    rate = np.polyfit(tr.t[screw], angle[screw], 1)[0]
+def grasp_force(mdl, fingers, tr):
+    """The mean over the fingers of the horizontal contact force [N] on each finger, per time step."""
     from soroshapes.rigid import beam_contact
-    grasp_force = []
+
+    c = CONTACT
+    out = []
     for k in range(len(tr.t)):
         total = 0.0
         for j, f in enumerate(fingers):
-            F = beam_contact(f, mdl["bolt"].system, 2e5, 20.0, 0.6, 2e-3, q=tr[f"finger{j}"].q[k],
-                             qd=tr[f"finger{j}"].qd[k], x=tr["bolt"].x[k], nodes=True)[2]
+            F = beam_contact(f, mdl["bolt"].system, c["stiffness"], c["damping"], c["friction"],
+                             c["regularization"], q=tr[f"finger{j}"].q[k], qd=tr[f"finger{j}"].qd[k],
+                             x=tr["bolt"].x[k], nodes=True)[2]
             total += np.linalg.norm(F.sum(axis=0)[:2])
-        grasp_force.append(total / 4)
-    grasp_force = np.array(grasp_force)
+        out.append(total / 4)
+    return np.array(out)
 
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+
+# ------------------------------------------------------------------------------------------------ the figures
+def plot(fingers, tr, angle, force, path):
+    """``suzumori_gripper.png``: the fingers and the bolt head at the end [mm]; the bolt angle [rev] and the
+    mean normal force per finger [N] against time."""
+    from matplotlib.figure import Figure
+
     from sorofem.io import save_figure
 
-    fig = plt.figure(figsize=(11, 4.2))
+    fig = Figure(figsize=(11, 4.2))
     ax = fig.add_subplot(1, 2, 1, projection="3d")
     k_end = len(tr.t) - 1
     for j, f in enumerate(fingers):
@@ -151,40 +204,21 @@ def main(out: Path, quick: bool = False) -> dict:
     ax.set(xlabel="x [mm]", ylabel="y [mm]", zlabel="z [mm]", title="pinch grasp on the bolt head")
     bx = fig.add_subplot(1, 2, 2)
     bx.plot(tr.t, angle / (2 * np.pi), label="bolt angle [rev]")
-    bx.plot(tr.t, grasp_force, label="mean normal force per finger [N]")
+    bx.plot(tr.t, force, label="mean normal force per finger [N]")
     bx.axvline(T_SCREW, color="0.6", lw=0.8)
     bx.set(xlabel="t [s]")
     bx.legend(fontsize=8)
     bx.grid(alpha=0.3)
-    save_figure(fig, out / "suzumori_gripper.png")
-
-    grasp = (tr.t > T_GRASP) & (tr.t < T_SCREW)
-    return {
-        "revolutions_per_second": round(float(rate / (2 * np.pi)), 5),
-        "seed_rev_per_s": {"simulated": 0.16, "measured": 0.25},
-        "bolt_turns": round(float(angle[-1] / (2 * np.pi)), 4),
-        "grasp_force_N": round(float(grasp_force[grasp].mean()), 4) if grasp.any() else 0.0,
-        "screw_force_N_max": round(float(grasp_force[screw].max()), 4),
-        "drive_frequency_hz": FREQ, "simulated_s": T, "wall_time_s_sim": round(wall, 2),
-        "real_time_factor": round(T / wall, 4), "evaluation_path": tr.stats.get("path"),
-        "newton_iterations": int(tr.stats.get("newton_iterations", 0)) if isinstance(tr.stats, dict) else None,
-        "png": "suzumori_gripper.png",
-    }
+    save_figure(fig, path)
 
 
+# ------------------------------------------------------------------------------------------- soro play scene
 def scene(quick=False):
     """``soro play suzumori_gripper``: the four three-chamber fingers around the bolt, one pressure slider per
     chamber (0-300 kPa)."""
     from soro.play import Channel, Scene
-    from soroshapes import Model
-    from soroshapes.rigid import couple_contact
 
-    mdl = Model()
-    for j in range(4):
-        mdl.add(finger(j), f"finger{j}")
-    mdl.add(bolt())
-    for j in range(4):
-        couple_contact(mdl, f"finger{j}", "bolt", stiffness=2e5, damping=20.0, friction=0.6, regularization=2e-3)
+    mdl, _ = gripper()
     channels = [Channel(f"finger{j}.chamber{k}", 0.0, 300 * kPa, label=f"finger {j} chamber {k}")
                 for j in range(4) for k in range(3)]
-    return Scene(mdl, channels, dt=2e-3, method="bdf2", view=(-30.0, 20.0), title="suzumori_gripper")
+    return Scene(mdl, channels, dt=DT, method="bdf2", view=(-30.0, 20.0), title="suzumori_gripper")
