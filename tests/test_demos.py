@@ -72,6 +72,56 @@ def test_every_demo_has_a_check():
     assert set(demo.list_demos()) == set(load_reference()), "add each demo's key figures to demo_reference.toml"
 
 
+def demo_layout_problems(source):
+    """What keeps a demo's source from reading top to bottom (STYLE.md: the DOLFINx demos): a list of
+    messages, empty when ``main`` is its first function, its parameters one ``FULL``/``QUICK`` pair with the same
+    keys, and it neither switches matplotlib's backend nor uses pyplot nor reaches for a private name."""
+    import ast
+
+    tree = ast.parse(source)
+    problems = []
+    functions = [n.name for n in tree.body if isinstance(n, (ast.FunctionDef, ast.ClassDef))]
+    if not functions or functions[0] != "main":
+        problems.append(f"main is not the first function (first: {functions[:1]})")
+    sets = {}
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and isinstance(node.targets[0], ast.Name) \
+                and node.targets[0].id in ("FULL", "QUICK"):
+            value = node.value
+            keys = ([k.arg for k in value.keywords] if isinstance(value, ast.Call)
+                    else [k.value for k in value.keys] if isinstance(value, ast.Dict) else None)
+            sets[node.targets[0].id] = sorted(keys) if keys is not None else None
+    if set(sets) != {"FULL", "QUICK"} or sets["FULL"] is None or sets["FULL"] != sets["QUICK"]:
+        problems.append(f"no FULL/QUICK parameter sets with the same keys: {sets}")
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and node.attr == "use" and isinstance(node.value, ast.Name) \
+                and node.value.id == "matplotlib":
+            problems.append(f"line {node.lineno}: matplotlib.use switches the process's backend")
+        elif isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__"):
+            problems.append(f"line {node.lineno}: private attribute .{node.attr}")
+        elif isinstance(node, (ast.Import, ast.ImportFrom)):
+            names = [a.name for a in node.names] + ([node.module] if isinstance(node, ast.ImportFrom) else [])
+            if any(n and ("pyplot" in n or any(p.startswith("_") for p in n.split("."))) for n in names):
+                problems.append(f"line {node.lineno}: imports {names} (pyplot or a private name)")
+    return problems
+
+
+def test_demos_read_top_to_bottom():
+    problems = {name: demo_layout_problems(demo.demo_path(name).read_text()) for name in demo.list_demos()}
+    assert {k: v for k, v in problems.items() if v} == {}
+
+
+def test_demo_layout_check_can_fail():
+    good = "FULL = dict(a=1)\nQUICK = dict(a=2)\n\ndef main(out, quick=False):\n    pass\n"
+    assert demo_layout_problems(good) == []
+    bad = ("import matplotlib\nimport matplotlib.pyplot as plt\nFULL = dict(a=1)\nQUICK = dict(b=1)\n\n"
+           "def helper():\n    pass\n\ndef main(out, quick=False):\n    matplotlib.use('Agg')\n    model._secret\n")
+    got = "\n".join(demo_layout_problems(bad))
+    for part in ("main is not the first function", "FULL/QUICK", "matplotlib.use", "private attribute ._secret",
+                 "pyplot"):
+        assert part in got, part
+
+
 def test_reference_table_is_well_formed():
     for name, rows in load_reference().items():
         assert rows, f"{name}: no figure"
