@@ -19,9 +19,9 @@ from __future__ import annotations
 
 from ..errors import GeometryError
 from ._core import UNITS, Chamber, Design, Network, Param, Part, Robot, Twin, chamber_check
-from .designs import ROBOTS
+from .designs import ROBOTS, chain_meridian
 
-__all__ = ["names", "get", "design", "parse_params", "export_part", "chamber_check",
+__all__ = ["names", "get", "design", "parse_params", "export_part", "chamber_check", "chain_meridian",
            "Param", "Network", "Part", "Chamber", "Twin", "Design", "Robot", "ROBOTS", "UNITS"]
 
 
