@@ -20,8 +20,8 @@ follower pressures on the chamber networks' surfaces.
     positive when the actuator curls towards its base layer.
 (b) Two networks ``left`` (+y) and ``right`` (-y), each 0 .. ``p_max`` (the top of the seed's -10..50 kPa):
     one load path (pL, pR) = (0, 0) -> (P, 0) -> (P, P) -> (0, P) passes through the left network alone, both
-    together and the right one alone. Backbone: the left chain's bridge above its feed channel, sampled at the
-    gaps between bellows (the only material on a straight line through a chain: the chambers are hollow);
+    together and the right one alone. Backbone: the top line of the left chain's crests (mid-wall), sampled
+    at the crests (the only material on a straight line along a chain: the chambers are hollow);
     the beam bends in the plane (about body z) and stretches. Pressure in one chain lengthens it: the
     actuator bends away from it (left -> -y); both together lengthen the actuator (+x).
 
@@ -243,13 +243,13 @@ def planar(out, prm):
     fem.solve(load_level=3.0, steps=steps, max_step=3.0 / steps, linear_start=0.02).save(out / "train.h5")
     t_fem = time.perf_counter() - t0
 
-    # backbone: the top line of the left chain's neck (mid-wall), sampled at the middle of every valley between
-    # convolutions and of the clearances at both ends: one sample per pitch
-    blk, gap, n = p["block"], p["gap"], p["n_bellows"]
-    pitch = (p["length"] - blk - p["tip"] - gap) / n
-    neck = H / 2 - p["depth"] - p["wall"] / 2
-    yc, zb = H / 2 + p["separation"] / 2, H / 2 + neck
-    x0 = blk + gap / 2
+    # backbone: the top line of the left chain's crests (mid-wall), sampled at the middle of every crest between
+    # two grooves and at both ends (the half crests on the block and under the tip plate): one sample per pitch
+    blk, n = p["block"], p["n_bellows"]
+    pitch = (p["length"] - blk - p["tip"]) / n
+    crest = H / 2 - p["wall"] / 2
+    yc, zb = H / 2 + p["separation"] / 2, H / 2 + crest
+    x0 = blk
     backbone = Backbone.line([x0, yc, zb], [x0 + n * pitch, yc, zb], normal=[0.0, 1.0, 0.0])
     inputs = [input_name("pressure", side["left"]), input_name("pressure", side["right"])]
     shp, data, cmp, ident, kept, info, tr = dvs_twin(out / "train.h5", backbone, (0, 0, 2, 2, 0, 0),
@@ -265,7 +265,7 @@ def planar(out, prm):
     # the planar workspace: the tip plate's centre (the backbone's tip frame, -yc along body y) over the
     # board's pressure box, -10..50 kPa per network (below 0 Pa the identified actuation is extrapolated: the
     # FEM path has no vacuum) and over the trained box 0..50 kPa
-    centre = (0.0, -yc, -neck)
+    centre = (0.0, -yc, -crest)
     lims = [dsg.channels["left"], dsg.channels["right"]]
     pts = robots.reach(shp, lims, samples=7, point=centre)
     pts_trained = robots.reach(shp, [(0.0, hi) for _, hi in lims], samples=7, point=centre)

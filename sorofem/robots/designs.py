@@ -301,7 +301,7 @@ class PlanarActuator(Robot):
     PARAMS = tuple(_round_params(
         length=Param("length", 160 * mm, 60 * mm, 250 * mm, "mm", "overall length, block and tip plate included"),
         n_bellows=Param("n_bellows", 12, 3, 30, "count", "convolutions (grooves) per network"),
-        separation=Param("separation", 74 * mm, 1 * mm, 120 * mm, "mm", "gap between the two chains' crests (their "
+        separation=Param("separation", 82 * mm, 1 * mm, 120 * mm, "mm", "gap between the two chains' crests (their "
                          "distance sets how far one network bends the actuator against the other)"),
         tip=Param("tip", 4 * mm, 2 * mm, 10 * mm, "mm", "thickness of the tip plate"),
     ).values())
@@ -426,7 +426,7 @@ class Manipulator(Robot):
                        "convolutions' crests"),
         length=Param("length", 120 * mm, 40 * mm, 250 * mm, "mm", "length of the bellows chains (z)"),
         n_bellows=Param("n_bellows", 10, 3, 30, "count", "convolutions per chain"),
-        radius=Param("radius", 26 * mm, 12 * mm, 60 * mm, "mm", "distance of the chains from the axis"),
+        radius=Param("radius", 26 * mm, 12 * mm, 120 * mm, "mm", "distance of the chains from the axis"),
         hollow=Param("hollow", 14 * mm, 6 * mm, 30 * mm, "mm", "diameter of the hollow central axis"),
         plate=Param("plate", 10 * mm, 8 * mm, 20 * mm, "mm", "thickness of the base plate"),
         top=Param("top", 6 * mm, 4 * mm, 15 * mm, "mm", "thickness of the top plate"),
