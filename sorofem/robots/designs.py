@@ -124,13 +124,12 @@ class _Chain:
 def _round_params(**over):
     """Parameters of the round bellows chains of (b) and (d) (with :func:`_common`'s ports and blocks)."""
     base = _common(
-        wall=Param("wall", 1.2 * mm, 1.0 * mm, 3.0 * mm, "mm", "wall thickness of the round bellows; >= 1.0 mm: "
-                   "thinner Elastic 80A walls tear when the print is peeled and leak (the flood fill of the "
-                   "chambers runs on a quarter of it)"),
-        diameter=Param("diameter", 36 * mm, 16 * mm, 60 * mm, "mm", "outer diameter of a bellows chain at its "
-                       "convolutions' crests"),
-        depth=Param("depth", 7 * mm, 2 * mm, 15 * mm, "mm", "depth of a convolution: crest radius minus the "
-                    "neck's outer radius"),
+        wall=Param("wall", 1.2 * mm, 1.0 * mm, 3.0 * mm, "mm", "wall thickness of the round bellows (equal "
+                   "everywhere); >= 1.0 mm: thinner Elastic 80A walls tear when the print is peeled and leak"),
+        diameter=Param("diameter", 36 * mm, 16 * mm, 60 * mm, "mm", "outer diameter of a bellows chain (its "
+                       "crests)"),
+        depth=Param("depth", 7 * mm, 2 * mm, 15 * mm, "mm", "depth of a groove (convolution): the crests' radius "
+                    "minus the groove bottom's"),
         gap=Param("gap", 1.5 * mm, 1.0 * mm, 8.0 * mm, "mm", "width of a crest's chamber at its narrowest "
                   "(between the walls of neighbouring grooves)"),
         channel=Param("channel", 2.0 * mm, 1.2 * mm, 4.0 * mm, "mm", "diameter of the feed channel from the port "
@@ -422,8 +421,8 @@ class Manipulator(Robot):
     PRESSURE = (-10 * kPa, 30 * kPa)
     GRIPPER_PRESSURE = (-30 * kPa, 60 * kPa)
     PARAMS = tuple(_round_params(
-        diameter=Param("diameter", 30 * mm, 16 * mm, 60 * mm, "mm", "outer diameter of a bellows chain at its "
-                       "convolutions' crests"),
+        diameter=Param("diameter", 30 * mm, 16 * mm, 60 * mm, "mm", "outer diameter of a bellows chain (its "
+                       "crests)"),
         length=Param("length", 120 * mm, 40 * mm, 250 * mm, "mm", "length of the bellows chains (z)"),
         n_bellows=Param("n_bellows", 10, 3, 30, "count", "convolutions per chain"),
         radius=Param("radius", 26 * mm, 12 * mm, 120 * mm, "mm", "distance of the chains from the axis"),
