@@ -20,8 +20,8 @@ follower pressures on the chamber networks' surfaces.
     positive when the actuator curls towards its base layer.
 (b) Two networks ``left`` (+y) and ``right`` (-y), each 0 .. ``p_max`` (the top of the seed's -10..50 kPa):
     one load path (pL, pR) = (0, 0) -> (P, 0) -> (P, P) -> (0, P) passes through the left network alone, both
-    together and the right one alone. Backbone: the left chain's bridge above its feed channel, sampled at the
-    gaps between bellows (the only material on a straight line through a chain: the chambers are hollow);
+    together and the right one alone. Backbone: the top line of the left chain's crests (mid-wall), sampled
+    at the crests (the only material on a straight line along a chain: the chambers are hollow);
     the beam bends in the plane (about body z) and stretches. Pressure in one chain lengthens it: the
     actuator bends away from it (left -> -y); both together lengthen the actuator (+x).
 
@@ -30,8 +30,9 @@ Parameters
 out : pathlib.Path
     Output directory: ``a/`` and ``b/`` with ``train.h5`` (snapshots), figures, ``report.json`` at the top.
 quick : bool
-    Three bellows (50 mm) for (a), four (56 mm) for (b), 3 mm P1 tetrahedra (locking: far too stiff; it exercises the pipeline) and few
-    steps (CI); otherwise the default actuators, 2.5 mm P2 tetrahedra.
+    Three bellows (50 mm) for (a), four grooves (64 mm) for (b), 3 mm P1 tetrahedra (locking: far too stiff; it
+    exercises the pipeline) and few steps (CI); otherwise the default actuators, P2 tetrahedra of 2.5 mm ((a))
+    and 3 mm ((b): its round bellows' 1.2 mm walls are meshed to their curvature anyway).
 robot : str
     ``"all"`` (default), ``"bending_actuator"`` or ``"planar_actuator"``.
 
@@ -58,10 +59,10 @@ from sorofem.units import kPa, mm
 #: (:func:`soro.robots.design`), element size [m], displacement degree, top pressure [Pa] and load steps of (a),
 #: load steps per leg of (b)'s path.
 FULL = dict(bending=dict(design={}, size=2.5 * mm, degree=2, p_max=100 * kPa, steps=8),
-            planar=dict(design={}, size=2.5 * mm, degree=2, per_leg=4))
+            planar=dict(design={}, size=3.0 * mm, degree=2, per_leg=4))
 QUICK = dict(bending=dict(design=dict(n_bellows=3, length=50 * mm), size=3.0 * mm, degree=1, p_max=40 * kPa,
                           steps=6),
-             planar=dict(design=dict(n_bellows=4, length=56 * mm), size=3.0 * mm, degree=1, per_leg=4))
+             planar=dict(design=dict(n_bellows=4, length=64 * mm), size=3.0 * mm, degree=1, per_leg=4))
 
 
 def main(out: Path, quick: bool = False, robot: str = "all") -> dict:
@@ -218,11 +219,11 @@ def planar(out, prm):
 
     out.mkdir(parents=True, exist_ok=True)
     params, size, degree, per_leg = (prm[k] for k in ("design", "size", "degree", "per_leg"))
-    dsg = robots.design("planar_actuator", fillet=0.0, **params)
+    dsg = robots.design("planar_actuator", **params)
     p_max = dsg.channels["left"][1]
     part, twin = dsg.parts[0], dsg.twins[0]
     p = dsg.params
-    H, W = p["height"], 2 * p["width"] + p["separation"]
+    H, W = p["diameter"], 2 * p["diameter"] + p["separation"]
     ports = part.networks[0].port | part.networks[1].port
     plug = ports & sdf.Box((2 * p["port_depth"], W, H), (p["port_depth"], 0, H / 2))
     t0 = time.perf_counter()
@@ -237,15 +238,18 @@ def planar(out, prm):
     for s in ("left", "right"):
         fem.add_pressure(side[s], planar_path(p_max, s))
     steps = 3 * per_leg
-    fem.solve(load_level=3.0, steps=steps, max_step=3.0 / steps).save(out / "train.h5")
+    # thin round bellows: the first step sized from the linear response (their unloaded tangent is far softer
+    # than the inflated walls)
+    fem.solve(load_level=3.0, steps=steps, max_step=3.0 / steps, linear_start=0.02).save(out / "train.h5")
     t_fem = time.perf_counter() - t0
 
-    # backbone: the left chain's bridge, 2 mm above its feed channel (inside the bridge's top wall), sampled
-    # at the middle of every gap between bellows and in the tip plate: one sample per pitch
-    blk, gap, n = p["block"], p["gap"], p["n_bellows"]
+    # backbone: the top line of the left chain's crests (mid-wall), sampled at the middle of every crest between
+    # two grooves and at both ends (the half crests on the block and under the tip plate): one sample per pitch
+    blk, n = p["block"], p["n_bellows"]
     pitch = (p["length"] - blk - p["tip"]) / n
-    yc, zb = p["width"] / 2 + p["separation"] / 2, H / 2 + p["channel"] / 2 + p["wall"] / 2
-    x0 = blk + gap / 2
+    crest = H / 2 - p["wall"] / 2
+    yc, zb = H / 2 + p["separation"] / 2, H / 2 + crest
+    x0 = blk
     backbone = Backbone.line([x0, yc, zb], [x0 + n * pitch, yc, zb], normal=[0.0, 1.0, 0.0])
     inputs = [input_name("pressure", side["left"]), input_name("pressure", side["right"])]
     shp, data, cmp, ident, kept, info, tr = dvs_twin(out / "train.h5", backbone, (0, 0, 2, 2, 0, 0),
@@ -261,7 +265,7 @@ def planar(out, prm):
     # the planar workspace: the tip plate's centre (the backbone's tip frame, -yc along body y) over the
     # board's pressure box, -10..50 kPa per network (below 0 Pa the identified actuation is extrapolated: the
     # FEM path has no vacuum) and over the trained box 0..50 kPa
-    centre = (0.0, -yc, 0.0)
+    centre = (0.0, -yc, -crest)
     lims = [dsg.channels["left"], dsg.channels["right"]]
     pts = robots.reach(shp, lims, samples=7, point=centre)
     pts_trained = robots.reach(shp, [(0.0, hi) for _, hi in lims], samples=7, point=centre)

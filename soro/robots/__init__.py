@@ -29,13 +29,14 @@ from sorofem.robots import (ROBOTS, UNITS, Chamber, Design, Network, Param, Part
 from sorofem.units import mm
 
 from .board import VEAB_SIGNAL_RANGE, board_profile
-from .twin import (BELLOWS_E_FACTOR, PARALLEL_BELLOWS_E_FACTOR, Channel, Scene, bellows_modulus, reach,
-                   twin_shapes)
+from .twin import (BELLOWS_E_FACTOR, PARALLEL_BELLOWS_E_FACTOR, ROUND_BELLOWS_E_FACTOR, Channel, Scene,
+                   bellows_modulus, chain_stretch, reach, twin_shapes)
 from .twin import scene as twin_scene
 
 __all__ = ["names", "get", "design", "parse_params", "export", "export_part", "preview_png", "chamber_check",
            "board_profile", "VEAB_SIGNAL_RANGE", "Scene", "Channel", "twin_shapes", "scene",
-           "reach", "bellows_modulus", "BELLOWS_E_FACTOR", "PARALLEL_BELLOWS_E_FACTOR",
+           "reach", "chain_stretch", "bellows_modulus", "BELLOWS_E_FACTOR", "ROUND_BELLOWS_E_FACTOR",
+           "PARALLEL_BELLOWS_E_FACTOR",
            "Param", "Network", "Part", "Chamber", "Twin", "Design", "Robot", "ROBOTS", "UNITS"]
 
 

@@ -7,9 +7,9 @@ This is the application layer (:mod:`soro.robots`): the designs and their twin d
 export`` does not load it).
 
 The beams are the solid-section twins (the printed cross-section through a bellows, chambers as axial forces
-off the axis) with the bellows' effective modulus, calibrated on the 3D FEM of (a) and (b) (a solid section is
-28x resp. 8x too stiff: bellows walls fold). A data-driven beam from 3D FEM of the printed geometry is made by
-``soro demo robot_twin`` for (a) and (b).
+off the axis) with the bellows' effective modulus, calibrated on FEM: the 3D FEM of (a) (a solid section is 28x
+too stiff: bellows walls fold) and the axisymmetric FEM of one round bellows chain of (b) and of (d). A
+data-driven beam from 3D FEM of the printed geometry is made by ``soro demo robot_twin`` for (a) and (b).
 """
 from __future__ import annotations
 
@@ -19,20 +19,25 @@ import numpy as np
 
 from sorofem.errors import ParameterError
 
-__all__ = ["Channel", "Scene", "twin_shapes", "scene", "reach", "bellows_modulus", "BELLOWS_E_FACTOR",
-           "PARALLEL_BELLOWS_E_FACTOR"]
+__all__ = ["Channel", "Scene", "twin_shapes", "scene", "reach", "chain_stretch", "bellows_modulus",
+           "BELLOWS_E_FACTOR", "ROUND_BELLOWS_E_FACTOR", "PARALLEL_BELLOWS_E_FACTOR"]
 
 #: Ratio of the bellows' effective Young's modulus to the material's, for the solid-section beams: the 3D FEM
 #: of the printed actuator (a) (``soro demo robot_twin``, full mode: 88.8 deg tip angle at 100 kPa) against its
 #: solid-section beam (3.11 deg): 3.11 / 88.8. A stand-in for FEM of each robot, which only (a) and (b) have.
 BELLOWS_E_FACTOR = 3.11 / 88.8
 
-#: The same for chains side by side, which resist each other's bending: the 3D FEM of the planar actuator (b)
-#: (full mode: 6.12 mm lateral tip at 50 kPa in one network) against its solid-section beam with
-#: ``BELLOWS_E_FACTOR`` (21.43 mm); as a ratio it assumes the deflection scales with 1/E (the beam then gives
-#: 5.83 mm: within 5 %). Its beam reaches 5.2 x 13.9 mm over -10..50 kPa, the FEM-made DVS beam 4.5 x 13.7 mm.
-#: The manipulator's three chains are built the same way.
-PARALLEL_BELLOWS_E_FACTOR = BELLOWS_E_FACTOR * 21.43 / 6.12
+#: The same for the round bellows chains side by side of (b) (two) and (d) (three), by the number of chains: the
+#: secant stretch of one chain at its robot's top pressure in the axisymmetric FEM of its printed meridian
+#: (:func:`chain_stretch`, 0.6 mm P2 elements: (b) 74.70 mm of its 144 mm at 50 kPa, (d) 36.12 mm of its 120 mm at
+#: 30 kPa) against the beam of its crest-ring section, whose chamber is the bellows' effective area
+#: (:math:`\pi R_m^2`): E_eff = p pi Rm^2 / (strain x ring area). The chains stiffen as their grooves open (the
+#: stretch per kPa falls from ~2.9 to ~0.7 mm/kPa over 0..50 kPa in (b)): the linear beam matches the FEM at the
+#: top pressure and is stiffer below it.
+ROUND_BELLOWS_E_FACTOR = {2: 0.04769, 3: 0.03664}
+
+#: (b)'s factor (compatibility name: chains side by side).
+PARALLEL_BELLOWS_E_FACTOR = ROUND_BELLOWS_E_FACTOR[2]
 
 
 @dataclass(frozen=True)
@@ -111,10 +116,14 @@ def twin_shapes(twin, dofs=(0, 3, 3, 1, 0, 0), modes=3, E=None):
 
 def bellows_modulus(twin):
     """The effective Young's modulus [Pa] of a twin's bellows: the material's times
-    :data:`PARALLEL_BELLOWS_E_FACTOR` for chains side by side (several chambers in the section: (b), (d)), else
-    :data:`BELLOWS_E_FACTOR` (one chain on a strain-limiting layer: (a), the hand's and the gripper's fingers)."""
+    :data:`ROUND_BELLOWS_E_FACTOR` of its number of chains for round chains side by side (several chambers in the
+    section: (b), (d)), else :data:`BELLOWS_E_FACTOR` (one box bellows chain on a strain-limiting layer: (a), the
+    hand's and the gripper's fingers)."""
     from sorofem import materials
-    f = PARALLEL_BELLOWS_E_FACTOR if len(twin.chambers) > 1 else BELLOWS_E_FACTOR
+    n = len(twin.chambers)
+    if n > 1 and n not in ROUND_BELLOWS_E_FACTOR:
+        raise ParameterError(f"no bellows modulus is calibrated for {n} chains side by side (twin {twin.name!r})")
+    f = ROUND_BELLOWS_E_FACTOR[n] if n > 1 else BELLOWS_E_FACTOR
     return materials.PRESETS[twin.material]().E * f
 
 
@@ -194,3 +203,39 @@ def reach(shapes, limits, samples=7, point=(0.0, 0.0, 0.0)):
         q = shapes.statics(u=list(u), q0=q)
         out.append((shapes.forward_kinematics(q)[-1] @ p)[:3])
     return np.array(out)
+
+
+def chain_stretch(name, pressure, size=0.6e-3, steps=8, **params):
+    """Axisymmetric FEM of one round bellows chain of robot ``name`` ((b) or (d), parameters in SI): its
+    stretch under internal pressure, the block's bottom clamped, the tip free (Elastic 80A, Taylor-Hood P2/P1).
+
+    Parameters
+    ----------
+    name : str
+    pressure : float
+        Top gauge pressure [Pa] (a ramp from 0).
+    size : float
+        Element size [m] (a wall of 1.2 mm takes two P2 elements at 0.6 mm).
+    steps : int
+        Load steps requested (adaptive; the first sized from the linear response).
+
+    Returns
+    -------
+    dict
+        ``pressure`` [Pa] and ``stretch`` [m] per converged step, the chain's ``length`` [m] and ``cells``.
+    """
+    from sorofem import materials
+    from sorofem.fem import Fem
+    from sorofem.mesh import Mesh
+    from sorofem.robots import chain_meridian
+
+    wall, cav, length = chain_meridian(name, **params)
+    msh = Mesh.from_sdf(wall, size=size, order=2)
+    msh.add_region("inner", cav, tol=0.05e-3)
+    fem = Fem(msh, materials.Elastic80A(), formulation="axisymmetric", degree=2, mixed=True)
+    fem.add_support("bottom")
+    fem.add_pressure("inner", pressure)
+    tr = fem.solve(steps=steps, linear_start=0.02, progress=False)
+    top = int(np.argmax(tr.vertices[:, 1] - 1e-3 * tr.vertices[:, 0]))     # the tip's point on the axis
+    return {"pressure": np.asarray(tr.inputs["pressure/inner"], float), "stretch": tr.displacement[:, top, 1],
+            "length": length, "cells": int(msh.num_cells)}

@@ -20,9 +20,9 @@ from __future__ import annotations
 from .._lazy import moved_attributes
 from ..errors import GeometryError
 from ._core import UNITS, Chamber, Design, Network, Param, Part, Robot, Twin, chamber_check
-from .designs import ROBOTS
+from .designs import ROBOTS, chain_meridian
 
-__all__ = ["names", "get", "design", "parse_params", "export_part", "chamber_check",
+__all__ = ["names", "get", "design", "parse_params", "export_part", "chamber_check", "chain_meridian",
            "Param", "Network", "Part", "Chamber", "Twin", "Design", "Robot", "ROBOTS", "UNITS"]
 
 #: Names that moved to the application layer :mod:`soro.robots` (README.md, "Moved names"): importing one from
