@@ -283,6 +283,13 @@ class BoardServer:
             return self._client_peer if self._client is not None else None
 
     @property
+    def serving(self):
+        """True while the thread that serves the client reads or answers its frames: time the watchdog does
+        not count as the client's silence (tests stepping the board loop wait for it to end)."""
+        reading = self._client_reading
+        return reading is not None and reading.locked()
+
+    @property
     def fault(self):
         """Why commands are refused until the next login (a driver or read-back failure), or None."""
         return self._fault

@@ -72,9 +72,9 @@ def wait_until(cond, timeout=DEADLINE):
 
 
 def reader_idle(srv):
-    """Wait until the thread that serves the client has answered and released the connection: the watchdog
-    counts only the silence of a client whose frames are all read (white box: its reading lock)."""
-    wait_until(lambda: srv._client_reading is None or not srv._client_reading.locked())
+    """Wait until the thread that serves the client has answered it (the client may see the answer first): the
+    watchdog counts only the silence of a client whose frames are all served."""
+    wait_until(lambda: not srv.serving)
 
 
 def raw_login(srv, secret=SECRET):
@@ -824,3 +824,35 @@ def test_simulated_plant_is_the_fluidic_model():
     u = np.array([50e3, -80e3, 1e3])
     exact = np.array([plant.fluidic.rhs(x[i], u[i:i + 1], plant.volume) for i in range(3)])
     np.testing.assert_allclose(plant._rhs(x, u), exact, rtol=1e-12, atol=1e-20)
+
+
+def test_a_lost_simulated_board_says_why():
+    """A simulated board whose server dies: the client's error names the connection's end and the server's
+    state and log, not only "Broken pipe"; later commands repeat the reason."""
+    with Board.simulated(channels=1, keepalive=False) as brd:
+        brd.set_pressure([10e3])
+        os.kill(brd.server_process.pid, signal.SIGKILL)
+        with pytest.raises(ProtocolError, match=r"simulated board's server \(exited with status -9\) logged"):
+            wait_until(lambda: brd.read() is None)        # until the loss shows (the first send may succeed)
+        with pytest.raises(ProtocolError, match=r"the board connection was lost: .*exited with status -9"):
+            brd.read()
+
+
+def test_a_late_simulated_plant_skips_time_instead_of_stalling(caplog):
+    """Board time that passed beyond max_advance since the plant's last step (a busy host) is skipped, not
+    simulated: the call costs at most max_advance of plant time, so it never grows with the delay. The
+    pressures are those of a plant that ran max_advance, the skipped time is counted and logged."""
+    late, ref = SimulatedPlant(2, max_advance=0.025), SimulatedPlant(2, max_advance=0.025)
+    for plant in (late, ref):
+        plant.apply([20e3, -20e3], 0.01)
+    with caplog.at_level("WARNING", logger="sorocontrol.drivers"):
+        p_late = late.apply([20e3, -20e3], 2.01)[0]     # 2 s after the last step
+    p_ref = ref.apply([20e3, -20e3], 0.035)[0]
+    np.testing.assert_allclose(p_late, p_ref, rtol=1e-12)    # the same 25 RK4 steps, up to rounding of h
+    assert late.t == 2.01 and late.late == 1 and late.skipped == pytest.approx(1.975, abs=1e-12)
+    assert "skipped the rest" in caplog.text and "2000 ms of board time passed" in caplog.text
+    p_next = late.apply([20e3, -20e3], 2.02)[0]          # and goes on from there at the board's pace
+    np.testing.assert_allclose(p_next, ref.apply([20e3, -20e3], 0.045)[0], rtol=1e-12)
+    assert late.late == 1
+    with pytest.raises(ParameterError, match="max_advance"):
+        SimulatedPlant(1, max_advance=0.0)
