@@ -693,7 +693,10 @@ class BoardServer:
         """Read what ``conn`` sent and answer each complete frame; None, or why the connection ends (it was
         answered with an ERROR frame when the client is at fault)."""
         try:
-            data = conn.recv(65536)
+            try:
+                data = conn.recv(65536)
+            except socket.timeout:       # readable, then nothing after all: wait again
+                return None
             if not data:
                 raise ConnectionError("closed by the client")
             for mtype, payload in reader.feed(data):

@@ -98,7 +98,7 @@ def test_login_announces_limits_and_commands_answer_with_state(server):
         np.testing.assert_array_equal(brd.p_max, 80e3)
         s = brd.set_pressure([10e3, -5e3, 0.0])
         np.testing.assert_array_equal(s.requested, [10e3, -5e3, 0.0])
-        assert s.sequence == 1 and brd.read().sequence == 2
+        assert brd.read().sequence == s.sequence + 1 >= 2   # (the keepalive may have sent 1 under load)
         wait_until(lambda: np.allclose(brd.read().measured, [10e3, -5e3, 0.0]))
         s = brd.vent()
         assert np.all(s.applied == 0) and s.flagged(P.Flag.VENTED).size == 3
