@@ -34,6 +34,16 @@ def server():
     srv.stop()
 
 
+@pytest.fixture
+def patient():
+    """The ``server`` with a watchdog of DEADLINE: for raw clients that send no heartbeats between their
+    frames (the 0.3 s watchdog dropped them at load 20 before the frame under test arrived)."""
+    srv = BoardServer(MockDriver(3), SECRET, port=0, watchdog=DEADLINE, rate=200e3, p_min=-50e3,
+                      p_max=80e3).start()
+    yield srv
+    srv.stop()
+
+
 class Clock:
     """An injected board clock [s] that only moves when the test says so."""
 
@@ -266,7 +276,8 @@ def _garbage(name, session):
 
 
 @pytest.mark.parametrize("garbage", ["text", "size", "server_message", "non_finite", "checksum"])
-def test_malformed_frames_after_login_vent_and_the_server_survives(server, garbage):
+def test_malformed_frames_after_login_vent_and_the_server_survives(patient, garbage):
+    server = patient
     sock, session, (mtype, _) = raw_login(server)
     assert mtype == P.MessageType.READY
     P.send_frame(sock, session.seal(P.MessageType.SET, P.pack_pressures(1, [30e3, 0, 0])))
@@ -278,7 +289,7 @@ def test_malformed_frames_after_login_vent_and_the_server_survives(server, garba
     assert code == (P.ErrorCode.UNEXPECTED if garbage == "server_message" else P.ErrorCode.MALFORMED)
     wait_until(lambda: server.client is None and np.all(server.requested == 0))
     sock.close()
-    with Board.connect(url(server), secret=SECRET) as brd:   # still serving
+    with Board.connect(url(server), secret=SECRET, keepalive=False) as brd:   # still serving
         assert brd.read().sequence == 1
 
 
@@ -301,9 +312,10 @@ def _forge(frame):
 
 
 @pytest.mark.parametrize("attack", ["bad_mac", "replayed", "reordered", "unsealed"])
-def test_injected_frames_are_refused_and_vent(server, attack):
+def test_injected_frames_are_refused_and_vent(patient, attack):
     """A frame with a valid CRC but a bad MAC, a replayed one, a reordered one, an unsealed one: ERROR
     INTEGRITY, the board vents and drops the connection."""
+    server = patient
     sock, session, (mtype, _) = raw_login(server)
     assert mtype == P.MessageType.READY
     frames = [session.seal(P.MessageType.SET, P.pack_pressures(k + 1, [p, 0, 0]))
