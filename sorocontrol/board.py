@@ -86,9 +86,11 @@ class Board:
         The last state received.
     """
 
-    def __init__(self, sock, secret, process=None, timeout=1.0, keepalive=True):
+    def __init__(self, sock, secret, process=None, timeout=1.0, keepalive=True, server_log=None):
         self._sock = sock
         self._process = process
+        self._server_log = server_log        # a simulated board's log (its stderr), read when the board is lost
+        self._lost = None                    # why the session ended, once it has
         self._seq = 0
         self._closed = False
         self._session = None
@@ -172,7 +174,7 @@ class Board:
                "--port", "0", "--p-min", repr(p_min), "--p-max", repr(p_max), "--rate", repr(rate),
                "--watchdog", repr(watchdog), "--board-rate", repr(board_rate), "--plant-from-parent"]
         env = dict(os.environ, SORO_BOARD_SECRET=secret)   # not on the command line (visible to ps)
-        errors = tempfile.TemporaryFile("w+")               # the server's log: read if it fails to start
+        errors = tempfile.TemporaryFile("w+")   # the server's log: said when it fails to start or drops us
         proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=errors, env=env)
         try:
             send_plant(proc.stdin, plant)
@@ -187,14 +189,16 @@ class Board:
             if proc.poll() is None:
                 proc.kill()
                 proc.wait()
-            for stream in (proc.stdin, proc.stdout):
+            for stream in (proc.stdin, proc.stdout, errors):
                 stream.close()
             raise
-        finally:
-            errors.close()
         proc.stdout.close()
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        return cls(sock, secret, process=proc, timeout=timeout, keepalive=keepalive)
+        try:
+            return cls(sock, secret, process=proc, timeout=timeout, keepalive=keepalive, server_log=errors)
+        except BaseException:
+            errors.close()
+            raise
 
     @property
     def server_process(self):
@@ -227,25 +231,68 @@ class Board:
         except socket.timeout:
             raise ProtocolError("the board did not answer within the timeout") from None
         except ConnectionError as e:
-            raise ProtocolError(f"the board closed the connection ({e})") from None
+            raise self._loss(f"the board closed the connection ({e})") from None
         except OSError as e:
-            raise ProtocolError(f"lost the board: {e}") from None
+            raise self._loss(f"lost the board: {e}") from None
         if self._session is not None:
             payload = self._session.open(mtype, payload)
         if mtype == P.MessageType.ERROR:
             code, message = P.unpack_error(payload)
             name = P.ErrorCode(code).name if code in P.ErrorCode._value2member_map_ else str(code)
-            raise ProtocolError(f"board refused: {name}: {message}")
+            text = f"board refused: {name}: {message}"
+            if self._session is not None:     # after the login the board closes the connection after an ERROR
+                self._lost = text
+            raise ProtocolError(text)
         return mtype, payload
+
+    def _loss(self, text):
+        """The ProtocolError for a connection that broke (``text``: how), saying why when it can: the ERROR
+        frame the board sent before closing (e.g. its watchdog's), else the last lines of a simulated board's
+        log. The session is over: later commands raise the same reason."""
+        why = None
+        if self._session is not None:
+            try:                              # the board may have said why before closing: read it
+                self._sock.settimeout(0.2)
+                mtype, payload = P.read_frame(self._sock)
+                if mtype == P.MessageType.ERROR:
+                    code, message = P.unpack_error(self._session.open(mtype, payload))
+                    name = P.ErrorCode(code).name if code in P.ErrorCode._value2member_map_ else str(code)
+                    why = f"the board said: {name}: {message}"
+            except (OSError, ProtocolError, ValueError):
+                pass
+        if why is None:
+            why = self._server_log_tail()
+        self._lost = f"{text}; {why}" if why else text
+        return ProtocolError(self._lost)
+
+    def _server_log_tail(self, lines=6):
+        """The last warnings and errors of a simulated board's server (its stderr), or None."""
+        log_file = self._server_log
+        if log_file is None or self._process is None:
+            return None
+        try:
+            log_file.seek(0)
+            said = [ln.strip() for ln in log_file.read().splitlines() if " WARNING " in ln or " ERROR " in ln
+                    or "Traceback" in ln or "Error" in ln]
+        except (OSError, ValueError):
+            return None
+        try:                       # a server that died closed its sockets just before it could be waited for
+            state = f"exited with status {self._process.wait(0.5)}"
+        except Exception:  # noqa: BLE001 - TimeoutExpired: still running
+            state = "running"
+        tail = " | ".join(said[-lines:]) if said else "no warnings"
+        return f"the simulated board's server ({state}) logged: {tail}"
 
     def _command(self, mtype, payload):
         with self._io:
             if self._closed:
                 raise ProtocolError("the board connection is closed")
+            if self._lost is not None:
+                raise ProtocolError(f"the board connection was lost: {self._lost}")
             try:
                 P.send_frame(self._sock, self._session.seal(mtype, payload))
             except OSError as e:
-                raise ProtocolError(f"lost the board: {e}") from e
+                raise self._loss(f"lost the board: {e}") from e
             rtype, rpayload = self._receive()
             if rtype != P.MessageType.STATE:
                 raise ProtocolError(f"expected STATE from the board, got {rtype.name}")
@@ -342,6 +389,9 @@ class Board:
             for stream in (proc.stdout, proc.stderr):
                 if stream is not None:
                     stream.close()
+        log_file, self._server_log = self._server_log, None
+        if log_file is not None:
+            log_file.close()
 
     def __enter__(self):
         return self

@@ -109,23 +109,42 @@ class SimulatedPlant(Driver):
     substep : float [s]
         Largest RK4 step of the pneumatics (default 1 ms: the loop's poles are at -1/(2 tau), so the
         truncation error is ~(h/2tau)^4 ~ 1e-7 relative at tau = 30 ms).
+    max_advance : float [s]
+        Most plant time one :meth:`apply` simulates (default 25 ms, ten ticks of a 400 Hz board). When more
+        board time has passed since the last call (the host was busy), the plant simulates this much and
+        skips the rest, so a slow call never makes the next one longer (without the cap, a beam that
+        simulates slower than real time makes each call longer than the last, and the board loop, which
+        holds the interpreter during the compiled beam step, stalls for seconds). The plant time then lags
+        the board time: :attr:`skipped` [s] in total over :attr:`late` calls, and a warning in the log at
+        most once a second.
+
+    Attributes
+    ----------
+    t : float [s]
+        Board time of the last call.
+    skipped : float [s]
+        Board time not simulated (the sum of what the calls past ``max_advance`` left out).
+    late : int
+        Calls that had more than ``max_advance`` to simulate.
     """
 
     def __init__(self, channels, volume=20e-6, time_constant=0.03, max_flow=2e-3, beam=None, substep=1e-3,
-                 T=293.15, gas_constant=287.05, p0=101325.0):
+                 max_advance=0.025, T=293.15, gas_constant=287.05, p0=101325.0):
         from soroshapes.model import Fluidic
 
         self.channels = _channels(channels)
         for what, v in (("volume", volume), ("time_constant", time_constant), ("max_flow", max_flow),
-                        ("substep", substep)):
+                        ("substep", substep), ("max_advance", max_advance)):
             if not (np.isfinite(v) and v > 0):
                 raise ParameterError(f"SimulatedPlant {what} must be positive and finite, got {v!r}")
         kp = volume / (gas_constant * T * time_constant)
         self.fluidic = Fluidic(volume, p0=p0, T=T, gas_constant=gas_constant,
                                regulator=dict(kp=kp, ki=kp / (4 * time_constant), max_flow=max_flow))
-        self.volume, self.substep = float(volume), float(substep)
+        self.volume, self.substep, self.max_advance = float(volume), float(substep), float(max_advance)
         self.x = np.tile(self.fluidic.initial_state(volume), (self.channels, 1))
         self.t = 0.0
+        self.skipped, self.late = 0.0, 0
+        self._warned_at = -math.inf
         self.beam = beam
         if beam is not None:
             if len(beam.inputs) != self.channels:
@@ -155,7 +174,7 @@ class SimulatedPlant(Driver):
         if t is None:               # vent: the regulators open to atmosphere
             self.x = np.tile(self.fluidic.initial_state(self.volume), (self.channels, 1))
             return self.pressures(), self._sensors(), np.zeros(self.channels, bool)
-        dt_total = max(float(t) - self.t, 0.0)
+        dt_total = self._advance(float(t))
         steps = int(np.ceil(dt_total / self.substep - 1e-12))
         if steps:
             h = dt_total / steps
@@ -173,6 +192,22 @@ class SimulatedPlant(Driver):
                 self.q, self.qd = traj.q[-1].copy(), traj.qd[-1].copy()
             self.t = float(t)
         return self.pressures(), self._sensors(), np.zeros(self.channels, bool)
+
+    def _advance(self, t):
+        """Plant time [s] to simulate to reach board time ``t``: the elapsed time, capped at ``max_advance``
+        (the rest is skipped, counted and, at most once a second, logged)."""
+        elapsed = max(t - self.t, 0.0)
+        if elapsed <= self.max_advance:
+            return elapsed
+        self.skipped += elapsed - self.max_advance
+        self.late += 1
+        if t - self._warned_at >= 1.0:
+            self._warned_at = t
+            log.warning("simulated plant: %.0f ms of board time passed since its last step (more than "
+                        "max_advance = %.0f ms): it simulated %.0f ms and skipped the rest (%.3f s skipped in "
+                        "%d late steps so far); the host is too busy for this plant at this board rate",
+                        1e3 * elapsed, 1e3 * self.max_advance, 1e3 * self.max_advance, self.skipped, self.late)
+        return self.max_advance
 
     def _sensors(self):
         if self.beam is None:

@@ -100,6 +100,7 @@ class ErrorCode(enum.IntEnum):
     SIZE = 6
     INTERNAL = 7
     INTEGRITY = 8       # a sealed frame with a bad MAC or an out-of-order sequence number
+    WATCHDOG = 9        # the board heard nothing valid for its watchdog time: it vented and dropped the client
 
 
 def error_code(exc):

@@ -17,8 +17,13 @@ Safety rules (all enforced here, whatever the client does):
 * the measured pressure of every channel is checked against ``[p_min - tolerance, p_max + tolerance]`` at
   each tick: a channel outside for ``excursion_time`` vents the board and refuses commands until the next
   login, with an event that names the channel (a regulator fault or a wrong calibration in the profile);
-* the watchdog: when the client sends no valid frame within ``watchdog`` seconds, the client is dropped and
-  every channel vented (flag ``VENTED``);
+* the watchdog: when the client sends no valid frame within ``watchdog`` seconds, every channel is vented
+  (flag ``VENTED``), the client is told why (a sealed ``ERROR`` with code ``WATCHDOG``) and dropped. The
+  silence measured is the client's, not the server's: the board loop drops the client only when nothing it
+  sent waits unread (in the socket, or in the hands of the thread that serves it), so a server that was slow
+  to read (a long driver step, a busy machine) does not drop a healthy client. A client whose frames the
+  server cannot read for the hard limit (four watchdog times, at least one second more than the watchdog) is
+  dropped anyway: the server is overloaded or stuck;
 * venting on a client's disconnect, on any protocol error (including a frame with a bad MAC or an old
   sequence number), on a driver exception and on shutdown (``stop()``, SIGTERM, SIGINT);
 * connections that have not logged in never hold the control slot: at most ``max_pending`` wait, each for
@@ -38,6 +43,7 @@ import importlib
 import logging
 import math
 import os
+import select
 import selectors
 import signal
 import socket
@@ -160,6 +166,9 @@ class BoardServer:
         self._stop = threading.Event()
         self._client = None                # the logged-in connection's socket
         self._client_peer = None
+        self._client_session = None        # its Session: sealed and opened only under _client_reading
+        self._client_reading = None        # held by whoever reads, answers or ends that connection
+        self._hard_watchdog = max(4.0 * self.watchdog, self.watchdog + 1.0)
         self._fault = None                 # a driver or read-back failure: commands refused until the next login
         self._out_ticks = np.zeros(n, int)
         self._tripped = False
@@ -274,6 +283,13 @@ class BoardServer:
             return self._client_peer if self._client is not None else None
 
     @property
+    def serving(self):
+        """True while the thread that serves the client reads or answers its frames: time the watchdog does
+        not count as the client's silence (tests stepping the board loop wait for it to end)."""
+        reading = self._client_reading
+        return reading is not None and reading.locked()
+
+    @property
     def fault(self):
         """Why commands are refused until the next login (a driver or read-back failure), or None."""
         return self._fault
@@ -332,8 +348,9 @@ class BoardServer:
         with self._driver_lock:
             with self._lock:
                 if self._client is not None and t - self._last_valid > self.watchdog:
-                    dropped, silence = (self._client, self._client_peer), t - self._last_valid
-                    self._client = None
+                    dropped = self._silent_client(t - self._last_valid)
+                    if dropped is not None:
+                        self._client = None
                 driver_error = None
                 if self._client is None or self._fault:       # nobody may hold pressure
                     forced = bool(np.any(self.requested != 0) or np.any(self.applied != 0))
@@ -357,9 +374,17 @@ class BoardServer:
             except Exception as e:  # noqa: BLE001 - any driver failure vents the board
                 driver_error = f"driver error: {type(e).__name__}: {e}"
         if dropped is not None:
-            self._event(f"watchdog: no valid command from {dropped[1]} for {silence:.3f} s (timeout "
-                        f"{self.watchdog} s): dropped")
-            self._close(dropped[0])
+            conn, session, reading, why = dropped
+            self._event(why)
+            if reading is not None:         # we hold the connection: tell the client why, then close it
+                try:
+                    self._send_error(conn, P.ErrorCode.WATCHDOG, f"{why}; every channel vented, log in again",
+                                     session)
+                    self._close(conn)
+                finally:
+                    reading.release()
+            else:
+                self._close(conn)
             self._event("vented (watchdog)")
         elif forced:
             self._event("vented (no client logged in: every channel held at 0 Pa)")
@@ -373,6 +398,36 @@ class BoardServer:
             self.measured, self.sensors, self.faults = measured, np.asarray(sensors, float), faults
             self.flags = np.where(faults, self.flags | P.Flag.SENSOR_FAULT, self.flags & ~P.Flag.SENSOR_FAULT)
         self._check_readback(measured, faults)
+
+    def _silent_client(self, silence):
+        """Whether the logged-in client really was silent for ``silence`` [s] > the watchdog (called under
+        ``_lock``): None when something it sent waits unread, in its socket or being served (the server was
+        slow, not the client), until the hard limit. Otherwise ``(conn, session, reading, why)``: ``reading``
+        is the connection's reading lock, acquired (the caller sends the reason and releases it), or None
+        when the thread that serves it holds it past the hard limit."""
+        conn, who, reading = self._client, self._client_peer, self._client_reading
+        hard = silence > self._hard_watchdog
+        held = reading.acquire(blocking=False)
+        waiting = not held or self._readable(conn)
+        if waiting and not hard:
+            if held:
+                reading.release()
+            self.counters["watchdog_waits"] += 1      # ticks on which the client spoke but was not read yet
+            return None
+        if waiting:
+            why = (f"watchdog: the frames of {who} were not read for {silence:.3f} s (hard limit "
+                   f"{self._hard_watchdog:g} s): the board server is overloaded or stuck: dropped")
+        else:
+            why = f"watchdog: no valid command from {who} for {silence:.3f} s (timeout {self.watchdog} s): dropped"
+        return conn, self._client_session if held else None, reading if held else None, why
+
+    @staticmethod
+    def _readable(conn):
+        """True when ``conn`` has bytes (or its end) waiting to be read."""
+        try:
+            return bool(select.select([conn], [], [], 0)[0])
+        except (ValueError, OSError):     # closed under us: its serving thread ends the session
+            return False
 
     def _check_readback(self, measured, faults):
         out = ~faults & ((measured < self.p_min - self.tolerance) | (measured > self.p_max + self.tolerance))
@@ -520,10 +575,12 @@ class BoardServer:
         pending.pop(conn)
         sel.unregister(conn)
         self._failures.pop(pd.peer[0], None)
+        session, reading = P.Session(self.secret, pd.nonce, client_nonce, "board"), threading.Lock()
         with self._lock:
             busy = self._client is not None
             if not busy:
                 self._client, self._client_peer = conn, who
+                self._client_session, self._client_reading = session, reading
                 self._last_valid = self.now()
                 self._fault = None
         if busy:
@@ -532,7 +589,6 @@ class BoardServer:
             conn.close()
             return
         self.counters["logins"] += 1
-        session = P.Session(self.secret, pd.nonce, client_nonce, "board")
         try:
             conn.setblocking(True)
             conn.settimeout(1.0)
@@ -541,7 +597,7 @@ class BoardServer:
             self._release(conn, who, f"client {who} lost at login: {e}")
             return
         log.info("client %s logged in", who)
-        threading.Thread(target=self._serve_client, args=(conn, who, session, pd.reader), daemon=True,
+        threading.Thread(target=self._serve_client, args=(conn, who, session, pd.reader, reading), daemon=True,
                          name="soro-board-client").start()
 
     @staticmethod
@@ -609,38 +665,58 @@ class BoardServer:
             self._last_valid = self.now()
             return self._state(seq)
 
-    def _serve_client(self, conn, who, session, reader):
+    def _serve_client(self, conn, who, session, reader, reading):
+        """Serve the logged-in connection ``conn`` until it ends: wait for its bytes, then read and answer them
+        holding ``reading`` (so the board loop's watchdog sees them either waiting in the socket or being
+        served, never lost in between: :meth:`_silent_client`)."""
         why = None
+        poll = selectors.DefaultSelector()
         try:
             conn.settimeout(0.05)
-            data = b""
+            poll.register(conn, selectors.EVENT_READ)
             while not self._stop.is_set() and self._client is conn:
-                for mtype, payload in reader.feed(data):
-                    body = session.open(mtype, payload)
-                    if mtype == P.MessageType.BYE:
-                        why = f"client {who} said bye"
-                        return
-                    P.send_frame(conn, session.seal(P.MessageType.STATE, self._command(conn, mtype, body, who)))
-                try:
-                    data = conn.recv(65536)
-                except socket.timeout:
-                    data = b""
+                if not poll.select(timeout=0.05):
                     continue
-                if not data:
-                    raise ConnectionError("closed by the client")
+                with reading:
+                    if self._client is not conn:
+                        break
+                    why = self._serve_frames(conn, who, session, reader)
+                if why is not None:
+                    break
+        except (ValueError, OSError) as e:     # closed under us (shutdown, hard watchdog)
+            why = f"client {who} lost: {e}"
+        finally:
+            poll.close()
+            self._release(conn, who, why)
+
+    def _serve_frames(self, conn, who, session, reader):
+        """Read what ``conn`` sent and answer each complete frame; None, or why the connection ends (it was
+        answered with an ERROR frame when the client is at fault)."""
+        try:
+            try:
+                data = conn.recv(65536)
+            except socket.timeout:       # readable, then nothing after all: wait again
+                return None
+            if not data:
+                raise ConnectionError("closed by the client")
+            for mtype, payload in reader.feed(data):
+                body = session.open(mtype, payload)
+                if mtype == P.MessageType.BYE:
+                    return f"client {who} said bye"
+                P.send_frame(conn, session.seal(P.MessageType.STATE, self._command(conn, mtype, body, who)))
         except _NotClient:
             self.counters["late_commands"] += 1
             self._event(f"refused a command from {who}: it no longer controls the board")
+            return f"client {who} no longer controls the board"
         except ProtocolError as e:
-            why = f"protocol error from {who}: {e}"
             self._send_error(conn, P.error_code(e), str(e), session)
+            return f"protocol error from {who}: {e}"
         except (ConnectionError, socket.timeout, OSError) as e:
-            why = f"client {who} lost: {e}"
+            return f"client {who} lost: {e}"
         except Exception as e:  # noqa: BLE001 - the server must survive anything a client sends
-            why = f"internal error serving {who}: {type(e).__name__}: {e}"
             self._send_error(conn, P.ErrorCode.INTERNAL, f"{type(e).__name__}: {e}", session)
-        finally:
-            self._release(conn, who, why)
+            return f"internal error serving {who}: {type(e).__name__}: {e}"
+        return None
 
 
 # ---- command line ---------------------------------------------------------------------------------------

@@ -83,20 +83,11 @@ def test_browser_slider_moves_the_tip_and_the_tip_follows_the_dragged_target(fin
 
 
 def test_browser_simulated_board_receives_the_slider_and_closing_the_page_vents_it(tmp_path):
-    """The slider reaches the simulated board and closing the page vents it. Known intermittent failure (seen in
-    about one run in five on a loaded machine and once in a clean-clone CI run, never when run alone): the
-    simulated board's server drops the connection ("lost the board: Broken pipe") right after the slider's
-    jump to p_max; the cause is not found yet (suspect: the server's board loop stalls in the simulated beam's
-    step and its watchdog then drops the client). One retry with a fresh server and page, said in the output;
-    a second loss fails."""
-    from sorofem.errors import SoroError
-    try:
-        _board_session(tmp_path / "first")
-    except SoroError as e:   # the loss itself, or the failed vent on closing that it causes
-        if "lost the board" not in f"{e} {e.__context__}":
-            raise
-        print(f"retrying once: the simulated board dropped the connection ({e})")
-        _board_session(tmp_path / "retry")
+    """The slider reaches the simulated board and closing the page vents it. (Under load this once dropped the
+    connection after the slider's jump: the simulated beam's step, growing with the board loop's delay,
+    stalled the server past its watchdog. The plant's step is now bounded and the watchdog counts the
+    client's silence only: tests/sorocontrol/test_board.py stalls a board loop on purpose.)"""
+    _board_session(tmp_path)
 
 
 def _board_session(tmp_path):

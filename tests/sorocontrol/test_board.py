@@ -34,6 +34,16 @@ def server():
     srv.stop()
 
 
+@pytest.fixture
+def patient():
+    """The ``server`` with a watchdog of DEADLINE: for raw clients that send no heartbeats between their
+    frames (the 0.3 s watchdog dropped them at load 20 before the frame under test arrived)."""
+    srv = BoardServer(MockDriver(3), SECRET, port=0, watchdog=DEADLINE, rate=200e3, p_min=-50e3,
+                      p_max=80e3).start()
+    yield srv
+    srv.stop()
+
+
 class Clock:
     """An injected board clock [s] that only moves when the test says so."""
 
@@ -71,6 +81,12 @@ def wait_until(cond, timeout=DEADLINE):
     raise AssertionError("condition not reached")
 
 
+def reader_idle(srv):
+    """Wait until the thread that serves the client has answered it (the client may see the answer first): the
+    watchdog counts only the silence of a client whose frames are all served."""
+    wait_until(lambda: not srv.serving)
+
+
 def raw_login(srv, secret=SECRET):
     """Log in by hand: ``(socket, session, (type, body) of the answer to AUTH)``."""
     sock = socket.create_connection(srv.address, timeout=DEADLINE)
@@ -92,7 +108,7 @@ def test_login_announces_limits_and_commands_answer_with_state(server):
         np.testing.assert_array_equal(brd.p_max, 80e3)
         s = brd.set_pressure([10e3, -5e3, 0.0])
         np.testing.assert_array_equal(s.requested, [10e3, -5e3, 0.0])
-        assert s.sequence == 1 and brd.read().sequence == 2
+        assert brd.read().sequence == s.sequence + 1 >= 2   # (the keepalive may have sent 1 under load)
         wait_until(lambda: np.allclose(brd.read().measured, [10e3, -5e3, 0.0]))
         s = brd.vent()
         assert np.all(s.applied == 0) and s.flagged(P.Flag.VENTED).size == 3
@@ -260,7 +276,8 @@ def _garbage(name, session):
 
 
 @pytest.mark.parametrize("garbage", ["text", "size", "server_message", "non_finite", "checksum"])
-def test_malformed_frames_after_login_vent_and_the_server_survives(server, garbage):
+def test_malformed_frames_after_login_vent_and_the_server_survives(patient, garbage):
+    server = patient
     sock, session, (mtype, _) = raw_login(server)
     assert mtype == P.MessageType.READY
     P.send_frame(sock, session.seal(P.MessageType.SET, P.pack_pressures(1, [30e3, 0, 0])))
@@ -272,7 +289,7 @@ def test_malformed_frames_after_login_vent_and_the_server_survives(server, garba
     assert code == (P.ErrorCode.UNEXPECTED if garbage == "server_message" else P.ErrorCode.MALFORMED)
     wait_until(lambda: server.client is None and np.all(server.requested == 0))
     sock.close()
-    with Board.connect(url(server), secret=SECRET) as brd:   # still serving
+    with Board.connect(url(server), secret=SECRET, keepalive=False) as brd:   # still serving
         assert brd.read().sequence == 1
 
 
@@ -295,9 +312,10 @@ def _forge(frame):
 
 
 @pytest.mark.parametrize("attack", ["bad_mac", "replayed", "reordered", "unsealed"])
-def test_injected_frames_are_refused_and_vent(server, attack):
+def test_injected_frames_are_refused_and_vent(patient, attack):
     """A frame with a valid CRC but a bad MAC, a replayed one, a reordered one, an unsealed one: ERROR
     INTEGRITY, the board vents and drops the connection."""
+    server = patient
     sock, session, (mtype, _) = raw_login(server)
     assert mtype == P.MessageType.READY
     frames = [session.seal(P.MessageType.SET, P.pack_pressures(k + 1, [p, 0, 0]))
@@ -397,6 +415,7 @@ def test_watchdog_vents_at_the_first_tick_past_its_timeout(stepped, sigpipe_reco
     srv = stepped
     with Board.connect(url(srv), secret=SECRET, keepalive=False) as brd:
         brd.set_pressure([20e3, 0, 0])
+        reader_idle(srv)
         for _ in range(30):                      # 0.30 s of board time: not yet (the timeout is > 0.3 s)
             srv.clock.advance(0.01)
             srv.tick()
@@ -405,10 +424,90 @@ def test_watchdog_vents_at_the_first_tick_past_its_timeout(stepped, sigpipe_reco
         srv.tick()
         assert srv.client is None and np.all(srv.driver.value == 0) and np.all(srv.requested == 0)
         assert "watchdog" in srv.events[-2][1] and srv.events[-1][1] == "vented (watchdog)"
+        with pytest.raises(ProtocolError, match=r"WATCHDOG: watchdog: no valid command .* for 0\.310 s"):
+            brd.read()                           # the board said why before closing
         for _ in range(3):
-            with pytest.raises(ProtocolError):
+            with pytest.raises(ProtocolError, match="lost: board refused: WATCHDOG"):
                 brd.read()
     assert sigpipe_recorder == []
+
+
+def test_watchdog_counts_the_clients_silence_not_the_servers(stepped):
+    """Frames that reached the board but wait unread (the thread that serves the client could not run: held
+    here by the test) are the client speaking: past the watchdog the board waits for them, and keeps the
+    pressure; past the hard limit (max(4 x 0.3, 0.3 + 1) = 1.3 s) the server is stuck: it drops the client,
+    vents and says so. The frames left unread are never carried out."""
+    srv = stepped
+    sock, session, (mtype, _) = raw_login(srv)
+    assert mtype == P.MessageType.READY
+    P.send_frame(sock, session.seal(P.MessageType.SET, P.pack_pressures(1, [20e3, 0, 0])))
+    assert sealed_answer(sock, session)[0] == P.MessageType.STATE
+    srv.tick()
+    reader_idle(srv)
+    reading = srv._client_reading
+    with reading:                                # the server's reader cannot run
+        P.send_frame(sock, session.seal(P.MessageType.HEARTBEAT, P.pack_sequence(2)))
+        wait_until(lambda: srv._readable(srv._client))
+        for _ in range(100):                     # 1.00 s > the watchdog: the heartbeat waits unread
+            srv.clock.advance(0.01)
+            srv.tick()
+        assert srv.client is not None and srv.driver.value[0] == 20e3
+        assert srv.counters["watchdog_waits"] == 70   # every tick from 0.31 s on
+        for _ in range(31):                      # 1.31 s: past the hard limit
+            srv.clock.advance(0.01)
+            srv.tick()
+        assert srv.client is None and np.all(srv.driver.value == 0)
+        assert "were not read for 1.310 s (hard limit 1.3 s): the board server is overloaded or stuck" in \
+            srv.events[-2][1] and srv.events[-1][1] == "vented (watchdog)"
+    sock.settimeout(DEADLINE)
+    try:                                         # the connection is closed; the heartbeat is never carried out
+        assert sock.recv(4096) == b""
+    except ConnectionResetError:
+        pass
+    sock.close()
+    assert srv.requested[0] == 0 and srv.counters["late_commands"] == 0
+
+
+STALL_CLIENT = textwrap.dedent("""
+    import sys, time
+    from sorocontrol import Board
+    from sorofem.errors import ProtocolError
+    brd = Board.connect(sys.argv[1], secret=sys.argv[2], keepalive=False, timeout=30.0)
+    try:
+        for k in range(150):             # 3 s at 50 Hz; the jump to 40 kPa after 0.5 s stalls the board
+            brd.set_pressure([40e3 if k >= 25 else 0.0])
+            time.sleep(0.02)
+        print("kept", brd.read().requested[0], flush=True)
+    except ProtocolError as e:
+        print("lost", e, flush=True)
+""")
+
+
+def test_a_board_loop_stalled_past_the_watchdog_keeps_a_healthy_client(tmp_path):
+    """The intermittent drop of the simulated board after a pressure jump, made deterministic: the driver's
+    step after the jump holds the interpreter for 0.8 s (> the 0.3 s watchdog), as the simulated beam's
+    compiled step did on a loaded machine, while a client in another process goes on commanding at 50 Hz.
+    Its frames wait in the socket; the server reads them after the stall and the client keeps the board (a
+    server measuring its own silence dropped it at the first tick after the stall: "lost the board: Broken
+    pipe"; counters["watchdog_waits"] counts the ticks that found the frames still unread, 0 when the reader
+    ran first)."""
+    import ctypes
+
+    class Stalling(MockDriver):
+        stalled = False
+
+        def apply(self, setpoints, t):
+            if not self.stalled and setpoints[0] > 0:
+                self.stalled = True
+                ctypes.PyDLL(None).usleep(800_000)     # holds the GIL, as a numba kernel without nogil
+            return super().apply(setpoints, t)
+    drv = Stalling(1)
+    with BoardServer(drv, SECRET, port=0, watchdog=0.3) as srv:
+        proc = subprocess.run([sys.executable, "-c", STALL_CLIENT, url(srv), SECRET], capture_output=True,
+                              text=True, cwd=os.getcwd(), timeout=120)
+        assert drv.stalled, "the stall happened"
+        assert proc.stdout.strip() == "kept 40000.0", proc.stdout + proc.stderr[-2000:]
+        assert not any("watchdog" in e for _, e in srv.events)
 
 
 def test_no_client_means_zero_pressure_at_every_tick(stepped):
@@ -423,7 +522,8 @@ def test_no_client_means_zero_pressure_at_every_tick(stepped):
 
 class RacyServer(BoardServer):
     """Holds each command of the client between its arrival and its execution until the test lets it go:
-    the SET is in flight (received, not yet applied) when the board loop's watchdog drops the client."""
+    the SET is in flight (received, not yet applied) when the board loop's watchdog drops the client (which
+    it does, with a command being served, only past its hard limit: the server itself is stuck)."""
 
     def __init__(self, *a, **kw):
         super().__init__(*a, **kw)
@@ -447,7 +547,8 @@ class RacyServer(BoardServer):
 def test_watchdog_drop_with_a_set_in_flight_never_leaves_pressure(tmp_path):
     """1,000 watchdog drops, each with a SET of 40 kPa received by the server: in half of them the SET is
     carried out just before the drop, in the other half just after it (the race of the issue). The board is
-    never left pressurized without a client: 0 of 1,000."""
+    never left pressurized without a client: 0 of 1,000. A command in flight is the client speaking, so the
+    drop with it in flight is the hard limit's (the server stuck serving it for > 1.05 s of board time)."""
     clock = Clock()
     srv = RacyServer(MockDriver(2), SECRET, port=0, watchdog=0.05, board_rate=100.0, rate=1e7,
                      clock=clock).start(loop=False)
@@ -461,11 +562,13 @@ def test_watchdog_drop_with_a_set_in_flight_never_leaves_pressure(tmp_path):
             P.send_frame(sock, session.seal(P.MessageType.SET, P.pack_pressures(1, [40e3, 40e3])))
             if after:
                 assert srv.arrived.wait(DEADLINE)
+                clock.advance(1.1)                       # past the hard limit max(4 x 0.05, 0.05 + 1) s
             else:
                 sealed_answer(sock, session)            # applied: the board answered
                 srv.tick()
                 assert srv.driver.value[0] == 40e3
-            clock.advance(0.06)                          # past the watchdog
+                reader_idle(srv)
+                clock.advance(0.06)                      # past the watchdog
             srv.tick()                                   # drops the client and vents
             srv.go.set()
             wait_until(lambda: srv.client is None and len(srv.outcome) == i + 1)
@@ -733,3 +836,35 @@ def test_simulated_plant_is_the_fluidic_model():
     u = np.array([50e3, -80e3, 1e3])
     exact = np.array([plant.fluidic.rhs(x[i], u[i:i + 1], plant.volume) for i in range(3)])
     np.testing.assert_allclose(plant._rhs(x, u), exact, rtol=1e-12, atol=1e-20)
+
+
+def test_a_lost_simulated_board_says_why():
+    """A simulated board whose server dies: the client's error names the connection's end and the server's
+    state and log, not only "Broken pipe"; later commands repeat the reason."""
+    with Board.simulated(channels=1, keepalive=False) as brd:
+        brd.set_pressure([10e3])
+        os.kill(brd.server_process.pid, signal.SIGKILL)
+        with pytest.raises(ProtocolError, match=r"simulated board's server \(exited with status -9\) logged"):
+            wait_until(lambda: brd.read() is None)        # until the loss shows (the first send may succeed)
+        with pytest.raises(ProtocolError, match=r"the board connection was lost: .*exited with status -9"):
+            brd.read()
+
+
+def test_a_late_simulated_plant_skips_time_instead_of_stalling(caplog):
+    """Board time that passed beyond max_advance since the plant's last step (a busy host) is skipped, not
+    simulated: the call costs at most max_advance of plant time, so it never grows with the delay. The
+    pressures are those of a plant that ran max_advance, the skipped time is counted and logged."""
+    late, ref = SimulatedPlant(2, max_advance=0.025), SimulatedPlant(2, max_advance=0.025)
+    for plant in (late, ref):
+        plant.apply([20e3, -20e3], 0.01)
+    with caplog.at_level("WARNING", logger="sorocontrol.drivers"):
+        p_late = late.apply([20e3, -20e3], 2.01)[0]     # 2 s after the last step
+    p_ref = ref.apply([20e3, -20e3], 0.035)[0]
+    np.testing.assert_allclose(p_late, p_ref, rtol=1e-12)    # the same 25 RK4 steps, up to rounding of h
+    assert late.t == 2.01 and late.late == 1 and late.skipped == pytest.approx(1.975, abs=1e-12)
+    assert "skipped the rest" in caplog.text and "2000 ms of board time passed" in caplog.text
+    p_next = late.apply([20e3, -20e3], 2.02)[0]          # and goes on from there at the board's pace
+    np.testing.assert_allclose(p_next, ref.apply([20e3, -20e3], 0.045)[0], rtol=1e-12)
+    assert late.late == 1
+    with pytest.raises(ParameterError, match="max_advance"):
+        SimulatedPlant(1, max_advance=0.0)

@@ -129,6 +129,9 @@ def test_dac_codes_at_idle_vent_watchdog_and_at_the_limits(stub, tmp_path, setti
             brd.set_pressure([p_max, p_max])
             tick()
             assert codes(stub)[0] == cal.code(p_max)
+            deadline = time.monotonic() + 10.0       # the server has served the last command (generous: load)
+            while srv.serving and time.monotonic() < deadline:
+                time.sleep(0.001)
             clock.t += 0.31                          # the client goes silent past the watchdog
             srv.tick()
             assert codes(stub) == [zero, zero], "watchdog"
