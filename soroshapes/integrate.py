@@ -174,7 +174,7 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
                     if table[b, 0] == BEAM:
                         _beam_mass_matrix(table[b, 5], net)
                 xj = xe.copy()
-                if not (_cheap_rows(te, xj, net, scale, w, f0, fp, xp, JF, not differenced)
+                if not (_cheap_rows(te, xj, net, scale, w, f0, fp, xp, JF, not differenced, True)
                         and _iteration_matrix(c, gam, net, JF, Jac, LUc, pivc)):
                     st[4] = 0.0
                     st[11] = 0.0
