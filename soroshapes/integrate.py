@@ -175,7 +175,7 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
                         _beam_mass_matrix(table[b, 5], net)
                 xj = xe.copy()
                 if not (_cheap_rows(te, xj, net, scale, w, f0, fp, xp, JF, not differenced, True)
-                        and _iteration_matrix(c, gam, net, JF, Jac, LUc, pivc)):
+                        and _iteration_matrix(c, gam, net, JF, LUc, pivc)):
                     st[4] = 0.0
                     st[11] = 0.0
                     return False

@@ -1869,37 +1869,38 @@ u)/k_p`, leak, the polytropic law and the volume
 
 
 @njit(cache=True)
-def _iteration_matrix(c, gam, net, JF, Jac, LUc, pivc):
+def _iteration_matrix(c, gam, net, JF, LUc, pivc):
     r"""Factor the Newton matrix of :func:`residual` per connected component, :math:`I - cJ` (``c`` =
     :math:`\gamma` times the weight of :math:`x_1` in the evaluation point) in the rows of every system but a
     beam's force rows, which are :math:`\tfrac1\gamma M_{[\cdot, \dot q]} - \tfrac c\gamma J_F` with
     :math:`M` the current mass matrix (:func:`_beam_mass_matrix`) and ``JF`` its force Jacobian (model rows of
-    :func:`_cheap_rows`, or the differenced :func:`jacobian`). False if singular."""
-    table, comps = net[0], net[18]
-    N = JF.shape[0]
-    for i in range(N):
-        for j in range(N):
-            Jac[i, j] = -c * JF[i, j]
-        Jac[i, i] += 1.0
-    for b in range(table.shape[0]):
-        if table[b, 0] == BEAM:
-            n = table[b, 2] // 2
-            r0 = table[b, 1] + n
-            M = _beam_mass(table[b, 5], net)
-            f = c / gam
-            for k in range(n):
-                for j in range(N):
-                    Jac[r0 + k, j] = -f * JF[r0 + k, j]
-                for l in range(n):
-                    Jac[r0 + k, r0 + l] += M[k, l] / gam
+    :func:`_cheap_rows`, or the differenced :func:`jacobian`). Each component's block is gathered straight into
+    its factor (the matrix is block diagonal). False if singular."""
+    table, col_block, comps = net[0], net[17], net[18]
     for k in range(comps.shape[0]):
         s = 0
         while s < comps.shape[1] and comps[k, s] >= 0:
             s += 1
         A = LUc[k, :s, :s]
         for a in range(s):
+            i = comps[k, a]
+            bl = col_block[i]
+            f = c
+            rate = -1                                   # the row's rate index in its beam, if a force row
+            if table[bl, 0] == BEAM:
+                n = table[bl, 2] // 2
+                if i >= table[bl, 1] + n:
+                    rate = i - table[bl, 1] - n
+                    f = c / gam
             for b2 in range(s):
-                A[a, b2] = Jac[comps[k, a], comps[k, b2]]
+                A[a, b2] = -f * JF[i, comps[k, b2]]
+            if rate < 0:
+                A[a, a] += 1.0
+            else:
+                M = _beam_mass(table[bl, 5], net)
+                first = a - rate                      # the beam's rate columns are contiguous in the component
+                for l in range(n):
+                    A[a, first + l] += M[rate, l] / gam
         if not _lu(A, pivc[k, :s]):
             return False
     return True
