@@ -41,9 +41,11 @@ controller's free inputs, then the couplings in declaration order, then every sy
 :func:`soroshapes._beam.forward_dynamics`, its input force :math:`G u` with the constant input matrix); an
 implicit step's residual (:func:`residual`) takes a beam second order, its equations of motion in force units
 by one pass of the O(N) recursions. The
-Jacobian :math:`J = \partial F/\partial x` (:func:`jacobian`) is taken by forward differences of :math:`F` whose
-columns are grouped (Curtis-Powell-Reid) over the block dependency pattern (a column of system :math:`j` changes
-only the derivatives of the systems that read :math:`j`). The implicit steps, Newton and the step splitting are
+rows of the Newton matrix of reservoirs, linear systems and beam input forces are in closed form
+(:func:`_analytic_rows`: the inputs' Jacobian through StateMaps and output couplings); the rest, and the full
+Jacobian :math:`J = \partial F/\partial x` (:func:`jacobian`) when a beam's model matrix fails, are taken by
+forward differences of :math:`F` whose columns are grouped (Curtis-Powell-Reid) over the block dependency pattern
+(a column of system :math:`j` changes only the derivatives of the systems that read :math:`j`). The implicit steps, Newton and the step splitting are
 :mod:`soroshapes.integrate`; many steps run in one compiled call, recording states and inputs every
 ``record_every`` steps. The two paths agree to the Newton tolerance (tests/soroshapes/test_network.py).
 """
