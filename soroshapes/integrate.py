@@ -22,11 +22,13 @@ the O(N) recursions, no mass matrix solved). The iteration matrix is block diago
 components of the network (systems that read each other's states, closed over couplings; see
 :func:`soroshapes.network.lower`): :math:`I - cJ` in the rows of every system but a beam's rate rows, which are
 :math:`M/\gamma` on its rates minus :math:`c/\gamma` times its force Jacobian: the beam's *model* rows
-:math:`\partial f_{in}/\partial x - [K\;\;D]` (the input force differenced over the columns it reads, as in the
+:math:`\partial f_{in}/\partial x - [K\;\;D]` (the input force in closed form through the inputs' Jacobian, or
+differenced over the columns it reads where a coupling has no closed form; as in the
 beam's own iteration matrix :math:`2M/h + D + \tfrac h2 K`), or, once a fresh model matrix failed in a step, the
 differenced Jacobian :math:`M\,\partial\ddot q/\partial x` of :func:`soroshapes.network.jacobian` for the rest of
 the run (kept across steps, refreshed when Newton contracts slowly or fails). The rows of the other systems are
-differenced (:func:`soroshapes.network._cheap_rows`) and :math:`M` is formed from the per-piece operators of the
+in closed form where they have one (reservoirs, linear systems) and differenced otherwise
+(:func:`soroshapes.network._cheap_rows`), and :math:`M` is formed from the per-piece operators of the
 first iterate's pass whenever the matrix is factored: at a step after one whose contraction rate exceeded
 ``THETA_REFRESH`` or that needed more than ``REFRESH_ITS`` iterations, at most every ``REFRESH_STEPS`` steps,
 when :math:`c` changes, and on a retry after a failure (a kept matrix, then a fresh one, then the differenced
@@ -174,8 +176,8 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
                     if table[b, 0] == BEAM:
                         _beam_mass_matrix(table[b, 5], net)
                 xj = xe.copy()
-                if not (_cheap_rows(te, xj, net, scale, w, f0, fp, xp, JF, not differenced)
-                        and _iteration_matrix(c, gam, net, JF, Jac, LUc, pivc)):
+                if not (_cheap_rows(te, xj, net, scale, w, f0, fp, xp, JF, not differenced, True)
+                        and _iteration_matrix(c, gam, net, JF, LUc, pivc)):
                     st[4] = 0.0
                     st[11] = 0.0
                     return False

@@ -41,9 +41,11 @@ controller's free inputs, then the couplings in declaration order, then every sy
 :func:`soroshapes._beam.forward_dynamics`, its input force :math:`G u` with the constant input matrix); an
 implicit step's residual (:func:`residual`) takes a beam second order, its equations of motion in force units
 by one pass of the O(N) recursions. The
-Jacobian :math:`J = \partial F/\partial x` (:func:`jacobian`) is taken by forward differences of :math:`F` whose
-columns are grouped (Curtis-Powell-Reid) over the block dependency pattern (a column of system :math:`j` changes
-only the derivatives of the systems that read :math:`j`). The implicit steps, Newton and the step splitting are
+rows of the Newton matrix of reservoirs, linear systems and beam input forces are in closed form
+(:func:`_analytic_rows`: the inputs' Jacobian through StateMaps and output couplings); the rest, and the full
+Jacobian :math:`J = \partial F/\partial x` (:func:`jacobian`) when a beam's model matrix fails, are taken by
+forward differences of :math:`F` whose columns are grouped (Curtis-Powell-Reid) over the block dependency pattern
+(a column of system :math:`j` changes only the derivatives of the systems that read :math:`j`). The implicit steps, Newton and the step splitting are
 :mod:`soroshapes.integrate`; many steps run in one compiled call, recording states and inputs every
 ``record_every`` steps. The two paths agree to the Newton tolerance (tests/soroshapes/test_network.py).
 """
@@ -376,6 +378,36 @@ def _lower_terms(spec, blocks, index, free_rows):
     return cint, np.concatenate(cflt) if cflt else np.zeros(0), reads
 
 
+def _mark_analytic(table, blocks, link_tab, link_rows, ckind, free_rows, wterm):
+    """Set ``table[i, 7]`` = 1 for the systems whose rows of the Newton matrix :func:`_analytic_rows` writes in
+    closed form: reservoirs, linear systems and beams (their input force) whose every input is a reservoir volume,
+    a state-independent controller value (none, a :class:`Schedule`) or a coupling from a system's output or a
+    :class:`StateMap` (not a wrench sum, not a state feedback controller), and beams on which no coupling's force
+    acts (a grasp or a contact). The others are differenced (:func:`_fd_rows`)."""
+    NW = sum(b["nw"] for b in blocks)
+    known = np.ones(NW, np.bool_)
+    if ckind in (2, 3):                                 # a feedback controller's inputs read beam states
+        known[np.asarray(free_rows, np.int64)] = False
+    changed = True
+    while changed:                                      # an output with feedthrough inherits its inputs' state
+        changed = False
+        for lk, src, ro, nr in link_tab:
+            rows = link_rows[ro:ro + nr]
+            if lk == 2:
+                bad = True
+            elif lk == 0 and table[src, 0] == LINEAR:
+                bad = not known[table[src, 3]:table[src, 3] + table[src, 4]].all()
+            else:
+                bad = False
+            if bad and known[rows].any():
+                known[rows] = False
+                changed = True
+    acted = {int(row[3]) for row in wterm if row[3] >= 0}
+    for i in range(table.shape[0]):
+        ok = table[i, 0] in (BEAM, FLUIDIC, LINEAR) and known[table[i, 3]:table[i, 3] + table[i, 4]].all()
+        table[i, 7] = int(ok and i not in acted)
+
+
 class Lowered:
     """The network as the kernel's arrays (see :func:`lower`); ``arrays`` is the argument tuple."""
 
@@ -397,7 +429,8 @@ def lower(blocks, links, volumes, controller, free):
     free_list, free_rows = free
     index = {b["name"]: i for i, b in enumerate(blocks)}
     kind = np.zeros(len(blocks), np.int64)
-    table = np.zeros((len(blocks), 7), np.int64)         # kind, xoff, n, woff, nw, aux, costly (see _cheap_rows)
+    # kind, xoff, n, woff, nw, aux, costly and analytic rows (see _cheap_rows)
+    table = np.zeros((len(blocks), 8), np.int64)
     bint, bflt, bwork, bintb = [], [], [], []
     fpar = []
     maps, mapint = [], []
@@ -550,6 +583,8 @@ def lower(blocks, links, volumes, controller, free):
         extra_feeds.extend(reads)
     else:
         raise NotImplementedError(f"the Python controller {getattr(controller, '__name__', controller)!r}")
+
+    _mark_analytic(table, blocks, link_tab, link_rows, ckind, free_rows, wterm)
 
     # dependency of each block's derivative on the blocks' states (closed over sources fed by their inputs)
     nb = len(blocks)
@@ -1597,30 +1632,45 @@ def _fd_rows(t, x, net, scale, w, f0, fp, xp, rows, out):
 
 
 @njit(cache=True)
-def _cheap_rows(t, x, net, scale, w, f0, fp, xp, JF, beams):
-    r"""Refresh the rows of JF that are cheap to difference, by :func:`_fd_rows`: those of every system other
-    than a beam (reservoirs: non-smooth where a valve saturates, so a stale row makes Newton contract slowly),
-    and with ``beams`` the force rows of every beam as its model Jacobian
-    :math:`\partial f_{in}/\partial x - [K\;\; D]` (the inputs' force differenced, elasticity and damping
-    exact; the configuration and velocity derivatives of the inertial forces left out, as in the beam's own
-    iteration matrix :math:`2M/h + D + \tfrac h2 K`) and their coordinate rows :math:`[0\;\; I]`. False if an
-    evaluation fails."""
+def _cheap_rows(t, x, net, scale, w, f0, fp, xp, JF, beams, analytic):
+    r"""Refresh the rows of JF that are cheap to form: those of every system other than a beam (reservoirs:
+    non-smooth where a valve saturates, so a stale row makes Newton contract slowly), and with ``beams`` the force
+    rows of every beam as its model Jacobian :math:`\partial f_{in}/\partial x - [K\;\; D]` (the inputs' force,
+    elasticity and damping; the configuration and velocity derivatives of the inertial forces left out, as in the
+    beam's own iteration matrix :math:`2M/h + D + \tfrac h2 K`) and their coordinate rows :math:`[0\;\; I]`.
+    With ``analytic`` the systems marked at lowering (``table[i, 7]``) get their rows in closed form
+    (:func:`_analytic_rows`, no evaluation of the network) and only the others are differenced by
+    :func:`_fd_rows`; without it all are differenced. False if an evaluation fails."""
     table, bint, bflt = net[0], net[1], net[2]
     N = x.shape[0]
-    mode = np.zeros(table.shape[0], np.int64)
-    for b in range(table.shape[0]):
-        if table[b, 0] != BEAM:
-            if table[b, 6] == 0:   # a body whose inputs are beam-SDF contacts (table[b, 6]) is not cheap: each of
-                mode[b] = _DERIVATIVE   # its columns evaluates every contact's beam kinematics
-        elif beams:
+    nb = table.shape[0]
+    mode = np.zeros(nb, np.int64)
+    closed = np.zeros(nb, np.bool_)
+    any_fd = False
+    for b in range(nb):
+        if table[b, 0] == BEAM and not beams:
+            continue
+        if analytic and table[b, 7] == 1:
+            closed[b] = True
+        elif table[b, 0] == BEAM:
             mode[b] = _INPUT_FORCE
+            any_fd = True
+        elif table[b, 6] == 0:   # a body whose inputs are beam-SDF contacts (table[b, 6]) is not cheap: each of
+            mode[b] = _DERIVATIVE   # its columns evaluates every contact's beam kinematics
+            any_fd = True
+        if table[b, 0] == BEAM:
             for i in range(table[b, 1], table[b, 1] + table[b, 2]):
                 for j in range(N):
                     JF[i, j] = 0.0
-    if not _fd_rows(t, x, net, scale, w, f0, fp, xp, mode, JF):
+    if any_fd and not _fd_rows(t, x, net, scale, w, f0, fp, xp, mode, JF):
         return False
+    for b in range(nb):
+        if closed[b]:
+            if not _analytic_rows(t, x, net, w, closed, JF):
+                return False
+            break
     if beams:
-        for b in range(table.shape[0]):
+        for b in range(nb):
             if table[b, 0] != BEAM:
                 continue
             bi, xo = table[b, 5], table[b, 1]
@@ -1634,37 +1684,226 @@ def _cheap_rows(t, x, net, scale, w, f0, fp, xp, JF, beams):
 
 
 @njit(cache=True)
-def _iteration_matrix(c, gam, net, JF, Jac, LUc, pivc):
+def _input_jacobian(x, net, w, dW):
+    r""":math:`\partial W/\partial x` (NW, N) of the inputs that :func:`assemble` writes, in its order, for the
+    rows that :func:`_mark_analytic` knows: reservoir volumes (constant or a :class:`StateMap`), controller values
+    that read no state (0), couplings from a system's output (a reservoir's gauge pressure :math:`p(x_0, V) -
+    p_0`, a linear system's :math:`Cx + Du`, a state) or a :class:`StateMap` :math:`o + s\,\phi'(a)\,A`. Rows of
+    wrench sums and feedback controllers stay 0 (their readers are differenced). ``w`` holds the inputs at x."""
+    (table, bint, bflt, bwork, bintb, fpar, mapint, maps, link_tab, link_rows) = net[:10]
+    lint, lflt = net[20], net[21]
+    N = x.shape[0]
+    for j in range(dW.shape[0]):
+        for c in range(N):
+            dW[j, c] = 0.0
+    for i in range(table.shape[0]):
+        if table[i, 0] == FLUIDIC:
+            fi = table[i, 5]
+            if fpar[fi, 12] != 0.0:
+                _map_row_jacobian(mapint, maps, table, x, int(fpar[fi, 13]), 0, dW[table[i, 3] + 1])
+    for li in range(link_tab.shape[0]):
+        lk, src, ro, nr = link_tab[li, 0], link_tab[li, 1], link_tab[li, 2], link_tab[li, 3]
+        if lk == 2:
+            continue
+        for r in range(nr):
+            d = dW[link_rows[ro + r]]
+            if lk == 1:
+                _map_row_jacobian(mapint, maps, table, x, src, r, d)
+            elif table[src, 0] == FLUIDIC:                 # p - p0 of the source reservoir
+                fi, so = table[src, 5], table[src, 3]
+                V = w[so + 1]
+                if fpar[fi, 0] != 0.0:
+                    p = _pressure(fpar, fi, x[table[src, 1]], V)
+                    for c in range(N):
+                        d[c] = -p / V * dW[so + 1, c]
+                    d[table[src, 1]] += fpar[fi, 1] * fpar[fi, 2] / V
+                else:
+                    for c in range(N):
+                        d[c] = 0.0
+                    d[table[src, 1]] = 1.0
+            elif table[src, 0] == LINEAR:                  # C x + D u
+                lj = table[src, 5]
+                n, m, o = lint[lj, 0], lint[lj, 1], lint[lj, 3]
+                oc = o + n * n + n * m
+                od = oc + lint[lj, 2] * n
+                for c in range(N):
+                    d[c] = 0.0
+                for c in range(n):
+                    d[table[src, 1] + c] = lflt[oc + r * n + c]
+                for c in range(m):
+                    f = lflt[od + r * m + c]
+                    if f != 0.0:
+                        for cc in range(N):
+                            d[cc] += f * dW[table[src, 3] + c, cc]
+            else:
+                for c in range(N):
+                    d[c] = 0.0
+                d[table[src, 1] + r] = 1.0
+
+
+@njit(cache=True)
+def _map_row_jacobian(mapint, maps, table, x, mi, r, d):
+    """Gradient of output r of StateMap mi with respect to the network state, into d (N,)."""
+    src, k, fn, o = mapint[mi, 0], mapint[mi, 1], mapint[mi, 2], mapint[mi, 3]
+    xo, n = table[src, 1], table[src, 2]
+    s = 0.0
+    for c in range(n):
+        s += maps[o + r * n + c] * x[xo + c]
+    g = maps[o + k * n + k + r]
+    if fn == 1:
+        th = math.tanh(s)
+        g *= 1.0 - th * th
+    for c in range(d.shape[0]):
+        d[c] = 0.0
+    for c in range(n):
+        d[xo + c] = g * maps[o + r * n + c]
+
+
+@njit(cache=True)
+def _analytic_rows(t, x, net, w, closed, JF):
+    r"""The rows of JF of the systems with ``closed[i]`` in closed form, at (t, x): with :math:`W_x` =
+    :func:`_input_jacobian`, a linear system's :math:`[A\;\; B W_x]`, a beam's input force :math:`G W_x` (its
+    rate rows; the caller adds :math:`-[K\;\; D]` and the coordinate rows), a reservoir's rows of
+    :func:`_fluidic_jacobian`. False if the inputs are out of range."""
+    table, bint, bflt = net[0], net[1], net[2]
+    lint, lflt, fpar = net[20], net[21], net[5]
+    N = x.shape[0]
+    if not _assemble(t, x, net, w, closed):
+        return False
+    dW = np.empty((w.shape[0], N))
+    _input_jacobian(x, net, w, dW)
+    for i in range(table.shape[0]):
+        if not closed[i]:
+            continue
+        xo, nx, wo = table[i, 1], table[i, 2], table[i, 3]
+        if table[i, 0] == BEAM:
+            bi = table[i, 5]
+            n, m = bint[bi, 0], bint[bi, 1]
+            go = bint[bi, 5] + 2 * n * n
+            for k in range(n):
+                row = JF[xo + n + k]
+                for c in range(N):
+                    row[c] = 0.0
+                for j in range(m):
+                    g = bflt[go + k * m + j]
+                    if g != 0.0:
+                        for c in range(N):
+                            row[c] += g * dW[wo + j, c]
+        elif table[i, 0] == LINEAR:
+            li = table[i, 5]
+            n, m, o = lint[li, 0], lint[li, 1], lint[li, 3]
+            ob = o + n * n
+            for r in range(n):
+                row = JF[xo + r]
+                for c in range(N):
+                    row[c] = 0.0
+                for c in range(n):
+                    row[xo + c] = lflt[o + r * n + c]
+                for j in range(m):
+                    g = lflt[ob + r * m + j]
+                    if g != 0.0:
+                        for c in range(N):
+                            row[c] += g * dW[wo + j, c]
+        else:
+            _fluidic_jacobian(table[i, 5], x, xo, nx, w, wo, fpar, dW, JF)
+    return True
+
+
+@njit(cache=True)
+def _fluidic_jacobian(fi, x, xo, nx, w, wo, fpar, dW, JF):
+    r"""The rows of reservoir fi in JF, the derivative of :func:`_fluidic_rhs` with respect to the network state
+    through its own state and its inputs (set point or flow :math:`u` and volume :math:`V`, rows of ``dW``):
+    ideal gas :math:`p = x_0RT/V` (isothermal; else :math:`p = x_0`), PI regulator :math:`
+u = k_p e + k_i s`,
+    :math:`e = u - (p - p_0)`, valve :math:`\dot m_c = \mathrm{clip}(
+u, \pm\dot m_{max})` (slope 1 inside, 0 when
+    saturated), integral :math:`\dot s = e + (\dot m_c - 
+u)/k_p`, leak, the polytropic law and the volume
+    filter."""
+    N = x.shape[0]
+    V = w[wo + 1]
+    iso, R, T, p0, poly, leak, a = (fpar[fi, 0], fpar[fi, 1], fpar[fi, 2], fpar[fi, 3], fpar[fi, 4], fpar[fi, 5],
+                                    fpar[fi, 6])
+    reg, kp, ki, mx, filt = fpar[fi, 7], fpar[fi, 8], fpar[fi, 9], fpar[fi, 10], fpar[fi, 11]
+    p = _pressure(fpar, fi, x[xo], V)
+    dV, du = dW[wo + 1], dW[wo]
+    dp = np.empty(N)
+    for c in range(N):
+        dp[c] = -p / V * dV[c] if iso != 0.0 else 0.0
+    dp[xo] += R * T / V if iso != 0.0 else 1.0
+    dm = np.empty(N)                                 # d mdot (valve flow less the leak)
+    if reg != 0.0:
+        e = w[wo] - (p - p0)
+        si = xo + nx - 1
+        nu = kp * e + ki * x[si]
+        slope = 1.0 if -mx < nu < mx else 0.0
+        mdot = min(max(nu, -mx), mx)
+        row = JF[si]
+        for c in range(N):
+            de = du[c] - dp[c]
+            dnu = kp * de
+            if c == si:
+                dnu += ki
+            row[c] = de + (slope - 1.0) * dnu / kp
+            dm[c] = slope * dnu - leak * dp[c]
+    else:
+        mdot = w[wo]
+        for c in range(N):
+            dm[c] = du[c] - leak * dp[c]
+    mdot = mdot - leak * (p - p0)
+    row = JF[xo]
+    if iso != 0.0:
+        for c in range(N):
+            row[c] = dm[c]
+        return
+    Vdot = 0.0
+    if filt != 0.0:
+        Vdot = x[xo + 1] + a * V
+        r1 = JF[xo + 1]
+        for c in range(N):
+            r1[c] = -a * a * dV[c]
+        r1[xo + 1] -= a
+    F0 = poly / V * (R * T * mdot - p * Vdot)
+    for c in range(N):
+        dVdot = a * dV[c] if filt != 0.0 else 0.0
+        if filt != 0.0 and c == xo + 1:
+            dVdot += 1.0
+        row[c] = -F0 / V * dV[c] + poly / V * (R * T * dm[c] - Vdot * dp[c] - p * dVdot)
+
+
+@njit(cache=True)
+def _iteration_matrix(c, gam, net, JF, LUc, pivc):
     r"""Factor the Newton matrix of :func:`residual` per connected component, :math:`I - cJ` (``c`` =
     :math:`\gamma` times the weight of :math:`x_1` in the evaluation point) in the rows of every system but a
     beam's force rows, which are :math:`\tfrac1\gamma M_{[\cdot, \dot q]} - \tfrac c\gamma J_F` with
     :math:`M` the current mass matrix (:func:`_beam_mass_matrix`) and ``JF`` its force Jacobian (model rows of
-    :func:`_cheap_rows`, or the differenced :func:`jacobian`). False if singular."""
-    table, comps = net[0], net[18]
-    N = JF.shape[0]
-    for i in range(N):
-        for j in range(N):
-            Jac[i, j] = -c * JF[i, j]
-        Jac[i, i] += 1.0
-    for b in range(table.shape[0]):
-        if table[b, 0] == BEAM:
-            n = table[b, 2] // 2
-            r0 = table[b, 1] + n
-            M = _beam_mass(table[b, 5], net)
-            f = c / gam
-            for k in range(n):
-                for j in range(N):
-                    Jac[r0 + k, j] = -f * JF[r0 + k, j]
-                for l in range(n):
-                    Jac[r0 + k, r0 + l] += M[k, l] / gam
+    :func:`_cheap_rows`, or the differenced :func:`jacobian`). Each component's block is gathered straight into
+    its factor (the matrix is block diagonal). False if singular."""
+    table, col_block, comps = net[0], net[17], net[18]
     for k in range(comps.shape[0]):
         s = 0
         while s < comps.shape[1] and comps[k, s] >= 0:
             s += 1
         A = LUc[k, :s, :s]
         for a in range(s):
+            i = comps[k, a]
+            bl = col_block[i]
+            f = c
+            rate = -1                                   # the row's rate index in its beam, if a force row
+            if table[bl, 0] == BEAM:
+                n = table[bl, 2] // 2
+                if i >= table[bl, 1] + n:
+                    rate = i - table[bl, 1] - n
+                    f = c / gam
             for b2 in range(s):
-                A[a, b2] = Jac[comps[k, a], comps[k, b2]]
+                A[a, b2] = -f * JF[i, comps[k, b2]]
+            if rate < 0:
+                A[a, a] += 1.0
+            else:
+                M = _beam_mass(table[bl, 5], net)
+                first = a - rate                      # the beam's rate columns are contiguous in the component
+                for l in range(n):
+                    A[a, first + l] += M[rate, l] / gam
         if not _lu(A, pivc[k, :s]):
             return False
     return True

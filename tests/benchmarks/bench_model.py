@@ -113,33 +113,55 @@ def test_bench_soft_hand_realtime_factor(record):
 
 
 def _compiled_breakdown(mdl, st, wall):
-    """Compiled run: Newton statistics, system evaluations per step and the cost of one F(t, x) (all systems)
-    and of one finger, timed in compiled loops (the floor of a step is evaluations x cost)."""
+    """Compiled run: Newton statistics, system evaluations and matrices per step, and the cost of the pieces of a
+    step timed in compiled loops: one residual of the whole network (a Newton sweep when no component has
+    converged), of one finger, and one refresh of the Newton matrix (the fingers' mass matrices, the closed-form
+    rows, the factors). The floor of a step is sweeps x residual + matrices per step x refresh."""
     from sorofem._numba import njit
     from soroshapes import network
 
     @njit
     def loop(k, t, x, net, w, out, only):
         for _ in range(k):
-            network.rhs(t, x, net, w, out, only)
+            network.residual(t, x, x, x, 1e-3, net, w, out, only)
+
+    @njit
+    def refresh(k, t, x, net, scale, w, f0, fp, xp, JF, LUc, pivc):
+        table = net[0]
+        for _ in range(k):
+            for b in range(table.shape[0]):
+                if table[b, 0] == network.BEAM:
+                    network._beam_mass_matrix(table[b, 5], net)
+            network._cheap_rows(t, x, net, scale, w, f0, fp, xp, JF, True, True)
+            network._iteration_matrix(1e-3, 1.3e-3, net, JF, LUc, pivc)
 
     net = mdl._lowered()
     x = mdl.initial_state()
-    w, out = np.zeros(net.NW), np.zeros(net.N)
+    N = len(x)
+    w, out = np.zeros(net.NW), np.zeros(N)
     every = np.ones(len(mdl.systems), np.bool_)
     one = np.zeros(len(mdl.systems), np.bool_)
     one[mdl.systems.index("middle")] = True
+    comps = net.arrays[18]
+    LUc = np.zeros((comps.shape[0], comps.shape[1], comps.shape[1]))
+    pivc = np.zeros(comps.shape[:2], np.int64)
+    args = (0.1, x, net.arrays, mdl._scales(x), w, out.copy(), out.copy(), out.copy(), np.zeros((N, N)), LUc, pivc)
     loop(2, 0.1, x, net.arrays, w, out, every)
+    refresh(2, *args)
     cost = {}
+    k = 2000
     for label, only in (("network", every), ("one_finger", one)):
-        k = 2000
         t0 = time.perf_counter()
         loop(k, 0.1, x, net.arrays, w, out, only)
         cost[label] = 1e6 * (time.perf_counter() - t0) / k
+    t0 = time.perf_counter()
+    refresh(k, *args)
+    cost["refresh"] = 1e6 * (time.perf_counter() - t0) / k
     steps = st["steps"]
     return dict(steps=steps, newton_sweeps_per_step=round(st["newton_iterations"] / steps, 2),
                 jacobians=st["jacobians"], system_evaluations_per_step=round(st["system_evaluations"] / steps, 2),
-                network_rhs_us=round(cost["network"], 1), finger_rhs_us=round(cost["one_finger"], 1),
+                matrices_per_step=round(st["matrices"] / steps, 3), network_residual_us=round(cost["network"], 1),
+                finger_residual_us=round(cost["one_finger"], 1), matrix_refresh_us=round(cost["refresh"], 1),
                 wall_us_per_step=round(1e6 * wall / steps, 1))
 
 

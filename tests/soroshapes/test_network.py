@@ -539,3 +539,80 @@ def test_a_pid_with_a_moving_setpoint_or_a_python_part_keeps_the_python_path():
     mdl = controlled_arm("compensation")
     mdl.set_controller(control.combine(control.gravity_compensation("arm"), lambda m: {"arm": np.zeros(3)}))
     assert mdl.evaluation_path.startswith("python: ")
+
+
+# ------------------------------------------------------------------------------------------------------------
+# the closed-form rows of the Newton matrix (network._analytic_rows) against the differenced ones (_fd_rows)
+# ------------------------------------------------------------------------------------------------------------
+def _saturating_hand():
+    """hand_like with a valve that saturates (a tiny max_flow) and a leak."""
+    mdl = Model()
+    fl = Fluidic(None, V0=V0, leak=1e-12, regulator=dict(kp=2e-9, ki=2e-7, max_flow=1e-9))
+    mdl.add(finger(), "f").add(fl, "p").connect("p", "f")
+    mdl.connect(StateMap("f", [0.1], index=0, offset=V0, scale=0.2 * V0, function="tanh"), "p", port="volume")
+    return mdl.set_controller(Schedule([0.0, 1.0], {"p": [[30e3], [30e3]]}))
+
+
+def _polytropic_chain():
+    """A regulated polytropic reservoir with a volume filter, whose volume follows a beam, driving a linear
+    lag with feedthrough (through its gauge pressure) that drives the beam's chamber; a linear filter reads the
+    beam (StateMap)."""
+    fl = Fluidic(None, V0=V0, polytropic=1.4, filter_gain=200.0, leak=1e-12,
+                 regulator=dict(kp=2e-9, ki=2e-7, max_flow=1e-5))
+    lag = StateSpace.linear([[-50.0]], [[50.0]], [[0.5]], [[0.5]])
+    filt = StateSpace.linear([[-20.0, 0.0], [1.0, 0.0]], [[20.0], [0.0]])
+    mdl = Model().add(finger(), "f").add(fl, "p").add(lag, "lag").add(filt, "filt")
+    mdl.connect("p", "lag").connect("lag", "f").connect(StateMap("f", [1.0], index=0), "filt")
+    mdl.connect(StateMap("f", [[1e-8, 2e-8]], index=[0, 1], offset=V0), "p", port="volume")
+    return mdl.set_controller(Schedule([0.0, 1.0], {"p": [[0.0], [40e3]]}))
+
+
+@pytest.mark.parametrize("make", [hand_like, _saturating_hand, _polytropic_chain])
+def test_closed_form_newton_rows_equal_the_differenced_ones(make):
+    """The rows of every reservoir, linear system and beam input force in closed form (ideal gas, PI regulator,
+    valve slope 1 or 0, leak, polytropic law and volume filter, StateMap volume with tanh, output couplings with
+    feedthrough, G u) equal their forward differences (step 1.5e-8 relative: truncation and round-off leave ~1e-7
+    of a row's size; 1e-5 allowed) at random states; and they need no network evaluation. Where the valve
+    saturates, the integral's row is exactly -k_i/k_p on the integral (its differences are round-off: the row
+    is e - nu/k_p, two terms of ~1e4 Pa that cancel), checked against that closed form."""
+    from soroshapes import network
+    mdl = make()
+    mdl._prepare_layout()
+    net = mdl._lowered()
+    assert not isinstance(net, str)
+    table = net.arrays[0]
+    assert np.all(table[:, 7] == 1)
+    rng = np.random.default_rng(3)
+    x0 = mdl.initial_state()
+    scale = mdl._scales(x0)
+    N = len(x0)
+    saturated = 0
+    for trial in range(6):
+        x = x0 + 0.3 * scale * rng.standard_normal(N)
+        for b in range(table.shape[0]):                   # keep masses and pressures positive
+            if table[b, 0] == network.FLUIDIC:
+                x[table[b, 1]] = abs(x0[table[b, 1]]) * (1.0 + 0.2 * rng.random())
+        ws = [np.zeros(net.NW), np.zeros(N), np.zeros(N), np.zeros(N)]
+        JA, JD = np.zeros((N, N)), np.zeros((N, N))
+        assert network._cheap_rows(0.3, x, net.arrays, scale, *ws, JA, True, True)
+        assert network._cheap_rows(0.3, x, net.arrays, scale, *ws, JD, True, False)
+        w = mdl._assemble(0.3, x)
+        exact = set()
+        for name in mdl.systems:
+            blk = mdl._blocks[name]
+            if blk.kind != "fluidic" or blk.system.regulator is None:
+                continue
+            fl, xb = blk.system, x[blk.sl]
+            kp, ki, mx = fl.regulator
+            nu = kp * (w[blk.wsl.start] - fl.pressure(xb, w[blk.wsl.start + 1])) + ki * xb[-1]
+            if abs(nu) > mx:
+                i = blk.sl.stop - 1
+                ref = np.zeros(N)
+                ref[i] = -ki / kp
+                assert np.array_equal(JA[i], ref)
+                exact.add(i)
+        saturated += len(exact)
+        for i in set(range(N)) - exact:
+            size = max(np.max(np.abs(JD[i])), 1e-300)
+            assert np.max(np.abs(JA[i] - JD[i])) <= 1e-5 * size, (trial, i, JA[i], JD[i])
+    assert saturated > 0 or make is _polytropic_chain      # both branches of the valve were seen
