@@ -48,18 +48,56 @@ import numpy as np
 from sorofem import materials, sdf
 from sorofem.units import kPa, mm
 
-L, H, LAYER, WALL = 150 * mm, 12 * mm, 2 * mm, 2 * mm
-A, OMEGA, MU = 30 * kPa, 5 * math.pi, 0.6
+# ------------------------------------------------------------------------------------------------ parameters
+L, H, LAYER, WALL = 150 * mm, 12 * mm, 2 * mm, 2 * mm           # body section, bottom layer, wall above it
+POCKETS, POCKET_W, POCKET_H = 5, 6 * mm, 6 * mm                  # pockets per segment (PneuNet-like walls)
+FOOT, FOOT_W, FEET = 3 * mm, 4 * mm, (3 * mm, 50 * mm, 100 * mm, 147 * mm)   # legs: height, width, positions
+E_BODY, E_LAYER, NU, RHO = 200 * kPa, 1000 * kPa, 0.45, 1070.0  # Neo-Hookean body and layer, density [kg/m^3]
+A, OMEGA, MU = 30 * kPa, 5 * math.pi, 0.6                        # signal amplitude [Pa], [rad/s]; friction [-]
+RHO_INF = 0.8                                                    # generalized-alpha spectral radius [-]
+#: The full run and the short one (`--quick`, what the tests run): element size [m], gait periods simulated,
+#: time step [s].
+FULL = dict(size=2 * mm, periods=2, dt=2e-3)
+QUICK = dict(size=3 * mm, periods=1, dt=4e-3)
 
 
-POCKETS, POCKET_W, POCKET_H = 5, 6 * mm, 6 * mm  # pockets per segment (PneuNet-like walls between them)
-FOOT, FOOT_W, FEET = 3 * mm, 4 * mm, (3 * mm, 50 * mm, 100 * mm, 147 * mm)     # legs: height, width, positions
+def main(out: Path, quick: bool = False) -> dict:
+    """Simulate the gait into ``out`` (``crawler.xdmf``, ``com.png``, ``gait.png``); returns the report."""
+    from mpi4py import MPI
+
+    prm = QUICK if quick else FULL
+    out = Path(out)
+
+    # 1. mesh and problem: body, stiffer layer and legs, gravity, floor, one pressure signal per segment
+    fem, msh = crawler_problem(prm["size"])
+
+    # 2. the gait: generalized-alpha through the given number of periods (a progress bar on a terminal)
+    traj = fem.simulate(t_end=prm["periods"] * 2 * math.pi / OMEGA, dt=prm["dt"], rho_inf=RHO_INF)
+    traj.write_xdmf(out / "crawler.xdmf")   # the whole gait for ParaView (displacement, von Mises)
+    summary = {"periods": prm["periods"], "steps": len(traj) - 1, "cells": msh.num_cells,
+               "newton_iterations_max": int(traj.newton_iterations.max()),
+               "max_contact_force_N_per_m": float(np.abs(traj.reactions["contact_0"][:, 1]).max())}
+    if MPI.COMM_WORLD.rank != 0:
+        return summary
+
+    # 3. the distance crawled: the centre of mass over time
+    com = centre_of_mass(traj)
+    dx, dy = (com[-1] - com[0]) / mm
+    summary.update(com_dx_mm=float(dx), com_dy_mm=float(dy), speed_mm_per_s=float(dx / traj.times[-1]))
+
+    # 4. figures: the centre of mass [mm] over time, the body at six instants (von Mises colour bar, mm axes)
+    plot_com(traj.times, com, out / "com.png")
+    traj.filmstrip(out / "gait.png", np.linspace(0, len(traj) - 1, 6).round(), floor=0.0,
+                   xlim=(-10, L / mm + 20))
+    return summary
 
 
+# ------------------------------------------------------------------------------------------------- the steps
 def crawler_section():
     """The body [m]: a rounded bar with three segments of small chambers (pockets) above the strain-limiting
-    layer, standing on legs whose feet are on y = 0 (the body's lower-left corner at (0, FOOT)). Short pockets keep the walls from ballooning: a wall of span a,
-    thickness t bends by ~ p a^4 / (384 D), D = E t^3 / (12 (1 - nu^2))."""
+    layer, standing on legs whose feet are on y = 0 (the body's lower-left corner at (0, FOOT)). Short pockets
+    keep the walls from ballooning: a wall of span a, thickness t bends by ~ p a^4 / (384 D),
+    D = E t^3 / (12 (1 - nu^2))."""
     body = sdf.RoundedRectangle(L, H, 2 * mm, center=(L / 2, H / 2))
     pitch = L / (3 * POCKETS)
     pocket = sdf.Rectangle(POCKET_W, POCKET_H, center=(pitch / 2, LAYER + WALL + POCKET_H / 2))
@@ -75,56 +113,46 @@ def signal(i):
     return lambda t: A * max(math.sin(OMEGA * t - phi), 0.0)
 
 
-def main(out: Path, quick: bool = False) -> dict:
-    from mpi4py import MPI
-
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+def crawler_problem(size):
+    """The mesh (element size ``size`` [m]) and the dynamic problem on it: body and layer materials, gravity,
+    the floor y = 0 with friction, the signals on the pockets. Returns ``(fem, mesh)``."""
     from sorofem.fem import Fem
     from sorofem.mesh import Mesh
 
-    msh = Mesh.from_sdf(crawler_section(), size=(3 if quick else 2) * mm)
+    msh = Mesh.from_sdf(crawler_section(), size=size)
     msh.add_region("layer", lambda x: x[1] < FOOT + LAYER, kind="cells")   # legs and bottom layer
-    fem = Fem(msh, materials.NeoHookean(E=200 * kPa, nu=0.45, density=1070.0), degree=2)
-    fem.add_material("layer", materials.NeoHookean(E=1000 * kPa, nu=0.45, density=1070.0))
+    fem = Fem(msh, materials.NeoHookean(E=E_BODY, nu=NU, density=RHO), degree=2)
+    fem.add_material("layer", materials.NeoHookean(E=E_LAYER, nu=NU, density=RHO))
     fem.add_gravity()
     fem.add_contact(sdf.Line((0.0, 0.0), (0.0, 1.0)), friction=MU, regularization=0.05 * mm)
     # cavities are named in order of x: pockets 0-4 form the back segment, 5-9 the middle, 10-14 the front
     for k, cavity in enumerate(msh.cavities):
         fem.add_pressure(cavity, signal(k // POCKETS))
-    periods = 1 if quick else 2
-    dt = (4 if quick else 2) * 1e-3
-    traj = fem.simulate(t_end=periods * 2 * math.pi / OMEGA, dt=dt, rho_inf=0.8)
+    return fem, msh
 
-    traj.write_xdmf(out / "crawler.xdmf")   # the whole gait for ParaView (displacement, von Mises)
-    summary = {"periods": periods, "steps": len(traj) - 1, "cells": msh.num_cells,
-               "newton_iterations_max": int(traj.newton_iterations.max()),
-               "max_contact_force_N_per_m": float(np.abs(traj.reactions["contact_0"][:, 1]).max())}
-    if MPI.COMM_WORLD.rank != 0:
-        return summary
-    # centre of mass of the (uniform-density) body: mean over cells of the cell centroids, area-weighted
+
+def centre_of_mass(traj):
+    """Centre of mass [m] of the uniform-density body at each step, (steps, 2): the area-weighted mean of the
+    deformed cells' centroids (areas of the reference cells: the body is nearly incompressible)."""
     X, cells, U = traj.vertices, traj.cells, traj.displacement
     x_cells = (X + U)[:, cells].mean(axis=2)
     a, b = X[cells[:, 1]] - X[cells[:, 0]], X[cells[:, 2]] - X[cells[:, 0]]
     area0 = 0.5 * np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])   # (np.cross of 2-vectors is deprecated in numpy 2)
-    com = (x_cells * area0[None, :, None]).sum(axis=1) / area0.sum()
-    dx, dy = (com[-1] - com[0]) / mm
-    summary.update(com_dx_mm=float(dx), com_dy_mm=float(dy),
-                   speed_mm_per_s=float(dx / traj.times[-1]))
+    return (x_cells * area0[None, :, None]).sum(axis=1) / area0.sum()
 
-    fig, ax = plt.subplots(figsize=(5.5, 3.5))
-    ax.plot(traj.times, (com[:, 0] - com[0, 0]) / mm, label="horizontal")
-    ax.plot(traj.times, (com[:, 1] - com[0, 1]) / mm, label="vertical")
+
+def plot_com(times, com, path):
+    """``com.png``: the centre of mass's horizontal and vertical displacement [mm] against time [s]."""
+    from matplotlib.figure import Figure
+
+    from sorofem.io import save_figure
+
+    fig = Figure(figsize=(5.5, 3.5))
+    ax = fig.subplots()
+    ax.plot(times, (com[:, 0] - com[0, 0]) / mm, label="horizontal")
+    ax.plot(times, (com[:, 1] - com[0, 1]) / mm, label="vertical")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("centre of mass displacement [mm]")
     ax.legend()
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(out / "com.png", dpi=120)
-    plt.close(fig)
-
-    traj.filmstrip(out / "gait.png", np.linspace(0, len(traj) - 1, 6).round(), floor=0.0,
-                   xlim=(-10, L / mm + 20))
-    return summary
+    save_figure(fig, path, dpi=120)

@@ -71,10 +71,87 @@ import numpy as np
 from sorofem import materials
 from sorofem.units import kPa, mm
 
-W, H, BASE, TOP, SIDE, END = 15 * mm, 30 * mm, 2 * mm, 1 * mm, 0.75 * mm, 1.5 * mm
+# ------------------------------------------------------------------------------------------------ parameters
+W, H, BASE, TOP, SIDE, END = 15 * mm, 30 * mm, 2 * mm, 1 * mm, 0.75 * mm, 1.5 * mm   # domain and walls [m]
 INLET_R, HOLE_R, PRESSURE, CHAMBERS = 1.5 * mm, 5 * mm, 80 * kPa, 3
+STL_THICKNESS = 15 * mm         # the STL's extrusion [m]
+FRAME_EVERY = 5                 # a frame of the design every 5 iterations
+#: The full run and the short one (`--quick`, what the tests run): design and validation element sizes [m],
+#: MMA iterations, iterations between doublings of the projection's sharpness, validation load steps.
+FULL = dict(h_design=0.375 * mm, h_fem=0.5 * mm, iterations=100, beta_every=20, steps=16)
+QUICK = dict(h_design=0.5 * mm, h_fem=0.75 * mm, iterations=30, beta_every=10, steps=8)
 
 
+def main(out: Path, quick: bool = False) -> dict:
+    """Design, export and validate the chamber into ``out``; returns the report (see Figures above)."""
+    from sorofem.topopt import density_png, optimize, write_stl, write_xdmf
+
+    prm = QUICK if quick else FULL
+    out = Path(out)
+    (out / "frames").mkdir(parents=True, exist_ok=True)
+
+    # 1. the design problem and the seed's initial topology
+    t0 = time.perf_counter()
+    prob = design_problem(prm["h_design"], every=prm["beta_every"])
+    x0 = initial_design(prob)
+    ev0 = prob.evaluate(x0, gradient=False)
+
+    # 2. optimize (MMA, a frame every few iterations, a checkpoint every 10)
+    frames = []
+
+    def frame(it, x, ev):
+        if it % FRAME_EVERY == 0:
+            frames.append(draw_frame(prob, it, x, ev, out / "frames").name)
+
+    res = optimize(prob, method="mma", x0=x0, max_iterations=prm["iterations"], move=0.1, callback=frame,
+                   checkpoint=out / "design.npz", checkpoint_every=10)
+    t_design = time.perf_counter() - t0
+    frames.append(draw_frame(prob, res.iterations, res.x, prob.evaluate(res.x, gradient=False),
+                             out / "frames").name)
+    plot_history(res.history, out / "history.png")
+
+    # 3. exports: densities (PNG, XDMF) and the three chambers as an extruded STL
+    density_png(prob, res.x, out / "density.png")
+    write_xdmf(prob, res.x, out / "density.xdmf")
+    stl = write_stl(prob, res.x, out / "design.stl", thickness=STL_THICKNESS, tiles=CHAMBERS,
+                    pixel=prm["h_design"] / 2)
+
+    # 4. validation: re-mesh the smooth iso-contour (three chambers) and inflate with the hyperelastic Fem;
+    #    the initial design through the same pipeline
+    t1 = time.perf_counter()
+    length = CHAMBERS * W + END
+    msh = actuator_mesh(prob, res.x, prm["h_fem"], CHAMBERS, out, "optimized")
+    traj, names = inflate(msh, CHAMBERS, prm["steps"])
+    ang = base_rotation(traj.vertices, traj.displacement, length - END - W, length - END)
+    msh0 = actuator_mesh(prob, x0, prm["h_fem"], CHAMBERS, out, "initial")
+    traj0, names0 = inflate(msh0, CHAMBERS, prm["steps"])
+    ang0 = base_rotation(traj0.vertices, traj0.displacement, length - END - W, length - END)
+    t_fem = time.perf_counter() - t1
+    plot_inflated(traj, ang[-1], ang0[-1], out / "inflated.png")
+
+    return {
+        "iterations": res.iterations,
+        "design_cells": prob.n,
+        "design_rotation_deg": round(math.degrees(-res.objective), 4),
+        "initial_rotation_deg": round(math.degrees(-ev0.objective), 4),
+        "volume_fraction": round(res.history[-1]["volume"], 4),
+        "flooded_cells": int(prob.flooded.sum()),
+        "cavities": len(msh.cavities),
+        "pressurized_cavities": len(names),
+        "bending_angle_deg": round(float(ang[-1]), 3),
+        "bending_angle_initial_deg": round(float(ang0[-1]), 3),
+        "reached_pressure_kPa": round(float(traj.times[-1] * PRESSURE / kPa), 3),
+        "reached_pressure_initial_kPa": round(float(traj0.times[-1] * PRESSURE / kPa), 3),
+        "max_pressure_kPa": PRESSURE / kPa,
+        "stl_triangles": stl["triangles"],
+        "stl_volume_mm3": round(stl["volume"] / mm**3, 1),
+        "frames": len(frames),
+        "design_time_s": round(t_design, 2),
+        "validation_time_s": round(t_fem, 2),
+    }
+
+
+# ------------------------------------------------------------------------------------------------- the steps
 def passive_solid(x):
     """Walls kept solid: base, top and side walls (x of shape (2, N) [m])."""
     return (x[1] < BASE) | (x[1] > H - TOP) | (x[0] < SIDE) | (x[0] > W - SIDE)
@@ -172,75 +249,54 @@ def inflate(msh, chambers, steps):
     return traj, names
 
 
-def main(out: Path, quick: bool = False) -> dict:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+# ------------------------------------------------------------------------------------------------ the figures
+def draw_frame(prob, it, x, ev, folder):
+    """``frame_KKK.png`` in ``folder``: the design at iteration ``it`` (material black, the flooded chamber's
+    cell centres blue, axes in mm); returns its path."""
+    from matplotlib.figure import Figure
 
-    from sorofem.topopt import density_image, density_png, optimize, write_stl, write_xdmf
+    from sorofem.io import save_figure
+    from sorofem.topopt import density_image
 
-    out = Path(out)
-    (out / "frames").mkdir(parents=True, exist_ok=True)
-    h_design, h_fem = (0.5 * mm, 0.75 * mm) if quick else (0.375 * mm, 0.5 * mm)
-    iterations, every = (30, 5) if quick else (100, 5)
-    t0 = time.perf_counter()
-    prob = design_problem(h_design, every=10 if quick else 20)
-    x0 = initial_design(prob)
-    frames = []
+    img, lo, px = density_image(prob, x)
+    fig = Figure(figsize=(2.4, 4.2))
+    ax = fig.subplots()
+    ax.imshow(1 - img, cmap="gray", vmin=0, vmax=1, extent=[0, W / mm, 0, H / mm])
+    flo = prob.centroids[prob.flooded] / mm
+    ax.plot(flo[:, 0], flo[:, 1], ",", color="tab:blue", alpha=0.5)
+    ax.set_title(f"k = {it}, theta = {math.degrees(-ev.objective):.2f} deg", fontsize=8)
+    ax.set_xlabel("x [mm]", fontsize=7)
+    ax.set_ylabel("y [mm]", fontsize=7)
+    ax.tick_params(labelsize=6)
+    return save_figure(fig, Path(folder) / f"frame_{it:03d}.png", dpi=90)
 
-    def frame(it, x, ev, force=False):
-        if it % every and not force:
-            return
-        img, lo, px = density_image(prob, x)
-        fig, ax = plt.subplots(figsize=(2.4, 4.2))
-        ax.imshow(1 - img, cmap="gray", vmin=0, vmax=1, extent=[0, W / mm, 0, H / mm])
-        flo = prob.centroids[prob.flooded] / mm
-        ax.plot(flo[:, 0], flo[:, 1], ",", color="tab:blue", alpha=0.5)
-        ax.set_title(f"k = {it}, theta = {math.degrees(-ev.objective):.2f} deg", fontsize=8)
-        ax.set_xlabel("x [mm]", fontsize=7)
-        ax.tick_params(labelsize=6)
-        fig.tight_layout()
-        path = out / "frames" / f"frame_{it:03d}.png"
-        fig.savefig(path, dpi=90)
-        plt.close(fig)
-        frames.append(path.name)
 
-    ev0 = prob.evaluate(x0, gradient=False)
-    res = optimize(prob, method="mma", x0=x0, max_iterations=iterations, move=0.1, callback=frame,
-                   checkpoint=out / "design.npz", checkpoint_every=10)
-    t_design = time.perf_counter() - t0
-    frame(res.iterations, res.x, prob.evaluate(res.x, gradient=False), force=True)
-    hist = res.history
-    fig, ax = plt.subplots(figsize=(5, 3.2))
+def plot_history(hist, path):
+    """``history.png``: the design model's face rotation [deg] and the volume fraction per MMA iteration."""
+    from matplotlib.figure import Figure
+
+    from sorofem.io import save_figure
+
+    fig = Figure(figsize=(5, 3.2))
+    ax = fig.subplots()
     ax.plot([h["iteration"] for h in hist], [math.degrees(-h["objective"]) for h in hist], "o-", ms=2)
     ax.set_xlabel("MMA iteration")
     ax.set_ylabel("face rotation [deg]")
     ax2 = ax.twinx()
     ax2.plot([h["iteration"] for h in hist], [h["volume"] for h in hist], "r--", lw=1)
     ax2.set_ylabel("volume fraction", color="r")
-    fig.tight_layout()
-    fig.savefig(out / "history.png", dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)
 
-    # exports
-    density_png(prob, res.x, out / "density.png")
-    write_xdmf(prob, res.x, out / "density.xdmf")
-    stl = write_stl(prob, res.x, out / "design.stl", thickness=15 * mm, tiles=CHAMBERS, pixel=h_design / 2)
 
-    # re-mesh the smooth iso-contour (three chambers) and inflate with the hyperelastic Fem
-    t1 = time.perf_counter()
-    steps = 8 if quick else 16
-    msh = actuator_mesh(prob, res.x, h_fem, CHAMBERS, out, "optimized")
-    traj, names = inflate(msh, CHAMBERS, steps)
-    length = CHAMBERS * W + END
-    ang = base_rotation(traj.vertices, traj.displacement, length - END - W, length - END)
-    msh0 = actuator_mesh(prob, x0, h_fem, CHAMBERS, out, "initial")
-    traj0, names0 = inflate(msh0, CHAMBERS, steps)
-    ang0 = base_rotation(traj0.vertices, traj0.displacement, length - END - W, length - END)
-    t_fem = time.perf_counter() - t1
-
+def plot_inflated(traj, angle, angle0, path):
+    """``inflated.png``: the validated actuator's mesh [mm], reference (grey) and at the last step (red)."""
     import matplotlib.tri as mtri
-    fig, ax = plt.subplots(figsize=(7, 3.6))
+    from matplotlib.figure import Figure
+
+    from sorofem.io import save_figure
+
+    fig = Figure(figsize=(7, 3.6))
+    ax = fig.subplots()
     X, U = traj.vertices, traj.displacement
     for i, color in ((0, "0.7"), (len(traj) - 1, "tab:red")):
         x = (X + U[i]) / mm
@@ -248,37 +304,6 @@ def main(out: Path, quick: bool = False) -> dict:
     ax.set_aspect("equal")
     ax.set_xlabel("x [mm]")
     ax.set_ylabel("y [mm]")
-    ax.set_title(f"optimized chambers at {traj.times[-1] * PRESSURE / kPa:.0f} kPa: bending {ang[-1]:.1f} deg "
-                 f"(initial design {ang0[-1]:.1f} deg)", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out / "inflated.png", dpi=120)
-    plt.close(fig)
-
-    return {
-        "iterations": res.iterations,
-        "design_cells": prob.n,
-        "design_rotation_deg": round(math.degrees(-res.objective), 4),
-        "initial_rotation_deg": round(math.degrees(-ev0.objective), 4),
-        "volume_fraction": round(res.history[-1]["volume"], 4),
-        "flooded_cells": int(prob.flooded.sum()),
-        "cavities": len(msh.cavities),
-        "pressurized_cavities": len(names),
-        "bending_angle_deg": round(float(ang[-1]), 3),
-        "bending_angle_initial_deg": round(float(ang0[-1]), 3),
-        "reached_pressure_kPa": round(float(traj.times[-1] * PRESSURE / kPa), 3),
-        "reached_pressure_initial_kPa": round(float(traj0.times[-1] * PRESSURE / kPa), 3),
-        "max_pressure_kPa": PRESSURE / kPa,
-        "stl_triangles": stl["triangles"],
-        "stl_volume_mm3": round(stl["volume"] / mm**3, 1),
-        "frames": len(frames),
-        "design_time_s": round(t_design, 2),
-        "validation_time_s": round(t_fem, 2),
-    }
-
-
-if __name__ == "__main__":
-    import json
-    import sys
-
-    print(json.dumps(main(Path(sys.argv[1] if len(sys.argv) > 1 else "out/pneunet_design"),
-                          quick="--quick" in sys.argv), indent=2))
+    ax.set_title(f"optimized chambers at {traj.times[-1] * PRESSURE / kPa:.0f} kPa: bending {angle:.1f} deg "
+                 f"(initial design {angle0:.1f} deg)", fontsize=8)
+    save_figure(fig, path, dpi=120)

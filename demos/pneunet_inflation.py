@@ -75,11 +75,75 @@ import numpy as np
 from sorofem import materials, sdf
 from sorofem.units import kPa, mm
 
+# ------------------------------------------------------------------------------------------------ parameters
 WALL, GAP, BASE, HEIGHT, CHANNEL, LAYER, WIDTH = 2 * mm, 1.5 * mm, 5 * mm, 17 * mm, 1.5 * mm, 2 * mm, 15 * mm
-LINEAR_START = 0.01   # first step: linear response <= 1 % of the body's size (Fem.solve(linear_start=))
+PITCH = 80 * mm / 7             # chamber pitch [m]: 7 chambers make the 80 mm actuator
+P_MAX_2D = 6.5 * kPa            # the 2D ramp's top pressure [Pa]
+LINEAR_START = 0.01             # first step: linear response <= 1 % of the body's size (Fem.solve(linear_start=))
+#: The full run and the short one (`--quick`, what the tests run): chambers (2D, 3D), the 3D ramp's top
+#: pressure [Pa], element sizes [m] and load steps of the 2D and 3D ramps.
+FULL = dict(chambers=7, chambers_3d=7, p_max_3d=16 * kPa, size_2d=0.8 * mm, size_3d=3.0 * mm, steps_2d=30,
+            steps_3d=10)
+QUICK = dict(chambers=4, chambers_3d=2, p_max_3d=10 * kPa, size_2d=1.2 * mm, size_3d=4.0 * mm, steps_2d=12,
+             steps_3d=4)
 
 
-def pneunet(chambers=7, pitch=80 * mm / 7, dim=2, width=WIDTH):
+def main(out: Path, quick: bool = False) -> dict:
+    """Inflate the 2D section and the 3D actuator into ``out``; returns the report (see Figures above)."""
+    from mpi4py import MPI
+
+    prm = QUICK if quick else FULL
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    p2, p3 = P_MAX_2D, prm["p_max_3d"]
+
+    # 1. the 2D section: mesh, materials, clamp, pressure ramp on every chamber (the snapshot file written)
+    fem2, length2 = build(2, prm["chambers"], prm["size_2d"], p2)
+    traj2, wall2 = ramp(fem2, prm["steps_2d"])
+    traj2.save(out / "pneunet_2d.h5")   # the snapshot file the reduced-order layer reads (every rank calls)
+
+    # 2. the 3D actuator: the same section extruded, closed by side walls
+    fem3, length3 = build(3, prm["chambers_3d"], prm["size_3d"], p3)
+    traj3, wall3 = ramp(fem3, prm["steps_3d"])
+    if MPI.COMM_WORLD.rank != 0:
+        return {}
+
+    # 3. the tip angles against pressure
+    a2, pa2 = tip_angle(traj2.vertices, traj2.displacement, length2), traj2.times * p2
+    a3, pa3 = tip_angle(traj3.vertices, traj3.displacement, length3), traj3.times * p3
+    summary = {
+        "max_pressure_kPa": p2 / kPa,
+        "max_pressure_kPa_3d": p3 / kPa,
+        "reached_pressure_kPa_2d": float(pa2[-1] / kPa),
+        "reached_pressure_kPa_3d": float(pa3[-1] / kPa),
+        "tip_angle_deg_2d": float(a2[-1]),
+        "tip_angle_deg_3d": float(a3[-1]),
+        "pressure_at_90deg_kPa_2d": _kpa(_angle_at(pa2, a2, 90.0)),
+        "pressure_at_90deg_kPa_3d": _kpa(_angle_at(pa3, a3, 90.0)),
+        "newton_iterations_max": int(max(t.newton_iterations[1:].max() for t in (traj2, traj3))),
+        "newton_iterations_2d": traj2.newton_iterations[1:].tolist(),
+        "newton_iterations_3d": traj3.newton_iterations[1:].tolist(),
+        "steps_2d": len(traj2) - 1,
+        "steps_3d": len(traj3) - 1,
+        "dofs_2d": int(fem2.num_dofs),
+        "dofs_3d": int(fem3.num_dofs),
+        "cavities_2d": len(fem2.mesh.cavities),
+        "cavities_3d": len(fem3.mesh.cavities),
+        "chambers": prm["chambers"],
+        "chambers_3d": prm["chambers_3d"],
+        "wall_time_2d_s": round(wall2, 2),
+        "wall_time_3d_s": round(wall3, 2),
+    }
+
+    # 4. figures: angle vs pressure, the 2D section's states (colour: pressure), the 3D actuator (von Mises)
+    plot_angles(pa2, a2, pa3, a3, prm["chambers"], out / "angle_vs_pressure.png")
+    plot_states_2d(traj2, p2, out / "deformed_2d.png")
+    traj3.plot(out / "deformed_3d.png", title=f"3D actuator at {pa3[-1] / kPa:.1f} kPa, von Mises stress")
+    return summary
+
+
+# ------------------------------------------------------------------------------------------------- the steps
+def pneunet(chambers=7, pitch=PITCH, dim=2, width=WIDTH):
     """PneuNet geometry [m]: x along the length (from 0), y up (the layer at y = 0), z across (3D, centred).
 
     2D: the side section; 3D: the section extruded to ``width`` with the chambers closed by side walls of
@@ -139,101 +203,66 @@ def _angle_at(p, ang, target):
     return None
 
 
-def main(out: Path, quick: bool = False) -> dict:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from mpi4py import MPI
-
+def ramp(fem, steps):
+    """The pressure ramp 0 -> p_max in at most ``steps`` load steps, the first one cut to a linear response of
+    1 % of the body's size (the unloaded thin walls are far softer than the inflated ones, and a full first
+    step's Newton correction overshoots many times: 14 and 11 iterations before). Returns ``(trajectory,
+    wall time [s])``; a ramp that stops converging (e.g. a chamber wall inverting on a coarse 3D mesh) keeps
+    what converged."""
     from sorofem.errors import ConvergenceError
 
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    rank0 = MPI.COMM_WORLD.rank == 0
-    chambers = 4 if quick else 7
-    pitch = 80 * mm / 7
-    p2, p3 = 6.5 * kPa, 16 * kPa
-    res = {}
-    p3 = 10 * kPa if quick else p3
-    for dim, p_max, size, steps in ((2, p2, (1.2 if quick else 0.8) * mm, 12 if quick else 30),
-                                    (3, p3, (4.0 if quick else 3.0) * mm, 4 if quick else 10)):
-        t0 = time.perf_counter()
-        fem, length = build(dim, 2 if quick and dim == 3 else chambers, size, p_max)
-        try:
-            # the first step cut so that its linear response moves no point by more than 1 % of the body's size:
-            # the unloaded thin walls are far softer than the inflated ones, and a full first step's Newton
-            # correction overshoots many times (14 and 11 iterations before)
-            traj = fem.solve(steps=steps, max_step=1.0 / steps, linear_start=LINEAR_START)
-        except ConvergenceError as e:  # e.g. a chamber wall inverting on a coarse 3D mesh: keep what converged
-            traj = e.trajectory
-        wall = time.perf_counter() - t0
-        res[dim] = dict(fem=fem, traj=traj, length=length, wall=wall, p_max=p_max,
-                        dofs=fem.num_dofs,
-                        cavities=len(fem.mesh.cavities))
-        if rank0:
-            res[dim]["angle"] = tip_angle(traj.vertices, traj.displacement, length)
-            res[dim]["p"] = traj.times * p_max
-    if not rank0:
-        return {}
+    t0 = time.perf_counter()
+    try:
+        traj = fem.solve(steps=steps, max_step=1.0 / steps, linear_start=LINEAR_START)
+    except ConvergenceError as e:
+        traj = e.trajectory
+    return traj, time.perf_counter() - t0
 
-    a2, a3 = res[2]["angle"], res[3]["angle"]
-    summary = {
-        "max_pressure_kPa": p2 / kPa,
-        "max_pressure_kPa_3d": p3 / kPa,
-        "reached_pressure_kPa_2d": float(res[2]["p"][-1] / kPa),
-        "reached_pressure_kPa_3d": float(res[3]["p"][-1] / kPa),
-        "tip_angle_deg_2d": float(a2[-1]),
-        "tip_angle_deg_3d": float(a3[-1]),
-        "pressure_at_90deg_kPa_2d": _kpa(_angle_at(res[2]["p"], a2, 90.0)),
-        "pressure_at_90deg_kPa_3d": _kpa(_angle_at(res[3]["p"], a3, 90.0)),
-        "newton_iterations_max": int(max(res[d]["traj"].newton_iterations[1:].max() for d in (2, 3))),
-        "newton_iterations_2d": res[2]["traj"].newton_iterations[1:].tolist(),
-        "newton_iterations_3d": res[3]["traj"].newton_iterations[1:].tolist(),
-        "steps_2d": len(res[2]["traj"]) - 1,
-        "steps_3d": len(res[3]["traj"]) - 1,
-        "dofs_2d": int(res[2]["dofs"]),
-        "dofs_3d": int(res[3]["dofs"]),
-        "cavities_2d": res[2]["cavities"],
-        "cavities_3d": res[3]["cavities"],
-        "chambers": chambers,
-        "chambers_3d": 2 if quick else chambers,
-        "wall_time_2d_s": round(res[2]["wall"], 2),
-        "wall_time_3d_s": round(res[3]["wall"], 2),
-    }
 
-    fig, ax = plt.subplots(figsize=(5.5, 3.8))
-    ax.plot(res[2]["p"] / kPa, a2, "o-", ms=3, label="2D plane strain")
-    ax.plot(res[3]["p"] / kPa, a3, "s-", ms=3, label="3D")
+# ------------------------------------------------------------------------------------------------ the figures
+def plot_angles(p2, a2, p3, a3, chambers, path):
+    """``angle_vs_pressure.png``: the tip angles [deg] of the 2D and 3D runs against pressure [kPa]."""
+    from matplotlib.figure import Figure
+
+    from sorofem.io import save_figure
+
+    fig = Figure(figsize=(5.5, 3.8))
+    ax = fig.subplots()
+    ax.plot(p2 / kPa, a2, "o-", ms=3, label="2D plane strain")
+    ax.plot(p3 / kPa, a3, "s-", ms=3, label="3D")
     ax.axhline(90, color="k", lw=0.5, ls=":")
     ax.set_xlabel("pressure [kPa]")
     ax.set_ylabel("tip bending angle [deg]")
     ax.set_title(f"PneuNet, {chambers} chambers, Ecoflex 00-30 / Dragon Skin 30 layer", fontsize=9)
     ax.legend()
-    fig.tight_layout()
-    fig.savefig(out / "angle_vs_pressure.png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, path, dpi=120)
 
+
+def plot_states_2d(traj, p_max, path):
+    """``deformed_2d.png``: the 2D section's mesh [mm] at five load levels, coloured by pressure [kPa]."""
     import matplotlib.tri as mtri
-    t2 = res[2]["traj"]
-    X, U = t2.vertices, t2.displacement
-    fig, ax = plt.subplots(figsize=(7, 5))
-    idx = np.unique(np.linspace(0, len(t2) - 1, 5).round().astype(int))
-    for k, i in enumerate(idx):
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+    from matplotlib.figure import Figure
+
+    from sorofem.io import save_figure
+
+    X, U = traj.vertices, traj.displacement
+    idx = np.unique(np.linspace(0, len(traj) - 1, 5).round().astype(int))
+    colours = ScalarMappable(Normalize(0.0, traj.times[idx[-1]] * p_max / kPa or 1.0), cmap="viridis")
+    fig = Figure(figsize=(7, 5))
+    ax = fig.subplots()
+    for i in idx:
         x = (X + U[i]) / mm
-        ax.triplot(mtri.Triangulation(x[:, 0], x[:, 1], t2.cells), lw=0.2, color=plt.cm.viridis(k / max(len(idx) - 1, 1)))
-        ax.text(x[:, 0].max(), x[:, 1].min(), f"{t2.times[i] * p2 / kPa:.1f} kPa", fontsize=7)
+        p = traj.times[i] * p_max / kPa
+        ax.triplot(mtri.Triangulation(x[:, 0], x[:, 1], traj.cells), lw=0.2, color=colours.to_rgba(p))
+        ax.text(x[:, 0].max(), x[:, 1].min(), f"{p:.1f} kPa", fontsize=7)
     ax.set_aspect("equal")
     ax.set_xlabel("x [mm]")
     ax.set_ylabel("y [mm]")
     ax.set_title("2D section: reference and inflated states")
-    fig.tight_layout()
-    fig.savefig(out / "deformed_2d.png", dpi=120)
-    plt.close(fig)
-
-    t3 = res[3]["traj"]
-    t3.plot(out / "deformed_3d.png", title=f"3D actuator at {t3.times[-1] * p3 / kPa:.1f} kPa, von Mises stress")
-    t2.save(out / "pneunet_2d.h5")  # the snapshot file the reduced-order layer reads
-    return summary
+    fig.colorbar(colours, ax=ax, label="pressure [kPa]", shrink=0.8)
+    save_figure(fig, path, dpi=120)
 
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@
 #     a constraints file that pins the versions of every numerical package Debian provides (numpy above all: a
 #     numpy from PyPI breaks DOLFINx).
 #  4. The beam and network kernels compiled once into numba's on-disk cache (python -m soroshapes.shapes,
-#     python -m soroshapes.network).
+#     python -m soroshapes.precompile).
 #
 # A second run checks a stamp (hash of this script, pyproject.toml and the installed package set) and
 # returns in about a second without changing anything. Usage: bash scripts/bootstrap.sh [--force]
@@ -134,7 +134,7 @@ PY
 # every later process finds (any folder, any user: sorofem._numba), so a first statics + simulate takes < 1 s.
 say "compiling the beam and network kernels into numba's cache (one to two minutes the first time)"
 (cd /tmp && "$VENV/bin/python" -m soroshapes.shapes) || die "precompiling the beam kernels failed (see above)"
-(cd /tmp && "$VENV/bin/python" -m soroshapes.network) || die "precompiling the network kernels failed (see above)"
+(cd /tmp && "$VENV/bin/python" -m soroshapes.precompile) || die "precompiling the network kernels failed (see above)"
 
 stamp_of > "$VENV/.bootstrap-stamp"
 say "done: $VENV ($("$VENV/bin/python" -c 'import dolfinx; print("DOLFINx", dolfinx.__version__)'))"

@@ -19,7 +19,7 @@ from sorofem.errors import ParameterError
 from soroshapes.dvs import compare, dvs_basis, identify, recover_strains
 
 __all__ = ["trade", "cheapest", "within", "trade_table", "trade_text", "trade_figure", "trade_report",
-           "trade_files", "run", "SELECTION_KEYS", "TIME_BAND"]
+           "trade_files", "run_trade", "SELECTION_KEYS", "TIME_BAND"]
 
 
 def trade(train, test, make_shapes, inputs, modes=range(1, 7), strain=2, families=("dvs", "chebyshev", "pcc"),

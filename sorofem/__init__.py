@@ -16,7 +16,7 @@ import no DOLFINx: ``sorofem._numba`` (the cache stamp of every numba kernel of 
 """
 import importlib
 
-from . import errors, units
+from . import _lazy, errors, units
 from .errors import *  # noqa: F401,F403  (the hierarchy is small and listed in errors.__all__)
 
 __version__ = "0.1.0"
@@ -24,6 +24,16 @@ __version__ = "0.1.0"
 _SUBMODULES = ("sdf", "mesh", "materials", "fem", "topopt", "snapshots")
 
 __all__ = ["units", "errors", *_SUBMODULES, *errors.__all__]
+
+
+#: Modules that moved to the application layer ``soro`` (README.md, "Moved names"): importing one is an
+#: ImportError that names its new place.
+MOVED_MODULES = {
+    "sorofem.cli": "soro.cli (main, run_sweep), soro.demo (run_demo, list_demos, DEFAULT_DEMO; DEMOS_DIR is "
+                   "soro.demo.demos_dir()), soro.doctor.doctor and soro.trade.run_trade",
+    "sorofem.sweep": "soro.sweep (the same names)",
+}
+_lazy.moved_modules(MOVED_MODULES)
 
 
 def __getattr__(name):

@@ -37,10 +37,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sorofem._lazy import moved_attributes
 from sorofem.errors import DataError, ParameterError
 
 __all__ = ["Backbone", "StrainData", "recover_strains", "dvs_basis", "Identified", "PolynomialForce", "identify",
            "compare", "polar_rotation", "mean_rotation"]
+
+#: The speed-accuracy study moved to the application layer :mod:`soro.trade` (README.md, "Moved names"):
+#: importing one of its names from here is an ImportError that names the new place.
+MOVED = {name: f"soro.trade.{name}" for name in (
+    "trade", "cheapest", "within", "trade_table", "trade_text", "trade_figure", "trade_report", "trade_files",
+    "SELECTION_KEYS", "TIME_BAND")}
+__getattr__ = moved_attributes(__name__, MOVED)
 
 
 # ------------------------------------------------------------------------------------------------------------

@@ -181,12 +181,7 @@ def _cycles(package):
     return out
 
 
-@pytest.mark.parametrize("package", [
-    "sorofem", "sorocontrol", "soro",
-    pytest.param("soroshapes", marks=pytest.mark.xfail(strict=True, reason=(
-        "known cycle soroshapes.network -> model (the kernels' warm-up builds a Model) -> network, and "
-        "integrate -> network: the network/model internals are being reworked (issue 18); remove this mark "
-        "when it is gone")))])
+@pytest.mark.parametrize("package", ["sorofem", "soroshapes", "sorocontrol", "soro"])
 def test_no_import_cycle_inside_a_package(package):
     assert _cycles(package) == [], f"import cycles in {package}"
 

@@ -17,12 +17,20 @@ preview, board profile and report) and the ``soro robot`` command; ``sorofem`` n
 """
 from __future__ import annotations
 
+from .._lazy import moved_attributes
 from ..errors import GeometryError
 from ._core import UNITS, Chamber, Design, Network, Param, Part, Robot, Twin, chamber_check
 from .designs import ROBOTS
 
 __all__ = ["names", "get", "design", "parse_params", "export_part", "chamber_check",
            "Param", "Network", "Part", "Chamber", "Twin", "Design", "Robot", "ROBOTS", "UNITS"]
+
+#: Names that moved to the application layer :mod:`soro.robots` (README.md, "Moved names"): importing one from
+#: here is an ImportError that names its new place. (``Design.scene()`` is ``soro.robots.scene(name)``.)
+MOVED = {name: f"soro.robots.{name}" for name in (
+    "export", "preview_png", "board_profile", "VEAB_SIGNAL_RANGE", "Scene", "Channel", "twin_shapes", "scene",
+    "reach", "bellows_modulus", "BELLOWS_E_FACTOR", "PARALLEL_BELLOWS_E_FACTOR")}
+__getattr__ = moved_attributes(__name__, MOVED)
 
 
 def names():

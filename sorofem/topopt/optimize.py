@@ -1,10 +1,10 @@
 """The optimization loop: MMA or OC iterations with progress, continuation, checkpoints and restart.
 
 Each iteration evaluates the problem (state solve, adjoint, filter chain), updates the design and logs one
-line (``logging`` at INFO; a ``tqdm`` bar with ``progress=True``). Convergence is the 88-line code's
-criterion, :math:`\\max_e |x_e^{k+1} - x_e^k| <` ``tol`` (with a Heaviside projection: and its sharpness at
-the largest value). A checkpoint (``.npz``, written atomically) holds the design, the optimizer's state and
-the history; ``restart=`` continues from one. Ctrl-C writes the checkpoint and returns the design reached,
+line (``logging`` at INFO; a progress bar on a terminal, :class:`sorofem.io.Progress`). Convergence is the
+88-line code's criterion, :math:`\\max_e |x_e^{k+1} - x_e^k| <` ``tol`` (with a Heaviside projection: and its
+sharpness at the largest value). A checkpoint (``.npz``, written atomically) holds the design, the optimizer's
+state and the history; ``restart=`` continues from one. Ctrl-C writes the checkpoint and returns the design reached,
 flagged ``interrupted``.
 """
 import logging
@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataError, ParameterError
-from ..io import atomic_path
+from ..io import Progress, atomic_path
 from .mma import MMA
 from .oc import oc_update
 
@@ -94,7 +94,7 @@ def load_design(path):
 
 
 def optimize(problem, method="mma", max_iterations=200, tol=0.01, x0=None, move=None, callback=None,
-             progress=False, checkpoint=None, checkpoint_every=10, restart=None, min_iterations=0):
+             progress=None, checkpoint=None, checkpoint_every=10, restart=None, min_iterations=0):
     """Optimize ``problem`` (a :class:`~sorofem.topopt.TopOpt`) from ``x0`` (default: uniform at the volume
     fraction).
 
@@ -109,8 +109,9 @@ def optimize(problem, method="mma", max_iterations=200, tol=0.01, x0=None, move=
         Move limit (default 0.2 for OC, 0.2 for MMA).
     callback : callable, optional
         ``callback(iteration, x, evaluation)`` after each evaluation (frames, custom logging).
-    progress : bool
-        Show a ``tqdm`` bar (if installed).
+    progress : bool or None
+        ``None`` (default): a ``tqdm`` bar when standard error is a terminal, nothing otherwise; ``True``: also
+        one line per iteration when it is not; ``False``: nothing (:class:`sorofem.io.Progress`, rank 0).
     checkpoint : path, optional
         ``.npz`` file written every ``checkpoint_every`` iterations, at the end and on Ctrl-C.
     restart : path, optional
@@ -145,13 +146,8 @@ def optimize(problem, method="mma", max_iterations=200, tol=0.01, x0=None, move=
         log.info("restarting from %s at iteration %d", restart, start)
     x = np.clip(x, 0.0, 1.0)
     x[problem.solid], x[problem.void] = 1.0, 0.0
-    bar = None
-    if progress:
-        try:
-            from tqdm import tqdm
-            bar = tqdm(total=int(max_iterations), initial=start, desc="topopt", leave=False)
-        except ImportError:
-            bar = None
+    bar = Progress(int(max_iterations), "topopt", progress, problem.mesh.comm, unit="it")
+    bar.to(start)
     t0 = time.perf_counter()
     converged = interrupted = False
     ev = None
@@ -188,9 +184,7 @@ def optimize(problem, method="mma", max_iterations=200, tol=0.01, x0=None, move=
                                 beta=beta, newton=ev.newton_iterations, time=time.perf_counter() - ti))
             log.info("topopt it %4d  J = %.6g  vol = %.4f  change = %.4f%s", it, ev.objective, ev.volume_fraction,
                      change, f"  beta = {beta:g}" if beta else "")
-            if bar is not None:
-                bar.update(1)
-                bar.set_postfix(J=f"{ev.objective:.4g}", vol=f"{ev.volume_fraction:.3f}", change=f"{change:.3f}")
+            bar.to(it, J=f"{ev.objective:.4g}", vol=f"{ev.volume_fraction:.3f}", change=f"{change:.3f}")
             if checkpoint is not None and it % int(checkpoint_every) == 0:
                 save(it)
             done = change < tol and it >= min_iterations
@@ -209,8 +203,7 @@ def optimize(problem, method="mma", max_iterations=200, tol=0.01, x0=None, move=
         log.warning("topopt interrupted at iteration %d; %s", it,
                     f"checkpoint written to {checkpoint}" if checkpoint else "no checkpoint file was given")
     finally:
-        if bar is not None:
-            bar.close()
+        bar.close()
     save(it)
     final = problem.evaluate(x, gradient=False)
     return Result(x, final.density, final.objective, history, converged, interrupted, time.perf_counter() - t0)

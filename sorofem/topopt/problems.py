@@ -42,6 +42,7 @@ The problems run in serial (one MPI rank); the mesh may be 2D (plane stress or p
 """
 import logging
 import math
+import warnings
 
 import numpy as np
 
@@ -94,7 +95,7 @@ def _as_mesh(mesh):
 class TopOpt:
     """Base of the SIMP problems: design space, filter, projection, supports and loads, adjoint machinery.
 
-    Builders (``add_support``, ``add_force``, ...) mutate and return ``self``; the forms are compiled on the
+    Builders (``add_support``, ``add_traction``, ...) mutate and return ``self``; the forms are compiled on the
     first :meth:`evaluate`.
 
     Parameters
@@ -250,14 +251,23 @@ class TopOpt:
         self._changed()
         return self
 
-    def add_force(self, region, traction):
+    def add_traction(self, region, traction):
         """A dead traction [Pa] (force per area; per length·depth in 2D) on ``region``; returns ``self``.
 
-        Use :meth:`add_total_force` to give the resultant instead.
+        Use :meth:`add_total_force` to give the resultant [N] instead. (The name of
+        :meth:`sorofem.fem.Fem.add_traction` for the same load.)
         """
         self._forces.append((self._check_region(region), self._vector(traction, "traction"), False))
         self._changed()
         return self
+
+    def add_force(self, region, traction):
+        """Deprecated name of :meth:`add_traction` (the load is a traction [Pa], not a force): warns, then
+        adds the traction."""
+        warnings.warn("TopOpt.add_force is deprecated: the load is a traction [Pa]; use "
+                      "TopOpt.add_traction(region, traction) (or add_total_force for a resultant [N])",
+                      DeprecationWarning, stacklevel=2)
+        return self.add_traction(region, traction)
 
     def add_total_force(self, region, force):
         """A dead load with resultant ``force`` [N] (2D: [N/m] of depth) spread uniformly over ``region``."""

@@ -371,3 +371,20 @@ def test_invalid_problems_raise():
         _mbb(msh, 6, 3).evaluate(np.ones(5))
     with pytest.raises(ParameterError, match="compliance"):
         optimize(_inverter(8, 4), method="oc", max_iterations=2)
+
+
+def test_traction_is_add_traction_and_add_force_warns():
+    """A traction [Pa] on the right face of a cantilever (height 3) gives the compliance of the resultant
+    3x larger spread by add_total_force; the old name add_force warns, naming add_traction, and adds the same."""
+    msh = _grid(6, 3)
+    x = np.full(18, 0.5)
+
+    def cantilever():
+        return Compliance(msh, volume_fraction=0.5, penalty=3.0, radius=1.5).add_support("left")
+
+    traction = cantilever().add_traction("right", (0.0, -1.0)).evaluate(x, gradient=False).objective
+    total = cantilever().add_total_force("right", (0.0, -3.0)).evaluate(x, gradient=False).objective
+    assert traction > 0 and traction == pytest.approx(total, rel=1e-10)
+    with pytest.warns(DeprecationWarning, match="add_traction"):
+        old = cantilever().add_force("right", (0.0, -1.0))
+    assert old.evaluate(x, gradient=False).objective == pytest.approx(traction, rel=1e-12)

@@ -232,16 +232,17 @@ def test_a_volume_map_that_turns_negative_is_a_clear_error():
 
 
 def test_warm_up_runs_every_kind():
-    from soroshapes.network import warm_up
+    from soroshapes.precompile import warm_up
     assert warm_up() > 0
 
 
 def test_module_entry_warms_the_kernels():
-    """`python -m soroshapes.network` (the bootstrap's precompile step) runs warm_up in a fresh process."""
+    """`python -m soroshapes.precompile` (the bootstrap's precompile step) runs warm_up in a fresh process."""
     import subprocess
     import sys
 
-    run = subprocess.run([sys.executable, "-m", "soroshapes.network"], capture_output=True, text=True, timeout=600)
+    run = subprocess.run([sys.executable, "-m", "soroshapes.precompile"], capture_output=True, text=True,
+                         timeout=600)
     assert run.returncode == 0, run.stderr
     assert "network kernels ready" in run.stdout
 
