@@ -301,12 +301,16 @@ def check_wavy_wall(report, out):
 
 def check_pneunet_design(report, out):
     assert report["iterations"] >= 30 and report["frames"] >= 5
-    assert report["design_rotation_deg"] > 1.0 > 0.1 > report["initial_rotation_deg"]  # the optimizer made it bend
+    assert report["design_rotation_deg"] > 5.0 > 0.1 > report["initial_rotation_deg"]  # the optimizer made it bend
     assert report["flooded_cells"] > 0 and report["pressurized_cavities"] == 3  # one chamber per copy, all found
     assert report["volume_fraction"] <= 0.5 + 5e-3
     assert report["reached_pressure_kPa"] == pytest.approx(report["max_pressure_kPa"])
-    assert report["bending_angle_deg"] > 2.0  # the re-meshed, re-simulated design bends toward its base
-    assert report["bending_angle_deg"] > report["bending_angle_initial_deg"] + 2.0  # and beats the initial design
+    assert report["bending_angle_deg"] > 5.0  # the re-meshed, re-simulated design bends toward its base
+    assert report["bending_angle_deg"] > report["bending_angle_initial_deg"] + 5.0  # and beats the initial design
+    # the design model is the validated actuator, with the validation's angle as objective: the two agree within
+    # what the discretizations leave (Q1 nu = 0.45 and the soft void vs P2 nu = 0.49 on the iso-contour; 10 %
+    # measured, bound 30 %). The single-chamber model with a spring had predicted 4.2 deg for a 6.8 deg actuator
+    assert report["bending_angle_deg"] == pytest.approx(report["design_rotation_deg"], rel=0.3)
     from sorofem.sdf.export import read_stl
     tri, _ = read_stl(out / "design.stl")
     assert len(tri) == report["stl_triangles"] > 1000
