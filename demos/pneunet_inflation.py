@@ -52,13 +52,16 @@ the first steps before); at most 6 iterations per step (quick and full).
 
 3D: the equilibrium path is followed by arc length (:meth:`Fem.follow`, the pressure's load factor an
 unknown), each step limited to ``MAX_NEWTON`` = 8 Newton iterations (a step that needs more is halved). The
-full 3D actuator (7 chambers, 3 mm mesh) has a pressure maximum near 12.6 kPa (measured 12.638 kPa, load
-factor 0.78989 of 16 kPa, in a run of the same path; the ramp under pressure control stopped at 12.635 kPa
-with 16 Newton iterations in its first step and 9-11 near the maximum): past it the pressure falls while the
-chambers keep inflating - the inflation instability of thin rubber walls, a limit point, not a solver
-failure. No equilibrium of this branch carries 16 kPa, so the path is followed through the limit point for
-``PAST_LIMIT`` steps and stops; the report gives the limit pressure (``limit_pressure_kPa_3d``) and the
-figure marks it. The quick 3D model (2 chambers, 10 kPa) stays below its maximum and reaches 10 kPa.
+full 3D actuator (7 chambers, 3 mm mesh) has a pressure maximum at 12.638 kPa (load factor 0.78989 of 16 kPa,
+step 29), measured on this path with 4-7 Newton iterations per step (5 in the first); in the three steps past
+it the load factor falls to 0.78987, 0.78974 and 0.78949 while the chambers keep inflating, and the path
+stops there (52 min on a loaded 2-core machine). This is the inflation instability of thin rubber walls, a
+limit point, not a solver failure (the ramp under pressure control stopped at 12.635 kPa, with 16 iterations
+in its first step and 9-11 near the maximum): near it no equilibrium carries more than 12.64 kPa, so 16 kPa is
+not reached. Whether the Yeoh body's stiffening at much larger stretches brings the pressure back up (a
+snap-through to a far more inflated state) is not followed: ten steps past the maximum the load factor was
+still falling (0.78586). The report gives the limit pressure (``limit_pressure_kPa_3d``) and the figure marks
+it. The quick 3D model (2 chambers, 10 kPa) stays below its maximum and reaches 10 kPa.
 
 Figures (in ``out``)
 --------------------
