@@ -66,9 +66,10 @@ actuator 14.46 deg (the initial design 0.04 deg), volume fraction 0.45 (the cons
 material bends more); quick run (30 iterations): 15.47 and 13.94 deg. Before, with a single chamber and a
 spring as the design model: 3.5 deg (100 iterations) and 6.8 deg (30). The layout: in each chamber a cavity
 that fills the upper part under the top wall and narrows toward the base (an upside-down drop, leaning
-toward the free end), a solid mound on the base at the chamber's clamped side, and a closed, unpressurized
-hole in the base corner at the other side that works as a hinge (the validated actuator has these holes too:
-9 cavities, 3 of them pressurized). The teardrop of the seed's Fig. 23 is symmetric and has no hinge holes.
+toward the free end), a solid mound on the base at the chamber's clamped-end side, and two closed,
+unpressurized holes: one above the base at the free-end side, where the wall meets the base (a hinge), and a
+small one in the upper corner at the clamped-end side (the validated actuator has them too: 9 cavities, 3 of
+them pressurized). The teardrop of the seed's Fig. 23 is symmetric and has no such holes.
 
 Figures (in ``out``)
 --------------------
