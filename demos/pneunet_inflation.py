@@ -4,10 +4,11 @@
 Purpose
 -------
 A PneuNet (Mosadegh et al., Adv. Funct. Mater. 24, 2163, 2014; the seed paper's Sec. V-D3 and VI-B/E): a row
-of chambers in a soft body above a stiffer strain-limiting layer, all at the same pressure. Pressurizing the chambers lengthens the top of the body, the layer does not stretch, so the
-actuator curls towards the layer. The demo ramps the pressure, clamps the left end and reports the bending
-angle of the free (right) end against pressure, in 2D plane strain (a side section) and in 3D (the section
-extruded to the actuator's width, with closed chambers).
+of chambers in a soft body above a stiffer strain-limiting layer, all at the same pressure. Pressurizing the
+chambers lengthens the top of the body, the layer does not stretch, so the actuator curls towards the layer.
+The demo ramps the pressure, clamps the left end and reports the bending angle of the free (right) end against
+pressure, in 2D plane strain (a side section) and in 3D (the section extruded to the actuator's width, with
+closed chambers).
 
 Equations
 ---------
@@ -44,24 +45,32 @@ mesh               2D h = 0.8 mm (quick 1.2 mm); 3D h = 3.0 mm (quick 4 mm), P2
 
 Steps and limits
 ----------------
-The first step is cut so that its linear response moves no point by more than 1 % of the body's size
-(``Fem.solve(linear_start=0.01)``): the unloaded thin walls are far softer than the inflated ones, and the
-Newton correction of a full first step overshot many times (14 and 11 iterations in the first steps before).
-Measured: at most 6 iterations per step in 2D (quick and full) and 8 in the quick 3D run; the full 3D run still
-needs 16 in its first step (a step of 1.2 % of the load, where the relative residual test meets round-off; 9 at
-2 %) and 9-11 in the steps that approach the pressure maximum below. The 3D actuator (7 chambers, 3 mm mesh)
-has a pressure maximum at 12.64 kPa: followed by arc length (``Fem.follow``, at most 7 Newton iterations per
-step) the load factor rises to 0.78989 of 16 kPa and then falls (0.78586 ten steps later) while the chambers
-keep inflating - the inflation instability of thin rubber walls, a limit point, not a solver failure. Under
-pressure control no equilibrium lies beyond it on this branch, so the 3D ramp stops there
-(``reached_pressure_kPa_3d`` = 12.635); the quick 3D model (2 chambers, 10 kPa) stays below its maximum.
+2D: a pressure ramp (:meth:`Fem.solve`) whose first step is cut so that its linear response moves no point by
+more than 1 % of the body's size (``linear_start=0.01``): the unloaded thin walls are far softer than the
+inflated ones, and the Newton correction of a full first step overshot many times (14 and 11 iterations in
+the first steps before); at most 6 iterations per step (quick and full).
+
+3D: the equilibrium path is followed by arc length (:meth:`Fem.follow`, the pressure's load factor an
+unknown), each step limited to ``MAX_NEWTON`` = 8 Newton iterations (a step that needs more is halved). The
+full 3D actuator (7 chambers, 3 mm mesh) has a pressure maximum at 12.638 kPa (load factor 0.78989 of 16 kPa,
+step 29), measured on this path with 4-7 Newton iterations per step (5 in the first); in the three steps past
+it the load factor falls to 0.78987, 0.78974 and 0.78949 while the chambers keep inflating, and the path
+stops there (52 min on a loaded 2-core machine). This is the inflation instability of thin rubber walls, a
+limit point, not a solver failure (the ramp under pressure control stopped at 12.635 kPa, with 16 iterations
+in its first step and 9-11 near the maximum): near it no equilibrium carries more than 12.64 kPa, so 16 kPa is
+not reached. Whether the Yeoh body's stiffening at much larger stretches brings the pressure back up (a
+snap-through to a far more inflated state) is not followed: ten steps past the maximum the load factor was
+still falling (0.78586). The report gives the limit pressure (``limit_pressure_kPa_3d``) and the figure marks
+it. The quick 3D model (2 chambers, 10 kPa) stays below its maximum and reaches 10 kPa.
 
 Figures (in ``out``)
 --------------------
 ``angle_vs_pressure.png`` (2D and 3D tip angle vs pressure), ``deformed_2d.png`` (reference and inflated
 sections), ``deformed_3d.png`` (the inflated 3D actuator's surface coloured by von Mises stress),
 ``pneunet_2d.h5`` (snapshot of the 2D run). The dict returned holds ``max_pressure_kPa`` (2D),
-``max_pressure_kPa_3d``, ``tip_angle_deg_2d``, ``tip_angle_deg_3d``, ``newton_iterations_max``,
+``max_pressure_kPa_3d`` (the target), ``reached_pressure_kPa_3d`` (the last point of the path),
+``limit_pressure_kPa_3d`` and ``limit_angle_deg_3d`` (the 3D path's pressure maximum and the tip angle there,
+if it passed one, else null), ``tip_angle_deg_2d``, ``tip_angle_deg_3d``, ``newton_iterations_max``,
 ``steps_2d``/``steps_3d``, ``dofs_2d``/``dofs_3d``, ``cavities_2d``/``cavities_3d``,
 ``pressure_at_90deg_kPa_2d`` (interpolated; null if 90 degrees is not reached), the Newton iterations per step
 (``newton_iterations_2d``/``_3d``) and the wall times.
@@ -80,6 +89,8 @@ WALL, GAP, BASE, HEIGHT, CHANNEL, LAYER, WIDTH = 2 * mm, 1.5 * mm, 5 * mm, 17 * 
 PITCH = 80 * mm / 7             # chamber pitch [m]: 7 chambers make the 80 mm actuator
 P_MAX_2D = 6.5 * kPa            # the 2D ramp's top pressure [Pa]
 LINEAR_START = 0.01             # first step: linear response <= 1 % of the body's size (Fem.solve(linear_start=))
+MAX_NEWTON = 8                  # the 3D path: Newton iterations per step at most (a step that needs more is halved)
+PAST_LIMIT = 3                  # the 3D path stops this many steps past a pressure maximum (a limit point)
 #: The full run and the short one (`--quick`, what the tests run): chambers (2D, 3D), the 3D ramp's top
 #: pressure [Pa], element sizes [m] and load steps of the 2D and 3D ramps.
 FULL = dict(chambers=7, chambers_3d=7, p_max_3d=16 * kPa, size_2d=0.8 * mm, size_3d=3.0 * mm, steps_2d=30,
@@ -104,18 +115,21 @@ def main(out: Path, quick: bool = False) -> dict:
 
     # 2. the 3D actuator: the same section extruded, closed by side walls
     fem3, length3 = build(3, prm["chambers_3d"], prm["size_3d"], p3)
-    traj3, wall3 = ramp(fem3, prm["steps_3d"])
+    traj3, wall3 = follow_path(fem3, prm["steps_3d"])
     if MPI.COMM_WORLD.rank != 0:
         return {}
 
     # 3. the tip angles against pressure
     a2, pa2 = tip_angle(traj2.vertices, traj2.displacement, length2), traj2.times * p2
     a3, pa3 = tip_angle(traj3.vertices, traj3.displacement, length3), traj3.times * p3
+    limit3 = limit_point(traj3.times)
     summary = {
         "max_pressure_kPa": p2 / kPa,
         "max_pressure_kPa_3d": p3 / kPa,
         "reached_pressure_kPa_2d": float(pa2[-1] / kPa),
         "reached_pressure_kPa_3d": float(pa3[-1] / kPa),
+        "limit_pressure_kPa_3d": None if limit3 is None else float(pa3[limit3] / kPa),
+        "limit_angle_deg_3d": None if limit3 is None else float(a3[limit3]),
         "tip_angle_deg_2d": float(a2[-1]),
         "tip_angle_deg_3d": float(a3[-1]),
         "pressure_at_90deg_kPa_2d": _kpa(_angle_at(pa2, a2, 90.0)),
@@ -136,7 +150,7 @@ def main(out: Path, quick: bool = False) -> dict:
     }
 
     # 4. figures: angle vs pressure, the 2D section's states (colour: pressure), the 3D actuator (von Mises)
-    plot_angles(pa2, a2, pa3, a3, prm["chambers"], out / "angle_vs_pressure.png")
+    plot_angles(pa2, a2, pa3, a3, limit3, prm["chambers"], out / "angle_vs_pressure.png")
     plot_states_2d(traj2, p2, out / "deformed_2d.png")
     traj3.plot(out / "deformed_3d.png", title=f"3D actuator at {pa3[-1] / kPa:.1f} kPa, von Mises stress")
     return summary
@@ -219,9 +233,36 @@ def ramp(fem, steps):
     return traj, time.perf_counter() - t0
 
 
+def limit_point(t):
+    """Index of the load factor's maximum along a path ``t`` if the path passed it (a limit point: the steps
+    after it have lower load factors), else None."""
+    k = int(np.argmax(t))
+    return k if k < len(t) - 1 else None
+
+
+def follow_path(fem, steps):
+    """The 3D path by arc length from 0 to the full load (``Fem.follow``), at most ``MAX_NEWTON`` Newton
+    iterations per step, about ``steps`` steps to the full load; it stops ``PAST_LIMIT`` steps after a
+    pressure maximum. Returns ``(trajectory, wall time [s])``; a path that stops converging keeps what
+    converged."""
+    from sorofem.errors import ConvergenceError
+
+    def past_limit(traj):
+        k = limit_point(traj.times)
+        return k is not None and len(traj) - 1 - k >= PAST_LIMIT
+
+    t0 = time.perf_counter()
+    try:
+        traj = fem.follow(load_level=1.0, steps=steps, max_iterations=MAX_NEWTON, until=past_limit)
+    except ConvergenceError as e:
+        traj = e.trajectory
+    return traj, time.perf_counter() - t0
+
+
 # ------------------------------------------------------------------------------------------------ the figures
-def plot_angles(p2, a2, p3, a3, chambers, path):
-    """``angle_vs_pressure.png``: the tip angles [deg] of the 2D and 3D runs against pressure [kPa]."""
+def plot_angles(p2, a2, p3, a3, limit3, chambers, path):
+    """``angle_vs_pressure.png``: the tip angles [deg] of the 2D and 3D runs against pressure [kPa], the 3D
+    path's limit point (pressure maximum) marked if it passed one."""
     from matplotlib.figure import Figure
 
     from sorofem.io import save_figure
@@ -229,7 +270,9 @@ def plot_angles(p2, a2, p3, a3, chambers, path):
     fig = Figure(figsize=(5.5, 3.8))
     ax = fig.subplots()
     ax.plot(p2 / kPa, a2, "o-", ms=3, label="2D plane strain")
-    ax.plot(p3 / kPa, a3, "s-", ms=3, label="3D")
+    ax.plot(p3 / kPa, a3, "s-", ms=3, label="3D (arc length)")
+    if limit3 is not None:
+        ax.plot(p3[limit3] / kPa, a3[limit3], "kv", ms=7, label=f"3D limit point, {p3[limit3] / kPa:.2f} kPa")
     ax.axhline(90, color="k", lw=0.5, ls=":")
     ax.set_xlabel("pressure [kPa]")
     ax.set_ylabel("tip bending angle [deg]")

@@ -224,9 +224,14 @@ def check_pneunet_inflation(report, out):
     assert report["tip_angle_deg_2d"] > 30 and report["tip_angle_deg_3d"] > 5  # curls toward the layer
     # the tip angles are rows of tests/demo_reference.toml (2D 1e-3; 3D 5 %: gmsh 4.11 and 4.13 mesh the 3D
     # finger differently, 17.46 vs 17.63 deg measured on Debian 12 and 13)
-    # the first step cut by its linear response (Fem.solve(linear_start=)): at most 8 Newton iterations in every
-    # step (measured 6 in 2D, 8 in 3D; 14 and 11 in the first steps before)
+    # 2D: the first step cut by its linear response (Fem.solve(linear_start=)); 3D: the path followed by arc
+    # length with at most 8 Newton iterations per step (Fem.follow(max_iterations=8)). Measured 6 in both
+    # (14 and 11 in the first steps before linear_start; 16 in the full 3D ramp's first step before follow)
     assert report["newton_iterations_max"] <= 8
+    # the quick 3D actuator has no pressure maximum below 10 kPa: the path lands on the full load (the full
+    # one passes its limit point near 12.6 kPa and reports it)
+    assert report["limit_pressure_kPa_3d"] is None
+    assert report["reached_pressure_kPa_3d"] == pytest.approx(report["max_pressure_kPa_3d"])
     assert report["cavities_2d"] == report["chambers"]
     for name in ("angle_vs_pressure.png", "deformed_2d.png", "deformed_3d.png"):
         assert (out / name).stat().st_size > 0
@@ -346,12 +351,17 @@ def check_wavy_wall(report, out):
 
 def check_pneunet_design(report, out):
     assert report["iterations"] >= 30 and report["frames"] >= 5
-    assert report["design_rotation_deg"] > 1.0 > 0.1 > report["initial_rotation_deg"]  # the optimizer made it bend
+    assert report["design_rotation_deg"] > 5.0 > 0.1 > report["initial_rotation_deg"]  # the optimizer made it bend
     assert report["flooded_cells"] > 0 and report["pressurized_cavities"] == 3  # one chamber per copy, all found
     assert report["volume_fraction"] <= 0.5 + 5e-3
     assert report["reached_pressure_kPa"] == pytest.approx(report["max_pressure_kPa"])
-    assert report["bending_angle_deg"] > 2.0  # the re-meshed, re-simulated design bends toward its base
-    assert report["bending_angle_deg"] > report["bending_angle_initial_deg"] + 2.0  # and beats the initial design
+    assert report["bending_angle_deg"] > 5.0  # the re-meshed, re-simulated design bends toward its base
+    assert report["bending_angle_deg"] > report["bending_angle_initial_deg"] + 5.0  # and beats the initial design
+    # the design model is the validated actuator, with the validation's angle as objective: the two agree within
+    # what the discretizations leave (Q1 nu = 0.45 and the soft void vs P2 nu = 0.49 on the iso-contour; 10 %
+    # measured, bound 30 %). Before, the single-chamber model's objective (its face rotation, 4.2 deg) measured
+    # something else than the validation (6.8 deg), and 100 iterations validated worse than 30
+    assert report["bending_angle_deg"] == pytest.approx(report["design_rotation_deg"], rel=0.3)
     from sorofem.sdf.export import read_stl
     tri, _ = read_stl(out / "design.stl")
     assert len(tri) == report["stl_triangles"] > 1000

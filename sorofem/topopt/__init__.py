@@ -21,13 +21,13 @@ from .._petsc import init as _init_petsc
 _init_petsc()  # before DOLFINx: Python keeps its signal handling (sorofem._petsc)
 
 from .export import density_image, density_png, design_mesh, nodal_density, threshold_mesh, write_stl, write_xdmf
-from .filters import ConeFilter, Heaviside, HelmholtzFilter
+from .filters import ConeFilter, Heaviside, HelmholtzFilter, LinkedFilter
 from .mma import MMA, mma_subproblem
 from .oc import oc_update
 from .optimize import Result, load_design, optimize, save_design
 from .problems import Compliance, Evaluation, Mechanism, PressureActuator, TopOpt
 
-__all__ = ["MMA", "mma_subproblem", "oc_update", "HelmholtzFilter", "ConeFilter", "Heaviside", "TopOpt",
-           "Compliance", "Mechanism", "PressureActuator", "Evaluation", "optimize", "Result", "save_design",
+__all__ = ["MMA", "mma_subproblem", "oc_update", "HelmholtzFilter", "ConeFilter", "LinkedFilter", "Heaviside",
+           "TopOpt", "Compliance", "Mechanism", "PressureActuator", "Evaluation", "optimize", "Result", "save_design",
            "load_design", "nodal_density", "density_image", "density_png", "write_xdmf", "threshold_mesh",
            "design_mesh", "write_stl"]

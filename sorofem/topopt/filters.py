@@ -14,6 +14,11 @@ sensitivities with respect to the physical densities are chained back to the des
     The classic distance-weighted (cone) density filter of the 88-line code:
     :math:`\\tilde\\rho_e = \\sum_i H_{ei} v_i x_i / \\sum_i H_{ei} v_i`, :math:`H_{ei} = \\max(0, r_{min} -
     \\|c_e - c_i\\|)` on the cell centroids :math:`c` (cell volumes :math:`v` are 1 on a uniform grid).
+``LinkedFilter``
+    Design variables shared by groups of cells (periodic patterns such as the chambers of a PneuNet): the
+    group mean :math:`\\hat x_e = |G(e)|^{-1}\\sum_{i \\in G(e)} x_i` enters the density filter, so every
+    cell of a group gets the same design and the same sensitivity (the filter after it sees the whole domain:
+    near the ends of a pattern the physical densities of the copies differ by what the filter reaches).
 ``Heaviside``
     The smoothed projection (Wang, Lazarov & Sigmund, SMO 43, 767, 2011)
     :math:`\\bar\\rho = \\frac{\\tanh(\\beta\\eta) + \\tanh(\\beta(\\tilde\\rho - \\eta))}{\\tanh(\\beta\\eta) +
@@ -26,7 +31,8 @@ import scipy.sparse.linalg as spla
 from .. import _dolfinx
 from ..errors import ParameterError
 
-__all__ = ["HelmholtzFilter", "ConeFilter", "IdentityFilter", "Heaviside", "cell_centroids", "cell_volumes"]
+__all__ = ["HelmholtzFilter", "ConeFilter", "IdentityFilter", "LinkedFilter", "Heaviside", "cell_centroids",
+           "cell_volumes"]
 
 
 def cell_centroids(domain):
@@ -68,6 +74,39 @@ class IdentityFilter:
     def adjoint(self, g):
         """Transposed Jacobian times ``g``."""
         return np.asarray(g, float).copy()
+
+
+class LinkedFilter:
+    """Cells grouped by ``labels`` share one design: the group mean :math:`\\hat x = P x` of the design
+    variables, then ``inner`` (a density filter or :class:`IdentityFilter`).
+
+    :math:`P` averages over each group; it is symmetric, so the adjoint is :math:`P\\,` ``inner.adjoint``. An
+    optimizer that starts from a linked design keeps it linked (every member of a group sees the same gradient
+    and the same bounds).
+
+    Parameters
+    ----------
+    inner : filter
+        An object with ``apply``/``adjoint`` (the density filter applied after the averaging).
+    labels : (n,) array of int
+        Group of each cell; cells with equal labels share their design.
+    """
+
+    def __init__(self, inner, labels):
+        labels = np.asarray(labels).ravel()
+        _, groups, counts = np.unique(labels, return_inverse=True, return_counts=True)
+        n = len(labels)
+        self.inner, self.groups = inner, groups
+        self.matrix = sp.csr_matrix((1.0 / counts[groups], (np.arange(n), groups)), shape=(n, len(counts))) @ \
+            sp.csr_matrix((np.ones(n), (groups, np.arange(n))), shape=(len(counts), n))
+
+    def apply(self, x):
+        """Filtered densities of the group means."""
+        return self.inner.apply(self.matrix @ np.asarray(x, float))
+
+    def adjoint(self, g):
+        """Transposed Jacobian times ``g``."""
+        return self.matrix.T @ self.inner.adjoint(g)
 
 
 class ConeFilter:

@@ -48,7 +48,7 @@ import numpy as np
 
 from .. import _dolfinx
 from ..errors import ConvergenceError, ParameterError
-from .filters import ConeFilter, Heaviside, HelmholtzFilter, IdentityFilter, cell_centroids
+from .filters import ConeFilter, Heaviside, HelmholtzFilter, IdentityFilter, LinkedFilter, cell_centroids
 
 __all__ = ["TopOpt", "Compliance", "Mechanism", "PressureActuator", "Evaluation"]
 
@@ -126,6 +126,10 @@ class TopOpt:
     passive_solid, passive_void : str or callable, optional
         Cells held at density 1 or 0: a cell region name of ``mesh`` or a predicate on cell centroids,
         ``f(x) -> bool`` with ``x`` of shape ``(dim, N)`` [m].
+    link : array or callable, optional
+        Cells that share one design (a periodic layout): a label per cell, ``(n,)`` ints, or a function of the
+        cell centroids ``f(x) -> labels`` with ``x`` of shape ``(dim, N)`` [m]; cells with equal labels get
+        the mean of their design variables before the filter (:class:`~sorofem.topopt.filters.LinkedFilter`).
     newton_tol : float
         Relative residual tolerance of the nonlinear state solve.
     load_steps : int
@@ -134,7 +138,7 @@ class TopOpt:
 
     def __init__(self, mesh, volume_fraction=0.5, penalty=3.0, e_min=1e-9, radius=None, filter="helmholtz",
                  projection=None, E=1.0, nu=0.3, formulation=None, material=None, passive_solid=None,
-                 passive_void=None, newton_tol=1e-9, load_steps=4):
+                 passive_void=None, newton_tol=1e-9, load_steps=4, link=None):
         self.mesh = _as_mesh(mesh)
         if self.mesh.comm.size != 1:
             raise ParameterError("sorofem.topopt runs on one MPI rank; run the optimization in serial")
@@ -177,6 +181,11 @@ class TopOpt:
         else:
             raise ParameterError(f"filter must be 'helmholtz', 'cone', 'none' or an object with apply/adjoint, "
                                  f"got {filter!r}")
+        if link is not None:
+            labels = np.asarray(link(self.centroids.T) if callable(link) else link).ravel()
+            if labels.shape != (self.n,):
+                raise ParameterError(f"link must give one label per cell ({self.n}), got shape {labels.shape}")
+            self.filter = LinkedFilter(self.filter, labels)
         if projection is not None and not isinstance(projection, Heaviside):
             raise ParameterError("projection must be a sorofem.topopt.Heaviside instance or None")
         self.projection = projection

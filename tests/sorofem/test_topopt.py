@@ -14,7 +14,8 @@ from reference_top88 import element_stiffness, top88  # noqa: E402
 from sorofem import materials  # noqa: E402
 from sorofem.errors import DataError, ParameterError  # noqa: E402
 from sorofem.mesh import Mesh  # noqa: E402
-from sorofem.topopt import (MMA, Compliance, ConeFilter, Heaviside, HelmholtzFilter, Mechanism,  # noqa: E402
+from sorofem.topopt import (MMA, Compliance, ConeFilter, Heaviside, HelmholtzFilter, LinkedFilter,  # noqa: E402
+                            Mechanism,
                             PressureActuator, density_png, design_mesh, load_design, oc_update, optimize,
                             save_design, threshold_mesh, write_stl, write_xdmf)
 
@@ -264,6 +265,44 @@ def test_filters_preserve_constants_and_adjoints_are_transposes():
     np.testing.assert_allclose(hv.derivative(r), (hv.apply(r + 1e-7) - hv.apply(r - 1e-7)) / 2e-7, rtol=1e-5)
     with pytest.raises(ParameterError):
         Heaviside(beta=-1.0)
+
+
+def test_linked_designs_share_densities_and_gradients():
+    """Linked cells (a pattern repeated along x) get the mean of their design variables: the filter stays
+    linear with its transpose as adjoint, the adjoint gradient of a row of linked chambers matches finite
+    differences, and MMA keeps the design periodic."""
+    from sorofem.topopt.filters import cell_centroids
+    W = 1.0
+    link = lambda x: np.round(np.mod(x[0], W) * 20) * 1000 + np.round(x[1] * 20)  # noqa: E731
+    msh = _grid(30, 10, h=W / 10)
+    f = LinkedFilter(HelmholtzFilter.from_cone_radius(msh, 0.2), link(cell_centroids(msh.dolfinx).T))
+    n = msh.num_cells
+    rng = np.random.default_rng(5)
+    np.testing.assert_allclose(f.apply(np.full(n, 0.7)), 0.7, rtol=1e-10)
+    a, b = rng.random(n), rng.random(n)
+    assert f.apply(a) @ b == pytest.approx(a @ f.adjoint(b), rel=1e-10)
+    # three linked chambers in a row bend a beam clamped on the left
+    solid = lambda x: (x[1] < 0.2) | (x[1] > 0.9) | (np.mod(x[0], W) < 0.09) | (np.mod(x[0], W) > 0.91)  # noqa: E731
+    inlet = lambda x: (np.mod(x[0], W) - 0.5) ** 2 + (x[1] - 0.55) ** 2 < 0.12**2  # noqa: E731
+    prob = PressureActuator(msh, inlet=inlet, pressure=0.02, volume_fraction=0.6, radius=0.15, e_min=1e-2,
+                            passive_solid=solid, link=link, E=1.0, nu=0.4, formulation="plane_strain")
+    prob.add_support("left").set_rotation_output("right")
+    c = prob.centroids
+    e0 = int(np.argmin(np.linalg.norm(c - [0.35, 0.45], axis=1)))      # a design cell of the first chamber
+    copies = [int(np.argmin(np.linalg.norm(c - (c[e0] + [k * W, 0.0]), axis=1))) for k in range(3)]
+    assert np.allclose(c[copies, 0] - c[e0, 0], [0.0, W, 2 * W])
+    x = prob.initial_design()
+    free = ~(prob.solid | prob.void)
+    x[free] = 0.3 + 0.6 * rng.random(free.sum())
+    prob.evaluate(x)
+    flooded = prob.flooded.copy()
+    assert _fd_check(prob, x, copies + [int(np.flatnonzero(free)[-1])], h=1e-6) < 1e-4
+    assert np.array_equal(prob.flooded, flooded)
+    res = optimize(prob, method="mma", max_iterations=5, move=0.1)
+    assert np.ptp(res.x[copies]) < 1e-12   # the design stays periodic; the filter, which sees the whole domain,
+    assert np.ptp(prob.physical(res.x)[copies]) < 1e-3   # changes the copies' densities only near the ends
+    with pytest.raises(ParameterError):
+        PressureActuator(msh, inlet=inlet, pressure=0.02, link=np.zeros(3), E=1.0, nu=0.4)
 
 
 # ----------------------------------------------------------------------------------------------- restart, export
