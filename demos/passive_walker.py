@@ -22,13 +22,14 @@ once the oscillation's amplitude reaches the mean (``normal_force_max_over_weigh
 oscillation) the feet leave the slope for part of each cycle. The seed's damping (below) damps the legs'
 modes by under 1 % of critical, so nothing keeps that amplitude down.
 
-What it shows at the seed's parameters (the demo's code on the quick mesh, 0.30 s, dt = 0.5 ms): no steady
-gait. With Coulomb friction mu = 0.5 < tan 30 deg the feet cannot hold the walker, so it slides and speeds up
-(1.6 m/s^2 fitted to the front leg's travel, between 0.66 m/s^2 for sliding in full contact and 4.9 m/s^2
-without friction: it is in the air 39 % of the time); the lightly damped legs swing by 40-55 deg, the
-normal force peaks at 9 times the weight (mean 1.0), and the leg angles' dominant frequency is 35.0 +- 4.8 Hz
-(seed 21.1 Hz). The seed's step-like Fig. 20 needs a contact that can stick on the slope; its contact model
-(``NormalReaction``/``TangentFriction`` 0.5) is not Coulomb's.
+What it shows at the seed's parameters (full run: 1 mm mesh, dt = 0.33 ms, 0.30 s): the leg angles' dominant
+frequency is 22.0 +- 4.8 Hz (seed 21.1 Hz; the +- is one bin of the 0.21 s window: a longer run resolves it
+better), but no steady walk. With Coulomb friction mu = 0.5 < tan 30 deg the feet cannot hold the walker, so
+it slides and speeds up (72 mm in 0.3 s; 1.6 m/s^2 fitted to the front leg, between 0.66 m/s^2 for sliding in
+full contact and 4.9 m/s^2 without friction: it is in the air 33 % of the time); the lightly damped legs
+swing by 28-38 deg and the normal force peaks at 6.6 times the weight (mean 1.06). The seed's step-like Fig. 20
+needs a contact that can stick on the slope; its contact model (``NormalReaction``/``TangentFriction`` 0.5)
+is not Coulomb's.
 
 Equations
 ---------
