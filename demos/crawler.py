@@ -115,7 +115,7 @@ def main(out: Path, quick: bool = False) -> dict:
     # 5. figures: the centre of mass [mm] over time, the body at six instants (von Mises colour bar, mm axes)
     plot_com(traj.times, com, out / "com.png")
     traj.filmstrip(out / "gait.png", np.linspace(0, len(traj) - 1, 6).round(), floor=0.0,
-                   xlim=(-10, L / mm + 20))
+                   xlim=(-10, L / mm + 45))   # room for two periods of travel
     return summary
 
 
