@@ -53,14 +53,18 @@ def _run(tree, scene, env=None, quadrature=None):
 
 
 def _difference(new, old):
-    """Largest difference of the compared figures, relative to the baseline's largest magnitude per figure."""
+    """Largest difference of the compared figures, relative to the baseline's largest magnitude per figure; a
+    figure that the demo reports rounded (``resolution``: one unit of its last digit) is allowed that unit (two
+    values each rounded to half a unit)."""
     worst = 0.0
+    resolution = old.get("resolution", {})
     for k, v in old["figures"].items():
         a, b = np.asarray(new["figures"][k], float), np.asarray(v, float)
         n = min(len(a), len(b)) if a.ndim else None
         if n is not None:
             a, b = a[:n], b[:n]
-        worst = max(worst, float(np.max(np.abs(a - b)) / max(np.max(np.abs(b)), 1e-300)))
+        d = np.maximum(np.abs(a - b) - resolution.get(k, 0.0), 0.0)
+        worst = max(worst, float(np.max(d) / max(np.max(np.abs(b)), 1e-300)))
     return worst
 
 
@@ -86,10 +90,14 @@ def test_bench_against_the_baseline(scene, record):
     for k in ("newton_iterations_mean",):
         if k in new:
             figures[k], figures[f"baseline_{k}"] = new[k], old[k]
+    if "reported" in new:                  # an impact scene's figures that a split step moves (baseline_scenes.py)
+        figures["reported_not_compared"] = {k: {"this_tree": new["reported"][k], "same_model": same["reported"][k],
+                                                "baseline": old["reported"].get(k)} for k in new["reported"]}
     figures["met"] = bool(sim and sim / new["wall_s"] >= figures["target_realtime_factor"])
     record(**figures)
     # the same model, solved by reorganized kernels (other rounding): agreement to a few times the scenes'
-    # integrator tolerances (rtol 1e-4 to 1e-6; the rod's Newton tolerance 1e-8)
+    # integrator tolerances (rtol 1e-4 to 1e-6; the rod's Newton tolerance 1e-8); an impact scene compares the
+    # figures that average over its run (baseline_scenes.IMPACT_FIGURES: 700 steps of rtol 1e-5 each)
     assert figures["difference_same_model"] < 1e-3, figures
     # the baseline's trapezoidal rule is the farther model: at the rod's 4 segments it is 14.7 % off a converged
     # model, this tree's default 1.2 % (bench_shapes.py::test_bench_rod15_discretization_error)
