@@ -17,6 +17,13 @@ on the beam the generalized force :math:`\sum_i J_{i,v}^T R_i^T F_i`, on the bod
 
 Data of one contact (:func:`lower_contact`): floats ``(k, c, mu, eps, r, stride, N+1, w_0 .. w_N)`` and the
 obstacle's :class:`~sorofem.sdf.program.Program`.
+
+Nodes far from the obstacle are not evaluated: every SDF of a program is 1-Lipschitz (its primitives are exact
+or bounds with unit gradient, its operations min/max, their polynomial smooth forms, whose gradient is a convex
+combination, offsets, shells, rigid motions, uniform scaling, extrusion and revolution), so a node whose last
+evaluated distance :math:`d^{old}` at :math:`P^{old}` satisfies :math:`d^{old} - |P^b - P^{old}| \ge r` has
+:math:`d \ge r` and no force. The pairs :math:`(P^{old}, d^{old})` are kept per node in ``memo`` (any pair
+evaluated on the same program is a valid bound; zeros force an evaluation).
 """
 import math
 
@@ -47,10 +54,11 @@ def lower_contact(beam, shape, stiffness, damping, friction, regularization):
 
 
 @njit(cache=True)
-def contact_force(par, ops, consts, depth_values, depth_points, G, J, eta, Rb, pb, etab, f, W):
+def contact_force(par, ops, consts, depth_values, depth_points, G, J, eta, Rb, pb, etab, f, W, memo):
     """Add the contact's generalized force on the beam to ``f`` (n,) and its wrench on the body (body
     coordinates, about the body origin) to ``W`` (6,), for the beam's kinematics (frames ``G``, Jacobians ``J``,
-    velocities ``eta`` at its chain of points) and the body pose (Rb, pb) and twist etab. False if a force is
+    velocities ``eta`` at its chain of points) and the body pose (Rb, pb) and twist etab; ``memo`` (N+1, 4): per
+    node the body point and distance of its last evaluation (module docstring), updated. False if a force is
     not finite."""
     k, c, mu, eps, r = par[0], par[1], par[2], par[3], par[4]
     stride, nn = int(par[5]), int(par[6])
@@ -60,19 +68,37 @@ def contact_force(par, ops, consts, depth_values, depth_points, G, J, eta, Rb, p
         a = i * stride
         for j in range(3):
             Pb[i, j] = ((G[a, 0, 3] - pb[0]) * Rb[0, j] + (G[a, 1, 3] - pb[1]) * Rb[1, j]) + (G[a, 2, 3] - pb[2]) * Rb[2, j]
-    d = np.empty(nn)
-    gr = np.empty((nn, 3))
+    near = np.empty(nn, np.int64)             # the nodes that may touch: by the bound of their last evaluation
+    ne = 0
+    for i in range(nn):
+        e0, e1, e2 = Pb[i, 0] - memo[i, 0], Pb[i, 1] - memo[i, 1], Pb[i, 2] - memo[i, 2]
+        if not memo[i, 3] - math.sqrt(e0 * e0 + e1 * e1 + e2 * e2) >= r:
+            near[ne] = i
+            ne += 1
+    if ne == 0:
+        return True
+    Pn = np.empty((ne, 3))
+    for e in range(ne):
+        for j in range(3):
+            Pn[e, j] = Pb[near[e], j]
+    d = np.empty(ne)
+    gr = np.empty((ne, 3))
     S, T = max(depth_values, 1), max(depth_points, 1)
-    evaluate(ops, consts, Pb, d, gr, np.empty(S), np.empty((S, 3)), np.empty((T, 3)), np.empty((T, 3, 3)),
+    evaluate(ops, consts, Pn, d, gr, np.empty(S), np.empty((S, 3)), np.empty((T, 3)), np.empty((T, 3, 3)),
              np.empty(T))
+    for e in range(ne):
+        i = near[e]
+        if math.isfinite(d[e]):
+            memo[i, 0], memo[i, 1], memo[i, 2], memo[i, 3] = Pn[e, 0], Pn[e, 1], Pn[e, 2], d[e]
     ns = np.empty(3)
     vrel = np.empty(3)
     F = np.empty(3)
-    for i in range(nn):
-        if not d[i] < r:
+    for e in range(ne):
+        if not d[e] < r:
             continue
+        i = near[e]
         a = i * stride
-        g0, g1, g2 = gr[i, 0], gr[i, 1], gr[i, 2]
+        g0, g1, g2 = gr[e, 0], gr[e, 1], gr[e, 2]
         gn = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
         g0, g1, g2 = g0 / gn, g1 / gn, g2 / gn
         # body velocity at the node: v + omega x Pb (body), then spatial
@@ -86,7 +112,7 @@ def contact_force(par, ops, consts, depth_values, depth_points, G, J, eta, Rb, p
                 - (Rb[j, 0] * b0 + Rb[j, 1] * b1 + Rb[j, 2] * b2)
         for j in range(3):
             vn += vrel[j] * ns[j]
-        fn = max(0.0, k * (r - d[i]) - c * vn)
+        fn = max(0.0, k * (r - d[e]) - c * vn)
         vt0, vt1, vt2 = vrel[0] - vn * ns[0], vrel[1] - vn * ns[1], vrel[2] - vn * ns[2]
         slip = math.sqrt(vt0 * vt0 + vt1 * vt1 + vt2 * vt2 + eps * eps)
         wi = par[CONTACT_HEAD + i]

@@ -259,9 +259,11 @@ def _beam_ne_work(n, P):
     return (Np * 6, P * 36, P * 24, 192, 36, Np * 6 * n, Np * 6 * n, 6 * n, n * n, n * n, n, n, n, n)
 
 
-def _lower_impedance(spec, blocks, index, free_rows):
+def _lower_impedance(spec, blocks, index, free_rows, inputs):
     """The set-point table and the integer and float data of a Cartesian impedance controller
-    (:func:`soroshapes.control.impedance`), or NotImplementedError."""
+    (:func:`soroshapes.control.impedance`), or NotImplementedError; ``inputs``: the beams' input matrices
+    {block: G (n, m)}, whose inverse (pseudo-inverse, rcond 1e-10, unless square and regular) maps the
+    controller's torque to its inputs."""
     name = spec["system"]
     if name not in index:
         raise ParameterError(f"the impedance controller acts on system {name!r}, which is not in the model")
@@ -286,7 +288,11 @@ def _lower_impedance(spec, blocks, index, free_rows):
     Kn, Dn, qn, null = spec["null"](n)
     cint = [index[name], k, shp.node(spec["at"]) * shp.model.stride, int(spec["coriolis"]), int(spec["gravity"]),
             int(spec["elastic"]), int(null), len(rows), *spec["axes"], *rows]
-    cflt = np.concatenate([np.ravel(spec["stiffness"]), np.ravel(spec["damping"]), Kn.ravel(), Dn.ravel(), qn])
+    Gin = np.asarray(inputs[index[name]], dtype=float).reshape(n, -1)
+    square = Gin.shape[0] == Gin.shape[1] and abs(np.linalg.det(Gin)) > 0.0
+    Gplus = np.linalg.inv(Gin) if square else np.linalg.pinv(Gin, rcond=1e-10)
+    cflt = np.concatenate([np.ravel(spec["stiffness"]), np.ravel(spec["damping"]), Kn.ravel(), Dn.ravel(), qn,
+                           Gplus.ravel()])
     return ctimes, np.ascontiguousarray(cvals, float), cper, cint, cflt
 
 
@@ -441,6 +447,7 @@ def lower(blocks, links, volumes, controller, free):
     # depths]; floats
     wsum, wterm, wflt = [], [], []
     sops, sconsts = [], []                          # SDF programs of contact terms (soroshapes._contact)
+    inputs = {}                                     # input matrices of the beams (the impedance controller's)
     extra_feeds = []                                # (block, block whose state it reads) through contact terms
 
     def add_map(smap):
@@ -472,6 +479,7 @@ def lower(blocks, links, volumes, controller, free):
                     _add_term(term, i, wterm, wflt, sops, sconsts)
                 own = [ld for ld in own if not isinstance(ld, Contact)]
             plan = LoadPlan.of(mdl, own, shp.damping)
+            inputs[i] = plan.input_matrix
             if not plan.compiled:
                 raise NotImplementedError(f"beam {b['name']!r} ({shp.evaluation_path})")
             if len(plan.point_loads):
@@ -575,7 +583,7 @@ def lower(blocks, links, volumes, controller, free):
         cper, ckind = (controller.period or 0.0), 1
     elif getattr(controller, "compiled", None) is not None and controller.compiled["kind"] == "impedance":
         ckind = 2                                               # soroshapes.control.impedance
-        ctimes, cvals, cper, cint, cflt = _lower_impedance(controller.compiled, blocks, index, free_rows)
+        ctimes, cvals, cper, cint, cflt = _lower_impedance(controller.compiled, blocks, index, free_rows, inputs)
     elif getattr(controller, "compiled", None) is not None:     # the other controllers of soroshapes.control
         ckind = 3
         ctimes, cvals, cper = np.zeros(2), np.zeros((2, 0)), 0.0
@@ -673,8 +681,37 @@ def lower(blocks, links, volumes, controller, free):
               np.array(lint, np.int64).reshape(-1, 4), cat(lflt), np.array(rflt, float).reshape(-1, _RIGID_FLOATS),
               np.array(wsum, np.int64).reshape(-1, 5), np.array(wterm, np.int64).reshape(-1, 9), cat(wflt),
               np.asarray(cint, np.int64), np.asarray(cflt, float), np.zeros(N),
-              np.concatenate(sops).astype(np.int64) if sops else np.zeros((0, 3), np.int64), cat(sconsts))
+              np.concatenate(sops).astype(np.int64) if sops else np.zeros((0, 3), np.int64), cat(sconsts),
+              *_term_cache(wterm, table, bint, nb))
     return Lowered(arrays, N, NW, groups, dep)
+
+
+def _term_cache(wterm, table, bint, nb):
+    """The work arrays of the wrench-term cache (see :func:`_wrench_sum`): per term its wrench (6), its
+    generalized force on its beam (the beam's n) and a contact's SDF memo (:func:`soroshapes._contact.contact_force`),
+    and the flags: [mode, perturbed blocks (nb), valid
+    terms, what each block's beam workspace holds (nb; :func:`_kinematics_level`)]."""
+    width = 6
+    for row in wterm:
+        if row[3] >= 0:                         # its force on the beam (n), its SDF memo (4 per node, at most P+1)
+            n, P = int(bint[table[row[3], 5]][0]), int(bint[table[row[3], 5]][2])
+            width = max(width, 6 + n + 4 * (P + 1))
+    return np.zeros((len(wterm), width)), np.zeros(1 + nb + len(wterm) + nb, np.int64)
+
+
+@njit(cache=True)
+def _kinematics_level(net, b):
+    """What the workspace of beam block b holds for the state of the current :func:`_assemble`: 0 nothing, 1 its
+    frames, Jacobians and velocities (:func:`soroshapes._beam.kinematics`), 2 also the Jacobian rates."""
+    tflag = net[32]
+    return tflag[tflag.shape[0] - net[0].shape[0] + b]
+
+
+@njit(cache=True)
+def _kinematics_done(net, b, level):
+    """Record what the workspace of beam block b holds (see :func:`_kinematics_level`)."""
+    tflag = net[32]
+    tflag[tflag.shape[0] - net[0].shape[0] + b] = level
 
 
 # ------------------------------------------------------------------------------------------------------------
@@ -735,12 +772,17 @@ def _assemble(t, x, net, w, only):
     the inputs of a block left out is not evaluated (its inputs are not read)."""
     (table, bint, bflt, bwork, bintb, fpar, mapint, maps, link_tab, link_rows, ckind, ctimes, cvals, cper,
      free_rows, groups, dep, col_block, comps, block_comp, lint, lflt, rflt, wsum, wterm, wflt, cint, cflt,
-     bext, sops, sconsts) = net
+     bext, sops, sconsts) = net[:31]
     for j in range(w.shape[0]):
         w[j] = 0.0
     for j in range(bext.shape[0]):
         bext[j] = 0.0
+    for b in range(table.shape[0]):
+        _kinematics_done(net, b, 0)
     ok = True
+    if ckind == 2:                  # first: the contacts of its beam then reuse its kinematics at x
+        if only[cint[0]] and not _impedance(t, x, net, w):
+            ok = False
     for i in range(table.shape[0]):
         if table[i, 0] == FLUIDIC:
             fi = table[i, 5]
@@ -755,10 +797,7 @@ def _assemble(t, x, net, w, only):
         if wsum[si, 2] < 0 and _wrench_needed(net, si, only):
             if not _wrench_sum(t, net, si, x, np.zeros(6)):
                 ok = False
-    if ckind == 2:
-        if only[cint[0]] and not _impedance(t, x, net, w):
-            ok = False
-    elif ckind == 3:
+    if ckind == 3:
         if not _controller_terms(t, x, net, w, only):
             ok = False
     elif ckind == 1 and free_rows.shape[0] > 0:
@@ -1029,6 +1068,7 @@ def _impedance(t, x, net, w):
     dOp = np.zeros((6, n))
     Mc, Cc, fgc = np.empty((n, n)), np.empty((n, n)), np.empty(n)
     _kinematics(q, qd, True, order, h, B, brows, X0, base, G, J, Jd, eta, S, E, V, Op, dOp, AJ)
+    _kinematics_done(net, blk, 2)
     _mcg(J, Jd, eta, G, wts, Md, ag, Mc, Cc, fgc, True, S, V, AJ)
     s = 0.0
     for i in range(n):
@@ -1053,7 +1093,20 @@ def _impedance(t, x, net, w):
                 sd += Rn[r, l] * (om[l1] * Jb[3 + l2, c] - om[l2] * Jb[3 + l1, c] + Jbd[3 + l, c])
             Jt[a, c] = sj
             Jdt[a, c] = sd
-    MinvJT = np.linalg.solve(Mc, np.ascontiguousarray(Jt.T))
+    Mlu, Mpiv = np.empty((n, n)), np.empty(n, np.int64)
+    for a in range(n):
+        for c in range(n):
+            Mlu[a, c] = Mc[a, c]
+    if not _lu(Mlu, Mpiv):
+        return False
+    MinvJT = np.empty((n, k))
+    col = np.empty(n)
+    for a in range(k):
+        for c in range(n):
+            col[c] = Jt[a, c]
+        _lu_solve(Mlu, Mpiv, col)
+        for c in range(n):
+            MinvJT[c, a] = col[c]
     A = Jt @ MinvJT
     ev, U = np.linalg.eigh(A)                         # pinv (hermitian), rcond 1e-9: finite at singularities
     cut = 1e-9 * np.max(np.abs(ev))
@@ -1069,7 +1122,9 @@ def _impedance(t, x, net, w):
     Dc = cflt[k * k:2 * k * k].reshape((k, k))
     force = Kc @ (pd - p) - Dc @ (Jt @ qd)
     if cor:
-        force += Lam @ (Jt @ np.linalg.solve(Mc, Cc @ qd) - Jdt @ qd)
+        cq = Cc @ qd
+        _lu_solve(Mlu, Mpiv, cq)
+        force += Lam @ (Jt @ cq - Jdt @ qd)
     tau = Jt.T @ force
     if elas:
         tau += K @ q
@@ -1083,12 +1138,12 @@ def _impedance(t, x, net, w):
         tau0 = Kn @ (qn - q) - Dn @ qd
         Jbar = MinvJT @ Lam
         tau += tau0 - Jt.T @ (Jbar.T @ tau0)
-    if Gin.shape[0] == Gin.shape[1] and abs(np.linalg.det(Gin)) > 0.0:
-        u = np.linalg.solve(np.ascontiguousarray(Gin), tau)
-    else:
-        u = np.linalg.lstsq(np.ascontiguousarray(Gin), tau, rcond=1e-10)[0]
+    og = 2 * k * k + 2 * n * n + n                  # G^+ (m, n), from the lowering
     for j in range(m):
-        w[cint[8 + k + j]] = u[j]
+        u = 0.0
+        for c in range(n):
+            u += cflt[og + j * n + c] * tau[c]
+        w[cint[8 + k + j]] = u
     return True
 
 
@@ -1148,6 +1203,7 @@ def _controller_terms(t, x, net, w, only):
             zero = np.zeros(n)
             _kinematics(np.ascontiguousarray(qc), zero, True, order, h, B, brows, X0, base, G, J, Jd, eta, S, E, V,
                         Op, dOp, AJ)
+            _kinematics_done(net, blk, 0)              # not those of the state
             _mcg(J, Jd, eta, G, wts, Md, ag, Mc, Cc, fgc, True, S, V, AJ)
             tau -= fgc
         s = 0.0
@@ -1304,10 +1360,12 @@ def _grasp(t, net, par, bb, R, p, eta, x, W):
     xo = table[bb, 1]
     (n, _, order, Kb, D, Gin, h, B, X0, base, wts, Md, ag, brows, piv, G, J, Jd, eta_b, etad, S, E, V, Op, AJ, Wb,
      M, C, fg, Rr, qdd, f_in, wko, end) = _beam_views(table[bb, 5], net)
-    q = np.ascontiguousarray(x[xo:xo + n])
-    qd = np.ascontiguousarray(x[xo + n:xo + 2 * n])
-    dOp = np.zeros((6, n))
-    _kinematics(q, qd, False, order, h, B, brows, X0, base, G, J, Jd, eta_b, S, E, V, Op, dOp, AJ)
+    if _kinematics_level(net, bb) == 0:
+        q = np.ascontiguousarray(x[xo:xo + n])
+        qd = np.ascontiguousarray(x[xo + n:xo + 2 * n])
+        dOp = np.zeros((6, n))
+        _kinematics(q, qd, False, order, h, B, brows, X0, base, G, J, Jd, eta_b, S, E, V, Op, dOp, AJ)
+        _kinematics_done(net, bb, 1)
     i = int(par[0])
     a0, a1, a2 = par[1], par[2], par[3]
     k, c = par[4], par[5]
@@ -1380,23 +1438,66 @@ def _body_pose(net, si, x):
     return R, p, eta
 
 
+#: modes of the wrench-term cache (net[32][0]): off, fill it at this evaluation, use it for the terms whose
+#: blocks were not perturbed (the columns of a differenced Jacobian, :func:`_fd_rows`)
+_CACHE_OFF, _CACHE_FILL, _CACHE_USE = 0, 1, 2
+
+
 @njit(cache=True)
 def _wrench_sum(t, net, si, x, W):
     """The summed wrench (body coordinates) of wrench sum si on its body at the state x (and the beams' share of
     its grasp and contact terms into the external-force buffer). False if a beam's state is out of range or a
-    force is not finite."""
-    wsum, wterm, wflt = net[23], net[24], net[25]
-    first, count = wsum[si, 0], wsum[si, 1]
+    force is not finite.
+
+    Each term is evaluated on its own (its wrench and its beam's force from zero, then added): with the cache
+    filled at the base point of a differenced Jacobian (:func:`_fd_rows`), a column evaluation takes the terms
+    that read no perturbed block (its beam, its body) from the cache, so a column of one beam evaluates that
+    beam's contact, not every contact on the body."""
+    table, wsum, wterm, wflt, bext, tcache, tflag = net[0], net[23], net[24], net[25], net[28], net[31], net[32]
+    nb = table.shape[0]
+    mode = tflag[0]
+    first, count, body = wsum[si, 0], wsum[si, 1], wsum[si, 2]
     R, p, eta = _body_pose(net, si, x)
+    Wt = np.empty(6)
+    sv = np.empty(bext.shape[0])
     for tt in range(first, first + count):
-        o, m = wterm[tt, 1], wterm[tt, 2]
+        o, m, bb = wterm[tt, 1], wterm[tt, 2], wterm[tt, 3]
+        xo, n = 0, 0
+        if bb >= 0:
+            xo, n = table[bb, 1], table[bb, 2] // 2
+        if (mode == _CACHE_USE and tflag[1 + nb + tt] == 1 and not (body >= 0 and tflag[1 + body] == 1)
+                and not (bb >= 0 and tflag[1 + bb] == 1)):
+            for r in range(6):
+                W[r] += tcache[tt, r]
+            for k in range(n):
+                bext[xo + k] += tcache[tt, 6 + k]
+            continue
+        for r in range(6):
+            Wt[r] = 0.0
+        for k in range(n):                               # the term's beam force from zero
+            sv[k] = bext[xo + k]
+            bext[xo + k] = 0.0
         if wterm[tt, 0] == _GROUND:
-            _ground(wflt[o:o + m], R, p, eta, W)
+            _ground(wflt[o:o + m], R, p, eta, Wt)
+            good = True
         elif wterm[tt, 0] == _CONTACT:
-            if not _contact_term(net, tt, R, p, eta, x, W):
-                return False
-        elif not _grasp(t, net, wflt[o:o + m], wterm[tt, 3], R, p, eta, x, W):
+            good = _contact_term(net, tt, R, p, eta, x, Wt)
+        else:
+            good = _grasp(t, net, wflt[o:o + m], bb, R, p, eta, x, Wt)
+        fill = mode == _CACHE_FILL and good
+        for k in range(n):
+            f = bext[xo + k]
+            bext[xo + k] = sv[k] + f
+            if fill:
+                tcache[tt, 6 + k] = f
+        for r in range(6):
+            W[r] += Wt[r]
+            if fill:
+                tcache[tt, r] = Wt[r]
+        if not good:
             return False
+        if fill:
+            tflag[1 + nb + tt] = 1
     return True
 
 
@@ -1410,14 +1511,18 @@ def _contact_term(net, tt, R, p, eta, x, W):
     xo = table[bb, 1]
     (n, _, order, Kb, D, Gin, h, B, X0, base, wts, Md, ag, brows, piv, G, J, Jd, eta_b, etad, S, E, V, Op, AJ, Wb,
      M, C, fg, Rr, qdd, f_in, wko, end) = _beam_views(table[bb, 5], net)
-    q = np.ascontiguousarray(x[xo:xo + n])
-    qd = np.ascontiguousarray(x[xo + n:xo + 2 * n])
-    dOp = np.zeros((6, n))
-    _kinematics(q, qd, False, order, h, B, brows, X0, base, G, J, Jd, eta_b, S, E, V, Op, dOp, AJ)
+    if _kinematics_level(net, bb) == 0:
+        q = np.ascontiguousarray(x[xo:xo + n])
+        qd = np.ascontiguousarray(x[xo + n:xo + 2 * n])
+        dOp = np.zeros((6, n))
+        _kinematics(q, qd, False, order, h, B, brows, X0, base, G, J, Jd, eta_b, S, E, V, Op, dOp, AJ)
+        _kinematics_done(net, bb, 1)
     f = np.zeros(n)
     so, sn, co = wterm[tt, 4], wterm[tt, 5], wterm[tt, 6]
+    nn = int(wflt[o + 6])
+    memo = net[31][tt, 6 + n:6 + n + 4 * nn].reshape((nn, 4))       # after the term's cached force
     if not _contact_force(wflt[o:o + m], sops[so:so + sn], sconsts[co:], wterm[tt, 7], wterm[tt, 8], G, J, eta_b,
-                          R, p, eta, f, W):
+                          R, p, eta, f, W, memo):
         return False
     for k in range(n):
         if not math.isfinite(f[k]):
@@ -1592,13 +1697,26 @@ def jacobian(t, x, net, scale, w, f0, fp, xp, Jac, JF):
 def _fd_rows(t, x, net, scale, w, f0, fp, xp, rows, out):
     """The rows of the systems with ``rows[i]`` not ``_SKIP`` of the Jacobian of :func:`_evaluate` (what it
     computes per system: F, or a beam's input force) by grouped forward differences (steps
-    ``FD_STEP max(|x_j|, scale_j)``), evaluating only those systems, into ``out`` (other rows untouched). False if
-    an evaluation fails."""
-    table, groups, dep, col_block = net[0], net[15], net[16], net[17]
+    ``FD_STEP max(|x_j|, scale_j)``), evaluating only those systems, into ``out`` (other rows untouched); a
+    column evaluates only the wrench terms that read its block (the cache of :func:`_wrench_sum`, filled at x).
+    False if an evaluation fails."""
+    ok = _fd_rows_cached(t, x, net, scale, w, f0, fp, xp, rows, out)
+    net[32][0] = _CACHE_OFF
+    return ok
+
+
+@njit(cache=True)
+def _fd_rows_cached(t, x, net, scale, w, f0, fp, xp, rows, out):
+    """:func:`_fd_rows` with the wrench-term cache on (its caller turns it off)."""
+    table, groups, dep, col_block, tflag = net[0], net[15], net[16], net[17], net[32]
     nb = table.shape[0]
     N = x.shape[0]
+    for i in range(tflag.shape[0]):
+        tflag[i] = 0
+    tflag[0] = _CACHE_FILL
     if not _evaluate(t, x, net, w, f0, rows):
         return False
+    tflag[0] = _CACHE_USE
     sel = np.zeros(nb, np.int64)
     for g in range(groups.shape[0]):
         for i in range(N):
@@ -1606,11 +1724,13 @@ def _fd_rows(t, x, net, scale, w, f0, fp, xp, rows, out):
         any_row = False
         for b in range(nb):
             sel[b] = _SKIP
+            tflag[1 + b] = 0
         for c in range(groups.shape[1]):
             j = groups[g, c]
             if j < 0:
                 break
             xp[j] = x[j] + FD_STEP * max(abs(x[j]), scale[j])
+            tflag[1 + col_block[j]] = 1
             for b in range(nb):
                 if rows[b] != _SKIP and dep[b, col_block[j]]:
                     sel[b] = rows[b]

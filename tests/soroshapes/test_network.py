@@ -479,6 +479,62 @@ def test_beam_body_contact_compiled_equals_python(spinning):
     assert moved > 1e-4
 
 
+def fingers_on_a_bolt():
+    """Two fingers on opposite sides of a spinning hexagonal bolt head, both pressed on it (couple_contact)."""
+    from soroshapes.rigid import RigidBody, couple_contact
+
+    hexagon = sdf.Polygon([(0.01 * np.cos(t), 0.01 * np.sin(t)) for t in np.arange(6) * np.pi / 3]).extrude(0.02)
+    pose = np.eye(4)
+    pose[:3, 3] = (0.06, -0.02, 0.0)
+    mdl = Model().add(finger(), "f0")
+    flipped = finger()
+    base = np.eye(4)
+    base[:3, 3] = (0.0, -0.04, 0.0)
+    base[:3, :3] = np.diag([1.0, -1.0, -1.0])           # mirrored across the bolt's plane y = -0.02
+    mdl.add(Shapes(Basis.chebyshev(2), dofs=(0, 0, 2, 0, 0, 0), length=0.1, section=sdf.Circle(0.005),
+                   material=materials.NeoHookean(E=1e6, nu=0.45, density=1000), damping=0.03, segments=6,
+                   base=base).add_chamber(area=5e-5, offset=(0.003, 0)), "f1")
+    mdl.add(RigidBody.spinning((0.0, 0.0, 1.0), 2e-6, 1e-5, hexagon, pose0=pose, name="bolt"))
+    for name in ("f0", "f1"):
+        couple_contact(mdl, name, "bolt", stiffness=2e5, damping=20.0, friction=0.5, regularization=2e-3)
+    return mdl.set_controller(Schedule([0.0, 0.05, 0.2], {"f0": [[0.0], [0.0], [80e3]], "f1": [[0.0], [0.0],
+                                                                                                   [60e3]]}))
+
+
+def test_contact_jacobian_columns_reevaluate_only_the_contacts_they_move():
+    """The compiled differenced Jacobian takes, per column, the contact terms that do not read the column's
+    block from their values at the base point (soroshapes.network._wrench_sum): at a state where a finger
+    presses on the bolt it equals forward differences of the network's derivative re-evaluated in full per
+    column, to the rounding of the summation order; the bolt's columns reach the fingers' rows and each
+    finger's columns the bolt's."""
+    from soroshapes import network
+    from soroshapes.numerics import FD_STEP
+    from soroshapes.rigid import beam_contact
+
+    tr = fingers_on_a_bolt().simulate(0.1, 5e-4, "bdf2", rtol=1e-7, atol=1e-9, compiled=True)
+    mdl = fingers_on_a_bolt()
+    t, x = 0.1, tr.x[-1].copy()
+    f_beam, _ = beam_contact(mdl["f0"].system, mdl["bolt"].system, 2e5, 20.0, 0.5, 2e-3, q=tr["f0"].q[-1],
+                             qd=tr["f0"].qd[-1], x=tr["bolt"].x[-1])
+    assert np.abs(f_beam).max() > 1e-4                                 # in contact
+    net = mdl._lowered()
+    N = x.size
+    Jc, JF = np.zeros((N, N)), np.zeros((N, N))
+    w, f0, fp, xp = np.zeros(net.NW), np.zeros(N), np.zeros(N), np.zeros(N)
+    assert network.jacobian(t, x, net.arrays, np.ones(N), w, f0, fp, xp, Jc, JF)
+    alls = np.ones(3, np.bool_)
+    assert network.rhs(t, x, net.arrays, w, f0, alls)
+    Jr = np.zeros((N, N))
+    for j in range(N):                                # every column: every contact re-evaluated
+        xj = x.copy()
+        xj[j] += FD_STEP * max(abs(x[j]), 1.0)
+        assert network.rhs(t, xj, net.arrays, w, fp, alls)
+        Jr[:, j] = (fp - f0) / (xj[j] - x[j])
+    scale = np.maximum(np.abs(Jr).max(axis=1, keepdims=True), 1e-12)
+    assert np.abs(Jc - Jr).max() / 1.0 <= 1e-6 * scale.max() and np.all(np.abs(Jc - Jr) <= 1e-6 * scale)
+    assert np.abs(Jr[2:4, 8:10]).max() > 1e3 and np.abs(Jr[9, 0:4]).max() > 0     # f0 <-> bolt
+
+
 # ------------------------------------------------------------------------------------------------------------
 # the joint-space controllers and feed-forwards of soroshapes.control, compiled
 # ------------------------------------------------------------------------------------------------------------
