@@ -265,15 +265,11 @@ def plot_mesh(msh, path):
     """The mesh with its regions, axes in mm."""
     from matplotlib.figure import Figure
     from sorofem.io import save_figure
-    from matplotlib.ticker import FuncFormatter
 
     fig = Figure(figsize=(8, 2.8))
     ax = fig.subplots()
-    msh.plot(ax=ax)
-    in_mm = FuncFormatter(lambda v, _: f"{v / mm:g}")
-    ax.xaxis.set_major_formatter(in_mm)
-    ax.yaxis.set_major_formatter(in_mm)
-    ax.set(xlabel="x [mm]", ylabel="y [mm]", title=f"{msh.num_cells} triangles, cavities: {', '.join(msh.cavities)}")
+    msh.plot(ax=ax, unit="mm")
+    ax.set_title(f"{msh.num_cells} triangles, cavities: {', '.join(msh.cavities)}")
     save_figure(fig, path, dpi=120)
 
 

@@ -161,17 +161,13 @@ def write_disk(path):
 def plot_mesh(msh, path, title):
     """A 2D mesh with its named boundaries in colour; the axes read in mm (the mesh is in metres)."""
     from matplotlib.figure import Figure
-    from matplotlib.ticker import FuncFormatter
 
     from sorofem.io import save_figure
 
     fig = Figure(figsize=(9, 3))
     ax = fig.subplots()
-    msh.plot(ax=ax)
-    in_mm = FuncFormatter(lambda v, _: f"{v / mm:g}")
-    ax.xaxis.set_major_formatter(in_mm)
-    ax.yaxis.set_major_formatter(in_mm)
-    ax.set(xlabel="x [mm]", ylabel="y [mm]", title=title)
+    msh.plot(ax=ax, unit="mm")
+    ax.set_title(title)
     save_figure(fig, path, dpi=150)
 
 

@@ -874,38 +874,56 @@ class Mesh:
         self.comm.barrier()
         return path
 
-    def plot(self, ax=None, regions=True, linewidth=0.3):
-        """Draw a 2D mesh (this rank's part) with matplotlib, boundary regions in colour; returns the axes."""
+    def plot(self, ax=None, regions=True, linewidth=0.3, unit="mm"):
+        """Draw a 2D mesh (this rank's part) with matplotlib, boundary regions in colour; returns the axes.
+
+        Parameters
+        ----------
+        ax : matplotlib Axes, optional
+            Where to draw (e.g. from ``matplotlib.figure.Figure().subplots()``); a new pyplot figure if None.
+        regions : bool
+            Draw the named boundary/cell regions in colour, with a legend.
+        linewidth : float
+            Line width of the element edges [pt].
+        unit : {"mm", "m"}
+            Unit of the axes (the mesh is in metres; ``"mm"``, the default, draws it in millimetres and labels
+            the axes ``x [mm]``, ``y [mm]``).
+        """
         import matplotlib.pyplot as plt
         from matplotlib.collections import LineCollection
 
         if self.dim != 2:
             raise MeshError("plot() draws 2D meshes; write_xdmf() and open it in ParaView for 3D")
+        scales = {"mm": 1e3, "m": 1.0}
+        if unit not in scales:
+            raise MeshError(f"plot(unit={unit!r}): the unit is 'mm' or 'm'")
+        k = scales[unit]
         m = self.dolfinx
         if ax is None:
             _, ax = plt.subplots()
         tdim = m.topology.dim
         m.topology.create_connectivity(1, 0)
         nedge = m.topology.index_map(1).size_local + m.topology.index_map(1).num_ghosts
-        X = _regions._entity_vertex_coords(m, 1, np.arange(nedge, dtype=np.int32))
+        X = k * _regions._entity_vertex_coords(m, 1, np.arange(nedge, dtype=np.int32))
         ax.add_collection(LineCollection(X, colors="0.6", linewidths=linewidth))
         if regions:
             cmap = plt.get_cmap("tab10")
             for i, (name, (d, ents)) in enumerate(self._entities.items()):
                 if len(ents) == 0:
                     continue
-                Xr = _regions._entity_vertex_coords(m, d, ents) if d == tdim - 1 else None
+                Xr = k * _regions._entity_vertex_coords(m, d, ents) if d == tdim - 1 else None
                 if Xr is not None:
                     ax.add_collection(LineCollection(Xr, colors=[cmap(i % 10)], linewidths=2.0, label=name))
                 else:
-                    C = _regions._entity_vertex_coords(m, d, ents)
+                    C = k * _regions._entity_vertex_coords(m, d, ents)
                     from matplotlib.collections import PolyCollection
                     ax.add_collection(PolyCollection(C, facecolors=[cmap(i % 10)], alpha=0.4, label=name))
             ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize="small")
-        lo, hi = self.bounds
+        lo, hi = k * np.asarray(self.bounds[0]), k * np.asarray(self.bounds[1])
         pad = 0.02 * float(np.max(hi - lo))
         ax.set_xlim(lo[0] - pad, hi[0] + pad)
         ax.set_ylim(lo[1] - pad, hi[1] + pad)
+        ax.set(xlabel=f"x [{unit}]", ylabel=f"y [{unit}]")
         ax.set_aspect("equal")
         return ax
 

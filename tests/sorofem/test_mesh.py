@@ -357,3 +357,18 @@ def test_ctrl_c_still_raises_keyboard_interrupt_after_meshing(tmp_path, subproce
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=subprocess_env,
                          cwd=tmp_path, timeout=300)
     assert res.returncode == 0 and res.stdout.strip().endswith("KeyboardInterrupt"), (res.returncode, res.stderr)
+
+
+def test_plot_draws_in_the_unit_asked_for(holes_p2):
+    from matplotlib.figure import Figure
+
+    ax_mm = Figure().subplots()
+    holes_p2.plot(ax=ax_mm)                                   # default: millimetres
+    ax_m = Figure().subplots()
+    holes_p2.plot(ax=ax_m, unit="m")
+    assert ax_mm.get_xlabel() == "x [mm]" and ax_m.get_ylabel() == "y [m]"
+    np.testing.assert_allclose(ax_mm.get_xlim(), 1e3 * np.asarray(ax_m.get_xlim()), rtol=1e-12)
+    lo, hi = holes_p2.bounds
+    assert ax_m.get_xlim()[0] < lo[0] and ax_m.get_xlim()[1] > hi[0]
+    with pytest.raises(MeshError, match="'mm' or 'm'"):
+        holes_p2.plot(ax=ax_m, unit="cm")
