@@ -303,7 +303,7 @@ def _lower_fixed_contact(shp, ld, name):
     try:
         par, prog = lower_contact(shp, ld.obstacle, ld.stiffness, ld.damping, ld.friction, ld.regularization)
     except NotImplementedError as why:
-        raise NotImplementedError(f"beam {name!r} (contact with an obstacle whose {why})") from None
+        raise NotImplementedError(f"beam {name!r} (contact with an obstacle: {why})") from None
     return ("contact", par, prog)
 
 

@@ -503,7 +503,7 @@ def couple_contact(model, beam, body, stiffness, damping=0.0, friction=0.0, regu
         wrench.compiled = ("contact", par, beam, program)
     except NotImplementedError as why:
         wrench.compiled = None
-        wrench.python_reason = f"contact of beam {beam!r} with body {body!r} whose {why}"
+        wrench.python_reason = f"contact of beam {beam!r} with body {body!r}: {why}"
     _add_body_wrench(model, body, wrench)
     return model
 
