@@ -56,6 +56,27 @@ floor and it lands forward. Full run (2 mm mesh, dt = 2 ms, two periods): +16 mm
 quick mesh run for two periods gains only +9.7 mm (its second period loses ~2 mm while the body arches on its
 front feet).
 
+Convergence (not reached): the distance gained in ONE period (the demo's functions, the quick run's settings
+but dt = 2 ms unless stated: ``crawler_problem(size)``, ``Fem.simulate`` over one period,
+:func:`centre_of_mass`; Debian 12, gmsh 4.8):
+
+=========  =======  =====  ==========  ===============  ===============
+mesh [mm]  dt [ms]  cells  dx [mm]     dx at T/2 [mm]   CoM rise [mm]
+=========  =======  =====  ==========  ===============  ===============
+3          4        769    +11.29      (quick run)      ~31
+3          2        769    +1.77       -1.55            30.6
+2          2        1376   +15.46      -1.05            33.1
+2          1        1376   +2.04       -2.06            33.2
+1.5        2        2319   +0.28       -2.02            32.9
+=========  =======  =====  ==========  ===============  ===============
+
+Every run arches the body ~31-33 mm (that figure converges) and slips back 1-2 mm in the first half period;
+the net gain is decided by where the arch lands and scatters from 0.3 to 15 mm per period with mesh and step.
+The gait is a leap, not the seed's undulation: at 45 kPa and 2.5 Hz the plane-strain body's arching throws it
+off the floor, and the landing is sensitive to everything. So the demo checks only that it moves forward; a
+converged speed needs a gait that keeps contact (e.g. the seed's code's 15 kPa and 0.75 s period, or the
+chambers closed in depth: a 3D body).
+
 Output: ``com.png`` (centre-of-mass history), ``gait.png`` (the body at six instants), ``crawler.xdmf`` (+ .xdmf.h5,
 the whole gait for ParaView),
 ``report.json`` with ``com_dx_mm``, ``com_dy_mm``, ``speed_mm_per_s``, ``periods``, ``steps``,
