@@ -1,5 +1,5 @@
-r"""Four-finger soft gripper: static pinches (beaker, wrench), then screwing a hexagonal bolt (`soro demo suzumori_gripper`)
-=======================================================================================================================
+r"""Four-finger soft gripper: static pinches, then screwing a hexagonal bolt (`soro demo suzumori_gripper`)
+=========================================================================================================
 
 Purpose
 -------
@@ -42,9 +42,9 @@ pressure are :math:`p_k = \tfrac23 b\,(e_k\cdot d - \min_j e_j\cdot d)` (the ben
 :math:`P_{max}` = 300 kPa (the bolt drive's range). *Pinch*: the beaker (the seed's SDF: a cylinder
 40 x 40 x 60 mm, here from 30 to 90 mm below the fingers' base), all four fingers bent inward.
 *Pair-pinch*: the wrench (the seed's SDF: a 5 x 10 x 100 mm box; the 5 mm across the plane that bisects
-fingers 0 and 1, its 100 mm along that plane, horizontal, 72 mm below the base, at the fingertips' height), fingers 0 and 1 bent
-toward that plane. *Hold margin*: :math:`\mu\sum_j |F_{n,j}| / (m g)`, the friction force available
-from the normal forces :math:`F_{n,j}` (horizontal: the contact faces are vertical) over the weight;
+fingers 0 and 1, its 100 mm along that plane, horizontal, 72 mm below the base, at the fingertips' height),
+fingers 0 and 1 bent toward that plane. *Hold margin*: :math:`\mu\sum_j |F_{n,j}| / (m g)`, the friction
+force available from the normal forces :math:`F_{n,j}` (horizontal: the contact faces are vertical) over the weight;
 above 1 the grasp holds the object against gravity. Masses: the wrench 5 x 10 x 100 mm of steel (7850
 kg/m^3): 39 g; the beaker: 30 g (an empty 50 mL borosilicate beaker, about 42 mm x 60 mm, weighs 30-35 g;
 the seed gives none). The finger's blocked tip force :math:`3M/(2L)` (:math:`M = A r b` the chambers'
@@ -269,7 +269,8 @@ def static_grasp(obj, which, directions, mass):
     return {"normal_force_N": [round(v, 7) for v in normal], "total_normal_N": round(total, 7),
             "friction_available_N": round(available, 7), "weight_N": round(mass * GRAVITY, 5),
             "hold_margin": round(available / (mass * GRAVITY), 5),
-            "free_tip_travel_mm": round(float(np.mean(travel)) / mm, 3), "gap_to_close_mm": round(float(np.mean(gap)) / mm, 3),
+            "free_tip_travel_mm": round(float(np.mean(travel)) / mm, 3),
+            "gap_to_close_mm": round(float(np.mean(gap)) / mm, 3),
             "pressures_kPa":
             [[round(float(p) / kPa, 2) for p in chamber_pressures(d)] for d in directions],
             "shapes": shapes, "object": obj}
