@@ -1,4 +1,4 @@
-r"""Four-finger soft gripper: pinch grasp of a hexagonal bolt, then screwing it (`soro demo suzumori_gripper`)
+r"""Four-finger soft gripper: static pinches, then screwing a hexagonal bolt (`soro demo suzumori_gripper`)
 =========================================================================================================
 
 Purpose
@@ -8,9 +8,12 @@ soft fingers, each with three pressure chambers, hang around the head of a hexag
 chambers bends every finger toward the bolt (pinch grasp); adding pressures that rotate around each finger
 makes its tip trace a circle, so that during the inner half of the circle the fingertip is pressed on the
 bolt head and drags it tangentially by friction, and during the outer half it comes back free. The bolt
-turns about its axis against its rotational damping. Figures: the grasp's normal force, the bolt's mean
-rate in revolutions per second (the seed reports 0.16 rev/s simulated, 0.25 rev/s measured), the slip of the
-contact, the solver statistics; PNG of the gripper and of the bolt's angle.
+turns about its axis against its rotational damping. Before it, the seed's two static grasps (its Fig. 27):
+the pinch of a 40 mm glass beaker by the four fingers and the pair-pinch of a 5 mm thick wrench by two
+fingers. Figures: the static grasps' contact forces and hold margins (the friction force the fingers can give
+over the weight it must carry), the bolt grasp's normal force, the bolt's mean rate in revolutions per second
+(the seed reports 0.16 rev/s simulated, 0.25 rev/s measured) against the friction-limited rate, the solver
+statistics; PNGs of the static grasps (``suzumori_grasps.png``) and of the gripper and the bolt's angle.
 
 Equations
 ---------
@@ -31,11 +34,40 @@ moment :math:`\propto \delta` with :math:`p_k \ge 0` as long as :math:`P_0 \ge \
 :math:`a` = 80 kPa at 2 Hz (+-4.7 mm: the inner half presses on the flats, the outer half clears the corners),
 :math:`P_0` = 160 kPa; the bias ramps up over the first 0.3 s (grasp), the circle starts at 0.4 s.
 
+*Static grasps* (seed Fig. 27), each a static equilibrium (:meth:`Shapes.statics`, the object fixed, the
+finger-object contact of :meth:`Shapes.add_contact` with the parameters below; friction takes no part at rest).
+The chamber pressures that bend a finger toward a unit direction :math:`d` of its section with the least
+pressure are :math:`p_k = \tfrac23 b\,(e_k\cdot d - \min_j e_j\cdot d)` (the bending moment is
+:math:`\propto b\,d`, the common part bends nothing), with :math:`b` set so that the largest is
+:math:`P_{max}` = 300 kPa (the bolt drive's range). *Pinch*: the beaker (the seed's SDF: a cylinder
+40 x 40 x 60 mm, here from 30 to 90 mm below the fingers' base), all four fingers bent inward.
+*Pair-pinch*: the wrench (the seed's SDF: a 5 x 10 x 100 mm box; the 5 mm across the plane that bisects
+fingers 0 and 1, its 100 mm along that plane, horizontal, 72 mm below the base, at the fingertips' height),
+fingers 0 and 1 bent toward that plane. *Hold margin*: :math:`\mu\sum_j |F_{n,j}| / (m g)`, the friction
+force available from the normal forces :math:`F_{n,j}` (horizontal: the contact faces are vertical) over the weight;
+above 1 the grasp holds the object against gravity. Masses: the wrench 5 x 10 x 100 mm of steel (7850
+kg/m^3): 39 g; the beaker: 30 g (an empty 50 mL borosilicate beaker, about 42 mm x 60 mm, weighs 30-35 g;
+the seed gives none). The finger's blocked tip force :math:`3M/(2L)` (:math:`M = A r b` the chambers'
+moment) bounds what any pressure below :math:`P_{max}` can give: 0.1 N per finger at 300 kPa, so these
+fingers (the seed's geometry, E = 1 MPa, our chamber area) cannot carry 30-40 g by friction: the margins
+say so.
+
 *Bolt.* A hexagonal head (circumradius 24 mm, height 14 mm, centred 72 mm below the fingers' base) on a
-:class:`soroshapes.SpinningBody` about z: :math:`I\ddot\theta = -c\dot\theta + m_z` with
-:math:`I` = 2e-5 kg m^2 and :math:`c` = 5e-4 N m s/rad (a screw turning in a lubricated thread; the seed's
-damper "2.5" is in its own unit system, which we could not map to SI, so the rate is compared in order of
-magnitude only).
+:class:`soroshapes.SpinningBody` about z: :math:`I\ddot\theta = -\mu_\Omega\dot\theta + m_z` (seed eq. (31))
+with the seed's damping :math:`\mu_\Omega` = 2.5 in its unit system (mm, N, s: a torque in N mm per rad/s;
+Sorotoki works in mm, N, MPa, tonne, s), i.e. :math:`\mu_\Omega` = 2.5e-3 N m s/rad in SI, and
+:math:`I` = 2e-5 kg m^2 (the seed leaves :math:`I_\Omega` blank; a steel head of this size; the damping
+dominates at these rates: :math:`I/\mu_\Omega` = 8 ms). When the fingertips slip on the head, the bolt
+turns no faster than the friction they can transmit, :math:`\omega \le \mu\,\bar F_n\,r/\mu_\Omega`
+(:math:`\bar F_n` the total normal force, :math:`r` the head's radius): ``friction_limited_rev_per_s``.
+Against the seed's 0.16 rev/s: at :math:`\mu_\Omega` = 2.5e-3 N m s/rad, 0.16 rev/s (1.0 rad/s) needs a
+driving torque of 2.5e-3 N m, a tangential force of 0.105 N at the head's 24 mm, so a normal force of
+0.044 N per finger at :math:`\mu` = 0.6 on all four: about 4.5 times what these fingers press with while
+screwing (0.0094-0.0096 N mean, ``screw_force_N_mean``). We get 0.019 rev/s (quick) and 0.026 rev/s (full
+run), below the friction limit of 0.035 rev/s as a slipping grasp must be. The seed reached its 0.16 rev/s
+"through careful parameter and input shaping" with an unstated bolt inertia and finger force (its fluidic
+input is a force bundle 3 mm off the axis, with no chamber area); with our chamber area (7.07 mm^2) the
+same fingers give the weak pinches above, which is the same limit.
 
 *Contact* (:func:`soroshapes.rigid.couple_contact`): the finger's tube (radius 6 mm) against the head's SDF,
 penalty 2e5 N/m^2 per unit length, damping 20 N s/m^2, Coulomb friction 0.6 regularized at 2 mm/s; forces
@@ -57,7 +89,12 @@ PHI = np.array([0.0, 2 * np.pi / 3, 4 * np.pi / 3])     # chambers' section angl
 E_K = -np.column_stack([np.cos(PHI), np.sin(PHI)])      # direction each chamber bends its finger, (y, z)
 BIAS, CIRCLE, P0, FREQ = 150 * kPa, 80 * kPa, 160 * kPa, 2.0   # drive [Pa], [Pa], [Pa], [Hz]
 T_GRASP, T_SCREW = 0.3, 0.4                             # grasp ramp's end, the circle's start [s]
-BOLT_INERTIA, BOLT_DAMPING = 2e-5, 5e-4                 # [kg m^2], [N m s/rad]
+BOLT_INERTIA = 2e-5                                     # [kg m^2] (the seed leaves it blank)
+BOLT_DAMPING = 2.5 * 1e-3                               # the seed's mu_Omega = 2.5 N mm s/rad -> [N m s/rad]
+P_MAX = 300 * kPa                                       # the static grasps' largest chamber pressure [Pa]
+BEAKER_R, BEAKER_H, BEAKER_Z, BEAKER_MASS = 20 * mm, 60 * mm, -60 * mm, 0.030   # [m], [m], centre z [m], [kg]
+WRENCH_SIZE, WRENCH_Z, WRENCH_MASS = (5 * mm, 100 * mm, 10 * mm), -72 * mm, 7850.0 * 5e-3 * 10e-3 * 100e-3
+GRAVITY = 9.81                                          # [m/s^2]
 #: Finger-bolt contact: penalty [N/m^2], damping [N s/m^2], Coulomb friction [-], regularization [m/s].
 CONTACT = dict(stiffness=2e5, damping=20.0, friction=0.6, regularization=2e-3)
 DT, DRIVE_TABLE_DT = 2e-3, 5e-4                         # step [s]; the drive's table, a quarter step [s]
@@ -71,6 +108,11 @@ def main(out: Path, quick: bool = False) -> dict:
     from soroshapes.network import Schedule
 
     T = (QUICK if quick else FULL)["t_end"]
+
+    # 0. the static grasps of the seed's Fig. 27: the beaker by four fingers, the wrench by two
+    grasps = {"beaker": static_grasp(beaker(), range(4), [(0.0, -1.0)] * 4, BEAKER_MASS),
+              "wrench": static_grasp(wrench(), (0, 1), pair_directions(), WRENCH_MASS)}
+    plot_grasps(grasps, out / "suzumori_grasps.png")
 
     # 1. the model: four fingers, the bolt, contact between each finger and the bolt's head
     mdl, fingers = gripper()
@@ -92,19 +134,25 @@ def main(out: Path, quick: bool = False) -> dict:
     rate = np.polyfit(tr.t[screw], angle[screw], 1)[0]
     force = grasp_force(mdl, fingers, tr)
     grasp = (tr.t > T_GRASP) & (tr.t < T_SCREW)
+    limit = CONTACT["friction"] * 4 * force[screw].mean() * R_BOLT / BOLT_DAMPING / (2 * np.pi)
 
     # 5. figure: the gripper at the end (mm), the bolt's angle and the grasp force against time
     plot(fingers, tr, angle, force, out / "suzumori_gripper.png")
     return {
+        "pinch_beaker": {k: v for k, v in grasps["beaker"].items() if k not in ("shapes", "object")},
+        "pair_pinch_wrench": {k: v for k, v in grasps["wrench"].items() if k not in ("shapes", "object")},
         "revolutions_per_second": round(float(rate / (2 * np.pi)), 5),
         "seed_rev_per_s": {"simulated": 0.16, "measured": 0.25},
-        "bolt_turns": round(float(angle[-1] / (2 * np.pi)), 4),
-        "grasp_force_N": round(float(force[grasp].mean()), 4) if grasp.any() else 0.0,
-        "screw_force_N_max": round(float(force[screw].max()), 4),
+        "friction_limited_rev_per_s": round(float(limit), 5),
+        "bolt_damping_N_m_s": BOLT_DAMPING,
+        "bolt_turns": round(float(angle[-1] / (2 * np.pi)), 5),
+        "grasp_force_N": round(float(force[grasp].mean()), 7) if grasp.any() else 0.0,
+        "screw_force_N_mean": round(float(force[screw].mean()), 7),
+        "screw_force_N_max": round(float(force[screw].max()), 6),
         "drive_frequency_hz": FREQ, "simulated_s": T, "wall_time_s_sim": round(wall, 2),
         "real_time_factor": round(T / wall, 4), "evaluation_path": tr.stats.get("path"),
         "newton_iterations": int(tr.stats.get("newton_iterations", 0)) if isinstance(tr.stats, dict) else None,
-        "png": "suzumori_gripper.png",
+        "png": "suzumori_gripper.png", "pngs": ["suzumori_grasps.png", "suzumori_gripper.png"],
     }
 
 
@@ -167,6 +215,67 @@ def pressures(t):
     return P0 * ramp + 2.0 / 3.0 * E_K @ delta
 
 
+def chamber_pressures(direction, p_max=P_MAX):
+    """The least chamber pressures [Pa] (3,) that bend a finger toward the unit ``direction`` (y, z) of its
+    section, the largest ``p_max`` [Pa] (the static grasps of the module docstring)."""
+    d = np.asarray(direction, dtype=float)
+    c = E_K @ (d / np.linalg.norm(d))
+    b = p_max / (2.0 / 3.0 * (c.max() - c.min()))
+    return 2.0 / 3.0 * b * (c - c.min())
+
+
+def beaker():
+    """The seed's beaker: a vertical cylinder, 40 mm across and 60 mm tall, on the gripper's axis."""
+    return sdf.Cylinder(BEAKER_R, BEAKER_H, center=(0.0, 0.0, BEAKER_Z))
+
+
+def pair_directions():
+    """The directions (y, z) in the sections of fingers 0 and 1 toward the plane that bisects them."""
+    n = np.array([1.0, -1.0, 0.0]) / np.sqrt(2.0)           # the plane's normal, finger 0 on its + side
+    out = []
+    for j, sign in ((0, -1.0), (1, 1.0)):
+        a = j * np.pi / 2
+        tangential, radial = np.array([-np.sin(a), np.cos(a), 0.0]), np.array([np.cos(a), np.sin(a), 0.0])
+        out.append((sign * n @ tangential, sign * n @ radial))
+    return out
+
+
+def wrench():
+    """The seed's wrench: a 5 x 10 x 100 mm box, 5 mm across the plane bisecting fingers 0 and 1, 100 mm along
+    it (horizontal), centred on that plane where the two fingers meet."""
+    centre = 0.75 * RING * np.array([1.0, 1.0, 0.0]) / np.sqrt(2.0) + np.array([0.0, 0.0, WRENCH_Z])
+    box = sdf.Box(WRENCH_SIZE, center=(0.0, 0.0, 0.0))
+    return box.rotate(-np.pi / 4, axis=(0.0, 0.0, 1.0)).translate(tuple(centre))
+
+
+def static_grasp(obj, which, directions, mass):
+    """The static equilibrium of fingers ``which`` bent toward ``directions`` at P_MAX against the fixed
+    ``obj``: per finger its normal (horizontal) contact force [N], the total, the friction force available
+    and the hold margin over the weight of ``mass`` [kg]; the mean horizontal travel of a free fingertip at
+    these pressures and the mean gap between the straight fingertip's tube and ``obj`` [mm] (no contact
+    unless the travel exceeds the gap); ``shapes``: (finger, q) for the figure."""
+    normal, shapes, travel, gap = [], [], [], []
+    for j, d in zip(which, directions):
+        free = finger(j)
+        tip0 = free.positions(np.zeros(free.n))[-1]
+        travel.append(np.linalg.norm((free.positions(free.statics(u=chamber_pressures(d), steps=4))[-1] - tip0)[:2]))
+        gap.append(float(obj(tip0[None])[0]) - R)
+        f = finger(j).add_contact(obj, **CONTACT)
+        q = f.statics(u=chamber_pressures(d), steps=4)
+        normal.append(float(np.linalg.norm(f.contact_forces(q).sum(axis=0)[:2])))
+        shapes.append((f, q))
+    total = float(sum(normal))
+    available = CONTACT["friction"] * total
+    return {"normal_force_N": [round(v, 7) for v in normal], "total_normal_N": round(total, 7),
+            "friction_available_N": round(available, 7), "weight_N": round(mass * GRAVITY, 5),
+            "hold_margin": round(available / (mass * GRAVITY), 5),
+            "free_tip_travel_mm": round(float(np.mean(travel)) / mm, 3),
+            "gap_to_close_mm": round(float(np.mean(gap)) / mm, 3),
+            "pressures_kPa":
+            [[round(float(p) / kPa, 2) for p in chamber_pressures(d)] for d in directions],
+            "shapes": shapes, "object": obj}
+
+
 def grasp_force(mdl, fingers, tr):
     """The mean over the fingers of the horizontal contact force [N] on each finger, per time step."""
     from soroshapes.rigid import beam_contact
@@ -185,6 +294,28 @@ def grasp_force(mdl, fingers, tr):
 
 
 # ------------------------------------------------------------------------------------------------ the figures
+def plot_grasps(grasps, path):
+    """``suzumori_grasps.png`` (seed Fig. 27): the beaker pinched by four fingers and the wrench pinched by two,
+    the objects' surfaces sampled as grey points and the fingers' backbones [mm], the hold margins in the titles."""
+    from matplotlib.figure import Figure
+
+    from sorofem.io import save_figure
+
+    fig = Figure(figsize=(11, 4.8))
+    rng = np.random.default_rng(0)
+    for k, (name, g) in enumerate(grasps.items()):
+        ax = fig.add_subplot(1, 2, k + 1, projection="3d")
+        pts = rng.uniform(-0.06, 0.06, (60000, 3)) + np.array([0.0, 0.0, -0.06])
+        near = np.abs(g["object"](pts)) < 0.7 * mm
+        ax.scatter(*(pts[near] / mm).T, s=0.5, color="0.6", alpha=0.4)
+        for f, q in g["shapes"]:
+            P = f.positions(q) / mm
+            ax.plot(P[:, 0], P[:, 1], P[:, 2], lw=6, alpha=0.8)
+        ax.set(xlabel="x [mm]", ylabel="y [mm]", zlabel="z [mm]", xlim=(-60, 60), ylim=(-60, 60), zlim=(-120, 0),
+               title=f"{name}: {g['total_normal_N']:.3f} N normal, hold margin {g['hold_margin']:.2f}")
+    save_figure(fig, path)
+
+
 def plot(fingers, tr, angle, force, path):
     """``suzumori_gripper.png``: the fingers and the bolt head at the end [mm]; the bolt angle [rev] and the
     mean normal force per finger [N] against time."""

@@ -18,6 +18,9 @@ _CLASSES = {"Basis": "basis", "Shapes": "shapes", "BeamTrajectory": "shapes", "I
 # holonomic end constraints of beam statics (issue 25)
 _SUBMODULES += ("constraints",)
 _CLASSES.update(Weld="constraints", Pin="constraints", Align="constraints")
+# valve flow functions of the reservoirs (issue 26)
+_SUBMODULES += ("valves",)
+_CLASSES.update(Orifice="valves")
 
 __all__: list[str] = [*_SUBMODULES, *_CLASSES]
 

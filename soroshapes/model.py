@@ -71,10 +71,12 @@ output and the regulator's set point are **gauge** pressures :math:`p_g = p - p_
   (the paper's :math:`\alpha_1 = \alpha_2 = a`, with the signs that make the filter stable and of unit gain);
   :math:`z` is a state, started at :math:`-aV(0)`.
 * Regulated (eq. (28)-(29)): the input is the desired gauge pressure :math:`p_d` [Pa];
-  :math:`e = p_d - p_g`, :math:`\nu = k_p e + k_i s`, :math:`\dot m_{in} = \Psi(\nu) = \mathrm{clip}(\nu,
-  \pm\dot m_{max})` (valve saturation), and the integrator state :math:`s` [Pa s] follows
-  :math:`\dot s = e + (\Psi(\nu) - \nu)/k_p` (back-calculation anti-windup; equal to :math:`e` when the valve is
-  not saturated). The paper writes :math:`\nu = k_p(p - p_d) + \dots`; we use :math:`e = p_d - p` so that
+  :math:`e = p_d - p_g`, :math:`\nu = k_p e + k_i s`, :math:`\dot m_{in} = \Psi_v(\nu, p)` the valve flow
+  function (default the saturation :math:`\mathrm{clip}(\nu, \pm\dot m_{max})`; ``valve=``: the ISO 6358-like
+  :class:`~soroshapes.valves.Orifice` or a Python callable, :mod:`soroshapes.valves`), and the integrator state
+  :math:`s` [Pa s] follows :math:`\dot s = e + (\mathrm{clip}(\nu, \pm\dot m_{max}) - \nu)/k_p`
+  (back-calculation anti-windup on the command's limit, the Orifice's full flow; equal to :math:`e` when the
+  command is not saturated). The paper writes :math:`\nu = k_p(p - p_d) + \dots`; we use :math:`e = p_d - p` so that
   positive gains fill the reservoir.
 
 Example
@@ -241,6 +243,17 @@ class Fluidic:
         Leak :math:`\dot m_{leak} = -\lambda(p - p_0)`.
     regulator : dict, optional
         ``dict(kp=[kg/(s Pa)], ki=[kg/(s^2 Pa)], max_flow=[kg/s])``: the input becomes the desired gauge pressure.
+        The PI's output is the valve's flow command :math:`\nu` [kg/s], eq. (29); ``max_flow`` is the saturation
+        valve's limit (required with it; with an :class:`~soroshapes.valves.Orifice` the limit is its full flow,
+        with a callable valve it is optional). Anti-windup: :math:`\dot s = e + (\mathrm{clip}(\nu, \pm\dot
+        m_{max}) - \nu)/k_p`.
+    valve : None, :class:`~soroshapes.valves.Orifice` or callable ``fn(nu, p) -> mdot``, optional
+        The valve flow function :math:`\dot m = \Psi_v(\nu, p)` of eq. (28) (:mod:`soroshapes.valves`):
+        None is the saturation :math:`\mathrm{clip}(\nu, \pm\dot m_{max})` (unregulated: :math:`\dot m = u`);
+        an Orifice is the ISO 6358-like choked/subsonic flow from a supply and to an exhaust, compiled in a
+        network with its closed-form Newton rows; a Python callable of the command :math:`\nu` [kg/s] and the
+        absolute pressure :math:`p` [Pa] giving the mass flow [kg/s] runs on the slower Python path
+        (:attr:`Model.evaluation_path` says so). Unregulated, the input is the command :math:`\nu` [kg/s].
     filter_gain : float [1/s]
         Gain :math:`a` of the dirty derivative of :math:`V` (polytropic, varying volume only).
     name : str, optional
@@ -256,7 +269,7 @@ class Fluidic:
     """
 
     def __init__(self, volume=None, V0=None, p0=101325.0, T=293.15, gas_constant=287.05, polytropic=1.0, leak=0.0,
-                 regulator=None, name=None, *, filter_gain=1e3):
+                 regulator=None, name=None, *, filter_gain=1e3, valve=None):
         self.name = name
         if volume is None or callable(volume):
             self.volume = volume
@@ -278,12 +291,28 @@ class Fluidic:
         self.p0, self.T, self.R, self.polytropic = float(p0), float(T), float(gas_constant), float(polytropic)
         self.leak, self.filter_gain = float(leak), float(filter_gain)
         self.isothermal = self.polytropic == 1.0
+        from_valve = None
+        if valve is None:
+            self.valve_kind = "saturation"
+        elif callable(valve):
+            self.valve_kind = "python"
+        elif hasattr(valve, "full_flow") and hasattr(valve, "parameters"):
+            self.valve_kind = "orifice"
+            from_valve = valve.full_flow(self.p0, self.T)
+        else:
+            raise ParameterError(f"valve must be None (saturation), a soroshapes.valves.Orifice or a callable "
+                                 f"fn(nu, p) -> mdot [kg/s], got {valve!r}")
+        self.valve = valve
         self.regulator = None
         if regulator is not None:
             try:
-                kp, ki, mx = (float(regulator[k]) for k in ("kp", "ki", "max_flow"))
-            except (KeyError, TypeError, ValueError):
-                raise ParameterError("regulator must be dict(kp=..., ki=..., max_flow=...) [SI]") from None
+                kp, ki = float(regulator["kp"]), float(regulator["ki"])
+                mx = regulator.get("max_flow")
+                mx = from_valve if from_valve is not None else (math.inf if mx is None and self.valve_kind == "python"
+                                                                else float(mx))
+            except (KeyError, TypeError, ValueError, AttributeError):
+                raise ParameterError("regulator must be dict(kp=..., ki=..., max_flow=...) [SI] (max_flow: the "
+                                     "saturation valve's limit)") from None
             if not (kp > 0 and ki >= 0 and mx > 0):
                 raise ParameterError(f"regulator needs kp > 0, ki >= 0, max_flow > 0, got {regulator!r}")
             self.regulator = (kp, ki, mx)
@@ -326,6 +355,19 @@ class Fluidic:
             s.append(self.p0 * 1e-3)
         return np.array(s)
 
+    def valve_flow(self, nu, p):
+        """Mass flow [kg/s] of the valve for the command ``nu`` [kg/s] at absolute pressure ``p`` [Pa]
+        (:mod:`soroshapes.valves`)."""
+        if self.valve_kind == "saturation":
+            return min(max(nu, -self.regulator[2]), self.regulator[2]) if self.regulator else nu
+        if self.valve_kind == "orifice":
+            return self.valve.flow(nu, p, self.p0, self.T)
+        mdot = float(self.valve(nu, p))
+        if not math.isfinite(mdot):
+            raise DataError(f"the valve flow function gave {mdot!r} kg/s at nu = {nu!r} kg/s, p = {p!r} Pa: it must "
+                            "return a finite mass flow")
+        return mdot
+
     def rhs(self, x, u, V):
         """State derivative at state x, input u (mass flow [kg/s] or set point [Pa]) and volume V [m^3]."""
         if not (V > 0 and np.isfinite(V)):
@@ -336,11 +378,10 @@ class Fluidic:
             kp, ki, mx = self.regulator
             e = u[0] - (p - self.p0)
             nu = kp * e + ki * x[-1]
-            mdot = min(max(nu, -mx), mx)
-            out[-1] = e + (mdot - nu) / kp
+            out[-1] = e + (min(max(nu, -mx), mx) - nu) / kp
         else:
-            mdot = u[0]
-        mdot = mdot - self.leak * (p - self.p0)
+            nu = u[0]
+        mdot = self.valve_flow(nu, p) - self.leak * (p - self.p0)
         if self.isothermal:
             out[0] = mdot
         else:

@@ -8,7 +8,8 @@ when every part of it has a compiled form:
 * systems: :class:`~soroshapes.shapes.Shapes` beams whose loads run compiled (gravity, chambers and linear
   actuators: ``Shapes.evaluation_path == "compiled"``, no point loads; contact with fixed obstacles,
   ``Shapes.add_contact``, whose SDF has a program form, :mod:`sorofem.sdf.program`), every :class:`~soroshapes.model.Fluidic`
-  reservoir (isothermal or polytropic, regulated or not) whose volume is constant or given by a
+  reservoir (isothermal or polytropic, regulated or not, with the saturation or the orifice valve of
+  :mod:`soroshapes.valves`; a Python valve function keeps the Python path) whose volume is constant or given by a
   :class:`StateMap`, linear systems (:meth:`StateSpace.linear <soroshapes.model.StateSpace.linear>`, and
   :class:`~soroshapes.rigid.SpinningBody`, which is one) and free rigid bodies (:class:`~soroshapes.rigid.RigidBody`,
   its ``rigid_parameters``);
@@ -67,6 +68,7 @@ from ._beam import newton_euler as _ne
 from ._beam import mass_coriolis_gravity as _mcg
 from ._contact import contact_force as _contact_force
 from .numerics import FD_STEP
+from .valves import orifice_flow
 
 __all__ = ["StateMap", "Schedule", "lower", "assemble", "rhs", "residual", "jacobian"]
 
@@ -233,6 +235,10 @@ class Schedule:
 # lowering: the network as flat arrays
 # ------------------------------------------------------------------------------------------------------------
 BEAM, FLUIDIC, LINEAR, RIGID = 0, 1, 2, 3
+#: floats per reservoir (rows of ``fpar``): isothermal, R, T, p0, n, leak, filter gain, regulated, kp, ki, max flow,
+#: filtered, volume kind and value, valve kind (0 saturation, 1 orifice) and the orifice's gain, b, supply, exhaust
+#: and full flow (soroshapes.valves)
+_FLUIDIC_FLOATS = 20
 #: floats per rigid body (rows of ``rflt``): mass, inertia (9), its inverse (9), gravity (3), linear and angular
 #: damping, normalization gain
 _RIGID_FLOATS = 25
@@ -511,8 +517,14 @@ def lower(blocks, links, volumes, controller, free):
                 vkind, vval = 0, fl.volume
             else:
                 vkind, vval = 1, float(add_map(vol))
+            if fl.valve_kind == "python":
+                raise NotImplementedError(f"reservoir {b['name']!r} (a Python valve flow function "
+                                          f"{getattr(fl.valve, '__name__', fl.valve)!r})")
+            valve = ([1.0, *fl.valve.parameters(fl.p0, fl.T)] if fl.valve_kind == "orifice"
+                     else [0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
             fpar.append([float(fl.isothermal), fl.R, fl.T, fl.p0, fl.polytropic, fl.leak, fl.filter_gain,
-                         float(fl.regulator is not None), reg[0], reg[1], reg[2], float(fl.filtered), vkind, vval])
+                         float(fl.regulator is not None), reg[0], reg[1], reg[2], float(fl.filtered), vkind, vval,
+                         *valve])
             kind[i], table[i, 5] = FLUIDIC, len(fpar) - 1
         elif getattr(b["system"], "rigid_parameters", None) is not None:
             par = np.asarray(b["system"].rigid_parameters, dtype=float)
@@ -674,7 +686,7 @@ def lower(blocks, links, volumes, controller, free):
         return np.concatenate(parts).astype(dtype) if parts else np.zeros(0, dtype)
 
     arrays = (table, np.array(bint, np.int64).reshape(-1, 9), cat(bflt), np.zeros(wo), cat(bintb, np.int64),
-              np.array(fpar, float).reshape(-1, 14), np.array(mapint, np.int64).reshape(-1, 4), cat(maps),
+              np.array(fpar, float).reshape(-1, _FLUIDIC_FLOATS), np.array(mapint, np.int64).reshape(-1, 4), cat(maps),
               np.array(link_tab, np.int64).reshape(-1, 4), np.array(link_rows, np.int64),
               np.int64(ckind), np.ascontiguousarray(ctimes, float), np.ascontiguousarray(cvals, float).reshape(
                   len(ctimes), -1), float(cper), np.asarray(free_rows, np.int64), G, dep, col_block, comps, block_comp,
@@ -1228,6 +1240,23 @@ def _beam_mass(bi, net):
 
 
 @njit(cache=True)
+def _valve(fpar, fi, nu, p):
+    """Valve flow [kg/s] of reservoir fi for the command nu [kg/s] at absolute pressure p [Pa] and its derivatives
+    by nu and p (:mod:`soroshapes.valves`): the saturation (regulated: clip to the max flow; else nu) or the
+    orifice."""
+    if fpar[fi, 14] == 1.0:
+        return orifice_flow(fpar[fi, 15], fpar[fi, 16], fpar[fi, 17], fpar[fi, 18], fpar[fi, 19], nu, p)
+    if fpar[fi, 7] == 0.0:
+        return nu, 1.0, 0.0
+    mx = fpar[fi, 10]
+    if nu >= mx:
+        return mx, 0.0, 0.0
+    if nu <= -mx:
+        return -mx, 0.0, 0.0
+    return nu, 1.0, 0.0
+
+
+@njit(cache=True)
 def _fluidic_rhs(fi, x, xo, nx, w, wo, fpar, out):
     """Derivative of reservoir fi (see :meth:`soroshapes.model.Fluidic.rhs`)."""
     V = w[wo + 1]
@@ -1238,11 +1267,10 @@ def _fluidic_rhs(fi, x, xo, nx, w, wo, fpar, out):
     if reg != 0.0:
         e = w[wo] - (p - p0)
         nu = kp * e + ki * x[xo + nx - 1]
-        mdot = min(max(nu, -mx), mx)
-        out[xo + nx - 1] = e + (mdot - nu) / kp
+        out[xo + nx - 1] = e + (min(max(nu, -mx), mx) - nu) / kp
     else:
-        mdot = w[wo]
-    mdot = mdot - leak * (p - p0)
+        nu = w[wo]
+    mdot = _valve(fpar, fi, nu, p)[0] - leak * (p - p0)
     if iso != 0.0:
         out[xo] = mdot
     else:
@@ -1933,13 +1961,11 @@ def _analytic_rows(t, x, net, w, closed, JF):
 def _fluidic_jacobian(fi, x, xo, nx, w, wo, fpar, dW, JF):
     r"""The rows of reservoir fi in JF, the derivative of :func:`_fluidic_rhs` with respect to the network state
     through its own state and its inputs (set point or flow :math:`u` and volume :math:`V`, rows of ``dW``):
-    ideal gas :math:`p = x_0RT/V` (isothermal; else :math:`p = x_0`), PI regulator :math:`
-u = k_p e + k_i s`,
-    :math:`e = u - (p - p_0)`, valve :math:`\dot m_c = \mathrm{clip}(
-u, \pm\dot m_{max})` (slope 1 inside, 0 when
-    saturated), integral :math:`\dot s = e + (\dot m_c - 
-u)/k_p`, leak, the polytropic law and the volume
-    filter."""
+    ideal gas :math:`p = x_0RT/V` (isothermal; else :math:`p = x_0`), PI regulator :math:`\nu = k_p e + k_i s`,
+    :math:`e = u - (p - p_0)`, integral :math:`\dot s = e + (\mathrm{clip}(\nu, \pm\dot m_{max}) - \nu)/k_p`
+    (slope 1 inside, 0 when saturated), the valve :math:`\dot m = \Psi_v(\nu, p)` with its derivatives by
+    :math:`\nu` and :math:`p` (:func:`_valve`: the saturation, or the orifice of :mod:`soroshapes.valves` in
+    closed form), leak, the polytropic law and the volume filter."""
     N = x.shape[0]
     V = w[wo + 1]
     iso, R, T, p0, poly, leak, a = (fpar[fi, 0], fpar[fi, 1], fpar[fi, 2], fpar[fi, 3], fpar[fi, 4], fpar[fi, 5],
@@ -1956,8 +1982,8 @@ u)/k_p`, leak, the polytropic law and the volume
         e = w[wo] - (p - p0)
         si = xo + nx - 1
         nu = kp * e + ki * x[si]
-        slope = 1.0 if -mx < nu < mx else 0.0
-        mdot = min(max(nu, -mx), mx)
+        slope = 1.0 if -mx < nu < mx else 0.0          # of the command's clip (anti-windup)
+        mdot, dm_nu, dm_p = _valve(fpar, fi, nu, p)
         row = JF[si]
         for c in range(N):
             de = du[c] - dp[c]
@@ -1965,11 +1991,11 @@ u)/k_p`, leak, the polytropic law and the volume
             if c == si:
                 dnu += ki
             row[c] = de + (slope - 1.0) * dnu / kp
-            dm[c] = slope * dnu - leak * dp[c]
+            dm[c] = dm_nu * dnu + (dm_p - leak) * dp[c]
     else:
-        mdot = w[wo]
+        mdot, dm_nu, dm_p = _valve(fpar, fi, w[wo], p)
         for c in range(N):
-            dm[c] = du[c] - leak * dp[c]
+            dm[c] = dm_nu * du[c] + (dm_p - leak) * dp[c]
     mdot = mdot - leak * (p - p0)
     row = JF[xo]
     if iso != 0.0:

@@ -142,6 +142,174 @@ def test_leak_drains_a_closed_reservoir_exponentially():
 
 
 # --------------------------------------------------------------------------------------------------------
+# valve flow functions (soroshapes.valves): the ISO 6358-like orifice
+# --------------------------------------------------------------------------------------------------------
+P_AMB, T_GAS = 101325.0, 293.15
+
+
+def _iso6358(K, b, p1, p2):
+    """The reference flow K p1 phi(p2/p1) from p1 to p2 < p1 (choked / subsonic; no laminar branch)."""
+    r = p2 / p1
+    return K * p1 * (1.0 if r <= b else np.sqrt(1 - ((r - b) / (1 - b)) ** 2))
+
+
+def test_orifice_flow_is_the_iso6358_law_choked_and_subsonic_and_continuous_at_b():
+    from soroshapes.valves import Orifice, orifice_flow
+    C, b, supply = 1e-9, 0.4, 500e3
+    v = Orifice(C, b, supply)
+    K, _, ps, pe, full = v.parameters(P_AMB, T_GAS)
+    assert K == pytest.approx(C * 1.185, rel=1e-12) and full == pytest.approx(K * ps, rel=1e-12)
+    for p in np.linspace(P_AMB, 0.99 * ps, 41):                         # filling: choked below b ps
+        for s in (1.0, 0.3):
+            ref = s * _iso6358(K, b, ps, p)
+            assert v.flow(s * full, p, P_AMB, T_GAS) == pytest.approx(ref, rel=1e-12)
+        assert v.flow(2 * full, p, P_AMB, T_GAS) == v.flow(full, p, P_AMB, T_GAS)   # the opening saturates
+    for p in np.linspace(1.02 * P_AMB, ps, 21):                         # venting to the atmosphere
+        assert v.flow(-0.5 * full, p, P_AMB, T_GAS) == pytest.approx(-0.5 * _iso6358(K, b, p, pe), rel=1e-12)
+    assert v.flow(full, ps, P_AMB, T_GAS) == 0.0 and v.flow(-full, pe, P_AMB, T_GAS) == 0.0
+    assert v.flow(full, 1.2 * ps, P_AMB, T_GAS) < 0                     # back-flow into the supply
+    # continuity at the critical ratio: both sides within the subsonic law's slope times the gap (it is 0 at b)
+    eps = 1e-9 * ps
+    lo, hi = (orifice_flow(K, b, ps, pe, full, full, b * ps + d)[0] for d in (-eps, eps))
+    assert lo == K * ps and abs(hi - lo) < 1e-12 * K * ps
+    # the laminar branch above r = 0.999 joins the subsonic law continuously and is linear down to zero
+    r_l = 0.999
+    at = [orifice_flow(K, b, ps, pe, full, full, r * ps)[0] for r in (r_l - 1e-12, r_l + 1e-12, 0.9995)]
+    assert at[0] == pytest.approx(at[1], rel=1e-6) and at[2] == pytest.approx(0.5 * at[1], rel=1e-6)
+
+
+def test_orifice_derivatives_equal_central_differences():
+    from soroshapes.valves import Orifice, orifice_flow
+    v = Orifice(1e-9, 0.5, 600e3, exhaust=-20e3)
+    K, b, ps, pe, full = v.parameters(P_AMB, T_GAS)
+    rng = np.random.default_rng(7)
+    for trial in range(200):                                            # both ports, all branches, reverse flow
+        nu = full * rng.uniform(-1.3, 1.3)
+        p = ps * rng.uniform(0.1, 1.2)
+        if abs(nu) < 1e-3 * full or abs(p / ps - 0.999) < 2e-4 or abs(pe / p - 0.999) < 2e-4:
+            continue                                                    # the kinks at nu = 0 and r = 0.999
+        m, dnu, dp = orifice_flow(K, b, ps, pe, full, nu, p)
+        hn, hp = 1e-6 * full, 1e-6 * p
+        fdn = (orifice_flow(K, b, ps, pe, full, nu + hn, p)[0]
+               - orifice_flow(K, b, ps, pe, full, nu - hn, p)[0]) / (2 * hn)
+        fdp = (orifice_flow(K, b, ps, pe, full, nu, p + hp)[0]
+               - orifice_flow(K, b, ps, pe, full, nu, p - hp)[0]) / (2 * hp)
+        if abs(abs(nu) - full) > 2e-6 * full:                           # away from the opening's clip
+            assert dnu == pytest.approx(fdn, rel=1e-5, abs=1e-12)
+        assert dp == pytest.approx(fdp, rel=1e-4, abs=1e-12 * K)
+
+
+def _orifice_reservoir(V, valve, regulated=False):
+    reg = dict(kp=2e-9, ki=1e-7) if regulated else None
+    return Fluidic(V, regulator=reg, valve=valve)
+
+
+def test_a_reservoir_filled_through_an_orifice_follows_the_choked_then_subsonic_closed_form():
+    """Isothermal, open supply port: dp/dt = (RT/V) K p_s phi(p/p_s). Choked (p < b p_s): p rises linearly and
+    reaches b p_s at t_c = (b p_s - p0) V / (R T K p_s) (the choked phase's fill time); then x = (p/p_s - b)/(1 - b)
+    obeys dx/dt = a sqrt(1 - x^2), a = R T K / (V (1 - b)): x = sin(a (t - t_c)). Compiled and Python paths, the
+    trapezoidal rule at dt = 2e-5 s (x'' ~ a^2 = 400 1/s^2: local error ~ dt^3 a^3 / 12, 1e-6 of p_s over the
+    run; 1e-5 allowed)."""
+    from soroshapes.network import Schedule
+    from soroshapes.valves import Orifice
+    V, C, b = 1e-6, 1e-10, 0.5
+    valve = Orifice(C, b, 600e3)
+    fl = _orifice_reservoir(V, valve)
+    K, _, ps, _, full = valve.parameters(P_AMB, T_GAS)
+    rt = fl.R * fl.T
+    t_c = (b * ps - P_AMB) * V / (rt * K * ps)
+    a = rt * K / (V * (1 - b))
+    t_end = t_c + np.arcsin(0.99) / a
+    runs = {}
+    for compiled in (None, False):
+        mdl = Model().add(fl, "cup").set_controller(Schedule([0.0, 1.0], {"cup": [[full], [full]]}))
+        tr = mdl.simulate(t_end, 2e-5, compiled=compiled, rtol=1e-10)
+        runs[tr.stats["path"]] = tr
+        t, p = tr.t, tr["cup"].pressure + P_AMB
+        choked = t <= t_c
+        ref = np.where(choked, P_AMB + rt / V * K * ps * t,
+                       ps * (b + (1 - b) * np.sin(a * np.clip(t - t_c, 0.0, None))))
+        assert np.max(np.abs(p - ref)) < 1e-5 * ps
+        assert np.interp(b * ps, p, t) == pytest.approx(t_c, rel=1e-4)    # the choked phase's fill time
+    assert set(runs) == {"compiled", "python"}
+    assert np.max(np.abs(runs["compiled"].x - runs["python"].x)) < 1e-6 * np.max(np.abs(runs["python"].x))
+
+
+def test_a_regulated_orifice_reservoir_settles_on_its_set_point():
+    from soroshapes.network import Schedule
+    from soroshapes.valves import Orifice
+    fl = _orifice_reservoir(1e-6, Orifice(1e-10, 0.5, 600e3), regulated=True)
+    mdl = Model().add(fl, "cup").set_controller(Schedule([0.0, 1.0], {"cup": [[80e3], [80e3]]}))
+    assert mdl.evaluation_path == "compiled"
+    tr = mdl.simulate(0.6, 1e-4, "bdf2", rtol=1e-9)
+    assert tr["cup"].pressure[-1] == pytest.approx(80e3, rel=1e-4)       # the integral removes the error
+    assert np.max(tr["cup"].pressure) < 1.2 * 80e3
+
+
+def test_a_python_valve_function_runs_on_the_stated_python_path_and_matches_the_orifice():
+    from soroshapes.network import Schedule
+    from soroshapes.valves import Orifice
+    valve = Orifice(1e-10, 0.5, 600e3)
+
+    def my_valve(nu, p):
+        return valve.flow(nu, p, P_AMB, T_GAS)
+
+    ref = Model().add(_orifice_reservoir(1e-6, valve, True), "cup")
+    # the same command limit for the anti-windup (an Orifice's is its full flow; a callable's is max_flow, if given)
+    reg = dict(kp=2e-9, ki=1e-7, max_flow=valve.full_flow(P_AMB, T_GAS))
+    mine = Model().add(Fluidic(1e-6, regulator=reg, valve=my_valve), "cup")
+    for mdl in (ref, mine):
+        mdl.set_controller(Schedule([0.0, 1.0], {"cup": [[50e3], [50e3]]}))
+    assert "Python valve flow function 'my_valve'" in mine.evaluation_path
+    a, b_ = ref.simulate(0.05, 1e-4, rtol=1e-10), mine.simulate(0.05, 1e-4, rtol=1e-10)
+    assert np.max(np.abs(a["cup"].pressure - b_["cup"].pressure)) < 1e-6 * 50e3
+    with pytest.raises(ParameterError, match="valve must be"):
+        Fluidic(1e-6, valve=42)
+    with pytest.raises(DataError, match="finite mass flow"):
+        Fluidic(1e-6, valve=lambda nu, p: np.nan).rhs(np.array([1e-6]), np.array([0.0]), 1e-6)
+
+
+def test_closed_form_newton_rows_of_orifice_reservoirs_equal_the_differenced_ones():
+    """Regulated and unregulated orifice reservoirs (isothermal with a beam's volume; polytropic with the volume
+    filter), compiled rows of network._fluidic_jacobian against forward differences of the network (as
+    tests/soroshapes/test_network.py does for the saturation valve) at random states."""
+    from soroshapes import network
+    from soroshapes.network import Schedule, StateMap
+    from soroshapes.valves import Orifice
+    V0 = 1e-6
+    valve = Orifice(1e-10, 0.5, 600e3)
+    mdl = Model().add(finger(), "f")
+    mdl.add(Fluidic(None, V0=V0, leak=1e-13, regulator=dict(kp=1e-10, ki=1e-8), valve=valve), "p")
+    mdl.add(Fluidic(None, V0=V0, polytropic=1.4, filter_gain=200.0, valve=valve), "q")
+    mdl.connect("p", "f")
+    mdl.connect(StateMap("f", [0.1], index=0, offset=V0, scale=0.2 * V0, function="tanh"), "p", port="volume")
+    mdl.connect(StateMap("f", [[1e-8, 2e-8]], index=[0, 1], offset=V0), "q", port="volume")
+    mdl.set_controller(Schedule([0.0, 1.0], {"p": [[30e3], [30e3]], "q": [[0.4 * valve.full_flow(P_AMB, T_GAS)],
+                                                                          [0.4 * valve.full_flow(P_AMB, T_GAS)]]}))
+    mdl._prepare_layout()
+    net = mdl._lowered()
+    assert not isinstance(net, str)
+    table = net.arrays[0]
+    assert np.all(table[:, 7] == 1)
+    rng = np.random.default_rng(5)
+    x0 = mdl.initial_state()
+    scale = mdl._scales(x0)
+    N = len(x0)
+    for trial in range(6):
+        x = x0 + 0.3 * scale * rng.standard_normal(N)
+        for blk in (mdl._blocks["p"], mdl._blocks["q"]):      # pressures between ambient and the supply
+            x[blk.sl.start] = abs(x0[blk.sl.start]) * (1.5 + 2.0 * rng.random())
+        ws = [np.zeros(net.NW), np.zeros(N), np.zeros(N), np.zeros(N)]
+        JA, JD = np.zeros((N, N)), np.zeros((N, N))
+        assert network._cheap_rows(0.3, x, net.arrays, scale, *ws, JA, True, True)
+        assert network._cheap_rows(0.3, x, net.arrays, scale, *ws, JD, True, False)
+        for name in ("p", "q"):
+            for i in range(mdl._blocks[name].sl.start, mdl._blocks[name].sl.stop):
+                size = max(np.max(np.abs(JD[i])), 1e-300)
+                assert np.max(np.abs(JA[i] - JD[i])) <= 1e-5 * size, (trial, name, i, JA[i], JD[i])
+
+
+# --------------------------------------------------------------------------------------------------------
 # a beam driven by a reservoir
 # --------------------------------------------------------------------------------------------------------
 def finger():
