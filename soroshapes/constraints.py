@@ -272,6 +272,11 @@ class RigidLink:
     def kinematics(self, q):
         from .lie import JlSO3
         q = np.asarray(q, dtype=float)
+        turn = float(np.linalg.norm(q[:3]))
+        if turn > 1.9 * np.pi:
+            raise ParameterError(f"{self.name}: it has turned {turn:.3g} rad from pose0, near the singularity of its "
+                                 "rotation-vector coordinates at 2 pi; a RigidLink serves bodies that turn less than "
+                                 "a full turn (a platform, a link): for a spinning body use soroshapes.rigid")
         R = self._rotation(q[:3])
         self._G = np.eye(4)
         self._G[:3, :3], self._G[:3, 3] = R, self.pose0[:3, 3] + q[3:]

@@ -362,6 +362,124 @@ def test_constrained_simulate_needs_a_consistent_start():
         shp.simulate(0.01, 0.005, method="explicit", constraints=[Pin(axes=("x", "y"))])
 
 
+
+# ------------------------------------------------------------------------------------------------------------
+# assemblies: constraints between frames of different bodies
+# ------------------------------------------------------------------------------------------------------------
+def rod_and_block(mass, gravity=(0.0, -9.81, 0.0), modes=6, length=0.2, offset=0.0):
+    """A planar rod (bending about z, one stretch mode) along x with a rigid block whose frame at ``offset`` [m]
+    along x (body coordinates) is the rod's tip frame."""
+    from soroshapes.constraints import Assembly, RigidLink
+    rod = Shapes(Basis.chebyshev(modes), dofs=(0, 0, modes, 1, 0, 0), length=length, section=sdf.Circle(3e-3),
+                 material=MAT, segments=20, damping=0.0).add_gravity(gravity)
+    g0 = np.eye(4)
+    g0[0, 3] = length + offset
+    block = RigidLink(mass, 1e-12, pose0=g0, gravity=gravity)
+    return rod, block, Assembly([rod, block])
+
+
+def test_a_rod_welded_to_a_block_is_a_cantilever_with_an_end_load():
+    """Statics of rod + block (a Weld between the rod's tip and the block's frame) against the single rod with
+    the block's weight as a point load at its tip: the same equations, so the same tip to round-off; the
+    reaction on the block carries its weight."""
+    mass = 0.002
+    rod, block, asm = rod_and_block(mass)
+    eq = asm.statics(constraints=[Weld(body=rod, to=block)], steps=2)
+    q_rod, q_block = asm.split(eq.q)
+    ref = rod_and_block(mass)[0].add_point_load(force=(0.0, -9.81 * mass, 0.0))
+    tip = ref.positions(ref.statics(steps=2))[-1]
+    assert abs(tip[1]) > 0.1 * 0.2                                    # a large deflection
+    assert np.allclose(rod.positions(q_rod)[-1], tip, atol=1e-9 * 0.2)
+    assert np.allclose(block.end(q_block), tip, atol=1e-9 * 0.2)
+    assert eq.reactions[0, 4] == pytest.approx(-9.81 * mass, rel=1e-9)   # on the rod's tip: the block hangs on it
+    assert eq.drift_position < 1e-8 and eq.drift_rotation < 1e-8
+
+
+
+def test_rod_with_a_welded_block_vibrates_like_a_cantilever_with_a_tip_mass():
+    """Dynamics across bodies: the rod + block (no gravity, block mass = rod mass) set vibrating by a small
+    velocity of the block, against the Euler-Bernoulli cantilever with a tip mass, whose first root of
+    1 + cos b cosh b + mu b (cos b sinh b - sin b cosh b) = 0 (mu = 1: b = 1.2479) gives
+    omega = b^2 sqrt(EI / (rho A L^4)); the midpoint's phase error divided out. The section's rotary inertia,
+    (r/L)^2 ~ 2e-4, and the basis are left between them: tolerance 1e-3."""
+    from scipy.optimize import brentq
+    length, r = 0.2, 3e-3
+    rho_a = MAT.density * np.pi * r**2
+    rod, block, asm = rod_and_block(rho_a * length, gravity=(0.0, 0.0, 0.0))
+    beta = brentq(lambda b: 1 + np.cos(b) * np.cosh(b) + b * (np.cos(b) * np.sinh(b) - np.sin(b) * np.cosh(b)),
+                  0.5, 1.8)
+    omega = beta**2 * np.sqrt(rod.E * np.pi * r**4 / 4 / (rho_a * length**4))
+    h = 2 * np.pi / omega / 100
+    qd0 = np.zeros(asm.n)
+    qd0[rod.n + 4] = 1e-4                                               # the block's y velocity [m/s]
+    tr = asm.simulate(3 * 2 * np.pi / omega, h, None, qd0, constraints=[Weld(body=rod, to=block)])
+    y = tr.tip[:, 1]
+    i = np.nonzero(np.sign(y[1:-1]) * np.sign(y[2:]) < 0)[0] + 1
+    crossings = tr.t[i] - y[i] * (tr.t[i + 1] - tr.t[i]) / (y[i + 1] - y[i])
+    w = np.pi / np.mean(np.diff(crossings))
+    assert beta == pytest.approx(1.2479, abs=1e-4)
+    assert w == pytest.approx(2 / h * np.arctan(omega * h / 2), rel=1e-3)
+    assert tr.drift_position.max() < 1e-9 and tr.drift_rotation.max() < 1e-9
+
+
+def test_joint_jacobian_is_the_derivative_of_the_drift():
+    """The Jacobian of Weld and Align rows between a 3D rod's node and an offset frame of a rigid link, against
+    central differences at a random state of both (the ramp of the joint at load factor 0.6)."""
+    from soroshapes.constraints import Assembly, RigidLink
+    rod = Shapes(Basis.chebyshev(3), dofs=(1, 3, 3, 1, 0, 0), length=L, section=sdf.Circle(R), material=MAT,
+                 damping=0.0)
+    link = RigidLink(0.01, (1e-6, 2e-6, 3e-6), pose0=np.eye(4))
+    offset = np.eye(4)
+    offset[:3, 3] = (0.01, -0.02, 0.03)
+    offset[:3, :3] = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    asm = Assembly([rod, link])
+    rng = np.random.default_rng(5)
+    q0 = np.concatenate([rng.normal(size=rod.n), 0.3 * rng.normal(size=6)])
+    cs = ConstraintSet(asm, None, [Weld(body=rod, to=link, to_at=offset),
+                                   Align(body=rod, at=rod.sigma[7], to=link)], q0)
+    q = q0 + np.concatenate([0.5 * rng.normal(size=rod.n), 0.2 * rng.normal(size=6)])
+
+    def drift(x):
+        asm.kinematics(x)
+        return cs.residual(None, 0.6)
+    asm.kinematics(q)
+    J = cs.jacobian(None, scale=0.6)
+    h = 1e-6
+    Jfd = np.column_stack([(drift(q + h * e) - drift(q - h * e)) / (2 * h) for e in np.eye(asm.n)])
+    assert np.abs(J - Jfd).max() < 1e-7 * np.abs(Jfd).max()
+
+
+def test_rigid_link_pendulum_conserves_energy_and_swings_at_its_period():
+    """A rigid block pinned (Pin, world) at a point d = 0.1 m above its centre of mass, spinning about its own
+    axis and swinging: the rotation-vector coordinates' Coriolis terms (differenced M) keep the energy (undamped:
+    bounded midpoint error) and a small swing has the compound pendulum's period 2 pi sqrt((I + m d^2)/(m g d))
+    (midpoint phase error divided out; tolerance 1e-3 for the zero crossings of two periods)."""
+    from soroshapes.constraints import Assembly, RigidLink
+    m, I, d, g = 0.1, 2e-4, 0.1, 9.81
+    link = RigidLink(m, I, gravity=(0.0, 0.0, -g))
+    asm = Assembly([link])
+    omega = np.sqrt(m * g * d / (I + m * d * d))
+    h = 2 * np.pi / omega / 200
+    q0 = np.zeros(6)
+    qd0 = np.zeros(6)
+    qd0[1] = 0.02 * omega                                              # a small swing about y
+    tr = asm.simulate(2 * 2 * np.pi / omega, h, q0, qd0, constraints=[Pin(body=link, at=(0.0, 0.0, d))])
+    x = tr.tip[:, 0]
+    i = np.nonzero(np.sign(x[1:-1]) * np.sign(x[2:]) < 0)[0] + 1
+    crossings = tr.t[i] - x[i] * (tr.t[i + 1] - tr.t[i]) / (x[i + 1] - x[i])
+    w = np.pi / np.mean(np.diff(crossings))
+    assert w == pytest.approx(2 / h * np.arctan(omega * h / 2), rel=1e-3)
+    assert tr.drift_position.max() < 1e-9
+    # a large swing with spin about the body's axis (turning 4 rad in all: the coordinates hold below 2 pi)
+    qd0 = np.array([0.0, 3.0, 4.0, 0.0, 0.0, 0.0])
+    tr = asm.simulate(1.0, 2e-3, q0, qd0, constraints=[Pin(body=link, at=(0.0, 0.0, d))])
+    assert tr.drift_position.max() < 1e-6
+    assert np.ptp(tr.total) < 1e-2 * tr.kinetic.max()
+    with pytest.raises(ParameterError, match="singularity"):
+        asm.simulate(1.0, 2e-3, q0, np.array([0.0, 0.0, 20.0, 0.0, 0.0, 0.0]),
+                     constraints=[Pin(body=link, at=(0.0, 0.0, d))])
+
+
 if __name__ == "__main__":        # the figures of the report: python tests/soroshapes/test_constraints.py
     shp = planar_rod(8)
     EI, EA, GJ = stiffnesses(shp)
