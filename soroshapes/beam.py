@@ -734,22 +734,13 @@ def accelerations(model, data, loads, q, qd, t=0.0, u=None, tau=0.0, owner=None,
 
 
 def simulate(model, data, loads, t_end, dt, q0=None, qd0=None, u=None, *, tau=0.0, method="implicit", tol=1e-8,
-             max_iterations=20, min_dt=None, record_every=1, owner=None, constraints=None):
+             max_iterations=20, min_dt=None, record_every=1, owner=None):
     r"""Time integration of the beam's equations of motion (see :meth:`soroshapes.shapes.Shapes.simulate`);
-    ``tau`` [s]: Kelvin-Voigt damping :math:`D = \tau K`. ``constraints``: a list of
-    :class:`soroshapes.constraints.Weld`, ``Pin`` or ``Align``, enforced in the implicit midpoint step with
-    Lagrange multipliers (:func:`soroshapes.constraints.simulate`). Returns a :class:`BeamTrajectory`."""
+    ``tau`` [s]: Kelvin-Voigt damping :math:`D = \tau K`. Returns a :class:`BeamTrajectory`. (With
+    constraints, :meth:`soroshapes.constraints.Assembly.simulate` integrates the beam as a one-body assembly.)"""
     import time
     if method not in ("implicit", "explicit"):
         raise ParameterError("method must be 'implicit' or 'explicit'")
-    if constraints is not None:
-        if method != "implicit":
-            raise ParameterError("constraints are enforced by the implicit midpoint step only; use "
-                                 "method='implicit'")
-        from .constraints import Assembly, BeamBody
-        body = BeamBody(model, loads, tau=tau, owner=owner, data=data)
-        return Assembly([body]).simulate(t_end, dt, q0, qd0, [u], constraints=constraints, tol=tol,
-                                         max_iterations=max_iterations, min_dt=min_dt, record_every=record_every)
     t_end, dt = float(t_end), float(dt)
     if not (t_end > 0 and dt > 0 and np.isfinite(t_end) and np.isfinite(dt)):
         raise ParameterError(f"t_end and dt must be positive [s], got {t_end!r}, {dt!r}")

@@ -274,9 +274,10 @@ class RigidLink:
         q = np.asarray(q, dtype=float)
         turn = float(np.linalg.norm(q[:3]))
         if turn > 1.9 * np.pi:
-            raise ParameterError(f"{self.name}: it has turned {turn:.3g} rad from pose0, near the singularity of its "
-                                 "rotation-vector coordinates at 2 pi; a RigidLink serves bodies that turn less than "
-                                 "a full turn (a platform, a link): for a spinning body use soroshapes.rigid")
+            raise _bm.StateRangeError(f"{self.name}: it has turned {turn:.3g} rad from pose0, near the singularity "
+                                      "of its rotation-vector coordinates at 2 pi; a RigidLink serves bodies that "
+                                      "turn less than a full turn (a platform, a link): for a spinning body use "
+                                      "soroshapes.rigid")
         R = self._rotation(q[:3])
         self._G = np.eye(4)
         self._G[:3, :3], self._G[:3, 3] = R, self.pose0[:3, 3] + q[3:]
@@ -799,21 +800,21 @@ class Assembly:
             rec["W"].append(cs.reactions(lam))
         record(0.0, c0, lam)
         its_all = []
-        t = 0.0
+        t, last = 0.0, ""
         for k in range(nsteps):
             h, t_next = dt, (k + 1) * dt
             while t < t_next - 1e-12 * dt:
                 hh = min(h, t_next - t)
                 try:
                     step = self._step(cs, q, qd, lam, t, hh, u, tol, ctol, max_iterations)
-                except StateRangeError:
-                    step = None
+                except StateRangeError as e:
+                    step, last = None, f" (the last trial: {e})"
                 if step is None:
                     h *= 0.5
                     if h < min_dt:
                         raise ConvergenceError(f"simulate: the constrained step at t = {t:.6g} s did not converge "
                                                f"down to dt = {min_dt:.3g} s; use a smaller dt, check that the "
-                                               "constraints are compatible with the loads, or add damping")
+                                               "constraints are compatible with the loads, or add damping" + last)
                     continue
                 q, qd, lam, c, its = step
                 if not its_all:

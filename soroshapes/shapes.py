@@ -793,9 +793,18 @@ class Shapes:
         records the drift per step (``drift_position`` [m], ``drift_rotation`` [rad]) and the ``reactions``
         [N m, N]. This path runs in Python.
         """
+        if constraints is not None:
+            if method != "implicit":
+                raise ParameterError("constraints are enforced by the implicit midpoint step only; use "
+                                     "method='implicit'")
+            from .constraints import Assembly, BeamBody
+            body = BeamBody(self.model, self._loads, tau=self.damping, owner=self, data=self.data)
+            return Assembly([body]).simulate(t_end, dt, q0, qd0, [u], constraints=constraints, tol=tol,
+                                             max_iterations=max_iterations, min_dt=min_dt,
+                                             record_every=record_every)
         return _bm.simulate(self.model, self.data, self._loads, t_end, dt, q0, qd0, u, tau=self.damping,
                             method=method, tol=tol, max_iterations=max_iterations, min_dt=min_dt,
-                            record_every=record_every, owner=self, constraints=constraints)
+                            record_every=record_every, owner=self)
 
     # ------------------------------------------------------------------------------------------------
     # inverse kinematics
