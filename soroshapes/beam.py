@@ -583,8 +583,8 @@ def statics(model, data, loads, u=None, q0=None, *, steps=1, tol=1e-9, max_itera
             return np.full(n + m, np.nan)
         if not m:
             return r
-        c = constraints.residual(data, scale)
-        return np.concatenate([r - constraints.jacobian(data, scale=scale).T @ x[n:], c])
+        c, Jc = constraints.residual_and_jacobian(data, scale)
+        return np.concatenate([r - Jc.T @ x[n:], c])
 
     cap = 1.0 if constraints is None else constraints.max_load_step   # a turn of a target stays below pi/4
     x, iterations, Kt = newton_load_stepping(aug, np.concatenate([q, np.zeros(m)]), n, lambda y: K @ y,

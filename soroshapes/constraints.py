@@ -478,14 +478,22 @@ class ConstraintSet:
         and the targets at load factor ``scale``."""
         return np.concatenate([c6[list(b.sel)] for b, c6 in zip(self.bound, self._full(data, scale))])
 
+    def residual_and_jacobian(self, data, scale):
+        """(:meth:`residual`, :meth:`jacobian`) at load factor ``scale`` from one evaluation of the drift."""
+        full = self._full(data, scale)
+        c = np.concatenate([c6[list(b.sel)] for b, c6 in zip(self.bound, full)])
+        return c, self._rows(data, full)
+
     def jacobian(self, data, scale=None):
         r"""The exact :math:`\partial c/\partial q` (m, n) at the kinematics held: position rows
         :math:`R_a J_v` (minus :math:`R_b J_v` of the other body), rotation rows :math:`J_l^{-1}(c_R) R_a
         J_\omega` (minus :math:`J_l^{-1}(c_R) R_a J_\omega` of the other body's frame) with the full rotation
         drift :math:`c_R` at load factor ``scale`` (None: at :math:`c_R = 0`, the Jacobian on the constraint
         manifold)."""
+        return self._rows(data, self._full(data, scale) if scale is not None else [np.zeros(6)] * len(self.bound))
+
+    def _rows(self, data, full):
         from .lie import JlSO3_inv
-        full = self._full(data, scale) if scale is not None else [np.zeros(6)] * len(self.bound)
         rows = []
         off = self.offsets
         for b, c6 in zip(self.bound, full):
@@ -733,8 +741,8 @@ class Assembly:
                                     for b, qb, ub in zip(self.bodies, self.split(x[:n]), uv)])
             except StateRangeError:
                 return np.full(n + m, np.nan)
-            c = cs.residual(None, scale)
-            return np.concatenate([r - cs.jacobian(None, scale=scale).T @ x[n:], c])
+            c, Jc = cs.residual_and_jacobian(None, scale)
+            return np.concatenate([r - Jc.T @ x[n:], c])
 
         def stiffness_force(q):
             return np.concatenate([b.stiffness @ qb for b, qb in zip(self.bodies, self.split(q))])
@@ -855,8 +863,7 @@ class Assembly:
         def evaluate(x):
             vm, lam = x[:n], x[n:]
             self.kinematics(q + h * vm)
-            c = cs.residual(None, 1.0)
-            Jc1 = cs.jacobian(None, scale=1.0)
+            c, Jc1 = cs.residual_and_jacobian(None, 1.0)
             qm = q + 0.5 * h * vm
             R = np.empty(n)
             size = 0.0
