@@ -40,8 +40,8 @@ Cases and tolerances:
 
 Dynamics (the constrained implicit midpoint step: index 3, velocity projection) and assemblies of bodies:
 
-* Mode 1 of the clamped-clamped rod, :math:`4.730^2\sqrt{EI/\rho A L^4}`, from a free vibration (the midpoint
-  rule's phase error :math:`(2/h)\arctan(\omega h/2)` divided out): 4.4e-5 off, the basis' error; tol 2e-4.
+* Mode 1 of the clamped-clamped rod, :math:`4.730^2\\sqrt{EI/\\rho A L^4}`, from a free vibration (the midpoint
+  rule's phase error :math:`(2/h)\\arctan(\\omega h/2)` divided out): 4.4e-5 off, the basis' error; tol 2e-4.
 * A pinned arch swinging under gravity (pendulum-like, through its chord): drift ~1e-15 m (bound 1e-6 m), energy
   error 2 % of the kinetic energy at 2.5 ms, falling like h^2; reactions at rest equal the static ones.
 * Rod + welded rigid block = cantilever with an end load (statics, round-off); the joint Jacobian between a rod
