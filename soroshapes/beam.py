@@ -48,8 +48,8 @@ from .numerics import FD_STEP
 __all__ = ["BeamModel", "BeamData", "StateRangeError", "BeamTrajectory", "IKResult", "Gravity", "PointLoad",
            "Chamber", "Tendon", "Actuator", "Contact", "UserForce", "check_state", "kinematics", "dynamics",
            "coriolis_jacobian", "inverse_dynamics", "forward_dynamics", "accelerations", "energy", "external_force",
-           "input_map", "inputs_at", "LoadPlan", "statics", "simulate", "explicit_step_limit",
-           "inverse_kinematics"]
+           "input_map", "inputs_at", "motion_terms", "LoadPlan", "statics", "newton_load_stepping", "simulate",
+           "explicit_step_limit", "inverse_kinematics"]
 
 _NO_NODES, _NO_WRENCH, _NO_FLAGS = np.zeros(0, dtype=np.int64), np.zeros((0, 6)), np.zeros(0, dtype=np.bool_)
 
@@ -177,7 +177,12 @@ class BeamData:
 class BeamTrajectory:
     """Result of :meth:`Shapes.simulate`: times ``t`` (m,) [s], coordinates ``q`` and rates ``qd`` (m, n),
     energies (m,) [J] (``kinetic``, ``potential`` = elastic + gravity, ``total``), tip positions (m, 3) [m],
-    and the solver statistics (``newton_iterations`` per step, ``steps``, ``wall_time`` [s])."""
+    and the solver statistics (``newton_iterations`` per step, ``steps``, ``wall_time`` [s]).
+
+    With constraints (:mod:`soroshapes.constraints`), also per recorded step: ``drift_position`` (m,) [m] and
+    ``drift_rotation`` (m,) [rad], the largest constraint drift, and ``reactions`` (m, k, 6) [N m, N], the
+    reaction wrench of each of the k constraints (world frame, moment first; see
+    :meth:`soroshapes.constraints.ConstraintSet.reactions`); None without constraints."""
 
     t: np.ndarray
     q: np.ndarray
@@ -186,6 +191,9 @@ class BeamTrajectory:
     potential: np.ndarray
     tip: np.ndarray
     stats: dict = field(default_factory=dict)
+    drift_position: object = None
+    drift_rotation: object = None
+    reactions: object = None
 
     @property
     def total(self):
@@ -561,14 +569,10 @@ def statics(model, data, loads, u=None, q0=None, *, steps=1, tol=1e-9, max_itera
     :math:`|c|` below ``tol`` times the length, and no increment turns a target by more than pi/4 (the drift is
     a logarithm, defined modulo a turn: a larger increment could land a whole turn short). Returns (q,
     multipliers, iterations, the bordered tangent at the solution (n + m, n + m), the drift c (m,))."""
-    from .numerics import fd_columns
     q = check_state(model, q0)
     uv = inputs_at(loads, u, t)
     K, n = model.K, model.n
     m = 0 if constraints is None else constraints.m
-    kmax = float(np.abs(np.diag(K)).max())
-    c_weight = kmax / model.length**2          # drift [m] -> a force of the size of K's [N m per coordinate]
-    c_tol = tol * model.length
 
     def aug(x, scale):
         """(K q - f - J_c^T lambda, c) at x = (q, lambda): forces, then the drift on the same kinematic pass."""
@@ -579,8 +583,38 @@ def statics(model, data, loads, u=None, q0=None, *, steps=1, tol=1e-9, max_itera
             return np.full(n + m, np.nan)
         if not m:
             return r
-        c = constraints.residual(data, scale)
-        return np.concatenate([r - constraints.jacobian(data, scale=scale).T @ x[n:], c])
+        c, Jc = constraints.residual_and_jacobian(data, scale)
+        return np.concatenate([r - Jc.T @ x[n:], c])
+
+    cap = 1.0 if constraints is None else constraints.max_load_step   # a turn of a target stays below pi/4
+    x, iterations, Kt = newton_load_stepping(aug, np.concatenate([q, np.zeros(m)]), n, lambda y: K @ y,
+                                             float(np.abs(np.diag(K)).max()), model.length, cap=cap, steps=steps,
+                                             tol=tol, max_iterations=max_iterations, min_step=min_step,
+                                             tangent=bool(m))
+    if m:
+        return x[:n], x[n:], iterations, Kt, aug(x, 1.0)[n:]
+    return x, iterations
+
+
+def newton_load_stepping(aug, x, n, stiffness_force, kmax, length, *, cap=1.0, steps=1, tol=1e-9,
+                         max_iterations=40, min_step=1e-4, tangent=False):
+    r"""The Newton solver with load stepping of every static problem (one beam, with or without constraints,
+    and an assembly of bodies, :class:`soroshapes.constraints.Assembly`).
+
+    ``aug(x, scale)``: the residual (n + m,) at the unknowns ``x`` = (q (n,), multipliers (m,)) at load factor
+    ``scale``: generalized forces [N m per coordinate] then the drift [m, rad] (NaN when an iterate is out of
+    range). The tangent is the forward difference (:func:`soroshapes.numerics.fd_columns`) over the n + m
+    columns; a backtracking line search on the merit :math:`|r_q| + (k_{max}/L^2)|c|` (``kmax`` the largest
+    diagonal stiffness, ``length`` L [m]). An increment converges when :math:`|r_q| \le` ``tol``
+    :math:`|Kq|` (``stiffness_force(q)`` = :math:`Kq`), :math:`|c| \le` ``tol`` L and the last correction
+    of q is below 1e-8 relative; a failed increment is halved down to ``min_step``, then a
+    :class:`~sorofem.errors.ConvergenceError`; increments double (up to ``cap``) after quick convergence.
+    Returns (x, Newton iterations per accepted increment, the tangent at the solution (n + m, n + m) when
+    ``tangent`` else None)."""
+    from .numerics import fd_columns
+    m = len(x) - n
+    c_weight = kmax / length**2          # drift [m] -> a force of the size of K's [N m per coordinate]
+    c_tol = tol * length
 
     def merit(r):
         return np.linalg.norm(r[:n]) + c_weight * np.linalg.norm(r[n:])
@@ -605,14 +639,12 @@ def statics(model, data, loads, u=None, q0=None, *, steps=1, tol=1e-9, max_itera
                 return None, it
             x, r = xn, rn
             q = x[:n]
-            scale_ref = np.linalg.norm(K @ q) + 1e-12 * np.linalg.norm(np.diag(K))
+            scale_ref = np.linalg.norm(stiffness_force(q)) + 1e-12 * kmax
             if (np.linalg.norm(r[:n]) <= tol * scale_ref and np.linalg.norm(r[n:]) <= c_tol
                     and np.linalg.norm(step * dx[:n]) <= 1e-8 * (1 + np.linalg.norm(q))):
                 return x, it
         return None, max_iterations
 
-    x = np.concatenate([q, np.zeros(m)])
-    cap = 1.0 if constraints is None else constraints.max_load_step   # a turn of a target stays below pi/4
     lam, dlam = 0.0, min(cap, 1.0 / max(1, int(steps)))
     iterations = []
     while lam < 1.0 - 1e-14:
@@ -632,17 +664,16 @@ def statics(model, data, loads, u=None, q0=None, *, steps=1, tol=1e-9, max_itera
         iterations.append(its)
         if its <= 4:
             dlam = min(2 * dlam, cap)
-    if m:
-        r = aug(x, 1.0)
-        return x[:n], x[n:], iterations, fd_columns(lambda y: aug(y, 1.0), x, r, np.ones(n + m)), r[n:]
-    return x, iterations
+    Kt = fd_columns(lambda y: aug(y, 1.0), x, aug(x, 1.0), np.ones(n + m)) if tangent else None
+    return x, iterations, Kt
 
 
 # ------------------------------------------------------------------------------------------------------------
 # dynamics
 # ------------------------------------------------------------------------------------------------------------
-def _accel_terms(model, data, loads, q, qd, t, uv, tau, owner):
-    """(M, C qd + D qd + K q - f) at (q, qd, t): the left-hand side without the inertia term."""
+def motion_terms(model, data, loads, q, qd, t, uv, tau, owner=None):
+    r"""(M, :math:`C\dot q + D\dot q + Kq - f`) at (q, qd, t) with the input values ``uv``: the mass matrix
+    (a copy) and the left-hand side of the equations of motion without the inertia term [N m per coordinate]."""
     M, C, fg = dynamics(model, data, q, qd, gravity_of(loads), True)
     M, C, fg = M.copy(), C.copy(), fg.copy()           # the gravity force of this pass serves the Gravity term
     q, qd = np.asarray(q, dtype=float).reshape(-1), np.asarray(qd, dtype=float).reshape(-1)
@@ -695,7 +726,7 @@ def accelerations(model, data, loads, q, qd, t=0.0, u=None, tau=0.0, owner=None,
         else:
             f_in = input_force(model, data, loads, None, uv) if len(uv) else np.zeros(model.n)
         return forward_dynamics(model, data, q, qd, f_in, plan.D, plan.gravity, plan.point_loads, t, plan).copy()
-    M, lhs = _accel_terms(model, data, loads, q, qd, t, uv, tau, owner)
+    M, lhs = motion_terms(model, data, loads, q, qd, t, uv, tau, owner)
     try:
         return np.linalg.solve(M, -lhs)
     except np.linalg.LinAlgError:
@@ -705,7 +736,8 @@ def accelerations(model, data, loads, q, qd, t=0.0, u=None, tau=0.0, owner=None,
 def simulate(model, data, loads, t_end, dt, q0=None, qd0=None, u=None, *, tau=0.0, method="implicit", tol=1e-8,
              max_iterations=20, min_dt=None, record_every=1, owner=None):
     r"""Time integration of the beam's equations of motion (see :meth:`soroshapes.shapes.Shapes.simulate`);
-    ``tau`` [s]: Kelvin-Voigt damping :math:`D = \tau K`. Returns a :class:`BeamTrajectory`."""
+    ``tau`` [s]: Kelvin-Voigt damping :math:`D = \tau K`. Returns a :class:`BeamTrajectory`. (With
+    constraints, :meth:`soroshapes.constraints.Assembly.simulate` integrates the beam as a one-body assembly.)"""
     import time
     if method not in ("implicit", "explicit"):
         raise ParameterError("method must be 'implicit' or 'explicit'")
@@ -848,7 +880,7 @@ def _midpoint_step(model, data, loads, q, qd, t, h, u, tau, tol, max_iterations,
 
     def residual(vm):
         qm = q + 0.5 * h * vm
-        M, lhs = _accel_terms(model, data, loads, qm, vm, t + 0.5 * h, uv, tau, owner)
+        M, lhs = motion_terms(model, data, loads, qm, vm, t + 0.5 * h, uv, tau, owner)
         return M @ (2.0 * (vm - qd) / h) + lhs, M, qm
     vm = qd.copy()
     R, M, qm = residual(vm)

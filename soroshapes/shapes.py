@@ -743,22 +743,15 @@ class Shapes:
                                                     tol=tol, max_iterations=max_iterations, min_step=min_step,
                                                     t=t, owner=self)
             return q
-        from scipy.linalg import null_space
-        from .constraints import ConstraintSet, Equilibrium
+        from .constraints import ConstraintSet
         q0 = _bm.check_state(self.model, q0)
         cs = ConstraintSet(self.model, self.data, constraints, q0)
         cs.check(self.data)
         q, lam, self.newton_iterations, Kt, c = _bm.statics(
             self.model, self.data, self._loads, u, q0, steps=steps, tol=tol, max_iterations=max_iterations,
             min_step=min_step, t=t, owner=self, constraints=cs)
-        n = self.n
         _bm.kinematics(self.model, self.data, q)
-        Z = null_space(cs.jacobian(self.data, scale=1.0))
-        H = 0.5 * (Kt[:n, :n] + Kt[:n, :n].T)
-        dp, dr = cs.drift(c)
-        return Equilibrium(q=q, multipliers=lam, reactions=cs.reactions(lam), drift_position=dp,
-                           drift_rotation=dr, iterations=self.newton_iterations, stiffness=Z.T @ H @ Z,
-                           null_basis=Z)
+        return cs.equilibrium(q, lam, self.newton_iterations, Kt, c, self.data)
 
     # ------------------------------------------------------------------------------------------------
     # dynamics
@@ -769,7 +762,7 @@ class Shapes:
         return _bm.explicit_step_limit(self.model, self.data, None if q is None else _bm.check_state(self.model, q))
 
     def simulate(self, t_end, dt, q0=None, qd0=None, u=None, *, method="implicit", tol=1e-8, max_iterations=20,
-                 min_dt=None, record_every=1):
+                 min_dt=None, record_every=1, constraints=None):
         r"""Time integration of the equations of motion from (``q0``, ``qd0``) (default rest, straight).
 
         ``method="implicit"``: the implicit midpoint rule (second order, A-stable, symplectic for constant
@@ -792,7 +785,23 @@ class Shapes:
 
         The step is ``t_end / ceil(t_end / dt)`` (at most ``dt``). ``u``: inputs, an array or a callable of
         t [s]. Returns a :class:`BeamTrajectory` recorded every ``record_every`` steps (and at the end).
+
+        ``constraints``: a list of :class:`soroshapes.constraints.Weld`, ``Pin`` or ``Align`` (frames held on
+        world frames where they are at ``q0``, which must satisfy them: start from a constrained
+        :meth:`statics`), enforced in the implicit midpoint step with Lagrange multipliers as unknowns (index 3)
+        and the velocity projected on the constraint (see :mod:`soroshapes.constraints`); the trajectory then
+        records the drift per step (``drift_position`` [m], ``drift_rotation`` [rad]) and the ``reactions``
+        [N m, N]. This path runs in Python.
         """
+        if constraints is not None:
+            if method != "implicit":
+                raise ParameterError("constraints are enforced by the implicit midpoint step only; use "
+                                     "method='implicit'")
+            from .constraints import Assembly, BeamBody
+            body = BeamBody(self.model, self._loads, tau=self.damping, owner=self, data=self.data)
+            return Assembly([body]).simulate(t_end, dt, q0, qd0, [u], constraints=constraints, tol=tol,
+                                             max_iterations=max_iterations, min_dt=min_dt,
+                                             record_every=record_every)
         return _bm.simulate(self.model, self.data, self._loads, t_end, dt, q0, qd0, u, tau=self.damping,
                             method=method, tol=tol, max_iterations=max_iterations, min_dt=min_dt,
                             record_every=record_every, owner=self)

@@ -492,7 +492,19 @@ def check_robot_twin(report, out):
     assert b["seed_workspace_mm"] == [100.0, 100.0]
 
 
+def check_parallel_robot(report, out):
+    # must-show 3 of issue 25: constraint drift below 1e-8 m in statics and 1e-6 m in the dynamics
+    assert report["statics_drift_m"] < 1e-8 and report["dynamics_drift_m"] < 1e-6
+    # the closed check: equal pushes translate the whole robot, so the platform rises by the push, level
+    assert abs(report["symmetric_rise_error_m"]) < 1e-9 * 0.15
+    assert report["platform_tilt_deg"][0] < 1e-6 and report["platform_tilt_deg"][1] < 1e-6
+    # unequal pushes tilt the platform and move it towards the pulled rod's side
+    assert report["platform_tilt_deg"][2] > 5.0
+    assert (out / "robot.png").stat().st_size > 0 and (out / "dynamics.png").stat().st_size > 0
+
+
 CHECKS = {
+    "parallel_robot": check_parallel_robot,
     "robot_twin": check_robot_twin,
     "manipulator_pick": check_manipulator_pick,
     "passive_walker": check_passive_walker,
