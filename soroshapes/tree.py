@@ -323,7 +323,8 @@ class Tree:
                         names.append(f"{b.name}.{'torque' if b.joint == 'revolute' else 'force'}")
             Bu = np.column_stack(cols) if cols else np.zeros((n, 0))
             pres = np.array([b.col0 for b in self._bodies if b.motion is not None], dtype=np.int64)
-            self._frozen = (w, Md, K, D, np.ascontiguousarray(Bu), tuple(names), pres)
+            free = np.setdiff1d(np.arange(n), pres)
+            self._frozen = (w, Md, K, D, np.ascontiguousarray(Bu), tuple(names), pres, free)
         return self._frozen
 
     @property
@@ -487,8 +488,7 @@ class Tree:
     # ------------------------------------------------------------------------------------------------
     def _full(self, t, qf, vf):
         """(q, qd, qdd of the prescribed) from the free coordinates and rates at time t."""
-        pres = self.prescribed
-        free = np.setdiff1d(np.arange(self._n), pres)
+        free = self._arrays()[7]
         q, qd, a = np.zeros(self._n), np.zeros(self._n), np.zeros(self._n)
         q[free], qd[free] = qf, vf
         for b in self._bodies:
@@ -503,7 +503,7 @@ class Tree:
         prescribed coordinates follow their motions (:meth:`state` rebuilds the full q, qd)."""
         from .model import StateSpace
         data = self._data(data)
-        free = np.setdiff1d(np.arange(self._n), self.prescribed)
+        free = self._arrays()[7]
         nf = len(free)
 
         def f(x, _u, t):
@@ -579,13 +579,30 @@ class TreeData:
         self.eye = np.eye(4)[None].copy()
         self.none = (np.zeros((1, 6, 0)), np.zeros((1, 6)))
         self.world = (np.eye(4), np.zeros((6, n)), np.zeros((6, n)), np.zeros(6))
+        # per body, in order: the parent frame's views, its own rows' views, its local arrays
+        arrays = (self.G, self.J, self.Jd, self.eta)
+        self.parents = [self.world if b.parent_row < 0 else tuple(a[b.parent_row] for a in arrays)
+                        for b in tree._bodies]
+        self.own, self.locals = [], []
+        for b in tree._bodies:
+            r0 = b.row0
+            if b.kind == "beam":
+                self.own.append((tuple(a[r0:r0 + b.rows] for a in arrays),))
+                self.locals.append(self.beams[b.name])
+            else:
+                self.own.append((tuple(a[r0:r0 + 1] for a in arrays), tuple(a[r0] for a in arrays),
+                                 tuple(a[r0 + 1:r0 + 2] for a in arrays)))
+                loc = self.local[b.name]
+                if b.ncols:
+                    loc[1][0, :, 0] = b.screw
+                self.locals.append(loc)
 
 
 def _state(tree, q, what="q"):
     q = np.zeros(tree.n) if q is None else np.ascontiguousarray(q, dtype=float).reshape(-1)
     if q.shape != (tree.n,):
         raise ParameterError(f"{what} must have {tree.n} entries (the tree's coordinates), got {q.shape}")
-    if not np.all(np.isfinite(q)):
+    if not math.isfinite(np.add.reduce(q)) and not np.all(np.isfinite(q)):      # the sum: a cheap first test
         raise DataError(f"{what} contains NaN or inf")
     return q
 
@@ -598,36 +615,23 @@ def kinematics(tree, data, q, qd=None, rate=False):
     q, qd = _state(tree, q), _state(tree, qd, "qd")
     if data.n != tree.n or data.G.shape[0] != tree._rows:
         raise ParameterError("the workspace was made before bodies were added: make a new one (tree.make_data())")
-    for b in tree._bodies:
-        if b.parent_row < 0:
-            gp, Jp, Jdp, etap = data.world
-        else:
-            r = b.parent_row
-            gp, Jp, Jdp, etap = data.G[r], data.J[r], data.Jd[r], data.eta[r]
-        r0, r1 = b.row0, b.row0 + b.rows
+    for b, parent, own, loc in zip(tree._bodies, data.parents, data.own, data.locals):
         if b.kind == "beam":
-            m, d = b.model, data.beams[b.name]
+            m, d = b.model, loc
             s = slice(b.col0, b.col0 + b.ncols)
-            qb, qdb = q[s].copy(), qd[s].copy()
-            _beam.kinematics(qb, qdb, rate, m.order, m.h, m.B, m.rows, m.X0, m.base, d.G, d.J, d.Jd, d.eta, d.S,
+            _beam.kinematics(q[s], qd[s], rate, m.order, m.h, m.B, m.rows, m.X0, m.base, d.G, d.J, d.Jd, d.eta, d.S,
                              d.E, d.V, d.Op, d.dOp, d.AJ)
-            _tree.attach(gp, Jp, Jdp, etap, b.offset, d.G, d.J, d.Jd, d.eta, b.col0, rate, data.G[r0:r1],
-                         data.J[r0:r1], data.Jd[r0:r1], data.eta[r0:r1])
+            _tree.attach(*parent, b.offset, d.G, d.J, d.Jd, d.eta, b.col0, rate, *own[0])
         else:
-            Gl, Jl, Jdl, etal = data.local[b.name]
+            Gl, Jl, Jdl, etal = loc
             th, thd = (q[b.col0], qd[b.col0]) if b.ncols else (0.0, 0.0)
             Gl[0] = expSE3(b.screw * th)
-            if b.ncols:
-                Jl[0, :, 0] = b.screw
             etal[0] = b.screw * thd
-            _tree.attach(gp, Jp, Jdp, etap, b.offset, Gl, Jl, Jdl, etal, b.col0, rate, data.G[r0:r0 + 1],
-                         data.J[r0:r0 + 1], data.Jd[r0:r0 + 1], data.eta[r0:r0 + 1])
+            _tree.attach(*parent, b.offset, Gl, Jl, Jdl, etal, b.col0, rate, *own[0])
             if b.com_frame is not None:
                 zJ, zeta = data.none
-                _tree.attach(data.G[r0], data.J[r0], data.Jd[r0], data.eta[r0], b.com_frame, data.eye, zJ, zJ,
-                             zeta, 0, rate, data.G[r0 + 1:r1], data.J[r0 + 1:r1], data.Jd[r0 + 1:r1],
-                             data.eta[r0 + 1:r1])
-    if not (math.isfinite(data.G.sum()) and math.isfinite(data.J.sum())):
+                _tree.attach(*own[1], b.com_frame, data.eye, zJ, zJ, zeta, 0, rate, *own[2])
+    if not (math.isfinite(data.G[:, :3, 3].sum()) and math.isfinite(data.J.sum())):
         raise DataError(f"the state (max |q| = {np.max(np.abs(q)):.3g}) makes the frames overflow: give a "
                         "physically meaningful state (|strain| of order 1/length)")
     return q, qd
@@ -651,23 +655,29 @@ def accelerations(tree, data, q, qd, t=0.0, u=None, f_ext=None):
     prescribed coordinates take their motion's acceleration (their values in q, qd are overwritten by the
     motion at ``t``) and the others solve :math:`M_{ff}\ddot q_f = (\dots)_f - M_{fp}\ddot q_p`. ``f_ext``:
     callable (q, qd, t) -> (n,) or None."""
-    q, qd = _state(tree, q).copy(), _state(tree, qd, "qd").copy()
+    q, qd = _state(tree, q), _state(tree, qd, "qd")
     pres = tree.prescribed
     a = np.zeros(tree.n)
-    for b in tree._bodies:
-        if b.motion is not None:
-            q[b.col0], qd[b.col0], a[b.col0] = (float(v) for v in b.motion(t))
+    if len(pres):
+        q, qd = q.copy(), qd.copy()
+        for b in tree._bodies:
+            if b.motion is not None:
+                q[b.col0], qd[b.col0], a[b.col0] = (float(v) for v in b.motion(t))
     M, C, fg = dynamics(tree, data, q, qd)
-    f = fg + tree._input_force(u, t) - C @ qd - tree.D @ qd - tree.K @ q
+    f = fg - C @ qd - tree.D @ qd - tree.K @ q
+    if u is not None:
+        f += tree._input_force(u, t)
     if f_ext is not None:
         fe = np.asarray(f_ext(q, qd, t), dtype=float).reshape(-1)
         if fe.shape != (tree.n,) or not np.all(np.isfinite(fe)):
             raise DataError(f"f_ext returned {fe.shape} / non-finite values; expected {tree.n} finite")
         f = f + fe
-    free = np.setdiff1d(np.arange(tree.n), pres)
-    rhs = f[free] - M[np.ix_(free, pres)] @ a[pres]
     try:
-        a[free] = np.linalg.solve(M[np.ix_(free, free)], rhs)
+        if len(pres):
+            free = tree._arrays()[7]
+            a[free] = np.linalg.solve(M[np.ix_(free, free)], f[free] - M[np.ix_(free, pres)] @ a[pres])
+        else:
+            a = np.linalg.solve(M, f)
     except np.linalg.LinAlgError:
         raise DataError("the mass matrix of the free coordinates is singular: a joint moves a massless chain "
                         "(give the links mass or inertia, or prescribe the joint)") from None
