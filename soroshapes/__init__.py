@@ -18,6 +18,9 @@ _CLASSES = {"Basis": "basis", "Shapes": "shapes", "BeamTrajectory": "shapes", "I
 # holonomic end constraints of beam statics (issue 25)
 _SUBMODULES += ("constraints",)
 _CLASSES.update(Weld="constraints", Pin="constraints", Align="constraints")
+# trees of beams and rigid links (issue 25)
+_SUBMODULES += ("tree",)
+_CLASSES.update(Tree="tree")
 
 __all__: list[str] = [*_SUBMODULES, *_CLASSES]
 
