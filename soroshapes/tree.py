@@ -498,23 +498,29 @@ class Tree:
 
     def system(self, u=None, f_ext=None, name="tree", q0=None, qd0=None, *, data=None):
         r"""A :class:`~soroshapes.model.StateSpace` block of the free coordinates: state
-        :math:`x = (q_f, \dot q_f)`, :math:`\dot x = (\dot q_f, \ddot q_f)` from :func:`accelerations`; ``u``: inputs
-        (array or callable of t), ``f_ext``: callable (q, qd, t) -> (n,) generalized force, or None. The
-        prescribed coordinates follow their motions (:meth:`state` rebuilds the full q, qd)."""
+        :math:`x = (q_f, \dot q_f)`, :math:`\dot x = (\dot q_f, \ddot q_f)` from :func:`accelerations`. ``u``:
+        the inputs (:attr:`inputs`) as an array or a callable of t; None makes them the block's inputs, which
+        couplings and controllers of a :class:`~soroshapes.model.Model` drive (zeros when unconnected).
+        ``f_ext``: callable (q, qd, t) -> (n,) generalized force, or None. The prescribed coordinates follow
+        their motions (:meth:`state` rebuilds the full q, qd)."""
         from .model import StateSpace
         data = self._data(data)
         free = self._arrays()[7]
         nf = len(free)
+        m = 0 if u is not None else len(self.inputs)
 
-        def f(x, _u, t):
+        def f(x, uu, t):
             q, qd, _, _ = self._full(t, x[:nf], x[nf:])
-            return np.concatenate([x[nf:], accelerations(self, data, q, qd, t, u, f_ext)[free]])
+            return np.concatenate([x[nf:], accelerations(self, data, q, qd, t, uu if m else u, f_ext)[free]])
         x0 = np.zeros(2 * nf)
         if q0 is not None:
             x0[:nf] = _state(self, q0, "q0")[free]
         if qd0 is not None:
             x0[nf:] = _state(self, qd0, "qd0")[free]
-        return StateSpace(f, 2 * nf, 0, name=name, x0=x0)
+        sysb = StateSpace(f, 2 * nf, m, name=name, x0=x0)
+        if m:
+            sysb.input_names = list(self.inputs)
+        return sysb
 
     def state(self, t, x):
         """(q, qd) (n,) of the tree at time t from a state x of :meth:`system`."""
@@ -529,7 +535,7 @@ class Tree:
         "trapezoidal", "bdf2"; Newton to ``rtol``, ``atol``). Returns a :class:`TreeTrajectory`."""
         from .model import Model
         data = self._data(data)
-        sysb = self.system(u, f_ext, "tree", q0, qd0, data=data)
+        sysb = self.system(np.zeros(len(self.inputs)) if u is None else u, f_ext, "tree", q0, qd0, data=data)
         traj = Model().add(sysb).simulate(t_end, dt, method=method, rtol=rtol, atol=atol,
                                           record_every=record_every)
         ts, xs = np.asarray(traj.t), np.asarray(traj["tree"].x)

@@ -259,6 +259,24 @@ def test_undamped_swing_of_a_beam_on_a_beam_conserves_energy():
     assert drift < 1e-3 * exchanged
 
 
+def test_a_tree_is_a_block_of_a_model_network_driven_by_its_controller():
+    """A hub joint with an arm on it, PD-controlled to 0.5 rad through the network's controller (no gravity, no
+    joint spring): it settles on the set point (the controller's integral-free law has no steady error here)."""
+    from soroshapes import Model
+    tree = (Tree().add_link("hub", 0.01, 1e-5, joint="revolute", axis=(0, 0, 1), actuated=True)
+            .add_beam("arm", rod(0.1, (0, 0, 2, 0, 0, 0), segments=4, radius=2e-3), parent="hub", damping=0.01))
+    block = tree.system()
+    assert block.m == 1 and block.input_names == ["hub.torque"]
+    net = Model().add(block, "tree")
+
+    def pd(model):
+        x = model["tree"].x
+        return [0.05 * (0.5 - x[0]) - 0.01 * x[tree.n]]
+    traj = net.set_controller(pd, reads=("tree",)).simulate(3.0, 0.01, "trapezoidal")
+    q, _ = tree.state(traj.t[-1], traj["tree"].x[-1])
+    assert q[0] == pytest.approx(0.5, abs=1e-3)
+
+
 def spinning_frequency(spin_bar, modes=6):
     """(first flapwise frequency [rad/s] of the rod on a hub spinning about z at a prescribed rate, the
     reference)."""
