@@ -432,6 +432,13 @@ class Tree:
             return Ad(data.G[i]) @ data.J[i]
         raise ParameterError(f"frame must be 'body' or 'spatial', got {frame!r}")
 
+    def jacobian_rate(self, q, qd, body, at=None, *, data=None):
+        r"""Time derivative :math:`\dot J` (6, n) of the body Jacobian of :meth:`jacobian` along the rates ``qd``
+        (so that the frame's body acceleration is :math:`J\ddot q + \dot J\dot q`)."""
+        data = self._data(data)
+        kinematics(self, data, q, qd, rate=True)
+        return data.Jd[self.row(body, at)].copy()
+
     def mass_matrix(self, q, *, data=None):
         """M(q) (n, n) [kg, kg m, kg m^2 per coordinates]."""
         return dynamics(self, self._data(data), q, None, want_c=False)[0].copy()

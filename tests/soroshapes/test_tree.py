@@ -107,6 +107,7 @@ def test_jacobian_rates_match_differences_of_the_jacobians():
         return data.J.ravel().copy()
     dJ = fd_columns(jac, q, J0.ravel(), np.ones(tree.n)) @ qd
     assert np.abs(Jd.ravel() - dJ).max() < 1e-6 * np.abs(Jd).max()
+    assert np.array_equal(tree.jacobian_rate(q, qd, "finger"), Jd[tree.row("finger")])
 
 
 def test_a_beam_on_a_beam_tip_is_one_beam_of_the_two_lengths():
@@ -250,9 +251,13 @@ def swing_tree():
     return Tree(gravity=(0, -9.81, 0)).add_beam("upper", r()).add_beam("lower", r(), parent="upper")
 
 
-def test_undamped_swing_of_a_beam_on_a_beam_conserves_energy():
-    tree = swing_tree()
-    traj = tree.simulate(0.5, 1e-3, method="midpoint")
+@pytest.mark.parametrize("case", ["beam_on_beam", "mixed"])
+def test_undamped_swing_of_a_beam_on_a_beam_conserves_energy(case):
+    """Energy kept to 1e-3 of the exchanged energy (the largest kinetic energy) by the implicit midpoint rule of
+    the Model integrators at dt = 1 ms over 0.5 s (the beam-on-beam swing: measured 2.8e-5 of it); the mixed
+    tree (hub, beams, slider, glued pad) over 0.1 s."""
+    tree = swing_tree() if case == "beam_on_beam" else mixed_tree()
+    traj = tree.simulate(0.5 if case == "beam_on_beam" else 0.1, 1e-3, method="midpoint")
     exchanged = traj.kinetic.max()
     drift = np.abs(traj.total - traj.total[0]).max()
     assert exchanged > 1e-4                                 # it swings: gravity does work on it
