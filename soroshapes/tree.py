@@ -77,9 +77,11 @@ import numpy as np
 
 from sorofem.errors import DataError, ParameterError
 
-__all__ = ["Tree", "TreeData", "TreeTrajectory", "spin", "kinematics", "dynamics", "accelerations"]
+__all__ = ["Tree", "TreeData", "TreeTrajectory", "spin", "kinematics", "dynamics", "inverse_dynamics",
+           "accelerations"]
 
 _JOINTS = ("fixed", "revolute", "prismatic")
+_NO_NODES, _NO_WRENCH, _NO_FLAGS = np.zeros(0, dtype=np.int64), np.zeros((0, 6)), np.zeros(0, dtype=np.bool_)
 
 
 def _pose(g, what):
@@ -469,10 +471,7 @@ class Tree:
 
     def inverse_dynamics(self, q, qd, qdd, *, data=None):
         r""":math:`M\ddot q + C\dot q - f_g` (n,): the generalized force the inertia and gravity need."""
-        data = self._data(data)
-        q, qd, qdd = _state(self, q), _state(self, qd, "qd"), _state(self, qdd, "qdd")
-        M, C, fg = dynamics(self, data, q, qd)
-        return M @ qdd + C @ qd - fg
+        return inverse_dynamics(self, self._data(data), q, qd, _state(self, qdd, "qdd"))
 
     def forward_dynamics(self, q, qd, t=0.0, u=None, f_ext=None, *, data=None):
         r"""Accelerations (n,) (see :func:`accelerations`)."""
@@ -583,7 +582,7 @@ class TreeData:
         n, R = tree.n, tree._rows
         self.n = n
         self.G, self.J, self.Jd = np.zeros((R, 4, 4)), np.zeros((R, 6, n)), np.zeros((R, 6, n))
-        self.eta = np.zeros((R, 6))
+        self.eta, self.etad = np.zeros((R, 6)), np.zeros((R, 6))
         self.M, self.C, self.fg = np.zeros((n, n)), np.zeros((n, n)), np.zeros(n)
         self.S, self.V, self.Y = np.zeros((6, 6, 6)), np.zeros((8, 6)), np.zeros((6, n))
         self.beams = {b.name: b.model.make_data() for b in tree._bodies if b.kind == "beam"}
@@ -663,11 +662,29 @@ def dynamics(tree, data, q, qd=None, want_c=True):
     return data.M, data.C, data.fg
 
 
+def inverse_dynamics(tree, data, q, qd, qdd, mass=False):
+    r""":math:`M\ddot q + C\dot q - f_g` (n,) matrix-free: one kinematic pass with the Jacobian rates, then the
+    beam's compiled :func:`soroshapes._beam.generalized_inertial_force` over the stacked frames with
+    :math:`\dot J_i\dot q`; with ``mass``, also M into ``data.M`` from the same pass (no C is formed)."""
+    from . import _beam
+    q, qd = kinematics(tree, data, q, qd, True)
+    w, Md = tree._arrays()[:2]
+    np.matmul(data.Jd, qd, out=data.etad)
+    out = np.empty(tree.n)
+    _beam.generalized_inertial_force(data.J, data.eta, data.etad, data.G, w, Md, qdd, tree.gravity, _NO_NODES,
+                                     _NO_WRENCH, _NO_FLAGS, out)
+    if mass:
+        _beam.mass_coriolis_gravity(data.J, data.Jd, data.eta, data.G, w, Md, tree.gravity, data.M, data.C,
+                                    data.fg, False, data.S, data.V, data.Y)
+    return out
+
+
 def accelerations(tree, data, q, qd, t=0.0, u=None, f_ext=None):
     r"""Accelerations :math:`\ddot q` (n,) of :math:`M\ddot q = f_g + Bu + f_{ext} - C\dot q - D\dot q - Kq`; the
     prescribed coordinates take their motion's acceleration (their values in q, qd are overwritten by the
-    motion at ``t``) and the others solve :math:`M_{ff}\ddot q_f = (\dots)_f - M_{fp}\ddot q_p`. ``f_ext``:
-    callable (q, qd, t) -> (n,) or None."""
+    motion at ``t``) and the others solve :math:`M_{ff}\ddot q_f = (\dots)_f - M_{fp}\ddot q_p` (the
+    right-hand side from :func:`inverse_dynamics` at the prescribed accelerations, matrix-free; M from the same
+    pass). ``f_ext``: callable (q, qd, t) -> (n,) or None."""
     q, qd = _state(tree, q), _state(tree, qd, "qd")
     pres = tree.prescribed
     a = np.zeros(tree.n)
@@ -676,8 +693,8 @@ def accelerations(tree, data, q, qd, t=0.0, u=None, f_ext=None):
         for b in tree._bodies:
             if b.motion is not None:
                 q[b.col0], qd[b.col0], a[b.col0] = (float(v) for v in b.motion(t))
-    M, C, fg = dynamics(tree, data, q, qd)
-    f = fg - C @ qd - tree.D @ qd - tree.K @ q
+    f = -inverse_dynamics(tree, data, q, qd, a, mass=True) - tree.D @ qd - tree.K @ q
+    M = data.M
     if u is not None:
         f += tree._input_force(u, t)
     if f_ext is not None:
@@ -688,7 +705,7 @@ def accelerations(tree, data, q, qd, t=0.0, u=None, f_ext=None):
     try:
         if len(pres):
             free = tree._arrays()[7]
-            a[free] = np.linalg.solve(M[np.ix_(free, free)], f[free] - M[np.ix_(free, pres)] @ a[pres])
+            a[free] = np.linalg.solve(M[np.ix_(free, free)], f[free])
         else:
             a = np.linalg.solve(M, f)
     except np.linalg.LinAlgError:

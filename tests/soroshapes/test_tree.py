@@ -322,10 +322,10 @@ def test_a_beam_on_a_spinning_hub_stiffens_like_the_rotating_cantilever(spin_bar
 
 
 if __name__ == "__main__":        # the figures of the report: python tests/soroshapes/test_tree.py
-    tree = swing_tree()
-    for dt in (2e-3, 1e-3, 5e-4):
-        traj = tree.simulate(0.5, dt, method="midpoint")
-        print(f"beam-on-beam swing, midpoint, dt = {dt:g} s: exchanged energy {traj.kinetic.max():.4e} J, "
+    for name, tree, t_end, dt in [("beam-on-beam", swing_tree(), 0.5, d) for d in (2e-3, 1e-3, 5e-4)] + [
+            ("mixed tree", mixed_tree(), 0.1, 1e-3)]:
+        traj = tree.simulate(t_end, dt, method="midpoint")
+        print(f"{name} swing over {t_end:g} s, midpoint, dt = {dt:g} s: exchanged energy {traj.kinetic.max():.4e} J, "
               f"drift {np.abs(traj.total - traj.total[0]).max():.3e} J "
               f"({np.abs(traj.total - traj.total[0]).max() / traj.kinetic.max():.2e} of it), "
               f"wall {traj.stats.get('wall_time', float('nan')):.2f} s")
