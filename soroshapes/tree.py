@@ -714,3 +714,21 @@ def accelerations(tree, data, q, qd, t=0.0, u=None, f_ext=None):
     if not np.all(np.isfinite(a)):
         raise DataError("the accelerations are not finite (the state overflowed)")
     return a
+
+
+def precompile():
+    """Compile the tree kernel (:func:`soroshapes._tree.attach`) and the beam kernels on the tree's arrays into
+    numba's cache (a beam on a revolute link, one forward-dynamics evaluation). Returns the seconds it took."""
+    import time
+    from sorofem import materials, sdf
+    from .basis import Basis
+    from .shapes import Shapes
+    t0 = time.perf_counter()
+    shp = Shapes(Basis.chebyshev(2), dofs=(0, 2, 0, 0, 0, 0), length=0.05, section=sdf.Circle(0.004),
+                 material=materials.NeoHookean(E=1e6, nu=0.45, density=1000.0), segments=2, damping=0.0)
+    tree = Tree(gravity=(0.0, 0.0, -9.81)).add_link("hub", 0.01, 1e-6, joint="revolute").add_beam("b", shp,
+                                                                                                   parent="hub")
+    q = np.full(tree.n, 0.1)
+    tree.forward_dynamics(q, q)
+    tree.coriolis(q, q)
+    return time.perf_counter() - t0

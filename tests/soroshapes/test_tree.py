@@ -29,10 +29,10 @@ import numpy as np
 import pytest
 
 from sorofem import materials, sdf
-from sorofem.errors import ParameterError
+from sorofem.errors import DataError, ParameterError
 from soroshapes import Basis, Shapes, lie
 from soroshapes.numerics import fd_columns
-from soroshapes.tree import Tree, spin
+from soroshapes.tree import Tree, kinematics, spin
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from analytic import rotating_cantilever_frequency  # noqa: E402
@@ -95,7 +95,6 @@ def test_tree_jacobians_match_finite_differences_of_the_frames():
 
 
 def test_jacobian_rates_match_differences_of_the_jacobians():
-    from soroshapes.tree import kinematics
     tree = mixed_tree()
     q, qd = state(tree, 2, size=2.0)
     data = tree.make_data()
@@ -171,7 +170,6 @@ def test_a_fixed_joint_glues_a_rigid_body():
 
 
 def test_mass_matrix_is_spd_and_gives_the_kinetic_energy_of_the_differenced_twists():
-    from soroshapes.tree import kinematics
     tree = mixed_tree()
     q, qd = state(tree, 5, size=2.0)
     M = tree.mass_matrix(q)
@@ -240,6 +238,12 @@ def test_tree_errors_name_the_fix():
         tree.add_link("l", actuated=True)
     with pytest.raises(ParameterError, match="entries"):
         tree.frame(np.zeros(3), "a")
+    with pytest.raises(DataError, match="NaN"):
+        tree.frame(np.full(tree.n, np.nan), "a")
+    data = tree.make_data()
+    tree.add_beam("c", rod(), parent="a")
+    with pytest.raises(ParameterError, match="make a new one"):
+        kinematics(tree, data, np.zeros(tree.n))
 
 
 # --------------------------------------------------------------------------------------------------------
