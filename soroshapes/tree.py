@@ -489,6 +489,68 @@ class Tree:
         grav = -float(np.sum(w * Md[:, 3] * (data.G[:, :3, 3] @ self.gravity)))
         return {"kinetic": kin, "elastic": el, "gravity": grav, "total": kin + el + grav}
 
+    def inverse_kinematics(self, targets, q0=None, *, tol=1e-8, max_iterations=200, damping=1e-6,
+                           rotation_weight=None, subtask=None, subtask_gain=0.1, data=None):
+        r"""Damped least-squares inverse kinematics over all the tree's coordinates (the beam's algorithm,
+        :func:`soroshapes.beam.damped_least_squares`, on the tree Jacobians).
+
+        Parameters
+        ----------
+        targets : list of ``(body, at, target)``: ``at`` the arc length [m] of a beam node (None: the tip; None
+            for a link), ``target`` a (3,) position [m] or a (4, 4) pose (its error :math:`\log(g^{-1}g^*)`, the
+            angular part weighted by ``rotation_weight`` [m], default the longest beam).
+        q0 : (n,) start (default zeros).
+        subtask : None, ``"elastic"`` (null-space descent of the elastic energy, gradient :math:`Kq`) or a
+            callable q -> (n,) gradient; ``subtask_gain`` scales its step to the task step.
+
+        Returns
+        -------
+        :class:`~soroshapes.beam.IKResult` (``error`` the final error norm [m]).
+        """
+        from sorofem.errors import ConvergenceError
+
+        from . import _beam
+        from .beam import IKResult, damped_least_squares
+        data = self._data(data)
+        q = _state(self, q0, "q0").copy()
+        rows, kinds, goals = [], [], []
+        for body, at, v in targets:
+            rows.append(self.row(body, at))
+            v = np.asarray(v, dtype=float)
+            if v.shape == (3,):
+                g = np.eye(4)
+                g[:3, 3] = v
+                kinds.append(0)
+            elif v.shape == (4, 4):
+                g = _pose(v, "a pose target")
+                kinds.append(1)
+            else:
+                raise ParameterError(f"a target must be a (3,) position or a (4, 4) pose, got shape {v.shape}")
+            goals.append(g)
+        if not rows:
+            raise ParameterError("give at least one target (body, at, position or pose)")
+        rows, kinds, goals = np.array(rows, dtype=np.int64), np.array(kinds, dtype=np.int64), np.array(goals)
+        lengths = [b.model.length for b in self._bodies if b.kind == "beam"]
+        wrot = float(rotation_weight) if rotation_weight is not None else max(lengths, default=1.0)
+        if subtask == "elastic":
+            grad = lambda x: self.K @ x                                     # noqa: E731
+        elif subtask is None or callable(subtask):
+            grad = subtask
+        else:
+            raise ParameterError("subtask must be 'elastic', a callable grad(q) -> (n,), or None")
+        m = int(sum(3 if k == 0 else 6 for k in kinds))
+        e, A = np.empty(m), np.empty((m, self._n))
+
+        def error(x):
+            kinematics(self, data, x)
+            return _beam._ik_error(rows, kinds, goals, wrot, data.G, data.J, e, A), e.copy(), A.copy()
+        err, it = damped_least_squares(error, q, float(tol), int(max_iterations), float(damping),
+                                       1e6 * max(lengths, default=1.0), grad, subtask_gain)
+        if not (math.isfinite(err) and np.all(np.isfinite(q))):
+            raise ConvergenceError("inverse_kinematics: the iterations left the finite range; give a closer q0 or a "
+                                   "reachable target")
+        return IKResult(q=q, error=float(err), iterations=int(it), converged=bool(err < tol))
+
     # ------------------------------------------------------------------------------------------------
     # simulation with the Model integrators
     # ------------------------------------------------------------------------------------------------

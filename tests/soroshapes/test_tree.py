@@ -224,6 +224,18 @@ def test_inverse_dynamics_undoes_forward_dynamics():
                        atol=1e-9 * np.abs(rhs).max())
 
 
+def test_inverse_kinematics_on_the_tree_reaches_poses_it_can_reach():
+    """Targets made by the forward kinematics at a random q (so they are reachable): the finger's tip pose and
+    the pad's position at once; the solution reproduces them to the tolerance (1e-8 m and rad x weight)."""
+    tree = mixed_tree()
+    q_true, _ = state(tree, 8, size=1.0)
+    pose_tip, pad = tree.frame(q_true, "finger"), tree.frame(q_true, "pad")[:3, 3]
+    ik = tree.inverse_kinematics([("finger", None, pose_tip), ("pad", None, pad)], q_true + 0.05, subtask="elastic")
+    assert ik.converged and ik.error < 1e-8
+    assert np.allclose(tree.frame(ik.q, "finger"), pose_tip, atol=1e-8)
+    assert np.allclose(tree.frame(ik.q, "pad")[:3, 3], pad, atol=1e-8)
+
+
 def test_tree_errors_name_the_fix():
     tree = Tree().add_beam("a", rod())
     with pytest.raises(ParameterError, match="already"):
