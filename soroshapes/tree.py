@@ -48,7 +48,10 @@ linear actuators (constant columns), then a torque [N m] or force [N] per ``actu
 
 Simulation uses the integrator family of :class:`~soroshapes.model.Model` (its implicit midpoint, trapezoidal
 or BDF2 rule on the first-order state :math:`(q_f, \dot q_f)` of the free coordinates): :meth:`Tree.system`
-makes the :class:`~soroshapes.model.StateSpace` block, :meth:`Tree.simulate` runs it.
+makes the :class:`~soroshapes.model.StateSpace` block (a network's couplings and controller may drive its
+inputs), :meth:`Tree.simulate` runs it alone; on the Python path of the network for now (a compiled tree block
+of :mod:`soroshapes.network` is the next step). :meth:`Tree.inverse_kinematics` runs the beam's damped
+least-squares iterations (:func:`soroshapes.beam.damped_least_squares`) on the tree Jacobians.
 
 Units: SI (m, kg, s, N, rad).
 
@@ -596,8 +599,8 @@ class Tree:
         q, qd, _, _ = self._full(t, x[:nf], x[nf:])
         return q, qd
 
-    def simulate(self, t_end, dt, q0=None, qd0=None, u=None, *, f_ext=None, method="midpoint", rtol=1e-8,
-                 atol=1e-10, record_every=1, data=None):
+    def simulate(self, t_end, dt, q0=None, qd0=None, u=None, *, f_ext=None, method="midpoint", rtol=1e-6,
+                 atol=1e-9, record_every=1, data=None):
         r"""Integrate the tree from (``q0``, ``qd0``) (default rest) over ``t_end`` [s] with steps ``dt`` [s] by
         the implicit ``method`` of :meth:`Model.simulate <soroshapes.model.Model.simulate>` ("midpoint",
         "trapezoidal", "bdf2"; Newton to ``rtol``, ``atol``). Returns a :class:`TreeTrajectory`."""
