@@ -210,6 +210,11 @@ class Tree:
         if not (math.isfinite(tau) and tau >= 0):
             raise ParameterError(f"damping must be a time constant >= 0 [s], got {tau!r}")
         terms = bm.input_terms(loads)
+        other = [type(ld).__name__ for ld in loads if not ld.inputs]
+        if other:
+            raise ParameterError(f"beam {name!r} carries load terms a tree does not take over ({', '.join(other)}): "
+                                 "gravity is the tree's (Tree(gravity=...) or tree.add_gravity()); mount a beam "
+                                 "without them (a tree takes a beam's chambers and linear actuators)")
         for ld in terms:
             if getattr(ld, "configuration_dependent", True):
                 raise ParameterError(f"input {ld.name!r} of beam {name!r} depends on the configuration (a tendon): "

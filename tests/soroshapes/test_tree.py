@@ -248,6 +248,8 @@ def test_tree_errors_name_the_fix():
         tree.add_link("l", joint="ball")
     with pytest.raises(ParameterError, match="fixed joint has no coordinate"):
         tree.add_link("l", actuated=True)
+    with pytest.raises(ParameterError, match="gravity is the tree's"):
+        tree.add_beam("b", rod().add_gravity(), parent="a")
     with pytest.raises(ParameterError, match="entries"):
         tree.frame(np.zeros(3), "a")
     with pytest.raises(DataError, match="NaN"):
