@@ -485,6 +485,41 @@ class Tree:
         r"""Accelerations (n,) (see :func:`accelerations`)."""
         return accelerations(self, self._data(data), q, qd, t, u, f_ext)
 
+    def base_wrench(self, q, qd, qdd, body, *, data=None):
+        r"""The wrench (moment [N m], force [N]) (6,) that the parent exerts on ``body`` and everything hanging
+        from it, in the body's frame (a beam's base node, a link's frame after its joint), for the motion
+        (q, qd, qdd) under gravity:
+
+        .. math:: W_b = \sum_{i \in \text{subtree}} w_i\,\mathrm{Ad}_{g_i^{-1}g_b}^T \big(\mathcal M_i(J_i\ddot q
+                  + \dot J_i\dot q) - \mathrm{ad}_{\eta_i}^T\mathcal M_i\eta_i - \mathcal M_i(0, R_i^Ta_g)\big)
+
+        (the subtree's free-body diagram: inertia and gravity; the beams' elastic forces, chambers and the
+        joints inside it are internal). A joint's effort is :math:`\xi^T W` of its link (the row of
+        :meth:`inverse_dynamics`); the parent feels :math:`-W_b`."""
+        from .lie import Ad, ad6, invSE3
+        data = self._data(data)
+        q, qd = kinematics(self, data, q, qd, True)
+        qdd = _state(self, qdd, "qdd")
+        b = self._body(body)
+        idx = self._index[b.name]
+        sub = {idx}
+        for k, c in enumerate(self._bodies):
+            if c.parent in sub:
+                sub.add(k)
+        w, Md = self._arrays()[:2]
+        gb = data.G[b.row0]
+        W = np.zeros(6)
+        for k in sub:
+            c = self._bodies[k]
+            for i in range(c.row0, c.row0 + c.rows):
+                if w[i] == 0.0:
+                    continue
+                e = data.eta[i]
+                F = Md[i] * (data.J[i] @ qdd + data.Jd[i] @ qd) - ad6(e).T @ (Md[i] * e)
+                F[3:] -= Md[i, 3:] * (data.G[i, :3, :3].T @ self.gravity)
+                W += w[i] * Ad(invSE3(data.G[i]) @ gb).T @ F
+        return W
+
     def energy(self, q, qd=None, *, data=None):
         """Energies [J]: dict with kinetic, elastic (beams and joint springs), gravity, total."""
         data = self._data(data)

@@ -236,6 +236,26 @@ def test_inverse_kinematics_on_the_tree_reaches_poses_it_can_reach():
     assert np.allclose(tree.frame(ik.q, "pad")[:3, 3], pad, atol=1e-8)
 
 
+def test_base_wrenches_carry_the_joint_efforts_and_the_weight():
+    """The wrench the parent exerts on a link's subtree, projected on the joint's screw, is the joint's row of
+    the inverse dynamics (revolute hub, prismatic slider; 1e-10 relative); at rest the force on the whole tree
+    is minus its weight (the straight beams' Gregory weights sum their masses exactly)."""
+    tree = mixed_tree()
+    q, qd = state(tree, 9)
+    qdd = np.random.default_rng(10).normal(size=tree.n)
+    tau = tree.inverse_dynamics(q, qd, qdd)
+    for body, axis in (("hub", (0, 0.3, 1)), ("slider", (1, 1, 0))):
+        a = np.array(axis, dtype=float) / np.linalg.norm(axis)
+        screw = np.concatenate([a, np.zeros(3)]) if body == "hub" else np.concatenate([np.zeros(3), a])
+        k = tree.coordinates(body).start
+        assert screw @ tree.base_wrench(q, qd, qdd, body) == pytest.approx(tau[k], rel=1e-10, abs=1e-14)
+    z = np.zeros(tree.n)
+    mass = 0.05 + 0.01 + 0.004 + sum(1000.0 * np.pi * 5e-3**2 * length for length in (0.1, 0.06))
+    W = tree.base_wrench(z, z, z, "hub")
+    R = tree.frame(z, "hub")[:3, :3]
+    assert np.allclose(W[3:], -mass * R.T @ tree.gravity, rtol=1e-12)
+
+
 def test_tree_errors_name_the_fix():
     tree = Tree().add_beam("a", rod())
     with pytest.raises(ParameterError, match="already"):
