@@ -111,10 +111,10 @@ def test_jacobian_rates_match_differences_of_the_jacobians():
 
 def test_a_beam_on_a_beam_tip_is_one_beam_of_the_two_lengths():
     L, dofs = 0.08, (2, 2, 2, 2, 0, 0)       # per piece (a piecewise basis holds n modes on each piece)
-    one = rod(2 * L, tuple(2 * d for d in dofs), Basis.piecewise_chebyshev(2, 2), segments=8, base=pose([0, 0.3, 0.2], [0, 0.01, 0]))
-    tree = Tree(gravity=(1.0, 0.0, -9.81)).add_beam("a", rod(L, dofs, segments=4),
-                                                     offset=pose([0, 0.3, 0.2], [0, 0.01, 0])).add_beam(
-        "b", rod(L, dofs, segments=4), parent="a")
+    base = pose([0, 0.3, 0.2], [0, 0.01, 0])
+    one = rod(2 * L, tuple(2 * d for d in dofs), Basis.piecewise_chebyshev(2, 2), segments=8, base=base)
+    tree = (Tree(gravity=(1.0, 0.0, -9.81)).add_beam("a", rod(L, dofs, segments=4), offset=base)
+            .add_beam("b", rod(L, dofs, segments=4), parent="a"))
     one.add_gravity((1.0, 0.0, -9.81))
     # the single beam orders its coordinates by strain, then piece; the tree by body, then strain
     perm = []
