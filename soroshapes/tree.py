@@ -146,7 +146,7 @@ class Tree:
         self._bodies = []
         self._index = {}
         self._n = 0
-        self._rows = 0
+        self._stacked = 0
         self.gravity = np.zeros(3) if gravity is None else self._vec3(gravity, "gravity")
         self._frozen = None
 
@@ -221,7 +221,7 @@ class Tree:
                                      "a tree takes chambers and linear actuators only")
         B = bm.input_map(model, model.make_data(), loads, np.zeros(model.n)) if terms else np.zeros((model.n, 0))
         body = _Body(name=name, kind="beam", parent=pidx, parent_row=prow, offset=off, col0=self._n,
-                     ncols=model.n, row0=self._rows, rows=model.points.shape[0], model=model, tau=tau,
+                     ncols=model.n, row0=self._stacked, rows=model.points.shape[0], model=model, tau=tau,
                      inputs=np.ascontiguousarray(B), input_names=tuple(f"{name}.{ld.name}" for ld in terms))
         return self._add(body)
 
@@ -261,6 +261,10 @@ class Tree:
         if motion is not None and (joint == "fixed" or not callable(motion)):
             raise ParameterError("motion= prescribes a revolute or prismatic joint: give a callable t -> (theta, "
                                  "theta_dot, theta_ddot)")
+        stiffness, damping = float(stiffness), float(damping)
+        if not (math.isfinite(stiffness) and math.isfinite(damping) and stiffness >= 0 and damping >= 0):
+            raise ParameterError(f"a joint's stiffness and damping must be finite and >= 0, got {stiffness!r}, "
+                                 f"{damping!r}")
         if (actuated or stiffness or damping) and joint == "fixed":
             raise ParameterError("a fixed joint has no coordinate: actuated, stiffness and damping need a revolute "
                                  "or prismatic joint")
@@ -282,7 +286,7 @@ class Tree:
             com_frame[:3, :3], com_frame[:3, 3] = R, self._vec3(com, "com")
         nc = 0 if joint == "fixed" else 1
         body = _Body(name=name, kind="link", parent=pidx, parent_row=prow, offset=off, col0=self._n, ncols=nc,
-                     row0=self._rows, rows=2 if massive else 1, joint=joint, screw=screw, com_frame=com_frame,
+                     row0=self._stacked, rows=2 if massive else 1, joint=joint, screw=screw, com_frame=com_frame,
                      inertia=np.concatenate([np.maximum(lam, 0.0), [mass] * 3]), stiffness=float(stiffness),
                      damping=float(damping), actuated=bool(actuated), motion=motion)
         return self._add(body)
@@ -296,7 +300,7 @@ class Tree:
         self._index[body.name] = len(self._bodies)
         self._bodies.append(body)
         self._n += body.ncols
-        self._rows += body.rows
+        self._stacked += body.rows
         self._frozen = None
         return self
 
@@ -306,7 +310,7 @@ class Tree:
     def _arrays(self):
         """Quadrature weights (R,), inertia (R, 6), K, D (n, n), B (n, m), input names, prescribed indices."""
         if self._frozen is None:
-            n, R = self._n, self._rows
+            n, R = self._n, self._stacked
             w, Md = np.zeros(R), np.zeros((R, 6))
             K, D = np.zeros((n, n)), np.zeros((n, n))
             cols, names = [], []
@@ -346,6 +350,18 @@ class Tree:
     def bodies(self):
         """Body names in the order they were added."""
         return tuple(self._index)
+
+    @property
+    def weights(self):
+        """Quadrature weights (R,) of the stacked frames [m for a beam's points, 1 for a link's centre of mass, 0
+        for frames without inertia]."""
+        return self._arrays()[0]
+
+    @property
+    def inertias(self):
+        """Diagonal inertia (R, 6) of the stacked frames (per unit length for a beam's points): (I1, I2, I3, m, m,
+        m) [kg m^2, kg]."""
+        return self._arrays()[1]
 
     @property
     def K(self):
@@ -406,7 +422,7 @@ class Tree:
     def _data(self, data):
         if data is None:
             if getattr(self, "_default", None) is None or self._default.n != self._n \
-                    or self._default.G.shape[0] != self._rows:
+                    or self._default.G.shape[0] != self._stacked:
                 self._default = self.make_data()
             return self._default
         return data
@@ -684,7 +700,7 @@ class TreeData:
     adding bodies."""
 
     def __init__(self, tree):
-        n, R = tree.n, tree._rows
+        n, R = tree.n, tree._stacked
         self.n = n
         self.G, self.J, self.Jd = np.zeros((R, 4, 4)), np.zeros((R, 6, n)), np.zeros((R, 6, n))
         self.eta, self.etad = np.zeros((R, 6)), np.zeros((R, 6))
@@ -730,7 +746,7 @@ def kinematics(tree, data, q, qd=None, rate=False):
     from . import _beam, _tree
     from .lie import expSE3
     q, qd = _state(tree, q), _state(tree, qd, "qd")
-    if data.n != tree.n or data.G.shape[0] != tree._rows:
+    if data.n != tree.n or data.G.shape[0] != tree._stacked:
         raise ParameterError("the workspace was made before bodies were added: make a new one (tree.make_data())")
     for b, parent, own, loc in zip(tree._bodies, data.parents, data.own, data.locals):
         if b.kind == "beam":

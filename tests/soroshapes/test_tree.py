@@ -177,7 +177,7 @@ def test_mass_matrix_is_spd_and_gives_the_kinetic_energy_of_the_differenced_twis
     assert np.linalg.eigvalsh(M)[0] > 0
     # twists of every stacked frame from differences of the frames along qd (no Jacobian involved)
     data = tree.make_data()
-    w, Md = tree._arrays()[:2]
+    w, Md = tree.weights, tree.inertias
     kinematics(tree, data, q)
     G0 = data.G.copy()
     h = 1e-7
