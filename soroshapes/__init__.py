@@ -21,6 +21,9 @@ _CLASSES.update(Weld="constraints", Pin="constraints", Align="constraints")
 # valve flow functions of the reservoirs (issue 26)
 _SUBMODULES += ("valves",)
 _CLASSES.update(Orifice="valves")
+# trees of beams and rigid links (issue 25)
+_SUBMODULES += ("tree",)
+_CLASSES.update(Tree="tree")
 
 __all__: list[str] = [*_SUBMODULES, *_CLASSES]
 

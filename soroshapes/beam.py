@@ -49,7 +49,7 @@ __all__ = ["BeamModel", "BeamData", "StateRangeError", "BeamTrajectory", "IKResu
            "Chamber", "Tendon", "Actuator", "Contact", "UserForce", "check_state", "kinematics", "dynamics",
            "coriolis_jacobian", "inverse_dynamics", "forward_dynamics", "accelerations", "energy", "external_force",
            "input_map", "inputs_at", "motion_terms", "LoadPlan", "statics", "newton_load_stepping", "simulate",
-           "explicit_step_limit", "inverse_kinematics"]
+           "explicit_step_limit", "inverse_kinematics", "damped_least_squares"]
 
 _NO_NODES, _NO_WRENCH, _NO_FLAGS = np.zeros(0, dtype=np.int64), np.zeros((0, 6)), np.zeros(0, dtype=np.bool_)
 
@@ -967,18 +967,33 @@ def _ik_python(model, data, q, args, grad, gain):
     def error(x):
         kinematics(model, data, x)
         return _beam._ik_error(nodes, kinds, goals, wrot, data.G, data.J, e, A), e.copy(), A.copy()
+    err, it = damped_least_squares(error, q, tol, max_it, lam, lam_max, grad, gain)
+    kinematics(model, data, q)
+    return err, it, err < tol
+
+
+def damped_least_squares(error, q, tol, max_iterations, damping, damping_max, grad=None, gain=0.0):
+    r"""The iterations of the inverse kinematics on ``q`` (in place): ``error(x)`` gives (|e|, e (m,), A (m, n)),
+    the stacked task errors and their Jacobian rows; steps :math:`\Delta q = A^T(AA^T + \lambda^2 I)^{-1}e`
+    plus, with ``grad`` (a callable q -> (n,)), the null-space step :math:`-(I - A^\dagger A)\nabla` scaled to
+    ``gain`` times the task step; :math:`\lambda` halves after an accepted step and grows fourfold after a
+    rejected one (up to ``damping_max``). Stops at |e| < ``tol``, after ``max_iterations``, or after 10 accepted
+    steps without progress. Returns (|e|, iterations). Any chain of frames uses it (a beam, a tree of bodies)."""
+    lam = damping
     err, ek, Ak = error(q)
+    m, n = Ak.shape
     it = 0
     best, since_best = err, 0
-    while err >= tol and it < max_it and since_best < 10:
+    while err >= tol and it < max_iterations and since_best < 10:
         it += 1
         AAt = Ak @ Ak.T + lam * lam * np.eye(m)
         dq = Ak.T @ np.linalg.solve(AAt, ek)
         stalled = np.linalg.norm(dq) < 1e-12 * (1 + np.linalg.norm(q))
-        g = np.asarray(grad(q), dtype=float).reshape(model.n)
-        gn = -(g - Ak.T @ np.linalg.solve(AAt, Ak @ g))
-        if np.linalg.norm(gn) > 0:
-            dq += gain * max(np.linalg.norm(dq), tol) * gn / np.linalg.norm(gn)
+        if grad is not None:
+            g = np.asarray(grad(q), dtype=float).reshape(n)
+            gn = -(g - Ak.T @ np.linalg.solve(AAt, Ak @ g))
+            if np.linalg.norm(gn) > 0:
+                dq += gain * max(np.linalg.norm(dq), tol) * gn / np.linalg.norm(gn)
         errn, en, An = error(q + dq)
         if errn <= err + tol:
             q[:], err, ek, Ak = q + dq, errn, en, An
@@ -988,7 +1003,6 @@ def _ik_python(model, data, q, args, grad, gain):
             best, since_best = (err, 0) if err < best * (1 - 1e-9) else (best, since_best + 1)
         else:
             lam *= 4.0
-            if lam > lam_max:
+            if lam > damping_max:
                 break
-    kinematics(model, data, q)
-    return err, it, err < tol
+    return err, it
