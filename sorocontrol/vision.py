@@ -199,6 +199,19 @@ def _refine(img, c, r, mask_fn, iterations=3, passes=2):
     return c, r
 
 
+def _cut(stat, cv2, window, size):
+    """Whether a blob (a row of connectedComponentsWithStats) touches an edge of its search ``window`` (i0, i1,
+    j0, j1) that is not the image's edge: only part of a marker that moved out of the window is inside, and its
+    centroid (hence its refinement) lies a part of a radius or more off the marker's centre, so it is not used
+    (the full search finds the marker)."""
+    i0, i1, j0, j1 = window
+    W, H = size
+    x, y = stat[cv2.CC_STAT_LEFT], stat[cv2.CC_STAT_TOP]
+    w, h = stat[cv2.CC_STAT_WIDTH], stat[cv2.CC_STAT_HEIGHT]
+    return bool((x == 0 and i0 > 0) or (y == 0 and j0 > 0) or (x + w >= i1 - i0 and i1 < W)
+                or (y + h >= j1 - j0 and j1 < H))
+
+
 @dataclass
 class _Colour:
     name: str
@@ -338,7 +351,7 @@ class MarkerDetector:
                 n, _, stats, cents = cv2.connectedComponentsWithStats(mask, connectivity=8)
                 for b in range(1, n):
                     r = math.sqrt(stats[b, cv2.CC_STAT_AREA] / math.pi)
-                    if r < 0.5 * self.radius[0]:
+                    if r < 0.5 * self.radius[0] or _cut(stats[b], cv2, (i0, i1, j0, j1), (W, H)):
                         continue
                     c = cents[b] + (i0, j0)
                     dist = math.hypot(*(c - p))

@@ -377,16 +377,18 @@ def check_shape_sensing(report, out):
     # the camera-based estimate follows the true shape (0.003 mm tip, 0.02 deg measured at the 95th percentile;
     # bounds 0.5 mm / 0.5 deg: sub-pixel markers at ~0.3 mm per pixel), and the loop closed on it reaches each
     # angle step (0.55-0.7 deg left by the ringing of the lightly damped finger at the end of 1.5 s holds; bound
-    # 3 deg). On a loaded machine the loop skips frames, so the finger moves further between two frames and the
-    # warm-started estimate of the first frame after a step can lag (1.1 mm once in 15 loaded runs, 0.003 mm
-    # otherwise): the percentile carries the accuracy bound, the maximum only says that tracking was never lost.
+    # 3 deg). The loop sends to the board every period whatever a frame costs (the estimator runs in a thread
+    # on the newest frame); on a loaded machine fewer frames are estimated (skipped ones are counted), the finger
+    # moves further between two estimates and the warm-started estimate of the first frame after a step can lag:
+    # the percentile carries the accuracy bound, the maximum only says that tracking was never lost.
     assert report["markers_found_min"] == 5
     assert report["tip_estimation_error_mm"]["p95"] < 0.5 and report["angle_estimation_error_deg"]["p95"] < 0.5
     assert report["tip_estimation_error_mm"]["max"] < 5.0 and report["angle_estimation_error_deg"]["max"] < 5.0
-    # the end errors need the 20 Hz loop: at load 9-11 on 2 cores it ran at 4.7 Hz (45 frames missed) and the
-    # integral action tuned for 20 Hz overshot (32.6 deg left); the 3 deg bound holds when the loop kept 90 % of
-    # its rate (the estimation bounds above hold at any rate)
-    if report["loop_rate_hz"] >= 18.0:
+    assert report["frames_estimated"] + report["frames_skipped"] + report["frames_failed"] == report["frames"]
+    # the end errors need the feedback at the camera's rate: with estimates at 3 Hz (load 13 on 2 cores) the
+    # integral action tuned for 20 Hz overshoots; the 3 deg bound holds when the loop and the estimator kept 90 %
+    # of the camera's rate (the estimation bounds above hold at any rate)
+    if report["loop_rate_hz"] >= 18.0 and report["estimation_rate_hz"] >= 18.0:
         assert max(report["end_error_deg"]) < 3.0
     assert report["frames"] > 0 and (out / report["png"]).stat().st_size > 0
 
