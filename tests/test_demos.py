@@ -374,23 +374,28 @@ def check_pneunet_design(report, out):
 
 
 def check_shape_sensing(report, out):
-    # the camera-based estimate follows the true shape (0.003 mm tip, 0.02 deg measured at the 95th percentile;
-    # bounds 0.5 mm / 0.5 deg: sub-pixel markers at ~0.3 mm per pixel), and the loop closed on it reaches each
-    # angle step (0.55-0.7 deg left by the ringing of the lightly damped finger at the end of 1.5 s holds; bound
-    # 3 deg). The loop sends to the board every period whatever a frame costs (the estimator runs in a thread
-    # on the newest frame); on a loaded machine fewer frames are estimated (skipped ones are counted), the finger
-    # moves further between two estimates and the warm-started estimate of the first frame after a step can lag:
-    # the percentile carries the accuracy bound, the maximum only says that tracking was never lost.
+    # offline, the held-out FEM case (the PneuNet pressed by a cylinder near its tip) seen by the camera: the
+    # 3-mode DVS and Chebyshev estimates both reach the FEM tip within 1 mm (0.198 / 0.203 mm measured: the
+    # bases' fit of a contact shape plus ~0.15 mm per pixel at 0.08 m); their values are pinned in the table
+    assert all(v < 1.0 for v in report["offline_tip_error_mm"].values())
+    # on the board, the camera-based estimate follows the plant (0.002 mm tip, 0.08 deg at the 95th percentile
+    # measured; bounds 0.5 mm / 0.5 deg: sub-pixel markers at ~0.15 mm per pixel); on a loaded machine fewer
+    # frames are estimated (skipped ones are counted: the loop sends every period whatever a frame costs), the
+    # finger moves further between two estimates: the maximum only says that tracking was never lost
     assert report["markers_found_min"] == 5
     assert report["tip_estimation_error_mm"]["p95"] < 0.5 and report["angle_estimation_error_deg"]["p95"] < 0.5
     assert report["tip_estimation_error_mm"]["max"] < 5.0 and report["angle_estimation_error_deg"]["max"] < 5.0
     assert report["frames_estimated"] + report["frames_skipped"] + report["frames_failed"] == report["frames"]
-    # the end errors need the feedback at the camera's rate: with estimates at 3 Hz (load 13 on 2 cores) the
-    # integral action tuned for 20 Hz overshoots; the 3 deg bound holds when the loop and the estimator kept 90 %
-    # of the camera's rate (the estimation bounds above hold at any rate)
-    if report["loop_rate_hz"] >= 18.0 and report["estimation_rate_hz"] >= 18.0:
+    assert report["frames_estimated"] > 0 and report["loop_target_hz"] == 60.0
+    # the end errors need the feedback: with estimates at 1 Hz (load 15-18 on 2 cores) the integral action
+    # overshoots (20.8 deg left); at 7.7 Hz estimates and a 48 Hz loop 0.9 / 1.4 deg were left. The 3 deg bound
+    # is checked when the loop kept 90 % of its 60 Hz and the estimator 15 Hz (the estimation bounds above hold
+    # at any rate)
+    if report["loop_rate_hz"] >= 54.0 and report["estimation_rate_hz"] >= 15.0:
         assert max(report["end_error_deg"]) < 3.0
-    assert report["frames"] > 0 and (out / report["png"]).stat().st_size > 0
+    assert (out / report["png"]).stat().st_size > 0
+    for name in ("free.h5", "wrap.h5", "pressed.h5"):
+        assert (out / name).stat().st_size > 0
 
 
 def check_suzumori_gripper(report, out):
