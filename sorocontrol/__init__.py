@@ -19,6 +19,7 @@ _CLASSES = {"Board": "board", "LoopStats": "board", "BoardServer": "server", "Mo
             "CameraModel": "camera", "SyntheticCamera": "camera", "OpenCVCamera": "camera",
             "RealSenseCamera": "camera", "ArucoTarget": "camera", "Frame": "camera",
             "MarkerDetector": "vision", "HsvRange": "vision", "calibrate_world": "vision",
+            "calibrate_intrinsics": "vision",
             "ShapeEstimator": "estimation", "Estimate": "estimation", "EstimatorThread": "estimation",
             "run_sensing": "estimation"}
 

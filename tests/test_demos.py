@@ -398,6 +398,25 @@ def check_shape_sensing(report, out):
         assert (out / name).stat().st_size > 0
 
 
+def check_sim2real(report, out):
+    # the replay recovers the rendered truth: the calibration finds the lens (k1, k2 = -0.25, 0.08 rendered;
+    # -0.2514, 0.0826 and 0.02 px measured), seen markers within 0.5 mm (0.09 mm p95 measured: centres within
+    # ~0.05 px plus the calibration's ~0.1 px, at 0.2 m / 554 px = 0.36 mm per pixel), and a dropped-out marker
+    # filled by the shape estimate of the others within 2 mm (0.09 mm measured: the 3-mode model fits the
+    # as-built finger's shape); every dropout rendered is reported, none left as NaN
+    assert report["calibrated_k1_k2"][0] == pytest.approx(-0.25, abs=0.02)
+    assert report["calibrated_k1_k2"][1] == pytest.approx(0.08, abs=0.03)
+    assert report["calibration_rms_px"] < 0.5
+    assert report["tracking_error_mm"]["seen_p95"] < 0.5 and report["tracking_error_mm"]["seen_max"] < 1.0
+    assert report["tracking_error_mm"]["filled_max"] < 2.0
+    assert report["dropouts"] == report["dropouts_rendered"] > 0 and report["nan_free"]
+    # the as-built finger differs from the model (5 % stiffer, 2.5 % smaller chamber): the Sim2Real error is
+    # that difference, larger than the tracking error, of the seed's order (+-2 mm)
+    assert report["sim2real_error_mm"]["tip_mean"] > 5 * report["tracking_error_mm"]["seen_p95"]
+    for name in (report["png"], report["video"]):
+        assert (out / name).stat().st_size > 0
+
+
 def check_suzumori_gripper(report, out):
     # the fingers pinch the bolt head (contact force during the grasp) and their circular tip motion turns
     # it, in the drive's sense, by friction (0.065 rev/s measured over the quick run, the seed's simulation
@@ -481,6 +500,7 @@ CHECKS = {
     "passive_walker": check_passive_walker,
     "suzumori_gripper": check_suzumori_gripper,
     "shape_sensing": check_shape_sensing,
+    "sim2real": check_sim2real,
     "wavy_wall": check_wavy_wall,
     "pneunet_design": check_pneunet_design,
     "board_pick_place": check_board_pick_place,
