@@ -1,5 +1,5 @@
-r"""Sim2Real replay: a recorded video of the actuator tracked by the vision pipeline, against the model (`soro demo sim2real`)
-=========================================================================================================
+r"""Sim2Real replay: a recorded video of the actuator tracked by vision, against the model (`soro demo sim2real`)
+==============================================================================================================
 
 Purpose
 -------

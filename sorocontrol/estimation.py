@@ -571,8 +571,13 @@ class EstimatorThread:
     def __enter__(self):
         return self.start()
 
-    def __exit__(self, *exc):
-        self.stop()
+    def __exit__(self, exc_type, *exc):
+        try:
+            self.stop()
+        except DataError as err:
+            if exc_type is None:
+                raise
+            log.warning("%s (while leaving on another error)", err)   # the error that ended the loop goes on
 
 
 # ------------------------------------------------------------------------------------------------------------

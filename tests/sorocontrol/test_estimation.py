@@ -237,3 +237,16 @@ def test_estimator_thread_estimates_synthetic_frames():
     for (q, q_direct), e in worker.results:
         assert np.array_equal(e.q, q_direct)
         assert np.linalg.norm(e.tip - ref.positions(q)[-1]) < 1e-4
+
+
+def test_estimator_thread_leaves_the_loops_own_error_in_front():
+    """A loop that fails (the board lost, say) while the thread has failed too: the loop's error is raised, the
+    thread's is logged."""
+    est = _Gated(beam())
+    est.gate.set()
+    with pytest.raises(KeyError, match="the loop's own"):
+        with EstimatorThread(est) as worker:
+            worker.submit("boom")
+            with pytest.raises(DataError):
+                worker.wait(60.0)
+            raise KeyError("the loop's own error")
