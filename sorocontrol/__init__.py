@@ -19,7 +19,9 @@ _CLASSES = {"Board": "board", "LoopStats": "board", "BoardServer": "server", "Mo
             "CameraModel": "camera", "SyntheticCamera": "camera", "OpenCVCamera": "camera",
             "RealSenseCamera": "camera", "ArucoTarget": "camera", "Frame": "camera",
             "MarkerDetector": "vision", "HsvRange": "vision", "calibrate_world": "vision",
-            "ShapeEstimator": "estimation", "Estimate": "estimation", "run_sensing": "estimation"}
+            "calibrate_intrinsics": "vision",
+            "ShapeEstimator": "estimation", "Estimate": "estimation", "EstimatorThread": "estimation",
+            "run_sensing": "estimation"}
 
 __all__: list[str] = [*_SUBMODULES, *_CLASSES]
 

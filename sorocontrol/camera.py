@@ -171,6 +171,8 @@ class CameraModel:
             if self.dist is None:
                 uv = (Pc[:, :2] / z[:, None]) * np.diag(self.K)[:2] + self.K[:2, 2]
                 uv[:, 0] += self.K[0, 1] * Pc[:, 1] / z
+            elif len(Pc) == 0:
+                uv = np.zeros((0, 2))
             else:
                 cv2 = require_cv2()
                 uv = cv2.projectPoints(Pc.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), self.K,
@@ -504,6 +506,10 @@ class SyntheticCamera(Camera):
     projection of :math:`p_w`. (The exact image of a sphere is an ellipse whose centre lies
     :math:`\approx \rho (R/z_c)^2` px further from the principal point, :math:`\rho` the distance to it:
     below 0.05 px for a 5 mm marker at 0.4 m.) Markers are painted far to near, so nearer ones occlude.
+    A model with lens distortion (``model.dist``) is rendered as the ideal pinhole image warped by the distortion:
+    each output pixel takes the ideal image at the undistorted position of its centre
+    (``cv2.undistortPoints``, bilinear), so the markers' ground-truth centres are the distorted projections
+    (:meth:`CameraModel.project`) and an undistortion from a calibration is needed to locate them.
     The depth image (``depth=True``) holds the z-depth of the sphere surfaces and of the ArUco sheet, 0
     elsewhere. The ArUco sheet is rendered by a perspective warp at ``supersample`` times the resolution,
     averaged down (area coverage at the edges).
@@ -536,9 +542,9 @@ class SyntheticCamera(Camera):
                  noise=0.0, depth=False, aruco=None, rate=30.0, seed=0, supersample=4):
         if not isinstance(model, CameraModel):
             raise ParameterError("model must be a CameraModel (e.g. CameraModel.from_fov(60, pose=look_at(...)))")
-        if model.dist is not None:
-            raise ParameterError("the synthetic camera renders an ideal pinhole: give a model without distortion")
         self.model = model
+        self._ideal = model if model.dist is None else CameraModel(model.K, model.width, model.height, model.pose)
+        self._maps = None
         if scene is not None and not callable(scene):
             raise ParameterError("scene must be a callable t [s] -> (m, 3) marker positions [m]")
         self.scene = scene
@@ -636,12 +642,16 @@ class SyntheticCamera(Camera):
             out.append(np.asarray(x, dtype=np.float32))
         return out
 
-    def render(self, points, t=0.0):
-        """A :class:`Frame` showing markers centred at world ``points`` (m, 3) [m] at time ``t`` [s]."""
+    def render(self, points, t=0.0, hidden=None):
+        """A :class:`Frame` showing markers centred at world ``points`` (m, 3) [m] at time ``t`` [s]; markers
+        flagged in ``hidden`` (m,) are not drawn (occluded: a dropout), and not ``visible`` in the truth."""
         P = np.asarray(points, dtype=float).reshape(-1, 3)
         if not np.all(np.isfinite(P)):
             raise DataError("marker positions contain NaN or inf")
-        m = self.model
+        m = self._ideal
+        drawn = np.ones(len(P), bool) if hidden is None else ~np.asarray(hidden, bool).reshape(-1)
+        if drawn.shape != (len(P),):
+            raise ParameterError(f"hidden must be one flag per marker ({len(P)})")
         img0, dep0 = self._static_layer()
         img = img0.copy()
         dep = dep0.copy() if self.depth else None
@@ -658,7 +668,7 @@ class SyntheticCamera(Camera):
         colors = self._marker_colors(len(P))
         Pc = m.to_camera(P)
         for k in np.argsort(-z):                      # far to near
-            if not (z[k] > 0 and np.all(np.isfinite(uv[k]))):
+            if not (drawn[k] and z[k] > 0 and np.all(np.isfinite(uv[k]))):
                 continue
             u0, v0, rk = uv[k, 0], uv[k, 1], r[k]
             i0, i1 = max(int(math.floor(u0 - rk - 1)), 0), min(int(math.ceil(u0 + rk + 1)) + 1, W)
@@ -683,11 +693,34 @@ class SyntheticCamera(Camera):
                 hit = (disc >= 0) & (a >= 0.5)
                 dw = dep[j0:j1, i0:i1]
                 dw[hit] = np.where((dw[hit] == 0) | (s[hit] < dw[hit]), s[hit], dw[hit])
+        if self.model.dist is not None:
+            img, dep, uv = self._distort(img, dep, P)
+            visible &= np.all(np.isfinite(uv), axis=1)
+            visible &= (uv[:, 0] >= 0) & (uv[:, 0] <= W - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= H - 1)
+        visible &= drawn
         if self.noise > 0:
             img += np.float32(self.noise) * self._rng.standard_normal(img.shape, dtype=np.float32)
         out = np.clip(np.rint(img), 0, 255).astype(np.uint8)
         truth = GroundTruth(points=P.copy(), centres=uv, radii=r, z=z, visible=visible, pose=m.pose.copy())
         return Frame(out, dep, float(t), self._index, truth)
+
+    def _distort(self, img, dep, P):
+        """The ideal image (and depth) warped by the model's lens distortion, and the distorted centres of ``P``."""
+        cv2 = require_cv2()
+        m = self.model
+        if self._maps is None:
+            H, W = m.height, m.width
+            uv = np.stack(np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64)), -1)
+            xy = cv2.undistortPoints(uv.reshape(-1, 1, 2), m.K, m.dist).reshape(H, W, 2)
+            self._maps = (np.ascontiguousarray((xy[..., 0] * m.K[0, 0] + xy[..., 1] * m.K[0, 1] + m.K[0, 2])
+                                               .astype(np.float32)),
+                          np.ascontiguousarray((xy[..., 1] * m.K[1, 1] + m.K[1, 2]).astype(np.float32)))
+        mx, my = self._maps
+        bg = tuple(float(v) for v in self._bg[0, 0])
+        img = cv2.remap(img, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=bg)
+        if dep is not None:
+            dep = cv2.remap(dep, mx, my, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        return img, dep, m.project(P)[0]
 
     def read(self):
         """Render the next frame of ``scene`` (frame ``k`` at ``t = k / rate``)."""

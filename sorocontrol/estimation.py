@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import logging
 import math
+import threading
 import time
 from dataclasses import dataclass
 
@@ -61,7 +62,7 @@ from sorofem.errors import DataError, ParameterError
 from .camera import CameraModel, Frame, SyntheticCamera, look_at
 from .vision import MarkerDetector, marker_points
 
-__all__ = ["Estimate", "ShapeEstimator", "run_sensing"]
+__all__ = ["Estimate", "ShapeEstimator", "EstimatorThread", "run_sensing"]
 
 log = logging.getLogger(__name__)
 
@@ -420,6 +421,163 @@ class ShapeEstimator:
         est.detect_time = t1 - t0
         self._tracking = True          # the estimate predicts every marker, seen or not, for the next frame
         return est
+
+
+# ------------------------------------------------------------------------------------------------------------
+# estimation beside a real-time loop
+# ------------------------------------------------------------------------------------------------------------
+class EstimatorThread:
+    r"""Runs a :class:`ShapeEstimator` in a background thread, so that a control loop never waits for a frame.
+
+    A control loop at the board's rate must send a command every period whatever a frame costs (rendering or
+    grabbing, detection, IK): the board's watchdog vents a loop that falls silent, and it is right to. Here the
+    loop hands each new frame to the thread with :meth:`submit` and reads the newest estimate from
+    :attr:`latest`, both without blocking. The thread works on the newest frame only: a frame still waiting when
+    the next one is submitted is dropped and counted (``skipped``), so a slow estimator lowers the estimation
+    rate, never the loop's. A frame whose markers are not found (DataError) is counted (``failed``) and the
+    previous estimate stays; any other error stops the thread and is raised again by :meth:`submit` and
+    :meth:`stop`.
+
+    The estimator and its :class:`~soroshapes.Shapes` (whose workspace its kernels write) belong to the thread
+    while it runs: the loop computes with another instance of the model.
+
+    Parameters
+    ----------
+    estimator : ShapeEstimator
+        Warm it up (one :meth:`ShapeEstimator.update` compiles the model's kernels) before the loop starts.
+    keep : bool
+        Keep every ``(tag, Estimate)`` in :attr:`results` (for scoring against a known truth).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sorofem import materials, sdf
+    >>> from soroshapes import Basis, Shapes
+    >>> from sorocontrol.camera import CameraModel, SyntheticCamera, look_at
+    >>> shp = Shapes(Basis.chebyshev(2), dofs=(0, 0, 2, 0, 0, 0), length=0.2, section=sdf.Circle(0.005),
+    ...              material=materials.NeoHookean(E=1e6, nu=0.45, density=1000), segments=10)
+    >>> nodes = [5, 10]
+    >>> cam = CameraModel.from_fov(60.0, pose=look_at((0.1, 0.0, 0.4), (0.1, 0.0, 0.0), up=(0, 1, 0)))
+    >>> video = SyntheticCamera(cam, marker_radius=4e-3, noise=2.0)
+    >>> est = ShapeEstimator(shp, shp.sigma[nodes], cam, plane=((0, 0, 0), (0, 0, 1)))
+    >>> q = np.array([3.0, 1.0])
+    >>> with EstimatorThread(est, keep=True) as worker:
+    ...     worker.submit(lambda: video.render(shp.positions(q)[nodes]), tag=q)
+    ...     e = worker.wait(timeout=60.0)
+    >>> bool(np.allclose(e.q, q, atol=0.05)), worker.done
+    (True, 1)
+    """
+
+    def __init__(self, estimator, *, keep=False):
+        if not isinstance(estimator, ShapeEstimator):
+            raise ParameterError("estimator must be a ShapeEstimator")
+        self.estimator = estimator
+        self.keep = bool(keep)
+        self.results = []
+        self.latest = estimator.last       # the warm-up's estimate until the first frame is done
+        self.done = self.skipped = self.failed = 0
+        self.busy_time = 0.0
+        self._cv = threading.Condition()
+        self._pending = None
+        self._stop = False
+        self._error = None
+        self._working = False
+        self._thread = None
+
+    def start(self):
+        """Start the thread (idempotent); returns self."""
+        if self._thread is None:
+            self._stop = False
+            self._thread = threading.Thread(target=self._run, daemon=True, name="soro-estimator")
+            self._thread.start()
+        return self
+
+    def submit(self, frame, u=None, tag=None):
+        """Hand a frame to the thread without waiting: ``frame`` is a :class:`Frame` or a callable returning one
+        (called in the thread: e.g. a synthetic camera's render, so that rendering costs the loop nothing);
+        ``u`` the actuation for ``prior="equilibrium"``; ``tag`` is kept with the estimate in :attr:`results`.
+        A frame still waiting is replaced (and counted in ``skipped``)."""
+        with self._cv:
+            self._raise()
+            if self._pending is not None:
+                self.skipped += 1
+            self._pending = (frame, None if u is None else np.array(u, dtype=float), tag)
+            self._cv.notify()
+
+    def wait(self, timeout=10.0):
+        """Block until the frames submitted so far are estimated (at most ``timeout`` [s]); returns
+        :attr:`latest`. For tests and warm-ups, not for a real-time loop."""
+        deadline = time.monotonic() + float(timeout)
+        with self._cv:
+            while (self._pending is not None or self._working) and self._error is None:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise DataError(f"the estimator thread did not finish within {timeout} s")
+                self._cv.wait(left)
+            self._raise()
+            return self.latest
+
+    def _raise(self):
+        if self._error is not None:
+            raise DataError(f"the estimator thread stopped: {self._error!r}") from self._error
+
+    def _run(self):
+        while True:
+            with self._cv:
+                while self._pending is None and not self._stop:
+                    self._cv.wait()
+                if self._stop:
+                    return
+                (frame, u, tag), self._pending = self._pending, None
+                self._working = True
+            t0 = time.perf_counter()
+            try:
+                est = self.estimator.update(frame() if callable(frame) else frame, u=u)
+            except DataError as err:
+                log.debug("estimator thread: frame dropped: %s", err)
+                with self._cv:
+                    self.failed += 1
+                    self._working = False
+                    self._cv.notify_all()
+                continue
+            except BaseException as err:  # noqa: BLE001 - handed to the loop's thread by submit/stop
+                with self._cv:
+                    self._error = err
+                    self._working = False
+                    self._cv.notify_all()
+                return
+            with self._cv:
+                self.busy_time += time.perf_counter() - t0
+                self.latest = est
+                self.done += 1
+                if self.keep:
+                    self.results.append((tag, est))
+                self._working = False
+                self._cv.notify_all()
+
+    def stop(self):
+        """Stop the thread after the frame it is working on (a waiting one is dropped and counted)."""
+        with self._cv:
+            self._stop = True
+            if self._pending is not None:
+                self.skipped += 1
+                self._pending = None
+            self._cv.notify_all()
+        th, self._thread = self._thread, None
+        if th is not None:
+            th.join()
+        self._raise()
+
+    def __enter__(self):
+        return self.start()
+
+    def __exit__(self, exc_type, *exc):
+        try:
+            self.stop()
+        except DataError as err:
+            if exc_type is None:
+                raise
+            log.warning("%s (while leaving on another error)", err)   # the error that ended the loop goes on
 
 
 # ------------------------------------------------------------------------------------------------------------

@@ -49,7 +49,8 @@ from .camera import ArucoTarget, CameraModel, Frame, require_cv2
 # numpy 2 renamed trapz to trapezoid (trapz is deprecated there); numpy 1.24 has only trapz
 _trapezoid = getattr(np, "trapezoid", None) or np.trapz
 
-__all__ = ["HsvRange", "MarkerDetector", "Detection", "order_chain", "calibrate_world", "marker_points",
+__all__ = ["HsvRange", "MarkerDetector", "Detection", "order_chain", "calibrate_world", "calibrate_intrinsics",
+           "marker_points",
            "depth_at", "RED", "GREEN", "BLUE", "YELLOW"]
 
 log = logging.getLogger(__name__)
@@ -199,6 +200,19 @@ def _refine(img, c, r, mask_fn, iterations=3, passes=2):
     return c, r
 
 
+def _cut(stat, cv2, window, size):
+    """Whether a blob (a row of connectedComponentsWithStats) touches an edge of its search ``window`` (i0, i1,
+    j0, j1) that is not the image's edge: only part of a marker that moved out of the window is inside, and its
+    centroid (hence its refinement) lies a part of a radius or more off the marker's centre, so it is not used
+    (the full search finds the marker)."""
+    i0, i1, j0, j1 = window
+    W, H = size
+    x, y = stat[cv2.CC_STAT_LEFT], stat[cv2.CC_STAT_TOP]
+    w, h = stat[cv2.CC_STAT_WIDTH], stat[cv2.CC_STAT_HEIGHT]
+    return bool((x == 0 and i0 > 0) or (y == 0 and j0 > 0) or (x + w >= i1 - i0 and i1 < W)
+                or (y + h >= j1 - j0 and j1 < H))
+
+
 @dataclass
 class _Colour:
     name: str
@@ -338,7 +352,7 @@ class MarkerDetector:
                 n, _, stats, cents = cv2.connectedComponentsWithStats(mask, connectivity=8)
                 for b in range(1, n):
                     r = math.sqrt(stats[b, cv2.CC_STAT_AREA] / math.pi)
-                    if r < 0.5 * self.radius[0]:
+                    if r < 0.5 * self.radius[0] or _cut(stats[b], cv2, (i0, i1, j0, j1), (W, H)):
                         continue
                     c = cents[b] + (i0, j0)
                     dist = math.hypot(*(c - p))
@@ -567,40 +581,10 @@ def _refine_quad(gray, corners, cells, samples=24):
     return out
 
 
-def calibrate_world(image, camera, target, *, refine="edges"):
-    r"""Pose of the camera in the world, :math:`T_{wc}`, from an ArUco ``target`` seen in ``image``.
-
-    The markers are detected with ``cv2.aruco.ArucoDetector``, their corners refined to sub-pixel accuracy
-    (``refine="edges"``: each side's edge is located to sub-pixel precision at points along it, a line is fitted
-    through them and the corners are the lines' intersections; ``"subpix"``: ``cv2.cornerSubPix``, which was
-    measured biased 0.1-0.2 px towards the inside of the marker's convex corners on anti-aliased renders),
-    matched to their world corners by id, and the pose solved by ``cv2.solvePnP``
-    (``SOLVEPNP_IPPE_SQUARE`` for one marker, ``SOLVEPNP_IPPE`` for several) then refined by Levenberg-Marquardt
-    (``solvePnPRefineLM``). With :math:`T_{ct}` the target's pose in the camera,
-    :math:`T_{wc} = T_{wt}\,T_{ct}^{-1}`.
-
-    Parameters
-    ----------
-    image : (H, W, 3) BGR or (H, W) grey uint8, or a Frame.
-    camera : CameraModel
-        Intrinsics (and distortion) of the camera; its pose is ignored.
-    target : ArucoTarget
-    refine : "edges" (default), "subpix" or None
-
-    Returns
-    -------
-    CameraModel
-        ``camera`` with ``pose`` :math:`T_{wc}` and ``rms`` the reprojection error [px].
-
-    Raises DataError when no marker of the target is visible.
-    """
+def _aruco_points(image, target, refine):
+    """The target's markers found in ``image``: sheet-frame corners (4k, 3) [m], their pixels (4k, 2) [px] (refined
+    as ``refine`` says, see :func:`calibrate_world`) and the ids used. DataError when none is found."""
     cv2 = require_cv2()
-    if not isinstance(camera, CameraModel):
-        raise ParameterError("camera must be a CameraModel with the camera's intrinsics")
-    if not isinstance(target, ArucoTarget):
-        raise ParameterError("target must be an ArucoTarget")
-    if refine not in ("edges", "subpix", None):
-        raise ParameterError("refine must be 'edges', 'subpix' or None")
     img = image.image if isinstance(image, Frame) else np.asarray(image)
     gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY) if img.ndim == 3 else img
     if gray.dtype != np.uint8:
@@ -641,8 +625,97 @@ def calibrate_world(image, camera, target, *, refine="edges"):
     if not used:
         raise DataError(f"ArUco markers {sorted(ids.ravel().tolist())} were found but none of the target's ids "
                         f"{list(target.ids)}")
-    obj = np.concatenate(obj).astype(np.float64)
-    pix = np.concatenate(pix).astype(np.float64)
+    return np.concatenate(obj).astype(np.float64), np.concatenate(pix).astype(np.float64), used
+
+
+def calibrate_intrinsics(images, target, *, refine="edges", distortion=5):
+    r"""Intrinsics and lens distortion of a camera from views of a flat ArUco ``target`` (Zhang's method).
+
+    In each image the target's markers are found and their corners refined as in :func:`calibrate_world`; the
+    sheet-frame corners and their pixels of all views go to ``cv2.calibrateCamera``, which fits
+    :math:`K` and the distortion coefficients :math:`(k_1, k_2, p_1, p_2, k_3)` (the last ones held at 0 when
+    ``distortion`` < 5) with one pose per view, minimizing the reprojection error. Views must tilt the target
+    (at least three, at different angles) for the focal length to be determined.
+
+    Parameters
+    ----------
+    images : sequence of (H, W, 3) BGR or (H, W) grey uint8 images, or Frames, all of one size.
+    target : ArucoTarget
+    refine : "edges", "subpix" or None
+    distortion : int
+        How many of :math:`(k_1, k_2, p_1, p_2, k_3)` are fitted: 2 (radial :math:`k_1, k_2`), 4 or 5.
+
+    Returns
+    -------
+    CameraModel
+        ``K``, image size, ``dist`` (5,) and ``rms``, the reprojection error [px]; pose identity (place it
+        with :func:`calibrate_world`).
+
+    Raises DataError when fewer than three views show the target.
+    """
+    cv2 = require_cv2()
+    if not isinstance(target, ArucoTarget):
+        raise ParameterError("target must be an ArucoTarget")
+    if distortion not in (2, 4, 5):
+        raise ParameterError(f"distortion must be 2, 4 or 5 coefficients, got {distortion!r}")
+    obj, pix, size = [], [], None
+    for image in images:
+        img = image.image if isinstance(image, Frame) else np.asarray(image)
+        if size is not None and img.shape[:2] != size:
+            raise ParameterError(f"all images must have one size: {img.shape[:2]} after {size}")
+        size = img.shape[:2]
+        try:
+            o, p, _ = _aruco_points(img, target, refine)
+        except DataError as err:
+            log.info("a calibration view was left out: %s", err)
+            continue
+        obj.append(o.astype(np.float32))
+        pix.append(p.astype(np.float32).reshape(-1, 1, 2))
+    if len(obj) < 3:
+        raise DataError(f"the target was found in {len(obj)} views; calibrating the intrinsics needs at least 3, "
+                        "with the target tilted differently in each")
+    flags = {2: cv2.CALIB_ZERO_TANGENT_DIST | cv2.CALIB_FIX_K3, 4: cv2.CALIB_FIX_K3, 5: 0}[distortion]
+    H, W = size
+    rms, K, dist, _, _ = cv2.calibrateCamera(obj, pix, (W, H), None, None, flags=flags)
+    log.info("intrinsics calibrated from %d views, reprojection error %.3f px", len(obj), rms)
+    return CameraModel(K, W, H, dist=np.asarray(dist, dtype=float).ravel()[:5], rms=float(rms))
+
+
+def calibrate_world(image, camera, target, *, refine="edges"):
+    r"""Pose of the camera in the world, :math:`T_{wc}`, from an ArUco ``target`` seen in ``image``.
+
+    The markers are detected with ``cv2.aruco.ArucoDetector``, their corners refined to sub-pixel accuracy
+    (``refine="edges"``: each side's edge is located to sub-pixel precision at points along it, a line is fitted
+    through them and the corners are the lines' intersections; ``"subpix"``: ``cv2.cornerSubPix``, which was
+    measured biased 0.1-0.2 px towards the inside of the marker's convex corners on anti-aliased renders),
+    matched to their world corners by id, and the pose solved by ``cv2.solvePnP``
+    (``SOLVEPNP_IPPE_SQUARE`` for one marker, ``SOLVEPNP_IPPE`` for several) then refined by Levenberg-Marquardt
+    (``solvePnPRefineLM``). With :math:`T_{ct}` the target's pose in the camera,
+    :math:`T_{wc} = T_{wt}\,T_{ct}^{-1}`.
+
+    Parameters
+    ----------
+    image : (H, W, 3) BGR or (H, W) grey uint8, or a Frame.
+    camera : CameraModel
+        Intrinsics (and distortion) of the camera; its pose is ignored.
+    target : ArucoTarget
+    refine : "edges" (default), "subpix" or None
+
+    Returns
+    -------
+    CameraModel
+        ``camera`` with ``pose`` :math:`T_{wc}` and ``rms`` the reprojection error [px].
+
+    Raises DataError when no marker of the target is visible.
+    """
+    cv2 = require_cv2()
+    if not isinstance(camera, CameraModel):
+        raise ParameterError("camera must be a CameraModel with the camera's intrinsics")
+    if not isinstance(target, ArucoTarget):
+        raise ParameterError("target must be an ArucoTarget")
+    if refine not in ("edges", "subpix", None):
+        raise ParameterError("refine must be 'edges', 'subpix' or None")
+    obj, pix, used = _aruco_points(image, target, refine)
     dist = np.zeros(5) if camera.dist is None else camera.dist
     if len(used) == 1:
         h = target.size / 2

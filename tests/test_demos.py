@@ -381,21 +381,49 @@ def check_pneunet_design(report, out):
 
 
 def check_shape_sensing(report, out):
-    # the camera-based estimate follows the true shape (0.003 mm tip, 0.02 deg measured at the 95th percentile;
-    # bounds 0.5 mm / 0.5 deg: sub-pixel markers at ~0.3 mm per pixel), and the loop closed on it reaches each
-    # angle step (0.55-0.7 deg left by the ringing of the lightly damped finger at the end of 1.5 s holds; bound
-    # 3 deg). On a loaded machine the loop skips frames, so the finger moves further between two frames and the
-    # warm-started estimate of the first frame after a step can lag (1.1 mm once in 15 loaded runs, 0.003 mm
-    # otherwise): the percentile carries the accuracy bound, the maximum only says that tracking was never lost.
+    # offline, the held-out FEM case (the PneuNet pressed by a cylinder near its tip) seen by the camera: the
+    # 3-mode DVS and Chebyshev estimates both reach the FEM tip within 1 mm (0.198 / 0.203 mm measured: the
+    # bases' fit of a contact shape plus ~0.15 mm per pixel at 0.08 m); their values are pinned in the table
+    assert all(v < 1.0 for v in report["offline_tip_error_mm"].values())
+    # on the board, the camera-based estimate follows the plant (0.002 mm tip, 0.08 deg at the 95th percentile
+    # measured; bounds 0.5 mm / 0.5 deg: sub-pixel markers at ~0.15 mm per pixel); on a loaded machine fewer
+    # frames are estimated (skipped ones are counted: the loop sends every period whatever a frame costs), the
+    # finger moves further between two estimates: the maximum only says that tracking was never lost
     assert report["markers_found_min"] == 5
     assert report["tip_estimation_error_mm"]["p95"] < 0.5 and report["angle_estimation_error_deg"]["p95"] < 0.5
     assert report["tip_estimation_error_mm"]["max"] < 5.0 and report["angle_estimation_error_deg"]["max"] < 5.0
-    # the end errors need the 20 Hz loop: at load 9-11 on 2 cores it ran at 4.7 Hz (45 frames missed) and the
-    # integral action tuned for 20 Hz overshot (32.6 deg left); the 3 deg bound holds when the loop kept 90 % of
-    # its rate (the estimation bounds above hold at any rate)
-    if report["loop_rate_hz"] >= 18.0:
+    assert report["frames_estimated"] + report["frames_skipped"] + report["frames_failed"] == report["frames"]
+    assert report["frames_estimated"] > 0 and report["loop_target_hz"] == 60.0
+    # the end errors need the feedback and a plant in real time: with estimates at 1 Hz (load 15-18 on 2 cores)
+    # the integral action overshoots (20.8 deg left); at 7.7 Hz estimates and a 48 Hz loop 0.9 / 1.4 deg were
+    # left. The plant pressed by the cylinder integrates its contact on the beams' Python path at ~0.1 of real
+    # time, so the board's plant skips time. The 3 deg bound is checked when the loop kept 90 % of its 60 Hz, the
+    # estimator 15 Hz and the plant real time (the estimation bounds above hold at any rate)
+    if report["loop_rate_hz"] >= 54.0 and report["estimation_rate_hz"] >= 15.0 \
+            and report["plant_realtime_factor"] >= 1.0:
         assert max(report["end_error_deg"]) < 3.0
-    assert report["frames"] > 0 and (out / report["png"]).stat().st_size > 0
+    assert (out / report["png"]).stat().st_size > 0
+    for name in ("free.h5", "wrap.h5", "pressed.h5"):
+        assert (out / name).stat().st_size > 0
+
+
+def check_sim2real(report, out):
+    # the replay recovers the rendered truth: the calibration finds the lens (k1, k2 = -0.25, 0.08 rendered;
+    # -0.2514, 0.0826 and 0.02 px measured), seen markers within 0.5 mm (0.09 mm p95 measured: centres within
+    # ~0.05 px plus the calibration's ~0.1 px, at 0.2 m / 554 px = 0.36 mm per pixel), and a dropped-out marker
+    # filled by the shape estimate of the others within 2 mm (0.09 mm measured: the 3-mode model fits the
+    # as-built finger's shape); every dropout rendered is reported, none left as NaN
+    assert report["calibrated_k1_k2"][0] == pytest.approx(-0.25, abs=0.02)
+    assert report["calibrated_k1_k2"][1] == pytest.approx(0.08, abs=0.03)
+    assert report["calibration_rms_px"] < 0.5
+    assert report["tracking_error_mm"]["seen_p95"] < 0.5 and report["tracking_error_mm"]["seen_max"] < 1.0
+    assert report["tracking_error_mm"]["filled_max"] < 2.0
+    assert report["dropouts"] == report["dropouts_rendered"] > 0 and report["nan_free"]
+    # the as-built finger differs from the model (5 % stiffer, 2.5 % smaller chamber): the Sim2Real error is
+    # that difference, larger than the tracking error, of the seed's order (+-2 mm)
+    assert report["sim2real_error_mm"]["tip_mean"] > 5 * report["tracking_error_mm"]["seen_p95"]
+    for name in (report["png"], report["video"]):
+        assert (out / name).stat().st_size > 0
 
 
 def check_suzumori_gripper(report, out):
@@ -510,6 +538,7 @@ CHECKS = {
     "passive_walker": check_passive_walker,
     "suzumori_gripper": check_suzumori_gripper,
     "shape_sensing": check_shape_sensing,
+    "sim2real": check_sim2real,
     "wavy_wall": check_wavy_wall,
     "pneunet_design": check_pneunet_design,
     "board_pick_place": check_board_pick_place,

@@ -18,7 +18,7 @@ from sorofem import materials, sdf  # noqa: E402
 from sorofem.errors import DataError, ParameterError  # noqa: E402
 from soroshapes import Basis, Shapes  # noqa: E402
 from sorocontrol.camera import CameraModel, SyntheticCamera, look_at  # noqa: E402
-from sorocontrol.estimation import ShapeEstimator, run_sensing  # noqa: E402
+from sorocontrol.estimation import EstimatorThread, ShapeEstimator, run_sensing  # noqa: E402
 from sorocontrol.vision import MarkerDetector  # noqa: E402
 
 L = 0.2
@@ -170,3 +170,83 @@ def test_gauss_newton_fallback_when_the_ik_breaks_down(monkeypatch):
     P = shp.positions(q)
     e = est.fit(P[nodes])
     assert e.converged and np.abs(e.backbone - P).max() < 1e-7
+
+
+class _Gated(ShapeEstimator):
+    """An estimator whose update waits for a gate (a frame that costs as long as the test wants) and fails on
+    request: frames are plain strings here, 'lost' (markers not found) or 'boom' (a bug)."""
+
+    def __init__(self, shp):
+        super().__init__(shp, shp.sigma[[5, 10]])
+        import threading
+        self.entered, self.gate = threading.Event(), threading.Event()
+
+    def update(self, frame, u=None):
+        self.entered.set()
+        self.gate.wait(60.0)
+        if frame == "lost":
+            raise DataError("markers not found")
+        if frame == "boom":
+            raise RuntimeError("a bug in the estimator")
+        return self.fit(self.shapes.positions(np.array([1.0, 0.5, 0.0]))[[5, 10]], u=u)
+
+
+def test_estimator_thread_never_makes_the_loop_wait():
+    """While the estimator is stuck on a frame, submit returns at once (the loop keeps sending to the board):
+    the frames handed in meanwhile replace each other and only the newest is estimated; the dropped ones are
+    counted. A frame without markers is counted as failed and keeps the previous estimate; any other error
+    reaches the loop's thread."""
+    est = _Gated(beam())
+    worker = EstimatorThread(est, keep=True).start()
+    worker.submit("first", tag=0)
+    assert est.entered.wait(60.0)                  # the thread is inside the first frame, held by the gate
+    for k in range(1, 5):
+        worker.submit(f"frame {k}", tag=k)         # would hang here (the gate is shut) if submit waited
+    assert (worker.done, worker.skipped) == (0, 3) and worker.latest is None
+    est.gate.set()
+    e = worker.wait(60.0)
+    assert worker.done == 2 and [tag for tag, _ in worker.results] == [0, 4] and e is worker.results[-1][1]
+    worker.submit("lost", tag=5)
+    assert worker.wait(60.0) is e and worker.failed == 1 and worker.done == 2
+    worker.submit("boom", tag=6)
+    with pytest.raises(DataError, match="estimator thread stopped.*a bug"):
+        worker.wait(60.0)
+    with pytest.raises(DataError, match="a bug"):
+        worker.stop()
+    with pytest.raises(ParameterError, match="ShapeEstimator"):
+        EstimatorThread(object())
+
+
+def test_estimator_thread_estimates_synthetic_frames():
+    """Frames handed to the thread give the estimates of the estimator called directly on the same frames (the
+    thread changes when the work is done, not what it computes), and they track the motion (0.1 mm, as above)."""
+    shp, ref = beam(), beam()
+    nodes = [2, 4, 6, 8, 10]
+    cam = CameraModel.from_fov(60.0, pose=look_at((0.11, -0.01, 0.42), (0.11, -0.01, 0.0), up=(0, 1, 0)))
+    video = SyntheticCamera(cam, marker_radius=4e-3, noise=2.0, seed=3)
+    make = lambda s: ShapeEstimator(s, s.sigma[nodes], cam, MarkerDetector(5, radius=(3, 9)),  # noqa: E731
+                                    plane=((0, 0, 0), (0, 0, 1)))
+    direct = make(ref)
+    with EstimatorThread(make(shp), keep=True) as worker:
+        for k in range(10):
+            q = q_planar(k / 25.0)
+            frame = video.render(ref.positions(q)[nodes])
+            worker.submit(frame, tag=(q, direct.update(frame).q))
+            worker.wait(60.0)
+    assert worker.done == 10 and worker.skipped == worker.failed == 0
+    for (q, q_direct), e in worker.results:
+        assert np.array_equal(e.q, q_direct)
+        assert np.linalg.norm(e.tip - ref.positions(q)[-1]) < 1e-4
+
+
+def test_estimator_thread_leaves_the_loops_own_error_in_front():
+    """A loop that fails (the board lost, say) while the thread has failed too: the loop's error is raised, the
+    thread's is logged."""
+    est = _Gated(beam())
+    est.gate.set()
+    with pytest.raises(KeyError, match="the loop's own"):
+        with EstimatorThread(est) as worker:
+            worker.submit("boom")
+            with pytest.raises(DataError):
+                worker.wait(60.0)
+            raise KeyError("the loop's own error")
