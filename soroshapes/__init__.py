@@ -18,6 +18,8 @@ _CLASSES = {"Basis": "basis", "Shapes": "shapes", "BeamTrajectory": "shapes", "I
 # holonomic end constraints of beam statics (issue 25)
 _SUBMODULES += ("constraints",)
 _CLASSES.update(Weld="constraints", Pin="constraints", Align="constraints")
+# beam model files (issue 24: the model `soro trade --tol` chooses, loaded by Python)
+_SUBMODULES += ("io",)
 
 __all__: list[str] = [*_SUBMODULES, *_CLASSES]
 
