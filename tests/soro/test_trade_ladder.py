@@ -170,3 +170,18 @@ def test_bodies_asking_for_different_tolerances_get_different_models(quick):
     assert np.all(np.isfinite(tr.x[-1]))
     with pytest.raises(ParameterError, match="no beam of pneunet2d reaches 0.01 %"):
         beam_within("pneunet2d", "0.01%", out=out, quick=True)
+
+
+def test_a_fem_rung_is_written_loaded_and_validated_too(quick, tmp_path):
+    """When the cheapest model within a tolerance is a FEM rung, its file names the element and mesh size and
+    loads as a Fem; on the validation load the P2 mixed rung on h/2 stays within twice its unseen error of the
+    reference plus 0.2 % of the length (the error grows with the load; the validation load is below the top
+    unseen one)."""
+    from soro.ladder import load_model, validate, write_model
+
+    scene, out, rows, _ = quick
+    row = [r for r in rows if r["family"] == "fem-p2mixed"][1]
+    path = write_model(row, scene, tmp_path / "fem.json", "tip", 0.01)
+    kind, fem, length = load_model(path)
+    assert kind == "fem" and fem.degree == 2 and fem.mixed and length > 0
+    assert validate(path, scene, out, "tip") <= 2 * row["tip_unseen"] + 0.002
