@@ -22,8 +22,9 @@ relative). Load sets: ``train`` (the training ramp: beams only), ``unseen`` (the
 land on other intermediate levels) and ``validation`` (one more load, ``validation_level``, used only to
 check a selected model). Costs: ``build_s`` (mesh + forms for FEM; for a beam the reference's training ramp
 it needs plus strain recovery, basis and identification), ``solve_s`` (median time of one static solve from
-rest: a beam's Newton solve, a FEM rung's load ramp to the top unseen load) with its inter-quartile range
-``solve_iqr_s`` over the repeats, and ``unknowns`` (degrees of freedom; for FEM the vertex count times the
+rest: a beam's Newton solve at the unseen loads, timed interleaved with the other beams in each of the
+``repeats`` rounds; a FEM rung's load ramp to the top unseen load) with its inter-quartile range
+``solve_iqr_s``, and ``unknowns`` (degrees of freedom; for FEM the vertex count times the
 dimension times 3 for P2, an estimate).
 
 The selection (:func:`select`) is :func:`soro.trade.cheapest` on one measure's unseen error: the smallest
@@ -96,9 +97,9 @@ SLOW_FEM_S = 20.0
 
 #: The scenes ``soro trade SCENE`` knows, full and quick (``--quick``; what the tests run).
 SCENES = {
-    "pneunet2d": {"full": Scene(chambers=7, size=2.0e-3, p_max=6e3, train_steps=16, fem_repeats=3),
+    "pneunet2d": {"full": Scene(chambers=7, size=2.0e-3, p_max=6e3, train_steps=16, repeats=15, fem_repeats=3),
                   "quick": Scene(chambers=4, size=2.4e-3, p_max=5e3, train_steps=10, modes=(1, 2, 3, 4),
-                                 fem_families=("fem-p1", "fem-p2mixed"), repeats=5, eigen=False)},
+                                 fem_families=("fem-p1", "fem-p2mixed"), repeats=9, eigen=False)},
 }
 
 
@@ -148,7 +149,7 @@ def richardson(values, ratio=2.0):
 # ------------------------------------------------------------------------------------------------ FEM rungs
 def _iqr(samples):
     s = np.asarray(samples, dtype=float)
-    return float(np.percentile(s, 75) - np.percentile(s, 25)) if len(s) > 1 else 0.0
+    return float(np.percentile(s, 75) - np.percentile(s, 25)) if len(s) > 1 else float("nan")   # one sample
 
 
 def _volume(vols):
@@ -306,7 +307,7 @@ def _positions_at(shp, q, sigma):
 
 def _beam_errors(shp, ident, data, inputs, repeats, dv, v_ref):
     """tip/shape/volume errors of the identified beam, of the projected strains (truncation) and the tip
-    distance between the two (identification), max over the snapshots of ``data``; and the solve times."""
+    distance between the two (identification), max over the snapshots of ``data``."""
     from soroshapes.dvs import compare
 
     L = data.length
@@ -324,7 +325,7 @@ def _beam_errors(shp, ident, data, inputs, repeats, dv, v_ref):
             vol.append(abs(v - v_ref[k]) / dv)
     return {"tip": float(c["tip_error"].max()), "shape": float(c["shape_error"].max()),
             "volume": float(max(vol)) if vol else float("nan"), "tip_projected": float(max(proj_tip)),
-            "tip_identification": float(max(ident_tip)), "times": c["solve_times"]}
+            "tip_identification": float(max(ident_tip))}
 
 
 def _integrated_tip_error(data, components, clamp=False):
@@ -396,21 +397,37 @@ def beam_ladder(scene, doc, out, degree=3):
                 continue
             ident = identify(shp, train, inputs=inputs, degree=degree)
             t_build = time.perf_counter() - t0 + t_recover + doc["reference"]["train_s"]
-            tr = _beam_errors(shp, ident, train, inputs, scene.repeats, dv, v_train)
-            te = _beam_errors(shp, ident, unseen, inputs, scene.repeats, dv, v_unseen)
-            times = np.concatenate([tr["times"], te["times"]])
+            tr = _beam_errors(shp, ident, train, inputs, 1, dv, v_train)
+            te = _beam_errors(shp, ident, unseen, inputs, 1, dv, v_unseen)
             row = {"family": fam, "modes": k, "unknowns": k, "size": None, "estimated": False,
-                   "build_s": t_build, "solve_time_s": float(np.median(times)), "solve_iqr_s": _iqr(times),
-                   "fit_error": ident.fit_error}
+                   "build_s": t_build, "fit_error": ident.fit_error}
             for key in ("tip", "shape", "volume", "tip_projected", "tip_identification"):
                 row[f"{key}_train"], row[f"{key}_unseen"] = tr[key], te[key]
             if ref.get("freq"):
                 row["freq"] = abs(float(shp.natural_frequencies(1)[0]) - ref["freq"]) / ref["freq"]
             row["_shapes"], row["_ident"] = shp, ident
             rows.append(row)
+    _time_interleaved(rows, [float(u) for u in unseen.inputs[inputs[0]]], scene.repeats)
     if rows:
         rows[0]["_floor"] = {"train": strain_floor(train), "unseen": strain_floor(unseen)}
     return rows
+
+
+def _time_interleaved(rows, loads, repeats):
+    """``solve_time_s`` (median) and ``solve_iqr_s`` of each beam row: static solves from rest at ``loads``,
+    every beam in turn within each of ``repeats`` rounds, so that a change of the machine's load during the
+    measurement shifts every beam alike (timed one after the other, a busy minute made one model look 20 %
+    slower than its twin and flipped the selection between runs)."""
+    samples = [[] for _ in rows]
+    for _ in range(max(1, int(repeats))):
+        for i, r in enumerate(rows):
+            shp = r["_shapes"]
+            for u in loads:
+                t0 = time.perf_counter()
+                shp.statics(u=[u])
+                samples[i].append(time.perf_counter() - t0)
+    for r, t in zip(rows, samples):
+        r["solve_time_s"], r["solve_iqr_s"] = float(np.median(t)), _iqr(t)
 
 
 def ladder(scene, out, progress=None):
@@ -452,6 +469,9 @@ def ladder_table(rows, tolerance=None, measure="tip"):
 
     def pct(v):
         return f"{100 * v:.3f}" if v is not None and np.isfinite(v) else "-"
+
+    def iqr(v):
+        return f"{1e3 * v:.3f}" if np.isfinite(v) else "1 run"
     head = (f"{'family':<12} {'size':>11} {'tip train':>9} {'tip unseen':>10} {'shape unseen':>12} "
             f"{'vol unseen':>10} {'freq':>8} {'build s':>8} {'solve ms':>10} {'IQR ms':>8} {'Pareto':>6}")
     lines = [head, "-" * len(head)]
@@ -461,9 +481,10 @@ def ladder_table(rows, tolerance=None, measure="tip"):
         lines.append(f"{r['family']:<12} {_label(r):>11} {pct(r.get('tip_train')):>9} "
                      f"{est}{pct(r['tip_unseen']):>9} {pct(r['shape_unseen']):>12} {pct(r.get('volume_unseen')):>10} "
                      f"{pct(r.get('freq')):>8} {r['build_s']:>8.2f} {1e3 * r['solve_time_s']:>10.3f} "
-                     f"{1e3 * r['solve_iqr_s']:>8.3f} {tags:>6}" + ("  <- selected" if r is pick else ""))
+                     f"{iqr(r['solve_iqr_s']):>8} {tags:>6}" + ("  <- selected" if r is pick else ""))
     lines.append("errors in % (tip, shape: of the length; volume: of the reference's volume change; freq: "
-                 "relative); ~ the reference's Richardson estimate; solve: median of repeats, IQR its spread")
+                 "relative); ~ the reference's Richardson estimate; solve: median of repeats, IQR its spread (a FEM "
+                 "solve longer than SLOW_FEM_S is timed once); freq of a beam: its assumed section, not identified")
     return "\n".join(lines)
 
 
