@@ -31,7 +31,8 @@ The selection (:func:`select`) is :func:`soro.trade.cheapest` on one measure's u
 median solve time, ties within :data:`soro.trade.TIME_BAND` go to fewer unknowns. :func:`run_ladder` is
 ``soro trade SCENE [--tol T --measure M]``: table, Pareto plots, error budget, and with a tolerance the
 model file (:mod:`soroshapes.io` for a beam; a ``soro-fem-rung`` JSON for a FEM rung, :func:`load_model`
-reads both), validated on the validation load.
+reads both), validated on the validation load; ``soro play soro.ladder:selected`` drives the selected beam live
+(:func:`selected`).
 """
 from __future__ import annotations
 
@@ -48,7 +49,7 @@ from sorofem.errors import ParameterError, SoroError
 __all__ = ["Scene", "SCENES", "MEASURES", "FEM_FAMILIES", "BEAM_FAMILIES", "richardson", "fem_ladder",
            "beam_ladder", "ladder", "pareto_front", "ladder_table", "ladder_figure", "error_budget", "select",
            "write_model", "load_model", "validate", "run_ladder", "parse_tolerance", "beam_within",
-           "strain_floor"]
+           "strain_floor", "selected"]
 
 #: The error measures of the ladder (the selection takes one of them).
 MEASURES = ("tip", "shape", "volume")
@@ -710,6 +711,26 @@ def beam_within(scene_name, tolerance, measure="tip", out=None, quick=False):
 
     path = write_model(pick, scene, out / f"model-{measure}-{tol:g}.json", measure, tol)
     return load_beam(path)
+
+
+def selected(quick=False):
+    """The scene of ``soro play soro.ladder:selected``: the beam of the model file ``$SORO_MODEL`` (default
+    ``out/ladder/pneunet2d/model.json``, what ``soro trade pneunet2d --tol T`` wrote), with a pressure channel
+    of 0 to 1.2 x the scene's top training pressure. A FEM rung cannot be driven live: a ParameterError says to
+    ask for a looser tolerance. ``quick`` is ignored (the file is the model)."""
+    import os
+
+    path = Path(os.environ.get("SORO_MODEL", Path("out") / "ladder" / "pneunet2d" / "model.json"))
+    if not path.is_file():
+        raise ParameterError(f"no model file at {path}: run `soro trade pneunet2d --tol 1%` first, or set SORO_MODEL")
+    kind, model, extra = load_model(path)
+    if kind != "beam":
+        raise ParameterError(f"{path} holds a FEM rung ({extra:g} m long), which cannot run live; select with a "
+                             "looser tolerance to get a beam")
+    from .play import Channel, Scene as PlayScene
+
+    p_max = float(extra.meta.get("scene", {}).get("p_max", 5e3))
+    return PlayScene(model, [Channel(name, 0.0, 1.2 * p_max) for name in extra.actuators])
 
 
 # ------------------------------------------------------------------------------------------------ the command

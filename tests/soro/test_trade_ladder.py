@@ -185,3 +185,21 @@ def test_a_fem_rung_is_written_loaded_and_validated_too(quick, tmp_path):
     kind, fem, length = load_model(path)
     assert kind == "fem" and fem.degree == 2 and fem.mixed and length > 0
     assert validate(path, scene, out, "tip") <= 2 * row["tip_unseen"] + 0.002
+
+
+def test_soro_play_loads_the_selected_model(quick, tmp_path, monkeypatch):
+    """`soro play soro.ladder:selected` resolves to the beam of the model file (SORO_MODEL) with one pressure
+    channel per identified input; a missing file says what to run."""
+    from soro.ladder import select, write_model
+    from soro.play import SceneError, load_scene
+
+    scene, _, rows, _ = quick
+    path = write_model(select(rows, 0.01, "tip"), scene, tmp_path / "model.json", "tip", 0.01)
+    monkeypatch.setenv("SORO_MODEL", str(path))
+    scn = load_scene("soro.ladder:selected")
+    assert [c.name for c in scn.channels] == ["pressure/cavity_0"] and scn.channels[0].high == 1.2 * scene.p_max
+    q = scn.system.statics(u=[scene.p_max])
+    assert np.all(np.isfinite(q)) and np.abs(q).max() > 0
+    monkeypatch.setenv("SORO_MODEL", str(tmp_path / "none.json"))
+    with pytest.raises(SceneError, match="soro trade pneunet2d --tol"):
+        load_scene("soro.ladder:selected")
