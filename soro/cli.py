@@ -27,7 +27,7 @@ turns their errors (:class:`sorofem.errors.SoroError`) into exit codes; library 
     cheapest model within the tolerance on the unseen loads, writes it to ``DIR/model.json`` (Python:
     :func:`soro.ladder.load_model`; a beam: :func:`soroshapes.io.load_beam`) and validates it on a load not
     used to choose it. Exit status 1 when no model reaches the tolerance (the message names the best
-    reachable error and its model).
+    reachable error and its model). ``soro play soro.ladder:selected`` then drives the selected beam live.
 ``soro robot list [NAME]``, ``soro robot export NAME [--out DIR] [--param NAME=VALUE ...]``
     The open-hardware robots: their parameters; print-ready STL, a preview and the board profile
     (:mod:`soro.robots`).
