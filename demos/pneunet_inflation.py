@@ -187,8 +187,9 @@ def tip_angle(X, U, length):
     return np.degrees(math.pi / 2 - ang)
 
 
-def build(dim, chambers, size, p_max, petsc_options=None):
-    """Mesh and model of the actuator; returns (fem, length)."""
+def build(dim, chambers, size, p_max, petsc_options=None, degree=2, mixed=False):
+    """Mesh and model of the actuator (displacement of ``degree`` 1 or 2; ``mixed``: Taylor-Hood P2 with a
+    pressure field, :class:`sorofem.fem.Fem`); returns (fem, length)."""
     from sorofem.fem import Fem
     from sorofem.mesh import Mesh
 
@@ -197,7 +198,7 @@ def build(dim, chambers, size, p_max, petsc_options=None):
     lo = [-1.0, -1.0] + ([-1.0] if dim == 3 else [])
     hi = [1.0, LAYER] + ([1.0] if dim == 3 else [])
     msh.add_region("layer", (lo, hi), kind="cells")
-    fem = Fem(msh, material=materials.Ecoflex0030(), degree=2, petsc_options=petsc_options)
+    fem = Fem(msh, material=materials.Ecoflex0030(), degree=degree, mixed=mixed, petsc_options=petsc_options)
     fem.add_material("layer", materials.DragonSkin30())
     fem.add_support("left")
     for c in msh.cavities:

@@ -19,6 +19,15 @@ turns their errors (:class:`sorofem.errors.SoroError`) into exit codes; library 
     rule (:func:`soro.trade.cheapest`: the smallest median time per solve among the rows within the
     tolerance on the test and contact tip errors) that also marks the table's selected row. Without files
     it runs the PneuNet of ``demos/dvs_pneunet.py`` (``--quick`` for a short run).
+``soro trade SCENE [--tol T] [--measure tip|shape|volume] [--quick] [--out DIR]``
+    The fidelity ladder of a scene (:mod:`soro.ladder`; scenes: ``pneunet2d``): FEM rungs (P1, P2, P2 mixed
+    on meshes h, h/2, h/4; the finest P2 mixed is the reference, its own error estimated by Richardson) and
+    beam rungs (DVS, Chebyshev, PCC), a table marking the Pareto fronts, one log-log plot per measure and the
+    error budget (``DIR``, default ``out/ladder/SCENE``). With ``--tol`` (``1%`` or ``0.01``) it selects the
+    cheapest model within the tolerance on the unseen loads, writes it to ``DIR/model.json`` (Python:
+    :func:`soro.ladder.load_model`; a beam: :func:`soroshapes.io.load_beam`) and validates it on a load not
+    used to choose it. Exit status 1 when no model reaches the tolerance (the message names the best
+    reachable error and its model). ``soro play soro.ladder:selected`` then drives the selected beam live.
 ``soro robot list [NAME]``, ``soro robot export NAME [--out DIR] [--param NAME=VALUE ...]``
     The open-hardware robots: their parameters; print-ready STL, a preview and the board profile
     (:mod:`soro.robots`).
@@ -126,7 +135,10 @@ def main(argv=None):
     p.add_argument("--input", action="append", dest="inputs", help="input name(s) of the snapshot files")
     p.add_argument("--tolerance", type=float, default=0.03, help="tip error bound, fraction of the length")
     p.add_argument("--out", default=None, help="output directory")
-    p.add_argument("--quick", action="store_true", help="short PneuNet run (without files)")
+    p.add_argument("--quick", action="store_true", help="short PneuNet run (without files) or quick ladder")
+    p.add_argument("--tol", default=None, help="ladder: select the cheapest model within this error, e.g. 1%% or "
+                                               "0.01, and write it to OUT/model.json")
+    p.add_argument("--measure", default="tip", help="ladder: the error measure of --tol: tip, shape or volume")
     p = sub.add_parser("sweep", help="run a batch of FEM cases from a TOML configuration (resumable, MPI)")
     p.add_argument("config", help="sweep configuration (TOML; format in soro.sweep)")
     p.add_argument("--out", default=None, help="output directory (default: out/sweeps/<config name>)")
@@ -191,6 +203,12 @@ def main(argv=None):
         print(f"report: {Path(args.out) / args.name / 'report.json'}")
         return 0
     if args.command == "trade":
+        from .ladder import SCENES, run_ladder
+        if args.tol is not None or (args.train in SCENES and not Path(args.train).is_file()):
+            if args.test is not None or args.backbone is not None:
+                print("soro trade: a scene takes no snapshot files or --backbone", file=sys.stderr)
+                return 2
+            return run_ladder(args.train or "pneunet2d", args.tol, args.measure, args.out, args.quick)
         from .trade import run_trade
         return run_trade(args.train, args.test, args.backbone, args.inputs, args.tolerance, args.out, args.quick)
     if args.command == "sweep":

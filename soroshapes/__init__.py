@@ -24,6 +24,8 @@ _CLASSES.update(Orifice="valves")
 # trees of beams and rigid links (issue 25)
 _SUBMODULES += ("tree",)
 _CLASSES.update(Tree="tree")
+# beam model files (issue 24: the model `soro trade --tol` chooses, loaded by Python)
+_SUBMODULES += ("io",)
 
 __all__: list[str] = [*_SUBMODULES, *_CLASSES]
 

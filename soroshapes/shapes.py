@@ -862,6 +862,16 @@ class Shapes:
                                       max_iterations=max_iterations, damping=damping,
                                       rotation_weight=rotation_weight, subtask=subtask, subtask_gain=subtask_gain)
 
+    @property
+    def bases(self):
+        """The strain bases, a tuple of 6 (:class:`~soroshapes.basis.Basis`, None for a fixed strain)."""
+        return tuple(b if d else None for b, d in zip(self._bases, self.dofs))
+
+    @property
+    def segments(self):
+        """Number of integration segments along the rod (int)."""
+        return self._segments
+
 
 def precompile():
     """Compile the beam kernels a first session needs (or load them from numba's cache) and leave them in the

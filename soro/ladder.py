@@ -1,0 +1,807 @@
+r"""The fidelity ladder of a scene: FEM rungs and beam rungs on one speed-accuracy chart (``soro trade SCENE``).
+
+A scene is an actuator with its loads. Its ladder measures every model of it against one reference:
+
+FEM rungs
+    P1, P2 and P2 mixed (Taylor-Hood, :class:`sorofem.fem.Fem` ``mixed=True``) displacement elements, each on
+    three meshes of element size h, h/2, h/4. The reference is the finest P2 mixed model; its own
+    discretization error is estimated by Richardson extrapolation from its three meshes
+    (:func:`richardson`): with :math:`e_1 = |Q_h - Q_{h/2}|`, :math:`e_2 = |Q_{h/2} - Q_{h/4}|`, the observed order
+    :math:`p = \log_2(e_1/e_2)` and the error of the finest :math:`e_2/(2^p - 1)`.
+Beam rungs
+    DVS (the POD of the reference's training snapshots), Chebyshev and PCC bases of 1-6 bending modes
+    (:func:`soro.trade.trade` builds them the same way), identified on the reference's training ramp
+    (:func:`soroshapes.dvs.identify`).
+
+Measures (errors, fractions): ``tip`` (distance of the backbone's tip / L), ``shape`` (rms distance of the
+backbone points / L), ``volume`` (error of the total cavity volume change from rest / the reference's change: the
+rest volume of a meshed cavity depends on the mesh; a beam's volume is its identified quadratic model of q,
+fitted on the reference's snapshots), ``freq`` (first natural frequency about the rest state,
+relative). Load sets: ``train`` (the training ramp: beams only), ``unseen`` (the levels of a separate ramp to
+``test_level``; FEM rungs are compared at its final level, the largest deflection, since their adaptive steps
+land on other intermediate levels) and ``validation`` (one more load, ``validation_level``, used only to
+check a selected model). Costs: ``build_s`` (mesh + forms for FEM; for a beam the reference's training ramp
+it needs plus strain recovery, basis and identification), ``solve_s`` (median time of one static solve from
+rest: a beam's Newton solve at the unseen loads, timed interleaved with the other beams in each of the
+``repeats`` rounds; a FEM rung's load ramp to the top unseen load) with its inter-quartile range
+``solve_iqr_s``, and ``unknowns`` (degrees of freedom; for FEM the vertex count times the
+dimension times 3 for P2, an estimate).
+
+The selection (:func:`select`) is :func:`soro.trade.cheapest` on one measure's unseen error: the smallest
+median solve time, ties within :data:`soro.trade.TIME_BAND` go to fewer unknowns. :func:`run_ladder` is
+``soro trade SCENE [--tol T --measure M]``: table, Pareto plots, error budget, and with a tolerance the
+model file (:mod:`soroshapes.io` for a beam; a ``soro-fem-rung`` JSON for a FEM rung, :func:`load_model`
+reads both), validated on the validation load; ``soro play soro.ladder:selected`` drives the selected beam live
+(:func:`selected`).
+"""
+from __future__ import annotations
+
+import json
+import sys
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from sorofem.errors import ParameterError, SoroError
+
+__all__ = ["Scene", "SCENES", "MEASURES", "FEM_FAMILIES", "BEAM_FAMILIES", "richardson", "fem_ladder",
+           "beam_ladder", "ladder", "pareto_front", "ladder_table", "ladder_figure", "error_budget", "select",
+           "write_model", "load_model", "validate", "run_ladder", "parse_tolerance", "beam_within",
+           "strain_floor", "selected"]
+
+#: The error measures of the ladder (the selection takes one of them).
+MEASURES = ("tip", "shape", "volume")
+#: FEM rungs: name -> (degree, mixed); the last one is the reference family.
+FEM_FAMILIES = {"fem-p1": (1, False), "fem-p2": (2, False), "fem-p2mixed": (2, True)}
+BEAM_FAMILIES = ("dvs", "chebyshev", "pcc")
+
+
+@dataclass(frozen=True)
+class Scene:
+    """The 2D (plane strain) PneuNet of ``demos/dvs_pneunet.py``: ``chambers``, coarsest element size ``size``
+    [m] (the rungs use size, size/2, size/4), top training pressure ``p_max`` [Pa] in ``train_steps`` steps, the
+    unseen ramp to ``test_level`` x p_max in ``test_steps`` steps, the validation load ``validation_level`` x
+    p_max, beam modes ``modes``, timing ``repeats`` of each beam solve, ``fem_repeats`` of each FEM solve."""
+
+    name: str = "pneunet2d"
+    chambers: int = 4
+    size: float = 2.4e-3
+    p_max: float = 5e3
+    train_steps: int = 10
+    test_level: float = 0.85
+    test_steps: int = 5
+    validation_level: float = 0.65
+    modes: tuple = (1, 2, 3, 4, 5, 6)
+    fem_families: tuple = tuple(FEM_FAMILIES)
+    repeats: int = 7
+    fem_repeats: int = 1
+    eigen: bool = True
+
+    def sizes(self):
+        """The three element sizes [m] of each FEM family: h, h/2, h/4."""
+        return (self.size, self.size / 2, self.size / 4)
+
+    def fem_settings(self):
+        """What the FEM part depends on (the cache key)."""
+        d = asdict(self)
+        for k in ("modes", "repeats"):
+            d.pop(k)
+        d["fem_families"] = list(d["fem_families"])
+        return d
+
+
+#: A FEM solve longer than this [s] is timed once (``fem_repeats`` apply to the faster ones): a minute-long
+#: solve varies by a few percent, far less than the factors between rungs.
+SLOW_FEM_S = 20.0
+
+#: The scenes ``soro trade SCENE`` knows, full and quick (``--quick``; what the tests run).
+SCENES = {
+    "pneunet2d": {"full": Scene(chambers=7, size=2.0e-3, p_max=6e3, train_steps=16, repeats=15, fem_repeats=3),
+                  "quick": Scene(chambers=4, size=2.4e-3, p_max=5e3, train_steps=10, modes=(1, 2, 3, 4),
+                                 fem_families=("fem-p1", "fem-p2mixed"), repeats=9, eigen=False)},
+}
+
+
+def _demo_module(name):
+    """A demo's module (``soro.demo.demo_path``: the installed demos), loaded once."""
+    import importlib.util
+
+    from .demo import demo_path
+
+    key = f"soro_ladder_{name}"
+    if key not in sys.modules:
+        spec = importlib.util.spec_from_file_location(key, demo_path(name))
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        sys.modules[key] = mod
+    return sys.modules[key]
+
+
+def _pneunet():
+    return _demo_module("pneunet_inflation")
+
+
+def _backbone(pn, length):
+    from soroshapes.dvs import Backbone
+
+    return Backbone.line([0.0, pn.LAYER / 2], [length, pn.LAYER / 2])
+
+
+# ------------------------------------------------------------------------------------------------ Richardson
+def richardson(values, ratio=2.0):
+    r"""Discretization error of the finest of three solutions on meshes refined by ``ratio``.
+
+    ``values``: the quantity (scalar or vector) on sizes h, h/ratio, h/ratio^2. Returns a dict with
+    ``error`` (estimated distance of the finest value from the limit, same unit), ``order`` (observed
+    :math:`p = \log_r(e_1/e_2)`) and ``converging`` (False when :math:`e_2 \ge e_1`: then ``error`` is the
+    conservative :math:`e_2` itself and ``order`` NaN)."""
+    a, b, c = (np.atleast_1d(np.asarray(v, dtype=float)) for v in values)
+    e1, e2 = float(np.linalg.norm(a - b)), float(np.linalg.norm(b - c))
+    if e2 == 0.0:
+        return {"error": 0.0, "order": float("inf"), "converging": True, "e1": e1, "e2": e2}
+    if e2 >= e1:
+        return {"error": e2, "order": float("nan"), "converging": False, "e1": e1, "e2": e2}
+    p = float(np.log(e1 / e2) / np.log(ratio))
+    return {"error": e2 / (ratio ** p - 1.0), "order": p, "converging": True, "e1": e1, "e2": e2}
+
+
+# ------------------------------------------------------------------------------------------------ FEM rungs
+def _iqr(samples):
+    s = np.asarray(samples, dtype=float)
+    return float(np.percentile(s, 75) - np.percentile(s, 25)) if len(s) > 1 else float("nan")   # one sample
+
+
+def _volume(vols):
+    return sum(np.asarray(v, dtype=float) for v in vols.values())
+
+
+def _solve_case(scene, pn, degree, mixed, size, level, steps, path):
+    """Build a FEM model and ramp it to ``level`` x p_max; returns (build s, solve s, fem, length)."""
+    t0 = time.perf_counter()
+    fem, length = pn.build(2, scene.chambers, size, scene.p_max, degree=degree, mixed=mixed)
+    t1 = time.perf_counter()
+    traj = fem.solve(load_level=level, steps=steps, max_step=level / steps, progress=False)
+    t2 = time.perf_counter()
+    if path is not None:
+        traj.save(path)
+    return t1 - t0, t2 - t1, fem, length, traj
+
+
+def fem_ladder(scene, out, progress=None):
+    """The FEM part of the ladder: every rung's unseen ramp, the reference's training ramp and validation load.
+
+    Writes the snapshot files to ``out`` and ``fem.json`` (its settings: a second call with the same scene
+    reads it back instead of solving). Returns the dict of ``fem.json``: ``rungs`` (one per family and size:
+    ``tip``, ``backbone`` (m, 3) [m], ``volume`` [m^2 per unit depth], ``freq`` [Hz] at the top unseen load,
+    ``build_s``, ``solve_s`` samples), ``reference`` (paths of the training, unseen and validation files and
+    the training ramp's time)."""
+    from soroshapes.dvs import recover_strains
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    cache = out / "fem.json"
+    if cache.is_file():
+        doc = json.loads(cache.read_text())
+        if doc.get("settings") == scene.fem_settings():
+            return doc
+    from sorofem.io import atomic_path
+
+    pn = _pneunet()
+    say = progress or (lambda msg: None)
+    rungs = []
+    length = None
+    for fam in scene.fem_families:
+        degree, mixed = FEM_FAMILIES[fam]
+        warm = False
+        for i, h in enumerate(scene.sizes()):
+            path = out / f"{fam}-h{i}.h5"
+            done = out / f"{fam}-h{i}.json"              # one record per rung: an interrupted ladder resumes
+            if done.is_file():
+                rec = json.loads(done.read_text())
+                if rec.get("settings") == scene.fem_settings() and path.is_file():
+                    rungs.append(rec["rung"])
+                    length = rec["length"]
+                    continue
+            if not warm:        # compile the family's forms (DOLFINx JIT) outside the timings: one small step
+                _solve_case(scene, pn, degree, mixed, scene.size, 0.01, 1, None)
+                warm = True
+            builds, solves = [], []
+            for rep in range(max(1, scene.fem_repeats)):
+                b, s, fem, length, traj = _solve_case(scene, pn, degree, mixed, h, scene.test_level,
+                                                      scene.test_steps, path)
+                builds.append(b)
+                solves.append(s)
+                if s > SLOW_FEM_S:                   # one sample of a slow solve: its noise is small relative
+                    break
+            freq = None
+            if scene.eigen:
+                fem2, _ = pn.build(2, scene.chambers, h, scene.p_max, degree=degree, mixed=mixed)
+                freq = float(fem2.eigen(n=1).frequencies[0])
+            data = recover_strains(path, _backbone(pn, length), samples=81, steps=[len(traj.times) - 1])
+            P = data.positions()[0]
+            v0 = float(_volume({k: np.asarray(v)[:1] for k, v in traj.cavity_volumes.items()})[0])
+            rungs.append({"family": fam, "level": i, "size": h, "degree": degree, "mixed": mixed,
+                          "unknowns": int(len(traj.vertices) * 2 * (3 if degree == 2 else 1)),
+                          "tip": P[-1].tolist(), "backbone": P.tolist(),
+                          "volume": float(_volume(traj.cavity_volumes)[-1]), "volume_rest": v0, "freq": freq,
+                          "build_s": builds, "solve_s": solves, "path": path.name})
+            with atomic_path(done) as tmp:
+                Path(tmp).write_text(json.dumps({"settings": scene.fem_settings(), "length": length,
+                                                 "rung": rungs[-1]}))
+            say(f"{fam} h={1e3 * h:.2f} mm: solve {np.median(solves):.2f} s")
+    ref = rungs[-1]
+    degree, mixed = FEM_FAMILIES[ref["family"]]
+    _, t_train, *_ = _solve_case(scene, pn, degree, mixed, ref["size"], 1.0, scene.train_steps, out / "train.h5")
+    _solve_case(scene, pn, degree, mixed, ref["size"], scene.validation_level, scene.test_steps,
+                out / "validation.h5")
+    doc = {"settings": scene.fem_settings(), "length": length, "rungs": rungs,
+           "reference": {"family": ref["family"], "size": ref["size"], "train": "train.h5",
+                         "unseen": ref["path"], "validation": "validation.h5", "train_s": t_train}}
+    with atomic_path(cache) as tmp:
+        Path(tmp).write_text(json.dumps(doc))
+    return doc
+
+
+def _fem_rows(doc):
+    """Rows of the FEM rungs: errors against the reference at the top unseen load; the reference's own error
+    is its Richardson estimate (``*_unseen`` of that row, flagged ``estimated``)."""
+    rungs = doc["rungs"]
+    ref = rungs[-1]
+    L = doc["length"]
+    dv = abs(ref["volume"] - ref["volume_rest"])
+    Pref = np.asarray(ref["backbone"])
+    fam = [r for r in rungs if r["family"] == ref["family"]]
+    rich = {"tip": richardson([r["tip"] for r in fam]), "shape": richardson([r["backbone"] for r in fam]),
+            "volume": richardson([r["volume"] - r["volume_rest"] for r in fam])}
+    if all(r["freq"] is not None for r in fam):
+        rich["freq"] = richardson([r["freq"] for r in fam])
+    rows = []
+    for r in rungs:
+        P = np.asarray(r["backbone"])
+        row = {"family": r["family"], "modes": r["unknowns"], "unknowns": r["unknowns"], "size": r["size"],
+               "tip_unseen": float(np.linalg.norm(P[-1] - Pref[-1]) / L),
+               "shape_unseen": float(np.sqrt(np.mean(np.sum((P - Pref) ** 2, axis=1))) / L),
+               "volume_unseen": abs((r["volume"] - r["volume_rest"]) - (ref["volume"] - ref["volume_rest"])) / dv,
+               "build_s": float(np.median(r["build_s"])), "solve_time_s": float(np.median(r["solve_s"])),
+               "solve_iqr_s": _iqr(r["solve_s"]), "estimated": r is ref}
+        if r["freq"] is not None and ref["freq"]:
+            row["freq"] = abs(r["freq"] - ref["freq"]) / ref["freq"]
+        if r is ref:     # the reference against the limit: Richardson
+            row["tip_unseen"] = rich["tip"]["error"] / L
+            row["shape_unseen"] = rich["shape"]["error"] / np.sqrt(len(P)) / L
+            row["volume_unseen"] = rich["volume"]["error"] / dv
+            if "freq" in rich:
+                row["freq"] = rich["freq"]["error"] / ref["freq"]
+        rows.append(row)
+    return rows, rich
+
+
+# ------------------------------------------------------------------------------------------------ beam rungs
+def _make_beam(length, pn):
+    return _demo_module("dvs_pneunet").beam_factory(length, pn)
+
+
+def _beam(fam, k, train, make):
+    from soroshapes.basis import Basis
+    from soroshapes.dvs import dvs_basis
+
+    dofs = [0, 0, k, 0, 0, 0]
+    if fam == "dvs":
+        bases, kept, _ = dvs_basis(train, dofs)
+        if kept[2] < k:
+            return None
+    elif fam == "chebyshev":
+        bases = [Basis.chebyshev(k).orthonormalize(train.length) if i == 2 else None for i in range(6)]
+    elif fam == "pcc":
+        bases = [Basis.pcc(k) if i == 2 else None for i in range(6)]
+    else:
+        raise ParameterError(f"unknown beam family {fam!r}: use {', '.join(BEAM_FAMILIES)}")
+    return make(bases, tuple(dofs))
+
+
+def _positions_at(shp, q, sigma):
+    P = shp.positions(q)
+    return np.column_stack([np.interp(sigma, shp.sigma, P[:, i]) for i in range(3)])
+
+
+def _beam_errors(shp, ident, data, inputs, repeats, dv, v_ref):
+    """tip/shape/volume errors of the identified beam, of the projected strains (truncation) and the tip
+    distance between the two (identification), max over the snapshots of ``data``."""
+    from soroshapes.dvs import compare
+
+    L = data.length
+    c = compare(shp, data, inputs, repeats)
+    fem = data.positions()
+    qp = data.project(shp)
+    proj_tip, ident_tip, vol = [], [], []
+    for k in range(len(data.times)):
+        Pp = _positions_at(shp, qp[k], data.sigma)
+        Pb = _positions_at(shp, c["q"][k], data.sigma)
+        proj_tip.append(np.linalg.norm(Pp[-1] - fem[k, -1]) / L)
+        ident_tip.append(np.linalg.norm(Pb[-1] - Pp[-1]) / L)
+        if ident.volume_models:
+            v = sum(ident.volume(nm, c["q"][k]) for nm in ident.volume_models)
+            vol.append(abs(v - v_ref[k]) / dv)
+    return {"tip": float(c["tip_error"].max()), "shape": float(c["shape_error"].max()),
+            "volume": float(max(vol)) if vol else float("nan"), "tip_projected": float(max(proj_tip)),
+            "tip_identification": float(max(ident_tip))}
+
+
+def _integrated_tip_error(data, components, clamp=False):
+    r"""Max over the snapshots of the tip distance / L between the recovered FEM backbone and the curve that
+    integrates the recovered strains of ``components`` (the others held at their rest values) from the
+    recovered base frame (with ``clamp``: from the undeformed frame at the recovered base point, as a clamped
+    beam starts): :math:`g_{j+1} = g_j \exp(h\,(\xi_j + \xi_{j+1})/2)` (second order)."""
+    from soroshapes.lie import expSE3
+
+    keep = np.zeros(6, dtype=bool)
+    keep[list(components)] = True
+    xi = np.where(keep[None, None], data.xi, data.xi0[None])
+    h = np.diff(data.sigma)
+    err = []
+    for k in range(len(data.times)):
+        g = data.frames[k, 0].copy()
+        if clamp:
+            g[:3, :3] = np.eye(3)
+        for j in range(len(h)):
+            g = g @ expSE3(np.ascontiguousarray(0.5 * (xi[k, j] + xi[k, j + 1]) * h[j]))
+        err.append(np.linalg.norm(g[:3, 3] - data.frames[k, -1, :3, 3]) / data.length)
+    return float(max(err))
+
+
+def strain_floor(data):
+    """What limits every beam of bending modes alone, before any basis or identification: the tip error of
+    the integrated recovered strains with all six components (strain recovery and integration) and with the
+    bending strain alone (stretch, shear, torsion at rest: the strains a bending-only beam omits); fractions
+    of L, max over the snapshots of ``data``; and the bending strain integrated from the clamp's undeformed
+    frame (``bending_from_clamp``: what a clamped beam does, while the recovered FEM frame at the clamp is
+    rotated by ``clamp_rotation`` [rad], the shear of the wall at the support)."""
+    R0 = data.frames[:, 0, :3, :3]
+    return {"all_strains": _integrated_tip_error(data, range(6)), "bending_only": _integrated_tip_error(data, [2]),
+            "bending_from_clamp": _integrated_tip_error(data, [2], clamp=True),
+            "clamp_rotation": float(np.abs(np.arctan2(R0[:, 1, 0], R0[:, 0, 0])).max())}
+
+
+def beam_ladder(scene, doc, out, degree=3):
+    """The beam rungs on the reference's snapshots (``doc`` from :func:`fem_ladder`): one row per family and
+    number of modes with the measures on ``train`` and ``unseen``, the error budget columns
+    (``tip_projected_*``: the beam with the FEM strains projected on its basis; ``tip_identification_*``: the
+    identified beam against that), costs, and the identified model (``_shapes``, ``_ident``; not JSON)."""
+    from sorofem.snapshots import input_name
+    from soroshapes.dvs import identify, recover_strains
+
+    out = Path(out)
+    pn = _pneunet()
+    L = doc["length"]
+    bb = _backbone(pn, L)
+    t0 = time.perf_counter()
+    train = recover_strains(out / doc["reference"]["train"], bb, samples=81)
+    unseen = recover_strains(out / doc["reference"]["unseen"], bb, samples=81)
+    unseen = unseen.select(np.nonzero(unseen.times > 0)[0])
+    t_recover = time.perf_counter() - t0
+    inputs = [input_name("pressure", "cavity_0")]
+    make = _make_beam(L, pn)
+    ref = doc["rungs"][-1]
+    dv = abs(ref["volume"] - ref["volume_rest"])
+    v_train, v_unseen = _volume(train.cavity_volumes), _volume(unseen.cavity_volumes)
+    warm = _beam("chebyshev", 1, train, make)           # compile the kernels outside the timings
+    identify(warm, train, inputs=inputs, degree=degree)
+    warm.statics(u=[float(train.inputs[inputs[0]][-1])])
+    rows = []
+    for fam in BEAM_FAMILIES:
+        for k in scene.modes:
+            t0 = time.perf_counter()
+            shp = _beam(fam, k, train, make)
+            if shp is None:
+                continue
+            ident = identify(shp, train, inputs=inputs, degree=degree)
+            t_build = time.perf_counter() - t0 + t_recover + doc["reference"]["train_s"]
+            tr = _beam_errors(shp, ident, train, inputs, 1, dv, v_train)
+            te = _beam_errors(shp, ident, unseen, inputs, 1, dv, v_unseen)
+            row = {"family": fam, "modes": k, "unknowns": k, "size": None, "estimated": False,
+                   "build_s": t_build, "fit_error": ident.fit_error}
+            for key in ("tip", "shape", "volume", "tip_projected", "tip_identification"):
+                row[f"{key}_train"], row[f"{key}_unseen"] = tr[key], te[key]
+            if ref.get("freq"):
+                row["freq"] = abs(float(shp.natural_frequencies(1)[0]) - ref["freq"]) / ref["freq"]
+            row["_shapes"], row["_ident"] = shp, ident
+            rows.append(row)
+    _time_interleaved(rows, [float(u) for u in unseen.inputs[inputs[0]]], scene.repeats)
+    if rows:
+        rows[0]["_floor"] = {"train": strain_floor(train), "unseen": strain_floor(unseen)}
+    return rows
+
+
+def _time_interleaved(rows, loads, repeats):
+    """``solve_time_s`` (median) and ``solve_iqr_s`` of each beam row: static solves from rest at ``loads``,
+    every beam in turn within each of ``repeats`` rounds, so that a change of the machine's load during the
+    measurement shifts every beam alike (timed one after the other, a busy minute made one model look 20 %
+    slower than its twin and flipped the selection between runs)."""
+    samples = [[] for _ in rows]
+    for _ in range(max(1, int(repeats))):
+        for i, r in enumerate(rows):
+            shp = r["_shapes"]
+            for u in loads:
+                t0 = time.perf_counter()
+                shp.statics(u=[u])
+                samples[i].append(time.perf_counter() - t0)
+    for r, t in zip(rows, samples):
+        r["solve_time_s"], r["solve_iqr_s"] = float(np.median(t)), _iqr(t)
+
+
+def ladder(scene, out, progress=None):
+    """The whole ladder: (rows, info) with the FEM rows first (:func:`fem_ladder`, cached in ``out``) then the
+    beam rows (:func:`beam_ladder`, measured on every call), and ``info`` with the reference's Richardson
+    estimates ``richardson`` (per measure), ``length`` [m] and the FEM document ``fem``."""
+    doc = fem_ladder(scene, out, progress)
+    fem_rows, rich = _fem_rows(doc)
+    rows = fem_rows + beam_ladder(scene, doc, out)
+    return rows, {"richardson": rich, "length": doc["length"], "fem": doc}
+
+
+# ------------------------------------------------------------------------------------------------ Pareto
+def pareto_front(rows, measure):
+    """Indices of the rows on the Pareto front of (median solve time, unseen ``measure`` error): no other row
+    is at most as slow and at most as wrong, and better in one of them."""
+    key = f"{measure}_unseen"
+    pts = [(r["solve_time_s"], r.get(key, np.nan)) for r in rows]
+    front = []
+    for i, (t, e) in enumerate(pts):
+        if not np.isfinite(e):
+            continue
+        dominated = any(np.isfinite(e2) and t2 <= t and e2 <= e and (t2 < t or e2 < e)
+                        for j, (t2, e2) in enumerate(pts) if j != i)
+        if not dominated:
+            front.append(i)
+    return front
+
+
+def _label(r):
+    return f"h={1e3 * r['size']:.2f}mm" if r.get("size") else f"{r['modes']} modes"
+
+
+def ladder_table(rows, tolerance=None, measure="tip"):
+    """The ladder as text: errors in %, build in s, solve median and IQR in ms; ``P:`` the measures whose
+    Pareto front holds the row (t tip, s shape, v volume); with ``tolerance`` the selected row is marked."""
+    fronts = {m: set(pareto_front(rows, m)) for m in MEASURES}
+    pick = select(rows, tolerance, measure) if tolerance is not None else None
+
+    def pct(v):
+        return f"{100 * v:.3f}" if v is not None and np.isfinite(v) else "-"
+
+    def iqr(v):
+        return f"{1e3 * v:.3f}" if np.isfinite(v) else "1 run"
+    head = (f"{'family':<12} {'size':>11} {'tip train':>9} {'tip unseen':>10} {'shape unseen':>12} "
+            f"{'vol unseen':>10} {'freq':>8} {'build s':>8} {'solve ms':>10} {'IQR ms':>8} {'Pareto':>6}")
+    lines = [head, "-" * len(head)]
+    for i, r in enumerate(rows):
+        tags = "".join(c for c, m in zip("tsv", MEASURES) if i in fronts[m]) or "-"
+        est = "~" if r.get("estimated") else " "
+        lines.append(f"{r['family']:<12} {_label(r):>11} {pct(r.get('tip_train')):>9} "
+                     f"{est}{pct(r['tip_unseen']):>9} {pct(r['shape_unseen']):>12} {pct(r.get('volume_unseen')):>10} "
+                     f"{pct(r.get('freq')):>8} {r['build_s']:>8.2f} {1e3 * r['solve_time_s']:>10.3f} "
+                     f"{iqr(r['solve_iqr_s']):>8} {tags:>6}" + ("  <- selected" if r is pick else ""))
+    lines.append("errors in % (tip, shape: of the length; volume: of the reference's volume change; freq: "
+                 "relative); ~ the reference's Richardson estimate; solve: median of repeats, IQR its spread (a FEM "
+                 "solve longer than SLOW_FEM_S is timed once); freq of a beam: its assumed section, not identified")
+    return "\n".join(lines)
+
+
+_STYLE = {"fem-p1": "v-", "fem-p2": "D-", "fem-p2mixed": "P-", "dvs": "o-", "chebyshev": "s-", "pcc": "^-"}
+
+
+def ladder_figure(rows, measure, tolerance=None, pick=None):
+    """Unseen ``measure`` error vs median time per solve, log-log: one line per family through its rungs in
+    order of cost, the Pareto front as a grey step line, the tolerance dotted, the reference's own estimated
+    error dashed (errors below it cannot be resolved), the selected model circled. Returns a matplotlib
+    ``Figure``."""
+    from matplotlib.figure import Figure
+
+    key = f"{measure}_unseen"
+    fig = Figure(figsize=(7, 4.5))
+    ax = fig.add_subplot()
+    for fam, style in _STYLE.items():
+        r = sorted((row for row in rows if row["family"] == fam and np.isfinite(row.get(key, np.nan))),
+                   key=lambda row: row["solve_time_s"])
+        if r:
+            ax.loglog([row["solve_time_s"] for row in r], [max(100 * row[key], 1e-5) for row in r], style,
+                      label=fam, ms=5)
+    front = sorted((rows[i] for i in pareto_front(rows, measure)), key=lambda row: row["solve_time_s"])
+    if front:
+        ax.step([row["solve_time_s"] for row in front], [max(100 * row[key], 1e-5) for row in front], "-",
+                where="post", color="0.5", lw=3, alpha=0.4, zorder=0, label="Pareto front")
+    if pick is not None:
+        ax.loglog([pick["solve_time_s"]], [max(100 * pick[key], 1e-5)], "o", ms=14, mfc="none", mec="k",
+                  label=f"selected: {pick['family']} {_label(pick)}")
+    if tolerance is not None:
+        ax.axhline(100 * tolerance, color="k", lw=0.8, ls=":")
+    ref = _reference_error(rows, measure)
+    if ref > 0:
+        ax.axhline(100 * ref, color="0.4", lw=1.0, ls="--", label="the reference's own error (Richardson)")
+    ax.set_xlabel("time per static solve from rest [s] (median)")
+    ax.set_ylabel(f"{measure} error on unseen loads [%]")
+    ax.set_title(f"fidelity ladder: {measure} (reference: finest P2 mixed, its own error by Richardson)",
+                 fontsize=9)
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    return fig
+
+
+# ------------------------------------------------------------------------------------------------ budget
+def error_budget(rows, info):
+    """The error budget of the beams' tip error (fractions of L), as text and a dict: the reference's
+    discretization error (Richardson), and per beam family at its most modes the basis truncation (beam with
+    the FEM strains projected on its basis vs FEM) and the identification error (identified beam vs the
+    projected one), on the training and unseen loads."""
+    L = info["length"]
+    rt = info["richardson"]["tip"]
+    budget = {"reference_discretization": rt["error"] / L, "reference_order": rt["order"],
+              "reference_converging": rt["converging"], "beams": []}
+    lines = [f"reference discretization (Richardson on h, h/2, h/4 of the P2 mixed tip): "
+             f"{100 * rt['error'] / L:.4f} % of L (observed order {rt['order']:.2f}"
+             f"{'' if rt['converging'] else ', NOT converging: error = last difference'})",
+             f"{'beam':<16} {'tip train %':>11} {'truncation':>10} {'ident.':>8} {'tip unseen %':>12} "
+             f"{'truncation':>10} {'ident.':>8} {'fit residual':>12}"]
+    for r in rows:
+        if "tip_projected_unseen" not in r:
+            continue
+        b = {k: r[k] for k in ("family", "modes", "tip_train", "tip_projected_train", "tip_identification_train",
+                                "tip_unseen", "tip_projected_unseen", "tip_identification_unseen", "fit_error")}
+        budget["beams"].append(b)
+        lines.append(f"{r['family'] + ' ' + str(r['modes']):<16} {100 * r['tip_train']:>11.3f} "
+                     f"{100 * r['tip_projected_train']:>10.3f} {100 * r['tip_identification_train']:>8.3f} "
+                     f"{100 * r['tip_unseen']:>12.3f} {100 * r['tip_projected_unseen']:>10.3f} "
+                     f"{100 * r['tip_identification_unseen']:>8.3f} {r['fit_error']:>12.2e}")
+    lines.append("truncation: the beam with the FEM strains projected on its basis (includes the strain recovery "
+                 "and beam kinematics floor); ident.: identified beam vs projected beam; fit residual: relative "
+                 "residual of the actuation fit")
+    floor = next((r["_floor"] for r in rows if "_floor" in r), None)
+    if floor:
+        budget["strain_floor"] = floor
+        lines.append(f"strain floor (recovered strains integrated, before any basis): all six strains "
+                     f"{100 * floor['train']['all_strains']:.3f} % train / {100 * floor['unseen']['all_strains']:.3f} "
+                     f"% unseen; bending alone (stretch and shear omitted, as in these beams) "
+                     f"{100 * floor['train']['bending_only']:.3f} % / {100 * floor['unseen']['bending_only']:.3f} %; "
+                     f"bending alone from the undeformed clamp frame (as the beams start) "
+                     f"{100 * floor['train']['bending_from_clamp']:.3f} % / "
+                     f"{100 * floor['unseen']['bending_from_clamp']:.3f} %: the FEM frame at the clamp turns by up to "
+                     f"{1e3 * floor['unseen']['clamp_rotation']:.2f} mrad (the wall shears at the support), which "
+                     f"a clamped beam cannot")
+    for m, r in info["richardson"].items():
+        if r["converging"] and r["order"] < 0.5:
+            lines.append(f"note: the reference's {m} is not in its asymptotic range (observed order "
+                         f"{r['order']:.2f}): its Richardson estimate is unreliable (large)")
+    return "\n".join(lines), budget
+
+
+# ------------------------------------------------------------------------------------------------ selection
+def parse_tolerance(text):
+    """A tolerance from the command line: ``"1%"`` -> 0.01, ``"0.01"`` -> 0.01; a ParameterError otherwise."""
+    s = str(text).strip()
+    try:
+        v = float(s[:-1]) / 100 if s.endswith("%") else float(s)
+    except ValueError:
+        raise ParameterError(f"a tolerance is a fraction or a percentage, e.g. 0.01 or 1%; got {text!r}") from None
+    if not 0 < v < 1:
+        raise ParameterError(f"a tolerance must lie in (0, 1) (0 % to 100 %), got {text!r}")
+    return v
+
+
+def _reference_error(rows, measure):
+    """The reference's own estimated error (its row's Richardson estimate; 0 without an estimated row)."""
+    return next((r[f"{measure}_unseen"] for r in rows if r.get("estimated")), 0.0)
+
+
+def select(rows, tolerance, measure="tip"):
+    """The cheapest row within ``tolerance`` on the unseen ``measure`` error (:func:`soro.trade.cheapest`, the one
+    selection rule); None if none is, or if the tolerance is below the reference's own estimated error (the
+    errors of the other rows are measured against the reference: below its error they cannot be checked)."""
+    from .trade import cheapest
+
+    if measure not in MEASURES:
+        raise ParameterError(f"unknown measure {measure!r}: use one of {', '.join(MEASURES)}")
+    ok = [r for r in rows if np.isfinite(r.get(f"{measure}_unseen", np.nan))]
+    pick = cheapest(ok, tolerance, keys=(f"{measure}_unseen",))
+    return None if pick is None or tolerance < _reference_error(rows, measure) else pick
+
+
+def _best(rows, measure):
+    key = f"{measure}_unseen"
+    return min((r for r in rows if np.isfinite(r.get(key, np.nan))), key=lambda r: (r[key], r["solve_time_s"]))
+
+
+def write_model(row, scene, path, measure, tolerance):
+    """Write the model of ``row`` to ``path`` (JSON): a beam with :func:`soroshapes.io.save_beam`, a FEM rung as
+    ``{"format": "soro-fem-rung", "version": 1, "scene": ..., "degree", "mixed", "size" [m]}``."""
+    meta = {"scene": asdict(scene), "measure": measure, "tolerance": tolerance, "family": row["family"],
+            "modes": row["modes"], "unseen_error": row[f"{measure}_unseen"], "solve_time_s": row["solve_time_s"],
+            "chosen_by": "soro.ladder.select"}
+    if "_shapes" in row:
+        from soroshapes.io import save_beam
+
+        ident = row["_ident"]
+        return save_beam(path, row["_shapes"], ident.coefficients, ident.volume_models, meta=meta)
+    from sorofem.io import atomic_path
+    degree, mixed = FEM_FAMILIES[row["family"]]
+    doc = {"format": "soro-fem-rung", "version": 1, "degree": degree, "mixed": mixed, "size": row["size"],
+           "meta": meta}
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        Path(tmp).write_text(json.dumps(doc, indent=1) + "\n")
+    return path
+
+
+def load_model(path):
+    """A model file written by :func:`write_model`: ``("beam", Shapes, BeamFile)`` or ``("fem", Fem, length)``
+    (the FEM rung rebuilt at the scene's top pressure, :func:`demos.pneunet_inflation.build`)."""
+    doc = json.loads(Path(path).read_text())
+    if doc.get("format") == "soro-fem-rung":
+        sc = Scene(**{k: tuple(v) if isinstance(v, list) else v for k, v in doc["meta"]["scene"].items()})
+        fem, length = _pneunet().build(2, sc.chambers, doc["size"], sc.p_max, degree=doc["degree"],
+                                       mixed=doc["mixed"])
+        return "fem", fem, length
+    from soroshapes.io import load_beam
+
+    shp, f = load_beam(path)
+    return "beam", shp, f
+
+
+def validate(path, scene, out, measure):
+    """Error of the model file ``path`` on the validation load (not used to choose it) against the reference:
+    the unseen ``measure`` error there (fraction). The model is read back from the file."""
+    from sorofem.snapshots import input_name
+    from soroshapes.dvs import recover_strains
+
+    out = Path(out)
+    pn = _pneunet()
+    doc = json.loads((out / "fem.json").read_text())
+    L = doc["length"]
+    ref = doc["rungs"][-1]
+    data = recover_strains(out / doc["reference"]["validation"], _backbone(pn, L), samples=81)
+    data = data.select([len(data.times) - 1])
+    P_ref, v_ref = data.positions()[0], float(_volume(data.cavity_volumes)[0])
+    kind, model, extra = load_model(path)
+    if kind == "beam":
+        u = float(data.inputs[input_name("pressure", "cavity_0")][0])
+        q = model.statics(u=[u])
+        P = _positions_at(model, q, data.sigma)
+        v = sum(extra.volume(nm, q) for nm in extra.volumes) if extra.volumes else np.nan
+    else:
+        traj = model.solve(load_level=scene.validation_level, steps=scene.test_steps,
+                           max_step=scene.validation_level / scene.test_steps, progress=False)
+        tmp = out / "validation-selected.h5"
+        traj.save(tmp)
+        P = recover_strains(tmp, _backbone(pn, L), samples=81, steps=[len(traj.times) - 1]).positions()[0]
+        v = float(_volume(traj.cavity_volumes)[-1])
+    err = {"tip": np.linalg.norm(P[-1] - P_ref[-1]) / L,
+           "shape": np.sqrt(np.mean(np.sum((P - P_ref) ** 2, axis=1))) / L,
+           "volume": abs(v - v_ref) / abs(ref["volume"] - ref["volume_rest"])}
+    return float(err[measure])
+
+
+_LADDERS = {}
+
+
+def beam_within(scene_name, tolerance, measure="tip", out=None, quick=False):
+    """A body that asks for a tolerance instead of a basis: the cheapest beam of the scene within ``tolerance``
+    (a fraction or ``"1%"``) on the unseen ``measure`` error, from the scene's ladder (its FEM part cached in
+    ``out``, default ``out/ladder/SCENE``). Writes ``model-<measure>-<tolerance>.json`` there and returns
+    ``(shapes, beamfile)`` read back from it (:func:`soroshapes.io.load_beam`), ready for a
+    :class:`soroshapes.Model`. A ParameterError when no beam meets the tolerance, naming the best one."""
+    tol = parse_tolerance(tolerance)
+    if scene_name not in SCENES:
+        raise ParameterError(f"unknown scene {scene_name!r}; scenes: {', '.join(SCENES)}")
+    scene = SCENES[scene_name]["quick" if quick else "full"]
+    out = Path(out or Path("out") / "ladder" / scene_name)
+    key = (scene, str(out.resolve()))
+    if key not in _LADDERS:                 # one ladder per scene and folder in a process: bodies share it
+        _LADDERS[key] = ladder(scene, out)[0]
+    rows = _LADDERS[key]
+    beams = [r for r in rows if "_shapes" in r]
+    pick = select(beams + [r for r in rows if r.get("estimated")], tol, measure)
+    if pick is None or "_shapes" not in pick:
+        best = _best(beams, measure)
+        raise ParameterError(f"no beam of {scene_name} reaches {100 * tol:g} % on the unseen {measure} error; the "
+                             f"best is {100 * best[f'{measure}_unseen']:.4g} % ({best['family']} {_label(best)}): "
+                             f"ask for at least that, or model this body by FEM")
+    from soroshapes.io import load_beam
+
+    path = write_model(pick, scene, out / f"model-{measure}-{tol:g}.json", measure, tol)
+    return load_beam(path)
+
+
+def selected(quick=False):
+    """The scene of ``soro play soro.ladder:selected``: the beam of the model file ``$SORO_MODEL`` (default
+    ``out/ladder/pneunet2d/model.json``, what ``soro trade pneunet2d --tol T`` wrote), with a pressure channel
+    of 0 to 1.2 x the scene's top training pressure. A FEM rung cannot be driven live: a ParameterError says to
+    ask for a looser tolerance. ``quick`` is ignored (the file is the model)."""
+    import os
+
+    path = Path(os.environ.get("SORO_MODEL", Path("out") / "ladder" / "pneunet2d" / "model.json"))
+    if not path.is_file():
+        raise ParameterError(f"no model file at {path}: run `soro trade pneunet2d --tol 1%` first, or set SORO_MODEL")
+    kind, model, extra = load_model(path)
+    if kind != "beam":
+        raise ParameterError(f"{path} holds a FEM rung ({extra:g} m long), which cannot run live; select with a "
+                             "looser tolerance to get a beam")
+    from .play import Channel, Scene as PlayScene
+
+    p_max = float(extra.meta.get("scene", {}).get("p_max", 5e3))
+    return PlayScene(model, [Channel(name, 0.0, 1.2 * p_max) for name in extra.actuators])
+
+
+# ------------------------------------------------------------------------------------------------ the command
+def run_ladder(scene_name="pneunet2d", tolerance=None, measure="tip", out=None, quick=False, stream=None):
+    """``soro trade SCENE [--tol T --measure M]``: the ladder's table, Pareto plots (``ladder_<measure>.png``)
+    and error budget in ``out`` (default ``out/ladder/SCENE``); with a tolerance the selected model's file
+    ``model.json``, validated on the validation load. Returns the exit status: 0, 1 when no model meets the
+    tolerance (the message names the best reachable error and its model), 2 for bad arguments."""
+    from sorofem.io import atomic_path
+
+    stream = stream or sys.stdout
+    if scene_name not in SCENES:
+        print(f"soro trade: unknown scene {scene_name!r}; scenes: {', '.join(SCENES)}", file=sys.stderr)
+        return 2
+    try:
+        tol = None if tolerance is None else parse_tolerance(tolerance)
+        if measure not in MEASURES:
+            raise ParameterError(f"unknown measure {measure!r}: use one of {', '.join(MEASURES)}")
+    except ParameterError as e:
+        print(f"soro trade: {e}", file=sys.stderr)
+        return 2
+    scene = SCENES[scene_name]["quick" if quick else "full"]
+    out = Path(out or Path("out") / "ladder" / scene_name)
+    try:
+        rows, info = ladder(scene, out, progress=lambda m: print(m, file=stream, flush=True))
+    except SoroError as e:
+        print(f"soro trade: {e}", file=sys.stderr)
+        return 2
+    pick = select(rows, tol, measure) if tol is not None else None
+    table = ladder_table(rows, tol, measure)
+    budget_text, budget = error_budget(rows, info)
+    text = table + "\n\nerror budget (tip)\n" + budget_text
+    for m in MEASURES:
+        fig = ladder_figure(rows, m, tol if m == measure else None, pick if m == measure else None)
+        with atomic_path(out / f"ladder_{m}.png") as tmp:
+            fig.savefig(tmp, dpi=110, format="png")
+    status = 0
+    result = {"scene": scene_name, "quick": quick, "rows": [{k: v for k, v in r.items() if not k.startswith("_")}
+                                                           for r in rows],
+              "richardson": info["richardson"], "budget": budget}
+    if tol is not None:
+        ref_err = _reference_error(rows, measure)
+        if pick is None:
+            best = _best(rows, measure)
+            verdict = (f"no model reaches {100 * tol:g} % on the unseen {measure} error: the best reachable is "
+                       f"{100 * best[f'{measure}_unseen']:.4g} % ({best['family']} {_label(best)}"
+                       f"{', the reference: its Richardson estimate' if best.get('estimated') else ''}); "
+                       f"ask for at least that")
+            if tol < ref_err:
+                verdict += (f"; and the reference itself is only known to {100 * ref_err:.4g} % (Richardson on its "
+                            f"three meshes): a smaller tolerance cannot be checked (refine the reference: the "
+                            f"full scene)")
+            status = 1
+        else:
+            path = write_model(pick, scene, out / "model.json", measure, tol)
+            if pick.get("estimated"):   # the reference itself: its error is the Richardson estimate, not 0
+                val = pick[f"{measure}_unseen"]
+            else:
+                val = validate(path, scene, out, measure)
+            verdict = (f"selected: {pick['family']} {_label(pick)} ({100 * pick[f'{measure}_unseen']:.4g} % "
+                       f"on the unseen loads, {1e3 * pick['solve_time_s']:.3f} ms per solve, median); model file "
+                       f"{path}; validation load {scene.validation_level:g} x p_max: {100 * val:.4g} % "
+                       f"{'(the reference itself: its Richardson estimate) ' if pick.get('estimated') else ''}"
+                       f"({'within' if val <= tol else 'NOT within'} {100 * tol:g} %)")
+            result.update(selected={"family": pick["family"], "modes": pick["modes"], "model": str(path)},
+                          validation_error=val)
+        text += "\n\n" + verdict
+        result["verdict"] = verdict
+    print(text, file=stream)
+    with atomic_path(out / "ladder.txt") as tmp:
+        Path(tmp).write_text(text + "\n")
+    with atomic_path(out / "ladder.json") as tmp:
+        Path(tmp).write_text(json.dumps(result, indent=1, default=float))
+    return status

@@ -1,0 +1,58 @@
+"""The fidelity ladder of the 2D PneuNet, full scene (`soro trade pneunet2d --tol 1%`; `soro.ladder`).
+
+Figures (issue 24): the table of FEM rungs (P1, P2, P2 mixed on h, h/2, h/4) and beam rungs (DVS, Chebyshev,
+PCC) with the Pareto fronts, the reference's Richardson estimate and order, the error budget of the beams'
+tip error, and the model selected at 1 % and at 0.1 % of the length with its error on the validation load.
+Speed is reported as the ratio FEM reference solve / selected beam solve, measured in the same run. Asserted:
+what was computed is consistent (never a time).
+"""
+import json
+
+
+def test_bench_ladder_pneunet2d(record, tmp_path):
+    from soro.ladder import run_ladder
+
+    out = tmp_path / "pneunet2d"
+    status = {tol: run_ladder("pneunet2d", tolerance=tol, measure="tip", out=out) for tol in ("1%", "0.1%")}
+    rep = json.loads((out / "ladder.json").read_text())        # the last run (0.1 %)
+    print("\n" + (out / "ladder.txt").read_text())
+    rows = rep["rows"]
+    ref = next(r for r in rows if r.get("estimated"))
+    assert status["1%"] in (0, 1) and len(rows) >= 9
+    record(status=status, richardson=rep["richardson"], budget=rep["budget"], verdict_0p1=rep["verdict"],
+           reference_solve_s=ref["solve_time_s"], rows=rows)
+
+
+def test_bench_ladder_network_by_tolerance(record, tmp_path):
+    """Two PneuNet bodies of one network ask for 1 % and 0.3 % of the length (quick scene): the models they
+    get, and the time of the network's simulation against the all-fine network (both bodies at 0.3 %), as the
+    ratio of medians of 3 runs each in this run."""
+    import time
+
+    import numpy as np
+
+    from soro.ladder import beam_within
+    from soroshapes import Model
+    from soroshapes.network import Schedule
+
+    def body(tol):
+        return beam_within("pneunet2d", tol, out=tmp_path, quick=True)
+
+    def network(a, b):
+        mdl = Model().add(a, "left").add(b, "right")
+        t = [0.0, 0.05, 0.3]
+        return mdl.set_controller(Schedule(t, {"left": [[0.0], [4e3], [4e3]], "right": [[0.0], [4e3], [4e3]]}))
+
+    (loose, fl), (tight, ft) = body("1%"), body("0.3%")
+    times, paths = {}, {}
+    for name, (a, b) in {"mixed": (loose, tight), "all_fine": (body("0.3%")[0], body("0.3%")[0])}.items():
+        mdl = network(a, b)
+        mdl.simulate(0.3, 1e-3)                                  # warm-up (compilation)
+        ts = []
+        for _ in range(3):
+            t0 = time.perf_counter()
+            mdl.simulate(0.3, 1e-3)
+            ts.append(time.perf_counter() - t0)
+        times[name], paths[name] = float(np.median(ts)), mdl.evaluation_path
+    assert (fl.meta["family"], fl.meta["modes"]) != (ft.meta["family"], ft.meta["modes"])
+    record(loose=fl.meta, tight=ft.meta, times_s=times, paths=paths, speedup=times["all_fine"] / times["mixed"])
