@@ -850,14 +850,339 @@ def mass_matrix_pieces(order, h, B, rows, w, Md, SA, SX, T, J, Y, Op, M):
                 _col_ad(SX[s, 0], r, b2, Op, k, c)
                 _col_ad(SX[s, 1], r, b1, Op, k, -c)
             _bapply(T, Op, J[s + 1], 1.0, 1.0)
-    # M = Y^T Y with Y the stacked sqrt(w_i m_i) J_i: one matrix product into M (no allocation)
+    # M = J^T Y with Y the stacked w_i m_i J_i: one matrix product into M (no allocation, no square roots),
+    # then symmetrized (the product's rounding need not be)
     for i in range(P + 1):
         for r in range(6):
-            f = np.sqrt(w[i] * Md[i, r])
+            f = w[i] * Md[i, r]
             for k in range(n):
                 Y[i, r, k] = f * J[i, r, k]
     Yf = Y.reshape(((P + 1) * 6, n))
-    np.dot(Yf.T, Yf, M)
+    Jf = J.reshape(((P + 1) * 6, n))
+    np.dot(Jf.T, Yf, M)
+    for k in range(n):
+        for l in range(k):
+            v = 0.5 * (M[k, l] + M[l, k])
+            M[k, l] = v
+            M[l, k] = v
+
+
+# ------------------------------------------------------------------------------------------------------------
+# planar beams: bending about the body y axis (+ stretch and shear in the x-z plane) only
+# ------------------------------------------------------------------------------------------------------------
+#: the strain rows of a planar beam (curvature about y, strains along x and z), in the order of its 3-twists
+PLANAR_ROWS = (1, 3, 5)
+
+
+def is_planar(rows, xi0):
+    """Whether a beam moves in its body x-z plane: every coordinate drives a strain row of :data:`PLANAR_ROWS`
+    and the reference strain ``xi0`` (..., 6) is zero in the others (then twists, accelerations and the wrench
+    that reaches the coordinates stay in the subalgebra se(2) of (omega_y, v_x, v_z), and
+    :func:`newton_euler_planar` equals :func:`newton_euler`)."""
+    rows = np.asarray(rows).reshape(-1)
+    x = np.asarray(xi0).reshape(-1, 6)
+    return bool(np.all(np.isin(rows, PLANAR_ROWS)) and not np.any(x[:, [0, 2, 4]]))
+
+
+@njit(cache=True)
+def _adv2(x, y, out):
+    """out = ad_x y on 3-twists (omega_y, v_x, v_z): the planar restriction of :func:`_adv`."""
+    out[0] = 0.0
+    out[1] = x[0] * y[2] - x[2] * y[0]
+    out[2] = x[1] * y[0] - x[0] * y[1]
+
+
+@njit(cache=True)
+def _adtv2(x, y, out):
+    """out = ad_x^T y on 3-twists and their dual wrenches (m_y, f_x, f_z) (:func:`_adtv` restricted)."""
+    y0, y1, y2 = y[0], y[1], y[2]
+    out[0] = y2 * x[1] - y1 * x[2]
+    out[1] = -y2 * x[0]
+    out[2] = y1 * x[0]
+
+
+@njit(cache=True)
+def _strain2(Bv, rows, x0, q, out):
+    """out = Theta q + x0 on 3-twists (strain row r of coordinate k is planar row (r - 1)/2; ``x0`` a
+    6-vector)."""
+    out[0] = x0[1]
+    out[1] = x0[3]
+    out[2] = x0[5]
+    for k in range(q.shape[0]):
+        out[(rows[k] - 1) // 2] += Bv[k] * q[k]
+
+
+@njit(cache=True)
+def _tpoly2(Om, c1, c2, c3, c4, u, X, out):
+    """out = T(Om) u on 3-twists (the series of :func:`_tpoly` with the planar ad)."""
+    _adv2(Om, u, X[0])
+    _adv2(Om, X[0], X[1])
+    _adv2(Om, X[1], X[2])
+    _adv2(Om, X[2], X[3])
+    for r in range(3):
+        out[r] = u[r] - c1 * X[0, r] + c2 * X[1, r] - c3 * X[2, r] + c4 * X[3, r]
+
+
+@njit(cache=True)
+def _tpoly2_t(Om, c1, c2, c3, c4, y, X, out):
+    """out = T(Om)^T y on planar wrenches (:func:`_tpoly_t` restricted)."""
+    _adtv2(Om, y, X[0])
+    _adtv2(Om, X[0], X[1])
+    _adtv2(Om, X[1], X[2])
+    _adtv2(Om, X[2], X[3])
+    for r in range(3):
+        out[r] = y[r] - c1 * X[0, r] + c2 * X[1, r] - c3 * X[2, r] + c4 * X[3, r]
+
+
+@njit(cache=True)
+def _dtpoly2(Om, u, X, Y, c, d, out):
+    """out = dT(Om)[u] u on 3-twists, after :func:`_tpoly2` (:func:`_dtpoly` restricted)."""
+    t = Om[0] * u[0]
+    _adv2(u, X[0], Y[0])
+    _adv2(u, X[1], Y[1])
+    _adv2(u, X[2], Y[2])
+    _adv2(Om, Y[0], Y[3])
+    _adv2(Om, Y[1], Y[4])
+    _adv2(Om, Y[3], Y[5])
+    for r in range(3):
+        out[r] = (t * (-d[0] * X[0, r] + d[1] * X[1, r] - d[2] * X[2, r] + d[3] * X[3, r])
+                  + c[1] * Y[0, r] - c[2] * (Y[1, r] + Y[3, r]) + c[3] * (Y[2, r] + Y[4, r] + Y[5, r]))
+
+
+@njit(cache=True)
+def _bvec2(A, x, y):
+    """y = A x for a planar Ad (3, 3) (first row (1, 0, 0))."""
+    x0, x1, x2 = x[0], x[1], x[2]
+    y[0] = x0
+    y[1] = A[1, 0] * x0 + A[1, 1] * x1 + A[1, 2] * x2
+    y[2] = A[2, 0] * x0 + A[2, 1] * x1 + A[2, 2] * x2
+
+
+@njit(cache=True)
+def _bvec2_t(A, x, y):
+    """y = A^T x for a planar Ad (3, 3)."""
+    x0, x1, x2 = x[0], x[1], x[2]
+    y[0] = x0 + A[1, 0] * x1 + A[2, 0] * x2
+    y[1] = A[1, 1] * x1 + A[2, 1] * x2
+    y[2] = A[1, 2] * x1 + A[2, 2] * x2
+
+
+@njit(cache=True)
+def _segment2(s, Om, G, A):
+    r"""The frame G[s+1] = G[s] exp(Om) of a planar piece (rotation by :math:`\theta` = Om[0] about y, offset
+    :math:`(I + b\hat\omega + c\hat\omega^2)v` in the x-z plane) and its Ad of the inverse into A[:3, :3]:
+    rows (1, 0, 0), :math:`(c p_z + s p_x, c, -s)`, :math:`(s p_z - c p_x, s, c)` (:math:`c = \cos\theta`,
+    :math:`s = \sin\theta`)."""
+    th = Om[0]
+    a, b, cc = _so3_coeffs(abs(th))
+    sn = a * th
+    cs = 1.0 - b * th * th
+    f = 1.0 - cc * th * th
+    px = f * Om[1] + b * th * Om[2]
+    pz = f * Om[2] - b * th * Om[1]
+    for i in range(3):
+        g0, g1, g2, g3 = G[s, i, 0], G[s, i, 1], G[s, i, 2], G[s, i, 3]
+        G[s + 1, i, 0] = g0 * cs - g2 * sn
+        G[s + 1, i, 1] = g1
+        G[s + 1, i, 2] = g0 * sn + g2 * cs
+        G[s + 1, i, 3] = g0 * px + g2 * pz + g3
+        G[s + 1, 3, i] = 0.0
+    G[s + 1, 3, 3] = 1.0
+    A[0, 0], A[0, 1], A[0, 2] = 1.0, 0.0, 0.0
+    A[1, 0], A[1, 1], A[1, 2] = cs * pz + sn * px, cs, -sn
+    A[2, 0], A[2, 1], A[2, 2] = sn * pz - cs * px, sn, cs
+
+
+@njit(cache=True)
+def newton_euler_planar(q, qd, a, order, h, B, rows, xi0, g0, w, Md, ag, pl_nodes, pl_W, pl_spatial, G, eta, acc,
+                        SA, SX, E, V, out):
+    r""":func:`newton_euler` for a beam that moves in its body x-z plane (:func:`is_planar`): the same two
+    recursions on 3-twists :math:`(\omega_y, v_x, v_z)` (the subalgebra se(2) is closed under ad and Ad, and the
+    out-of-plane part of the wrench, gravity's included, never reaches the coordinates), so the result equals
+    the general pass to round-off at about a quarter of its cost. Same arguments and outputs: ``G``, ``eta``
+    (zero out of the plane) and ``out``; the per-piece operators are planar (``SA[s, :3, :3]`` the Ad of the
+    inverse, ``SX[s, 0:3, :3]`` the strains and :math:`\Omega`, ``SX[s, 3, :4]`` the coefficients of T) for
+    :func:`mass_matrix_planar`; ``acc`` holds the 3-twists in its first three columns."""
+    n = q.shape[0]
+    P = h.shape[0]
+    xd1, xd2, xa1, xa2, Omd, Oa, psi, tmp, lam, y, z1, z2, F, dTv = (
+        V[0, :3], V[1, :3], V[2, :3], V[3, :3], V[4, :3], V[5, :3], V[6, :3], V[7, :3], V[8, :3], V[9, :3],
+        V[10, :3], V[11, :3], V[12, :3], V[13, :3])
+    X, Y, cc, dc = V[15:19, :3], V[19:25, :3], V[25], V[26]
+    zero = V[14]
+    for r in range(6):
+        zero[r] = 0.0
+    for i in range(4):
+        for j in range(4):
+            G[0, i, j] = g0[i, j]
+    for r in range(3):
+        acc[0, r] = 0.0
+    e0, e1, e2 = 0.0, 0.0, 0.0          # the twist at the current node
+    for r in range(6):
+        eta[0, r] = 0.0
+    for s in range(P):
+        hs = h[s]
+        xi1, xi2, Om, cf = SX[s, 0, :3], SX[s, 1, :3], SX[s, 2, :3], SX[s, 3]
+        _strain2(B[s, 0], rows, xi0[s, 0], q, xi1)
+        _strain2(B[s, 0], rows, zero, qd, xd1)
+        _strain2(B[s, 0], rows, zero, a, xa1)
+        if order == 2:
+            for r in range(3):
+                Om[r] = hs * xi1[r]
+                Omd[r] = hs * xd1[r]
+                Oa[r] = hs * xa1[r]
+        else:
+            c = MAGNUS4_C * hs * hs
+            _strain2(B[s, 1], rows, xi0[s, 1], q, xi2)
+            _strain2(B[s, 1], rows, zero, qd, xd2)
+            _strain2(B[s, 1], rows, zero, a, xa2)
+            _adv2(xi1, xi2, tmp)
+            for r in range(3):
+                Om[r] = 0.5 * hs * (xi1[r] + xi2[r]) + c * tmp[r]
+            _adv2(xd1, xi2, tmp)
+            _adv2(xi1, xd2, y)
+            for r in range(3):
+                Omd[r] = 0.5 * hs * (xd1[r] + xd2[r]) + c * (tmp[r] + y[r])
+            _adv2(xa1, xi2, tmp)
+            _adv2(xi1, xa2, y)
+            for r in range(3):
+                Oa[r] = 0.5 * hs * (xa1[r] + xa2[r]) + c * (tmp[r] + y[r])
+            _adv2(xd1, xd2, tmp)
+            for r in range(3):
+                Oa[r] += 2.0 * c * tmp[r]
+        Ai = SA[s]
+        _segment2(s, Om, G, Ai)
+        th = abs(Om[0])
+        cc[0], cc[1], cc[2], cc[3] = _tse3_coeffs(th)
+        dc[0], dc[1], dc[2], dc[3] = _tse3_dcoeffs(th)
+        for r in range(4):
+            cf[r] = cc[r]
+        _tpoly2(Om, cc[0], cc[1], cc[2], cc[3], Omd, X, psi)
+        _dtpoly2(Om, Omd, X, Y, cc, dc, dTv)
+        e = eta[s + 1]
+        tmp[0], tmp[1], tmp[2] = e0, e1, e2
+        _bvec2(Ai, tmp, y)
+        e0, e1, e2 = y[0] + psi[0], y[1] + psi[1], y[2] + psi[2]
+        e[0], e[1], e[2], e[3], e[4], e[5] = 0.0, e0, 0.0, e1, 0.0, e2
+        _bvec2(Ai, acc[s, :3], acc[s + 1, :3])
+        tmp[0], tmp[1], tmp[2] = e0, e1, e2
+        _adv2(psi, tmp, z1)
+        _tpoly2(Om, cc[0], cc[1], cc[2], cc[3], Oa, X, y)
+        for r in range(3):
+            acc[s + 1, r] += dTv[r] - z1[r] + y[r]
+    for k in range(n):
+        out[k] = 0.0
+    for r in range(3):
+        lam[r] = 0.0
+    for i in range(P, 0, -1):
+        wi = w[i]
+        if wi != 0.0:
+            m0, m1, m2 = Md[i, 1], Md[i, 3], Md[i, 5]
+            ew, ex, ez = eta[i, 1], eta[i, 3], eta[i, 5]
+            # M alpha - ad_eta^T M eta - M (0, R^T a_g), in the plane
+            F[0] = m0 * acc[i, 0] - (m2 * ez * ex - m1 * ex * ez)
+            F[1] = m1 * acc[i, 1] + m2 * ez * ew
+            F[2] = m2 * acc[i, 2] - m1 * ex * ew
+            F[1] -= m1 * (G[i, 0, 0] * ag[0] + G[i, 1, 0] * ag[1] + G[i, 2, 0] * ag[2])
+            F[2] -= m2 * (G[i, 0, 2] * ag[0] + G[i, 1, 2] * ag[1] + G[i, 2, 2] * ag[2])
+            for r in range(3):
+                lam[r] += wi * F[r]
+        for p in range(pl_nodes.shape[0]):
+            if pl_nodes[p] != i:
+                continue
+            if pl_spatial[p]:
+                lam[0] -= G[i, 0, 1] * pl_W[p, 0] + G[i, 1, 1] * pl_W[p, 1] + G[i, 2, 1] * pl_W[p, 2]
+                lam[1] -= G[i, 0, 0] * pl_W[p, 3] + G[i, 1, 0] * pl_W[p, 4] + G[i, 2, 0] * pl_W[p, 5]
+                lam[2] -= G[i, 0, 2] * pl_W[p, 3] + G[i, 1, 2] * pl_W[p, 4] + G[i, 2, 2] * pl_W[p, 5]
+            else:
+                lam[0] -= pl_W[p, 1]
+                lam[1] -= pl_W[p, 3]
+                lam[2] -= pl_W[p, 5]
+        s = i - 1
+        hs = h[s]
+        cf = SX[s, 3]
+        _tpoly2_t(SX[s, 2, :3], cf[0], cf[1], cf[2], cf[3], lam, X, y)
+        if order == 2:
+            for k in range(n):
+                out[k] += hs * B[s, 0, k] * y[(rows[k] - 1) // 2]
+        else:
+            c = MAGNUS4_C * hs * hs
+            _adtv2(SX[s, 0, :3], y, z1)
+            _adtv2(SX[s, 1, :3], y, z2)
+            for k in range(n):
+                r = (rows[k] - 1) // 2
+                b1, b2 = B[s, 0, k], B[s, 1, k]
+                out[k] += 0.5 * hs * (b1 + b2) * y[r] + c * (b2 * z1[r] - b1 * z2[r])
+        _bvec2_t(SA[s], lam, tmp)
+        for r in range(3):
+            lam[r] = tmp[r]
+
+
+@njit(cache=True)
+def mass_matrix_planar(order, h, B, rows, w, Md, SA, SX, T, J, Y, Op, M):
+    r""":func:`mass_matrix_pieces` from the planar operators of the last :func:`newton_euler_planar` pass: the
+    Jacobians :math:`J_{s+1} = \mathrm{Ad}_{e^{-\Omega_s}} J_s + T_s\Omega_s'` on 3-twists in ``J[:, :3]``, the
+    columns of :math:`T_s` by its series (into ``T[:3, :3]``), :math:`M = \sum_i w_i J_i^T \mathcal M_i J_i`
+    summed over the upper triangle and mirrored. Same arguments (``Y`` unused; ``T`` (6, 6) holds T and the
+    series' scratch)."""
+    n = M.shape[0]
+    P = h.shape[0]
+    X = T[2:6, 3:6]
+    e = T[0, 3:6]
+    col = T[1, 3:6]
+    for k in range(n):
+        for l in range(n):
+            M[k, l] = 0.0
+        for r in range(3):
+            J[0, r, k] = 0.0
+    for s in range(P):
+        hs = h[s]
+        Om, cf, A = SX[s, 2, :3], SX[s, 3], SA[s]
+        for j in range(3):                                  # T's columns
+            for r in range(3):
+                e[r] = 0.0
+            e[j] = 1.0
+            _tpoly2(Om, cf[0], cf[1], cf[2], cf[3], e, X, col)
+            for r in range(3):
+                T[r, j] = col[r]
+        for k in range(n):
+            j0, j1, j2 = J[s, 0, k], J[s, 1, k], J[s, 2, k]
+            J[s + 1, 0, k] = j0
+            J[s + 1, 1, k] = A[1, 0] * j0 + A[1, 1] * j1 + A[1, 2] * j2
+            J[s + 1, 2, k] = A[2, 0] * j0 + A[2, 1] * j1 + A[2, 2] * j2
+            pr = (rows[k] - 1) // 2
+            if order == 2:
+                f = hs * B[s, 0, k]
+                for r in range(3):
+                    J[s + 1, r, k] += T[r, pr] * f
+            else:
+                c = MAGNUS4_C * hs * hs
+                b1, b2 = B[s, 0, k], B[s, 1, k]
+                for r in range(3):                          # Op = h/2 (b1 + b2) e_r + c (b2 ad_xi1 - b1 ad_xi2) e_r
+                    e[r] = 0.0
+                e[pr] = 1.0
+                _adv2(SX[s, 0, :3], e, col)
+                for r in range(3):
+                    Op[r, k] = c * b2 * col[r]
+                _adv2(SX[s, 1, :3], e, col)
+                for r in range(3):
+                    Op[r, k] -= c * b1 * col[r]
+                Op[pr, k] += 0.5 * hs * (b1 + b2)
+                for r in range(3):
+                    J[s + 1, r, k] += T[r, 0] * Op[0, k] + T[r, 1] * Op[1, k] + T[r, 2] * Op[2, k]
+    for i in range(P + 1):
+        wi = w[i]
+        if wi == 0.0:
+            continue
+        m0, m1, m2 = wi * Md[i, 1], wi * Md[i, 3], wi * Md[i, 5]
+        Ji = J[i]
+        for k in range(n):
+            a0, a1, a2 = m0 * Ji[0, k], m1 * Ji[1, k], m2 * Ji[2, k]
+            for l in range(k, n):
+                M[k, l] += a0 * Ji[0, l] + a1 * Ji[1, l] + a2 * Ji[2, l]
+    for k in range(n):
+        for l in range(k):
+            M[k, l] = M[l, k]
 
 
 @njit(cache=True)

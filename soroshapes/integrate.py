@@ -29,16 +29,23 @@ differenced Jacobian :math:`M\,\partial\ddot q/\partial x` of :func:`soroshapes.
 the run (kept across steps, refreshed when Newton contracts slowly or fails). The rows of the other systems are
 in closed form where they have one (reservoirs, linear systems) and differenced otherwise
 (:func:`soroshapes.network._cheap_rows`), and :math:`M` is formed from the per-piece operators of the
-first iterate's pass whenever the matrix is factored: at a step after one whose contraction rate exceeded
-``THETA_REFRESH`` or that needed more than ``REFRESH_ITS`` iterations, at most every ``REFRESH_STEPS`` steps,
-when :math:`c` changes, and on a retry after a failure (a kept matrix, then a fresh one, then the differenced
-Jacobian).
+first iterate's pass whenever the matrix is factored. The matrix is block diagonal over the components, and
+each component's block is refreshed on its own (its beams' M, its rows, its factor): at a step after one in
+which that component's contraction rate exceeded ``THETA_REFRESH`` or it needed more than ``REFRESH_ITS``
+iterations, and after ``REFRESH_STEPS`` steps of service (a valve that saturates in one finger of a hand refreshes
+that finger's block, not the hand's); the whole matrix when :math:`c` changes and on a retry after a failure (a
+kept matrix, then a fresh one, then the differenced Jacobian).
 
 Each component iterates on its own (one that has converged is no longer evaluated). It has converged when its
-correction :math:`\delta` satisfies :math:`\|\delta\| \le \kappa` or, from the second iteration on (the third
-with a kept matrix), the rate-based estimate of the remaining error :math:`\tfrac{\theta}{1-\theta}\|\delta\|
-\le \kappa` with :math:`\theta = \|\delta_k\|/\|\delta_{k-1}\|` (Hairer & Wanner, Solving ODEs II, IV.8), in the
-norm :math:`\|\delta\| = \max_j |\delta_j|/(\text{rtol}|x_j| + \text{atol}\,s_j)` and :math:`\kappa` = ``ntol``
+correction :math:`\delta` satisfies :math:`\|\delta\| \le \kappa` or, from the second iteration on, the
+rate-based estimate of the remaining error :math:`\tfrac{\theta}{1-\theta}\|\delta\| \le \kappa` with
+:math:`\theta = \|\delta_k\|/\|\delta_{k-1}\|` (Hairer & Wanner, Solving ODEs II, IV.8). With a matrix kept
+from earlier steps the ratio of the first two corrections understates the rate (the first also removes the
+predictor's error in the coordinates, which that matrix solves exactly), so at the second correction
+:math:`\theta` is the larger of that ratio and the largest rate the same matrix showed at a third correction in
+the steps it served (none yet: wait for the third); the rule that refreshes a block whose rate exceeds
+``THETA_REFRESH`` keeps that bound honest, and it lets a kept matrix stop after two sweeps. Norm:
+:math:`\|\delta\| = \max_j |\delta_j|/(\text{rtol}|x_j| + \text{atol}\,s_j)` and :math:`\kappa` = ``ntol``
 (1e-3 from :meth:`Model.simulate <soroshapes.model.Model.simulate>`; a tenth of it with a kept matrix, which
 converges linearly). A step that fails (no convergence within ``maxit`` iterations after the retries, or an
 evaluation out of range) is covered by halved steps down to ``min_dt``; below it :func:`integrate` returns -1
@@ -55,7 +62,8 @@ import numpy as np
 from sorofem._numba import njit
 
 from ._beam import REFRESH_ITS, REFRESH_STEPS, _lu_solve
-from .network import BEAM, _beam_mass_matrix, _cheap_rows, _iteration_matrix, assemble, jacobian, residual, rhs
+from .network import (BEAM, _beam_mass_matrix, _cheap_rows_of, _iteration_matrix_of, assemble, jacobian, residual,
+                      rhs)
 
 __all__ = ["TRAPEZOIDAL", "MIDPOINT", "BDF2", "integrate"]
 
@@ -96,8 +104,11 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
     state of the iteration matrix (st[4] = 1 when the differenced Jacobian is valid; st[5] = 1 when the
     quadratic BDF2 predictor may use ``ws[12]``, the state before ``xprev``; st[9] = 1 once the model rows of the
     beams failed, so that differenced Jacobians serve the rest of the run; st[11] = 1 while the factored matrix
-    is valid, for c = st[12]; st[13] = 1 when the last step asks for a fresh one, st[14] the steps it served)."""
-    (w, f0, fp, xp, r, guess, Jac, JF, LUc, pivc, rc, fx0, pp, xhat, xe) = ws
+    is valid, for c = st[12]; st[13] = 1 asks for a fresh one everywhere; st[15] counts the components' matrices
+    factored). ``ws[15]`` (components, 3): per connected component, 1 when its last step asks for a fresh matrix,
+    the steps its matrix served, and the largest contraction rate that matrix showed at a third correction (-1:
+    none yet)."""
+    (w, f0, fp, xp, r, guess, Jac, JF, LUc, pivc, rc, fx0, pp, xhat, xe, cst) = ws
     N = x0.shape[0]
     table = net[0]
     nb = table.shape[0]
@@ -107,6 +118,10 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
     only = np.ones(nb, np.bool_)
     conv = np.zeros(nc, np.bool_)
     prevc = np.zeros(nc)
+    fresh = np.zeros(nc, np.bool_)
+    cits = np.zeros(nc, np.int64)
+    ctheta = np.zeros(nc)
+    ckept = np.zeros(nc)
     # x1 = xhat + gam F(te, xe), xe = x1 or the midpoint; c = d xe/d x1 times gam
     if method == TRAPEZOIDAL:
         if not rhs(t, x0, net, w, fx0, alls):
@@ -133,6 +148,7 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
     for i in range(N):
         x1[i] = guess[i]
     force = False                   # rebuild the iteration matrix whatever the reuse rule says
+    sel = np.zeros(nb, np.bool_)    # the blocks of the components whose matrix is rebuilt at this attempt
     for attempt in range(3):
         # the beams' rows: their model Jacobian (M, K, D and the differenced input force), reused while Newton
         # contracts fast; once a fresh one failed, the differenced Jacobian (st[9] = 1)
@@ -146,22 +162,28 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
                 return False
             st[3] += 1
             st[4] = 1.0
-        rebuild = differenced or force or st[11] == 0.0 or st[12] != c or st[13] == 1.0
-        first_rate = 1 if rebuild else 2
-        # a matrix kept from earlier steps converges linearly (stale M, reservoir rows): stop at a tenth of the
-        # tolerance (at ntol the compiled and Python paths drifted apart by ~10 tolerances over 300 steps)
-        tol_it = ntol if rebuild else 0.1 * ntol
+        # the whole matrix is rebuilt when it is not valid for this c, after a failure and in the differenced
+        # mode; otherwise only the components that asked for it in the last step (cst[k, 0])
+        everything = differenced or force or st[11] == 0.0 or st[12] != c or st[13] == 1.0
+        rebuild = False
+        for k in range(nc):
+            fresh[k] = everything or cst[k, 0] == 1.0
+            if fresh[k]:
+                rebuild = True
+        for b in range(nb):
+            sel[b] = fresh[block_comp[b]]
         for i in range(N):
             x1[i] = guess[i]
         # Newton per connected component: a component that has converged is no longer evaluated
         for k in range(nc):
             conv[k] = False
             prevc[k] = np.inf
+            cits[k] = 0
+            ctheta[k] = 0.0
+            ckept[k] = -1.0
         for b in range(nb):
             only[b] = True
         ok = False
-        theta = 0.0
-        its = 0
         for it in range(maxit):
             for i in range(N):
                 xe[i] = x1[i] if method != MIDPOINT else 0.5 * (x0[i] + x1[i])
@@ -173,34 +195,52 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
                 break
             if it == 0 and rebuild:     # M at the first iterate, the cheap rows there
                 for b in range(nb):
-                    if table[b, 0] == BEAM:
+                    if table[b, 0] == BEAM and sel[b]:
                         _beam_mass_matrix(table[b, 5], net)
                 xj = xe.copy()
-                if not (_cheap_rows(te, xj, net, scale, w, f0, fp, xp, JF, not differenced, True)
-                        and _iteration_matrix(c, gam, net, JF, LUc, pivc)):
+                if not (_cheap_rows_of(te, xj, net, scale, w, f0, fp, xp, JF, not differenced, True, sel)
+                        and _iteration_matrix_of(c, gam, net, JF, LUc, pivc, fresh)):
                     st[4] = 0.0
                     st[11] = 0.0
                     return False
-                st[11], st[12], st[13], st[14] = 1.0, c, 0.0, 0.0
-                st[15] += 1
+                st[11], st[12], st[13] = 1.0, c, 0.0
+                for k in range(nc):
+                    if fresh[k]:
+                        cst[k, 0], cst[k, 1], cst[k, 2] = 0.0, 0.0, -1.0
+                        st[15] += 1
             st[2] += 1
-            its += 1
             finite, slow, done = True, False, True
             for k in range(nc):
                 if conv[k]:
                     continue
                 nrm = _solve_component(comps, k, LUc, pivc, r, rc, x1, rtol, atol, scale)
+                cits[k] += 1
                 if not math.isfinite(nrm):
                     finite = False
                     break
                 prev = prevc[k]
-                if it >= 1 and nrm / prev > theta:
-                    theta = nrm / prev
-                # the rate-based estimate of the remaining error: from the second correction with a matrix
-                # factored at this step's first iterate, from the third with one kept from earlier steps (its
-                # first two corrections also remove the predictor's error in the coordinates, which it solves
-                # exactly, so their ratio understates its contraction rate)
-                if nrm <= tol_it or (it >= first_rate and nrm < prev and nrm * nrm / (prev - nrm) <= tol_it):
+                # a matrix kept from earlier steps converges linearly (stale M, reservoir rows): stop at a tenth
+                # of the tolerance (at ntol the compiled and Python paths drifted apart by ~10 tolerances over
+                # 300 steps)
+                tol_it = ntol if fresh[k] else 0.1 * ntol
+                # the rate-based estimate of the remaining error theta/(1 - theta) |delta|: from the second
+                # correction with a matrix factored at this step's first iterate; with one kept from earlier steps
+                # from the third (its first two corrections also remove the predictor's error in the coordinates,
+                # which it solves exactly, so their ratio understates its contraction rate), or from the second
+                # with the largest rate this matrix showed at a third correction in the steps it served (cst[k, 2];
+                # a matrix is refreshed once that rate exceeds THETA_REFRESH, so it bounds the rate)
+                rate = -1.0
+                if it >= 1:
+                    ratio = nrm / prev
+                    ctheta[k] = max(ctheta[k], ratio)           # the step's contraction rate (refresh rule)
+                    if it >= 2 and not fresh[k]:
+                        ckept[k] = max(ckept[k], ratio)         # the kept matrix's rate at a third correction
+                    if nrm < prev:
+                        if fresh[k] or it >= 2:
+                            rate = ratio
+                        elif cst[k, 2] >= 0.0:
+                            rate = max(ratio, cst[k, 2])
+                if nrm <= tol_it or (0.0 <= rate < 1.0 and rate / (1.0 - rate) * nrm <= tol_it):
                     conv[k] = True
                 else:
                     done = False
@@ -215,9 +255,12 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
             for b in range(nb):
                 only[b] = not conv[block_comp[b]]
         if ok:
-            st[14] += 1                                # the matrix served one more step; refresh it next step
-            if theta > THETA_REFRESH or its > REFRESH_ITS or st[14] >= REFRESH_STEPS:      # when it was slow
-                st[13] = 1.0
+            for k in range(nc):
+                cst[k, 1] += 1                         # the matrix served one more step; refresh it next step
+                if ckept[k] > cst[k, 2]:
+                    cst[k, 2] = ckept[k]               # the largest rate the kept matrix showed
+                if ctheta[k] > THETA_REFRESH or cits[k] > REFRESH_ITS or cst[k, 1] >= REFRESH_STEPS:
+                    cst[k, 0] = 1.0                    # when it was slow
             return True
         finite = True
         for i in range(N):
@@ -229,7 +272,7 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
         if differenced:
             if force:
                 break                                  # a fresh differenced Jacobian failed
-        elif rebuild:
+        elif everything:
             st[9] = 1.0                                # a fresh model matrix was not enough here
             st[10] += 1
         force = True
@@ -277,7 +320,7 @@ def integrate(x, t0, h, nsteps, method, record_every, min_dt, net, scale, rtol, 
     nc, mc = comps.shape[0], comps.shape[1]
     ws = (np.zeros(NW), np.zeros(N), np.zeros(N), np.zeros(N), np.zeros(N), np.zeros(N), np.zeros((N, N)),
           np.zeros((N, N)), np.zeros((nc, mc, mc)), np.zeros((nc, mc), np.int64), np.zeros(mc), np.zeros(N),
-          np.zeros(N), np.zeros(N), np.zeros(N))
+          np.zeros(N), np.zeros(N), np.zeros(N), np.zeros((nc, 3)))
     xn, prev, tmp = np.zeros(N), x.copy(), np.zeros(N)
     have_prev = False
     rec = 1

@@ -64,7 +64,10 @@ from ._beam import _lu, _lu_solve
 from ._beam import forward_dynamics as _fd
 from ._beam import kinematics as _kinematics
 from ._beam import mass_matrix_pieces as _mass_pieces
+from ._beam import is_planar as _is_planar
+from ._beam import mass_matrix_planar as _mass_planar
 from ._beam import newton_euler as _ne
+from ._beam import newton_euler_planar as _ne_planar
 from ._beam import mass_coriolis_gravity as _mcg
 from ._contact import contact_force as _contact_force
 from .numerics import FD_STEP
@@ -242,8 +245,9 @@ _FLUIDIC_FLOATS = 20
 #: floats per rigid body (rows of ``rflt``): mass, inertia (9), its inverse (9), gravity (3), linear and angular
 #: damping, normalization gain
 _RIGID_FLOATS = 25
-# per-beam integer parameters (rows of ``bint``)
-_B_N, _B_M, _B_P, _B_NG, _B_ORDER, _B_FO, _B_WO, _B_IO, _B_PO = range(9)
+# per-beam integer parameters (rows of ``bint``); _B_PLANAR: 1 for a beam that moves in its body x-z plane, whose
+# residual and mass matrix take the planar recursions (soroshapes._beam.newton_euler_planar)
+_B_N, _B_M, _B_P, _B_NG, _B_ORDER, _B_FO, _B_WO, _B_IO, _B_PO, _B_PLANAR = range(10)
 
 
 def _beam_floats(n, m, P, ng):
@@ -501,7 +505,7 @@ def lower(blocks, links, volumes, controller, free):
                     raise ParameterError(f"beam {b['name']!r}: unexpected model array size {a.size} != {size}")
                 bflt.append(a)
             bintb.append(np.asarray(mdl.rows, dtype=np.int64))
-            bint.append([n, m, P, ng, mdl.order, fo, wo, io, io + n])
+            bint.append([n, m, P, ng, mdl.order, fo, wo, io, io + n, int(_is_planar(mdl.rows, mdl.X0))])
             fo += sum(_beam_floats(n, m, P, ng))
             wo += sum(_beam_work(n, P)) + sum(_beam_ne_work(n, P))
             bintb.append(np.zeros(n, np.int64))             # pivots
@@ -685,7 +689,7 @@ def lower(blocks, links, volumes, controller, free):
     def cat(parts, dtype=float):
         return np.concatenate(parts).astype(dtype) if parts else np.zeros(0, dtype)
 
-    arrays = (table, np.array(bint, np.int64).reshape(-1, 9), cat(bflt), np.zeros(wo), cat(bintb, np.int64),
+    arrays = (table, np.array(bint, np.int64).reshape(-1, 10), cat(bflt), np.zeros(wo), cat(bintb, np.int64),
               np.array(fpar, float).reshape(-1, _FLUIDIC_FLOATS), np.array(mapint, np.int64).reshape(-1, 4), cat(maps),
               np.array(link_tab, np.int64).reshape(-1, 4), np.array(link_rows, np.int64),
               np.int64(ckind), np.ascontiguousarray(ctimes, float), np.ascontiguousarray(cvals, float).reshape(
@@ -1029,8 +1033,9 @@ def _beam_residual(bi, xe, x1, xhat, gam, xo, w, wo, bint, bflt, bwork, bintb, b
     coordinate rows :math:`q_1 - \hat q - \gamma\dot q_e` and, in force units, the equations of motion at the
     evaluation point with the acceleration the step implies, :math:`a = (\dot q_1 - \hat{\dot q})/\gamma`:
     :math:`\rho = M(q_e)a + C\dot q_e - f_g + D\dot q_e + Kq_e - f_{in}` by one pass of the O(N) recursions
-    (:func:`soroshapes._beam.newton_euler`; no mass matrix is formed or solved). Leaves the pass's per-piece
-    operators for :func:`_beam_mass_matrix`. False if the state is out of range."""
+    (:func:`soroshapes._beam.newton_euler`, or its planar form :func:`soroshapes._beam.newton_euler_planar` for
+    a beam that moves in its body x-z plane, flagged at lowering; no mass matrix is formed or solved). Leaves the
+    pass's per-piece operators for :func:`_beam_mass_matrix`. False if the state is out of range."""
     n, m, order, K, D, h, B, X0, base, wts, Md, ag, rows, go = _beam_model(bi, bint, bflt, bintb)
     acc, SA, SX, NV, T, Jm, Ym, Opm, Mm, LU, a, v, R, f_in, G, eta, E, start, stop = _beam_ne_arrays(bi, bint, bwork)
     _beam_input_force(xo, n, m, bflt, go, w, wo, bext, f_in)
@@ -1041,7 +1046,11 @@ def _beam_residual(bi, xe, x1, xhat, gam, xo, w, wo, bint, bflt, bwork, bintb, b
     nodes = np.zeros(0, np.int64)
     pW = np.zeros((0, 6))
     spatial = np.zeros(0, np.bool_)
-    _ne(q, qd, a, order, h, B, rows, X0, base, wts, Md, ag, nodes, pW, spatial, G, eta, acc, SA, SX, E, NV, R)
+    if bint[bi, 9]:
+        _ne_planar(q, qd, a, order, h, B, rows, X0, base, wts, Md, ag, nodes, pW, spatial, G, eta, acc, SA, SX, E, NV,
+                   R)
+    else:
+        _ne(q, qd, a, order, h, B, rows, X0, base, wts, Md, ag, nodes, pW, spatial, G, eta, acc, SA, SX, E, NV, R)
     s = 0.0
     for k in range(n):
         r = R[k] - f_in[k]
@@ -1060,10 +1069,14 @@ def _beam_residual(bi, xe, x1, xhat, gam, xo, w, wo, bint, bflt, bwork, bintb, b
 @njit(cache=True)
 def _beam_mass_matrix(bi, net):
     """M of beam bi at the configuration of its last :func:`_beam_residual` pass, into its workspace (Mm), from
-    that pass's per-piece operators (:func:`soroshapes._beam.mass_matrix_pieces`)."""
+    that pass's per-piece operators (:func:`soroshapes._beam.mass_matrix_pieces`, or
+    :func:`soroshapes._beam.mass_matrix_planar` for a planar beam)."""
     n, m, order, K, D, h, B, X0, base, wts, Md, ag, rows, go = _beam_model(bi, net[1], net[2], net[4])
     acc, SA, SX, NV, T, Jm, Ym, Opm, Mm, LU, a, v, R, f, G, eta, E, start, stop = _beam_ne_views(bi, net)
-    _mass_pieces(order, h, B, rows, wts, Md, SA, SX, T, Jm, Ym, Opm, Mm)
+    if net[1][bi, 9]:
+        _mass_planar(order, h, B, rows, wts, Md, SA, SX, T, Jm, Ym, Opm, Mm)
+    else:
+        _mass_pieces(order, h, B, rows, wts, Md, SA, SX, T, Jm, Ym, Opm, Mm)
 
 
 @njit(cache=True)
@@ -1781,6 +1794,12 @@ def _fd_rows_cached(t, x, net, scale, w, f0, fp, xp, rows, out):
 
 @njit(cache=True)
 def _cheap_rows(t, x, net, scale, w, f0, fp, xp, JF, beams, analytic):
+    """:func:`_cheap_rows_of` for every system of the network."""
+    return _cheap_rows_of(t, x, net, scale, w, f0, fp, xp, JF, beams, analytic, np.ones(net[0].shape[0], np.bool_))
+
+
+@njit(cache=True)
+def _cheap_rows_of(t, x, net, scale, w, f0, fp, xp, JF, beams, analytic, sel):
     r"""Refresh the rows of JF that are cheap to form: those of every system other than a beam (reservoirs:
     non-smooth where a valve saturates, so a stale row makes Newton contract slowly), and with ``beams`` the force
     rows of every beam as its model Jacobian :math:`\partial f_{in}/\partial x - [K\;\; D]` (the inputs' force,
@@ -1788,7 +1807,9 @@ def _cheap_rows(t, x, net, scale, w, f0, fp, xp, JF, beams, analytic):
     beam's own iteration matrix :math:`2M/h + D + \tfrac h2 K`) and their coordinate rows :math:`[0\;\; I]`.
     With ``analytic`` the systems marked at lowering (``table[i, 7]``) get their rows in closed form
     (:func:`_analytic_rows`, no evaluation of the network) and only the others are differenced by
-    :func:`_fd_rows`; without it all are differenced. False if an evaluation fails."""
+    :func:`_fd_rows`; without it all are differenced. Only the systems with ``sel[i]`` True (the others' rows of
+    JF are left as they are: the integrator refreshes the components whose Newton contracted slowly). False if
+    an evaluation fails."""
     table, bint, bflt = net[0], net[1], net[2]
     N = x.shape[0]
     nb = table.shape[0]
@@ -1796,7 +1817,7 @@ def _cheap_rows(t, x, net, scale, w, f0, fp, xp, JF, beams, analytic):
     closed = np.zeros(nb, np.bool_)
     any_fd = False
     for b in range(nb):
-        if table[b, 0] == BEAM and not beams:
+        if (table[b, 0] == BEAM and not beams) or not sel[b]:
             continue
         if analytic and table[b, 7] == 1:
             closed[b] = True
@@ -1819,7 +1840,7 @@ def _cheap_rows(t, x, net, scale, w, f0, fp, xp, JF, beams, analytic):
             break
     if beams:
         for b in range(nb):
-            if table[b, 0] != BEAM:
+            if table[b, 0] != BEAM or not sel[b]:
                 continue
             bi, xo = table[b, 5], table[b, 1]
             n, fo = bint[bi, 0], bint[bi, 5]
@@ -2019,14 +2040,22 @@ def _fluidic_jacobian(fi, x, xo, nx, w, wo, fpar, dW, JF):
 
 @njit(cache=True)
 def _iteration_matrix(c, gam, net, JF, LUc, pivc):
+    """:func:`_iteration_matrix_of` for every connected component."""
+    return _iteration_matrix_of(c, gam, net, JF, LUc, pivc, np.ones(net[18].shape[0], np.bool_))
+
+
+@njit(cache=True)
+def _iteration_matrix_of(c, gam, net, JF, LUc, pivc, sel):
     r"""Factor the Newton matrix of :func:`residual` per connected component, :math:`I - cJ` (``c`` =
     :math:`\gamma` times the weight of :math:`x_1` in the evaluation point) in the rows of every system but a
     beam's force rows, which are :math:`\tfrac1\gamma M_{[\cdot, \dot q]} - \tfrac c\gamma J_F` with
     :math:`M` the current mass matrix (:func:`_beam_mass_matrix`) and ``JF`` its force Jacobian (model rows of
     :func:`_cheap_rows`, or the differenced :func:`jacobian`). Each component's block is gathered straight into
-    its factor (the matrix is block diagonal). False if singular."""
+    its factor (the matrix is block diagonal); only the components with ``sel[k]`` True. False if singular."""
     table, col_block, comps = net[0], net[17], net[18]
     for k in range(comps.shape[0]):
+        if not sel[k]:
+            continue
         s = 0
         while s < comps.shape[1] and comps[k, s] >= 0:
             s += 1

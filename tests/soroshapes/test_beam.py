@@ -248,6 +248,46 @@ def test_the_newton_euler_recursions_equal_the_jacobian_sums(order, quadrature, 
     assert np.abs(M - M_ref).max() <= 1e-12 * np.abs(M_ref).max()
 
 
+@pytest.mark.parametrize("order, quadrature", [(2, "gregory"), (4, "gregory"), (4, "lobatto")])
+@pytest.mark.parametrize("scale", [20.0, 1e-3, 0.0])
+def test_the_planar_recursions_equal_the_general_ones_on_a_planar_beam(order, quadrature, scale):
+    """``_beam.newton_euler_planar`` and ``mass_matrix_planar`` (3-twists of se(2)) against ``newton_euler`` and
+    ``mass_matrix_pieces`` on a beam that bends about y, stretches and shears in z only, with a tilted base, a
+    gravity out of its plane and two point wrenches (one spatial) with out-of-plane parts: the same discrete
+    model, so they agree to rounding (1e-12 relative), the frames included. The general mask is not planar."""
+    from soroshapes import _beam
+    rng = np.random.default_rng(7)
+    base = np.eye(4)
+    base[:3, :3] = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    if np.linalg.det(base[:3, :3]) < 0:
+        base[:3, 0] *= -1.0
+    base[:3, 3] = rng.normal(size=3) * 0.01
+    shp = Shapes(Basis.chebyshev(3), (0, 3, 0, 2, 0, 1), length=L, section=sdf.Circle(R), material=MAT,
+                 segments=6, order=order, quadrature=quadrature, base=base)
+    m = shp.model
+    assert _beam.is_planar(m.rows, m.X0)
+    full = Shapes(Basis.chebyshev(3), (3, 3, 3, 2, 1, 1), length=L, section=sdf.Circle(R), material=MAT).model
+    assert not _beam.is_planar(full.rows, full.X0)
+    n, P = m.n, m.h.shape[0]
+    q, qd, a = scale * rng.normal(size=n), 3.0 * rng.normal(size=n), 10.0 * rng.normal(size=n)
+    ag = np.array([0.3, 2.1, -9.81])
+    nodes, W, spatial = np.array([P, P // 2], dtype=np.int64), rng.normal(size=(2, 6)), np.array([True, False])
+    out = {}
+    for label, ne, mm in (("general", _beam.newton_euler, _beam.mass_matrix_pieces),
+                          ("planar", _beam.newton_euler_planar, _beam.mass_matrix_planar)):
+        d = m.make_data()
+        f, M = np.zeros(n), np.zeros((n, n))
+        ne(q, qd, a, m.order, m.h, m.B, m.rows, m.X0, m.base, m.weights, m.Md, ag, nodes, W, spatial, d.G, d.eta,
+           d.acc, d.SA, d.SX, d.E, d.NE, f)
+        mm(m.order, m.h, m.B, m.rows, m.weights, m.Md, d.SA, d.SX, np.zeros((6, 6)), np.zeros((P + 1, 6, n)),
+           np.zeros((P + 1, 6, n)), np.zeros((6, n)), M)
+        out[label] = f, M, d.G.copy(), d.eta.copy()
+    (f0, M0, G0, e0), (f1, M1, G1, e1) = out["general"], out["planar"]
+    assert np.abs(f1 - f0).max() <= 1e-12 * np.abs(f0).max()
+    assert np.abs(M1 - M0).max() <= 1e-12 * np.abs(M0).max()
+    assert np.abs(G1 - G0).max() <= 1e-14 and np.abs(e1 - e0).max() <= 1e-12 * np.abs(e0).max()
+
+
 def test_the_compiled_loop_follows_the_python_integrator_and_converges_in_few_iterations():
     """The same implicit midpoint rule in the compiled loop (Newton-Euler residual, M-based iteration matrix,
     extrapolating predictor) and in Python (a zero user force sends the rod there): the same trajectory to a few

@@ -80,6 +80,37 @@ def test_beams_run_second_order_on_their_model_matrix_kept_across_steps():
     assert 1 <= st["matrices"] < st["steps"]
 
 
+def test_a_beam_bending_in_one_plane_takes_the_planar_recursions_and_equals_python():
+    """Fingers that bend about their body y axis only lower with the planar flag (their residual and mass matrix
+    by soroshapes._beam.newton_euler_planar / mass_matrix_planar); the compiled run equals the Python path's
+    (the general recursions) to a few tolerances, as the hand-like network above does. The hand-like fingers,
+    which bend about z, keep the general recursions."""
+    def make():
+        mdl = Model()
+        mat = materials.NeoHookean(E=1e6, nu=0.45, density=1000)
+        for i in range(2):
+            shp = Shapes(Basis.chebyshev(3), dofs=(0, 3, 0, 0, 0, 0), length=0.1, section=sdf.Circle(0.005),
+                         material=mat, damping=0.03, segments=6).add_gravity((0, 0.3, -9.81))
+            shp.add_chamber(area=5e-5, offset=(0, 0.003))
+            fl = Fluidic(None, V0=V0, regulator=dict(kp=2e-9, ki=2e-7, max_flow=1e-5))
+            mdl.add(shp, f"f{i}").add(fl, f"p{i}")
+            mdl.connect(f"p{i}", f"f{i}")
+            mdl.connect(StateMap(f"f{i}", [0.1], index=0, offset=V0, scale=0.2 * V0, function="tanh"), f"p{i}",
+                        port="volume")
+        t = np.linspace(0.0, 0.5, 51)
+        mdl.set_controller(Schedule(t, {f"p{i}": 30e3 * np.sin(2 * np.pi * 2 * t + i)[:, None] for i in range(2)},
+                                    period=0.5))
+        return mdl
+    assert make()._lowered().arrays[1][:, 9].tolist() == [1, 1]
+    assert hand_like()._lowered().arrays[1][:, 9].tolist() == [0, 0]
+    rtol, atol = 1e-7, 1e-9
+    a, b = both(make, 0.4, 2e-3, "bdf2", rtol=rtol, atol=atol)
+    for i in range(2):
+        assert close(a[f"f{i}"].x, b[f"f{i}"].x, rtol, atol) < 10
+        assert np.max(np.abs(a[f"p{i}"].pressure - b[f"p{i}"].pressure)) < 1e-5 * 30e3
+    assert np.ptp(a["f0"].q[:, 0]) > 1.0                                  # the fingers do bend
+
+
 def test_recording_and_continuing_from_t0_on_the_compiled_path():
     full = hand_like(1).simulate(0.2, 2e-3, "trapezoidal", compiled=True)
     sparse = hand_like(1).simulate(0.2, 2e-3, "trapezoidal", compiled=True, record_every=7)
@@ -672,3 +703,38 @@ def test_closed_form_newton_rows_equal_the_differenced_ones(make):
             size = max(np.max(np.abs(JD[i])), 1e-300)
             assert np.max(np.abs(JA[i] - JD[i])) <= 1e-5 * size, (trial, i, JA[i], JD[i])
     assert saturated > 0 or make is _polytropic_chain      # both branches of the valve were seen
+
+
+def test_a_refresh_of_some_components_rebuilds_their_rows_and_factors_only():
+    """The integrator refreshes the Newton matrix of the connected components whose Newton contracted slowly
+    (``_cheap_rows_of`` / ``_iteration_matrix_of`` with a selection): the selected component's rows and factor
+    equal those of a full refresh, the other's are left exactly as they were (here: a marker value)."""
+    from soroshapes import network
+    mdl = hand_like(2)
+    mdl._prepare_layout()
+    net = mdl._lowered()
+    comps, block_comp = net.arrays[18], net.arrays[19]
+    assert comps.shape[0] == 2
+    x = mdl.initial_state()
+    x[0] = 3.0                                          # a bent finger: a mass matrix away from the straight one
+    scale = mdl._scales(x)
+    N = len(x)
+    ws = [np.zeros(net.NW), np.zeros(N), np.zeros(N), np.zeros(N)]
+    table = net.arrays[0]
+    assert network.residual(0.1, x, x, x, 1e-3, net.arrays, np.zeros(net.NW), np.zeros(N),
+                            np.ones(table.shape[0], np.bool_))
+    for b in range(table.shape[0]):                     # the beams' mass matrices at x (the pass just made)
+        if table[b, 0] == network.BEAM:
+            network._beam_mass_matrix(table[b, 5], net.arrays)
+    mc = comps.shape[1]
+    full_J, full_LU = np.zeros((N, N)), np.zeros((2, mc, mc))
+    assert network._cheap_rows(0.1, x, net.arrays, scale, *ws, full_J, True, True)
+    assert network._iteration_matrix(1e-3, 1.3e-3, net.arrays, full_J, full_LU, np.zeros((2, mc), np.int64))
+    sel_c = np.array([False, True])
+    J, LU = np.full((N, N), 7.0), np.full((2, mc, mc), 7.0)
+    assert network._cheap_rows_of(0.1, x, net.arrays, scale, *ws, J, True, True, sel_c[block_comp])
+    assert network._iteration_matrix_of(1e-3, 1.3e-3, net.arrays, J, LU, np.zeros((2, mc), np.int64), sel_c)
+    rows1 = comps[1][comps[1] >= 0]
+    rows0 = comps[0][comps[0] >= 0]
+    assert np.array_equal(J[rows1], full_J[rows1]) and np.all(J[rows0] == 7.0)
+    assert np.array_equal(LU[1], full_LU[1]) and np.all(LU[0] == 7.0)
