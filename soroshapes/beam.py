@@ -49,7 +49,7 @@ __all__ = ["BeamModel", "BeamData", "StateRangeError", "BeamTrajectory", "IKResu
            "Chamber", "Tendon", "Actuator", "Contact", "UserForce", "check_state", "kinematics", "dynamics",
            "coriolis_jacobian", "inverse_dynamics", "forward_dynamics", "accelerations", "energy", "external_force",
            "input_map", "inputs_at", "motion_terms", "LoadPlan", "statics", "newton_load_stepping", "simulate",
-           "explicit_step_limit", "inverse_kinematics", "damped_least_squares"]
+           "explicit_step_limit", "inverse_kinematics", "damped_least_squares", "time_grid"]
 
 _NO_NODES, _NO_WRENCH, _NO_FLAGS = np.zeros(0, dtype=np.int64), np.zeros((0, 6)), np.zeros(0, dtype=np.bool_)
 
@@ -733,14 +733,11 @@ def accelerations(model, data, loads, q, qd, t=0.0, u=None, tau=0.0, owner=None,
         raise _out_of_range(data, np.asarray(q, dtype=float), np.asarray(qd, dtype=float)) from None
 
 
-def simulate(model, data, loads, t_end, dt, q0=None, qd0=None, u=None, *, tau=0.0, method="implicit", tol=1e-8,
-             max_iterations=20, min_dt=None, record_every=1, owner=None):
-    r"""Time integration of the beam's equations of motion (see :meth:`soroshapes.shapes.Shapes.simulate`);
-    ``tau`` [s]: Kelvin-Voigt damping :math:`D = \tau K`. Returns a :class:`BeamTrajectory`. (With
-    constraints, :meth:`soroshapes.constraints.Assembly.simulate` integrates the beam as a one-body assembly.)"""
-    import time
-    if method not in ("implicit", "explicit"):
-        raise ParameterError("method must be 'implicit' or 'explicit'")
+def time_grid(t_end, dt, min_dt=None, record_every=1):
+    """The checked time grid of a simulation: ``(t_end, dt, nsteps, min_dt, record_every)`` with ``dt`` shrunk so
+    that ``nsteps`` equal steps end exactly at ``t_end`` [s] and ``min_dt`` [s] (the smallest step a failed step is
+    halved to) defaulting to dt/1024. Raises :class:`ParameterError` for a non-positive or non-finite t_end or dt
+    and a record_every below 1."""
     t_end, dt = float(t_end), float(dt)
     if not (t_end > 0 and dt > 0 and np.isfinite(t_end) and np.isfinite(dt)):
         raise ParameterError(f"t_end and dt must be positive [s], got {t_end!r}, {dt!r}")
@@ -750,6 +747,18 @@ def simulate(model, data, loads, t_end, dt, q0=None, qd0=None, u=None, *, tau=0.
     nsteps = int(np.ceil(t_end / dt - 1e-9))
     dt = t_end / nsteps
     min_dt = dt / 1024 if min_dt is None else float(min_dt)
+    return t_end, dt, nsteps, min_dt, record_every
+
+
+def simulate(model, data, loads, t_end, dt, q0=None, qd0=None, u=None, *, tau=0.0, method="implicit", tol=1e-8,
+             max_iterations=20, min_dt=None, record_every=1, owner=None):
+    r"""Time integration of the beam's equations of motion (see :meth:`soroshapes.shapes.Shapes.simulate`);
+    ``tau`` [s]: Kelvin-Voigt damping :math:`D = \tau K`. Returns a :class:`BeamTrajectory`. (With
+    constraints, :meth:`soroshapes.constraints.Assembly.simulate` integrates the beam as a one-body assembly.)"""
+    import time
+    if method not in ("implicit", "explicit"):
+        raise ParameterError("method must be 'implicit' or 'explicit'")
+    t_end, dt, nsteps, min_dt, record_every = time_grid(t_end, dt, min_dt, record_every)
     q = check_state(model, q0).copy()
     qd = check_state(model, qd0, "qd0").copy()
     inputs_at(loads, u, 0.0)                      # validate u before the loop

@@ -769,16 +769,8 @@ class Assembly:
         multipliers of the step that ended there; at t = 0 those of the first step)."""
         import time
         from sorofem.errors import ConvergenceError
-        from .beam import BeamTrajectory, StateRangeError
-        t_end, dt = float(t_end), float(dt)
-        if not (t_end > 0 and dt > 0 and np.isfinite(t_end) and np.isfinite(dt)):
-            raise ParameterError(f"t_end and dt must be positive [s], got {t_end!r}, {dt!r}")
-        record_every = int(record_every)
-        if record_every < 1:
-            raise ParameterError("record_every must be >= 1")
-        nsteps = int(np.ceil(t_end / dt - 1e-9))
-        dt = t_end / nsteps
-        min_dt = dt / 1024 if min_dt is None else float(min_dt)
+        from .beam import BeamTrajectory, StateRangeError, time_grid
+        t_end, dt, nsteps, min_dt, record_every = time_grid(t_end, dt, min_dt, record_every)
         q, qd = self._state(q0, "q0"), self._state(qd0, "qd0")
         self._inputs(u, 0.0)
         cs = self.bind(constraints, q)
