@@ -19,9 +19,10 @@ Safety rules (all enforced here, whatever the client does):
   login, with an event that names the channel (a regulator fault or a wrong calibration in the profile);
 * the watchdog: when the client sends no valid frame within ``watchdog`` seconds, every channel is vented
   (flag ``VENTED``), the client is told why (a sealed ``ERROR`` with code ``WATCHDOG``) and dropped. The
-  silence measured is the client's, not the server's: the board loop drops the client only when nothing it
-  sent waits unread (in the socket, or in the hands of the thread that serves it), so a server that was slow
-  to read (a long driver step, a busy machine) does not drop a healthy client. A client whose frames the
+  silence measured is the client's, not the server's: it counts from the server's answer to the client's last
+  valid command (a client waits for that answer before it sends again), and the board loop drops the client
+  only when nothing it sent waits unread (in the socket, or in the hands of the thread that serves it), so a
+  server that was slow to read or to answer (a long driver step, a busy machine) does not drop a healthy client. A client whose frames the
   server cannot read for the hard limit (four watchdog times, at least one second more than the watchdog) is
   dropped anyway: the server is overloaded or stuck;
 * venting on a client's disconnect, on any protocol error (including a frame with a bad MAC or an old
@@ -704,6 +705,9 @@ class BoardServer:
                 if mtype == P.MessageType.BYE:
                     return f"client {who} said bye"
                 P.send_frame(conn, session.seal(P.MessageType.STATE, self._command(conn, mtype, body, who)))
+                with self._lock:       # answered: the client waited for this answer, so its silence starts now
+                    if self._client is conn:
+                        self._last_valid = self.now()
         except _NotClient:
             self.counters["late_commands"] += 1
             self._event(f"refused a command from {who}: it no longer controls the board")

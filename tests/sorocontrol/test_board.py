@@ -483,6 +483,34 @@ STALL_CLIENT = textwrap.dedent("""
 """)
 
 
+def test_watchdog_counts_from_the_answer_not_the_arrival(stepped):
+    """A command that the server was slow to answer (0.8 s between its arrival and the answer, > the 0.3 s
+    watchdog: the board loop held the interpreter in between) leaves the client its whole watchdog after the
+    answer: it waited for that answer before sending again. (Counted from the arrival, the first tick after the
+    answer dropped it: the intermittent 'no valid command for 0.801 s' of the stalled-board test on a busy
+    machine.) A client that then stays silent is still vented at the first tick past the watchdog."""
+    srv = stepped
+    slow = srv._command
+
+    def answered_late(*a, **kw):
+        out = slow(*a, **kw)
+        srv.clock.advance(0.8)
+        return out
+    srv._command = answered_late
+    with Board.connect(url(srv), secret=SECRET, keepalive=False) as brd:
+        brd.set_pressure([20e3, 0, 0])
+        reader_idle(srv)
+        srv._command = slow
+        for _ in range(30):                      # 0.30 s after the answer: kept
+            srv.clock.advance(0.01)
+            srv.tick()
+        assert srv.client is not None and srv.driver.value[0] > 0
+        srv.clock.advance(0.01)
+        srv.tick()                               # 0.31 s of silence after the answer: vented
+        assert srv.client is None and np.all(srv.driver.value == 0)
+        assert "no valid command" in srv.events[-2][1] and "0.310 s" in srv.events[-2][1]
+
+
 def test_a_board_loop_stalled_past_the_watchdog_keeps_a_healthy_client(tmp_path):
     """The intermittent drop of the simulated board after a pressure jump, made deterministic: the driver's
     step after the jump holds the interpreter for 0.8 s (> the 0.3 s watchdog), as the simulated beam's
