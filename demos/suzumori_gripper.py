@@ -42,11 +42,11 @@ stays 0-300 kPa (our bound; the seed states none).
 the bolt) and :math:`e_t` = +y (tangential, the same sense on every finger, so all push the bolt the same
 way round); chamber pressures :math:`p_k = P_0 + \tfrac23 (\delta\cdot e_k)`, which realizes the bending
 moment :math:`\propto \delta` with :math:`p_k \ge 0` as long as :math:`P_0 \ge \tfrac23|\delta|`. Bias
-:math:`b` = 100 kPa (the pinch: the free tip moves 15.8 mm inward, 8.3 mm past the head's corners), circle
-:math:`a` = 60 kPa at 2 Hz (about +-9.6 mm of free tip travel), :math:`P_0` = 110 kPa; the bias ramps up over
-the first 0.3 s (grasp), the circle starts at 0.4 s. (With the former weak fingers: 150, 80 and 160 kPa, the
-tip 8.8 mm inward and +-4.7 mm; the same pressures on the FMA fingers press 23 mm deep and turned the bolt
-backwards in the quick run, -0.049 rev/s.)
+:math:`b` = 55 kPa (the pinch: the free tip moves 8.8 mm inward, onto the head's corners), circle
+:math:`a` = 30 kPa at 2 Hz (+-4.7 mm: the inner half presses on the flats, the outer half clears the corners),
+:math:`P_0` = 60 kPa: the free tip path of the former drive (150, 80, 160 kPa on the former, weaker fingers),
+scaled to the FMA fingers (0.16 mm of free tip travel per kPa); the bias ramps up over the first 0.3 s
+(grasp), the circle starts at 0.4 s.
 
 *Static grasps* (seed Fig. 27), each a static equilibrium (:meth:`Shapes.statics`, the object fixed, the
 finger-object contact of :meth:`Shapes.add_contact` with the parameters below; friction takes no part at rest).
@@ -78,18 +78,19 @@ turns no faster than the friction they can transmit, :math:`\omega \le \mu\,\bar
 (:math:`\bar F_n` the total normal force, :math:`r` the head's radius): ``friction_limited_rev_per_s``.
 Against the seed's 0.16 rev/s: at :math:`\mu_\Omega` = 2.5e-3 N m s/rad, 0.16 rev/s (1.0 rad/s) needs a
 driving torque of 2.5e-3 N m, a tangential force of 0.105 N at the head's 24 mm, so a normal force of
-0.044 N per finger at :math:`\mu` = 0.6 on all four. The former fingers (7.07 mm^2 chambers) pressed 0.0095 N
-while screwing and turned the bolt at 0.019 rev/s (quick) / 0.026 rev/s (full), under their friction limit
-of 0.035 rev/s: too weak. The FMA fingers press 0.095 N on average while screwing (``screw_force_N_mean``,
-quick run), so the friction could now carry 0.35 rev/s (``friction_limited_rev_per_s``), more than the
-seed's 0.16: strength no longer limits the rate. What does is the drive: in the quick run the bolt swings
-back and forth with the circle (+0.033 rev at 0.6 s, back to +0.003 at 1.0 s, +0.033 at 1.12 s) and ends
-0.020 turns on after 1 s of circling, i.e. a net 0.020 rev/s; the fitted 0.046 rev/s
-(``revolutions_per_second``, the slope over the quick run's last 0.5 s) is one forward swing. In the last
-frame (``suzumori_gripper.png``) a finger bent this far curls under the head's lower edge and touches it
-with its side, not its tip: the contacts drag the head both ways. The seed
-reached its 0.16 rev/s "through careful parameter and input shaping" (unstated); a drive shaped for these
-fingers (a tip path that presses on the inner half and clears on the outer) is the next step, not done here.
+0.044 N per finger at :math:`\mu` = 0.6 on all four, pressed all the time. The former fingers (7.07 mm^2
+chambers) pressed 0.0095 N while screwing and turned the bolt at 0.019 rev/s (quick) / 0.026 rev/s (full
+run), under their friction limit of 0.035 rev/s. On the same free tip path the FMA fingers press 3.5 times
+harder, 0.033 N on average while screwing (``screw_force_N_mean``: pulses of up to 0.078 N on the circle's
+inner half, none on the outer), and turn the bolt at 0.037 rev/s over the full run's last 2.5 s (0.021 rev/s
+over the quick run's last 0.5 s; 0.100 turns in 3.4 s) in the seed's staircase (``suzumori_gripper.png``: a
+step forward on every inner half, a small slip back on every outer half), under their friction limit of
+0.12 rev/s (``friction_limited_rev_per_s``), which is still below the seed's 0.16: the pulsed normal force
+carries less than a constant 0.044 N would. Deeper drives press harder but do not turn faster (full runs,
+bias/circle/P0 in kPa: 75/45/85 0.038 rev/s, limit 0.21; 100/60/110 0.020 rev/s, limit 0.29; 100/90/130
+-0.006 rev/s): fingers bent that far reach under the head's lower edge and drag it back with their sides. The
+seed reached its 0.16 rev/s "through careful parameter and input shaping" (unstated); a drive shaped for
+these fingers is the next step.
 
 *Contact* (:func:`soroshapes.rigid.couple_contact`): the finger's tube (radius 6 mm) against the head's SDF,
 penalty 2e5 N/m^2 per unit length, damping 20 N s/m^2, Coulomb friction 0.6 regularized at 2 mm/s; forces
@@ -111,7 +112,7 @@ L, R, RING, R_BOLT, H_BOLT, Z_BOLT = 80 * mm, 6 * mm, 37.5 * mm, 24 * mm, 14 * m
 BORE, WALL = 5 * mm, 1 * mm                             # the chambers' bore radius [m], partition walls [m]
 PHI = np.array([0.0, 2 * np.pi / 3, 4 * np.pi / 3])     # chambers' section angles [rad]
 E_K = -np.column_stack([np.cos(PHI), np.sin(PHI)])      # direction each chamber bends its finger, (y, z)
-BIAS, CIRCLE, P0, FREQ = 100 * kPa, 60 * kPa, 110 * kPa, 2.0   # drive [Pa], [Pa], [Pa], [Hz]
+BIAS, CIRCLE, P0, FREQ = 55 * kPa, 30 * kPa, 60 * kPa, 2.0     # drive [Pa], [Pa], [Pa], [Hz]
 T_GRASP, T_SCREW = 0.3, 0.4                             # grasp ramp's end, the circle's start [s]
 BOLT_INERTIA = 2e-5                                     # [kg m^2] (the seed leaves it blank)
 BOLT_DAMPING = 2.5 * 1e-3                               # the seed's mu_Omega = 2.5 N mm s/rad -> [N m s/rad]
