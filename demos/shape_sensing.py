@@ -21,10 +21,12 @@ in real time by inverse kinematics in that basis, also while an obstacle presses
    angle (feed-forward from the model's static map with the obstacle, plus integral feedback). The loop runs at
    the seed's 60 Hz and sends to the board every period whatever a frame costs: rendering, detection and IK run
    in a thread (:class:`sorocontrol.EstimatorThread`) on the newest frame; frames it could not take are skipped
-   and counted. The board's watchdog (0.5 s) is the default one. The plant with its SDF contact integrates on
-   the beams' Python path, about ten times slower than real time (``plant_realtime_factor``, measured 0.09 on a
-   loaded machine): the board's plant skips the time it cannot simulate, so the true angle moves in steps and
-   slower than the reference asks; the estimation is scored against the state the board reports.
+   and counted. The board's watchdog (0.5 s) is the default one. The plant with its SDF contact integrates in
+   the beam's compiled loop (issue 26; before, on the Python step loop: ``plant_realtime_factor`` 0.03-0.11);
+   measured 0.165 of real time at a load average of 11 on 2 cores (the plant's server process gets about a
+   sixth of a core there) and 0.58 at a load of 6.7 (loop 59.2 Hz, estimates 16.3 Hz): the board's plant skips the time it cannot simulate, so on a loaded machine the true
+   angle moves in steps and slower than the reference asks; the estimation is scored against the state the
+   board reports.
 
 Parameters
 ----------

@@ -17,22 +17,36 @@ statistics; PNGs of the static grasps (``suzumori_grasps.png``) and of the gripp
 
 Equations
 ---------
-*Fingers* (the seed's parameters): L = 80 mm, circular section R = 6 mm, Neo-Hookean E = 1 MPa, nu = 0.3,
+*Fingers* (the seed's parameters): L = 80 mm, outer radius R = 6 mm, Neo-Hookean E = 1 MPa, nu = 0.3,
 rho = 2000 kg/m^3, Chebyshev bases of 3 modes in both bendings (``dofs = (0, 3, 3, 0, 0, 0)``, n = 6 per
 finger), Kelvin-Voigt damping from a damping ratio 0.1, gravity along -z. Finger j hangs from
 :math:`(37.5\,\mathrm{mm})(\cos\alpha_j, \sin\alpha_j, 0)`, :math:`\alpha_j = j\pi/2`, along -z; its body y
-axis is tangential, body z radially outward. Three chambers (area 7.07 mm^2, i.e. radius 1.5 mm) at 3 mm
-from the axis at section angles :math:`\phi_k = 0, 2\pi/3, 4\pi/3` (:meth:`Shapes.add_chamber`): chamber k
-bends the finger away from itself, toward :math:`e_k = -(\cos\phi_k, \sin\phi_k)` in (y, z).
+axis is tangential, body z radially outward.
+
+*The chambers* are those of Suzumori's flexible microactuator (FMA; the seed's refs. [4], [5]): a 12 mm
+fibre-reinforced rubber tube whose bore is partitioned into three chambers by radial walls (its section is
+three 120 deg sectors, not three small holes). Neither the seed's text nor its code gives the chambers' size
+(its code applies each chamber's pressure as a force bundle 3 mm off the axis, with no area), so we take the
+bore of radius 5 mm (a 1 mm outer wall) split by 1 mm partitions, the walls chosen so that a chamber's
+centroid sits at the seed's 3 mm: each chamber 21.33 mm^2 with its centroid 3.04 mm off the axis (the
+section properties of the chamber's SDF, :func:`finger_section`), a bending moment per pressure
+:math:`A r` = 64.9 mm^3, 3.06 times that of the round 1.5 mm chamber at 3 mm used before (7.07 mm^2,
+21.2 mm^3, which gave a beaker hold margin of 0.21). The hollow section (49.1 mm^2, second moment 590 mm^4
+against the solid rod's 1018 mm^4) is the beam's section, so mass and bending stiffness follow the same
+geometry. Chamber k at section angle :math:`\phi_k = 0, 2\pi/3, 4\pi/3` (:meth:`Shapes.add_chamber`) bends
+the finger away from itself, toward :math:`e_k = -(\cos\phi_k, \sin\phi_k)` in (y, z). The pressure range
+stays 0-300 kPa (our bound; the seed states none).
 
 *Drive.* The desired tip direction in the section plane is
 :math:`\delta(t) = b\,e_{in} + a(\cos\omega t\, e_{in} + \sin\omega t\, e_{t})` with :math:`e_{in}` = -z (toward
 the bolt) and :math:`e_t` = +y (tangential, the same sense on every finger, so all push the bolt the same
 way round); chamber pressures :math:`p_k = P_0 + \tfrac23 (\delta\cdot e_k)`, which realizes the bending
 moment :math:`\propto \delta` with :math:`p_k \ge 0` as long as :math:`P_0 \ge \tfrac23|\delta|`. Bias
-:math:`b` = 150 kPa (the pinch: the tip moves 8.8 mm inward, onto the head's corners), circle
-:math:`a` = 80 kPa at 2 Hz (+-4.7 mm: the inner half presses on the flats, the outer half clears the corners),
-:math:`P_0` = 160 kPa; the bias ramps up over the first 0.3 s (grasp), the circle starts at 0.4 s.
+:math:`b` = 55 kPa (the pinch: the free tip moves 8.8 mm inward, onto the head's corners), circle
+:math:`a` = 30 kPa at 2 Hz (+-4.7 mm: the inner half presses on the flats, the outer half clears the corners),
+:math:`P_0` = 60 kPa: the free tip path of the former drive (150, 80, 160 kPa on the former, weaker fingers),
+scaled to the FMA fingers (0.16 mm of free tip travel per kPa); the bias ramps up over the first 0.3 s
+(grasp), the circle starts at 0.4 s.
 
 *Static grasps* (seed Fig. 27), each a static equilibrium (:meth:`Shapes.statics`, the object fixed, the
 finger-object contact of :meth:`Shapes.add_contact` with the parameters below; friction takes no part at rest).
@@ -48,9 +62,11 @@ force available from the normal forces :math:`F_{n,j}` (horizontal: the contact 
 above 1 the grasp holds the object against gravity. Masses: the wrench 5 x 10 x 100 mm of steel (7850
 kg/m^3): 39 g; the beaker: 30 g (an empty 50 mL borosilicate beaker, about 42 mm x 60 mm, weighs 30-35 g;
 the seed gives none). The finger's blocked tip force :math:`3M/(2L)` (:math:`M = A r b` the chambers'
-moment) bounds what any pressure below :math:`P_{max}` can give: 0.1 N per finger at 300 kPa, so these
-fingers (the seed's geometry, E = 1 MPa, our chamber area) cannot carry 30-40 g by friction: the margins
-say so.
+moment) bounds what any pressure below :math:`P_{max}` can give: 0.365 N per finger at 300 kPa with the
+FMA's chambers (0.12 N with the former round ones). The beaker: 0.290 N per finger, hold margin 2.36
+(held); the wrench: 0.285 N per finger, margin 0.89: the two fingers pinch it but at mu = 0.6 carry 89 %
+of its 39 g (it would slip; at 340 kPa the same solve gives 0.339 N per finger, margin 1.06: held; or
+mu = 0.68 at 300 kPa; we keep one friction coefficient for every contact and the 300 kPa range).
 
 *Bolt.* A hexagonal head (circumradius 24 mm, height 14 mm, centred 72 mm below the fingers' base) on a
 :class:`soroshapes.SpinningBody` about z: :math:`I\ddot\theta = -\mu_\Omega\dot\theta + m_z` (seed eq. (31))
@@ -62,12 +78,19 @@ turns no faster than the friction they can transmit, :math:`\omega \le \mu\,\bar
 (:math:`\bar F_n` the total normal force, :math:`r` the head's radius): ``friction_limited_rev_per_s``.
 Against the seed's 0.16 rev/s: at :math:`\mu_\Omega` = 2.5e-3 N m s/rad, 0.16 rev/s (1.0 rad/s) needs a
 driving torque of 2.5e-3 N m, a tangential force of 0.105 N at the head's 24 mm, so a normal force of
-0.044 N per finger at :math:`\mu` = 0.6 on all four: about 4.5 times what these fingers press with while
-screwing (0.0094-0.0096 N mean, ``screw_force_N_mean``). We get 0.019 rev/s (quick) and 0.026 rev/s (full
-run), below the friction limit of 0.035 rev/s as a slipping grasp must be. The seed reached its 0.16 rev/s
-"through careful parameter and input shaping" with an unstated bolt inertia and finger force (its fluidic
-input is a force bundle 3 mm off the axis, with no chamber area); with our chamber area (7.07 mm^2) the
-same fingers give the weak pinches above, which is the same limit.
+0.044 N per finger at :math:`\mu` = 0.6 on all four, pressed all the time. The former fingers (7.07 mm^2
+chambers) pressed 0.0095 N while screwing and turned the bolt at 0.019 rev/s (quick) / 0.026 rev/s (full
+run), under their friction limit of 0.035 rev/s. On the same free tip path the FMA fingers press 3.5 times
+harder, 0.033 N on average while screwing (``screw_force_N_mean``: pulses of up to 0.078 N on the circle's
+inner half, none on the outer), and turn the bolt at 0.037 rev/s over the full run's last 2.5 s (0.021 rev/s
+over the quick run's last 0.5 s; 0.100 turns in 3.4 s) in the seed's staircase (``suzumori_gripper.png``: a
+step forward on every inner half, a small slip back on every outer half), under their friction limit of
+0.12 rev/s (``friction_limited_rev_per_s``), which is still below the seed's 0.16: the pulsed normal force
+carries less than a constant 0.044 N would. Deeper drives press harder but do not turn faster (full runs,
+bias/circle/P0 in kPa: 75/45/85 0.038 rev/s, limit 0.21; 100/60/110 0.020 rev/s, limit 0.29; 100/90/130
+-0.006 rev/s): fingers bent that far reach under the head's lower edge and drag it back with their sides. The
+seed reached its 0.16 rev/s "through careful parameter and input shaping" (unstated); a drive shaped for
+these fingers is the next step.
 
 *Contact* (:func:`soroshapes.rigid.couple_contact`): the finger's tube (radius 6 mm) against the head's SDF,
 penalty 2e5 N/m^2 per unit length, damping 20 N s/m^2, Coulomb friction 0.6 regularized at 2 mm/s; forces
@@ -75,6 +98,7 @@ and moments are equal and opposite on finger and bolt.
 
 *Integration.* ``Model.simulate``, BDF2, dt = 2 ms.
 """
+import functools
 import time
 from pathlib import Path
 
@@ -85,9 +109,10 @@ from sorofem.units import kPa, mm
 
 # ------------------------------------------------------------------------------------------------ parameters
 L, R, RING, R_BOLT, H_BOLT, Z_BOLT = 80 * mm, 6 * mm, 37.5 * mm, 24 * mm, 14 * mm, -72 * mm
+BORE, WALL = 5 * mm, 1 * mm                             # the chambers' bore radius [m], partition walls [m]
 PHI = np.array([0.0, 2 * np.pi / 3, 4 * np.pi / 3])     # chambers' section angles [rad]
 E_K = -np.column_stack([np.cos(PHI), np.sin(PHI)])      # direction each chamber bends its finger, (y, z)
-BIAS, CIRCLE, P0, FREQ = 150 * kPa, 80 * kPa, 160 * kPa, 2.0   # drive [Pa], [Pa], [Pa], [Hz]
+BIAS, CIRCLE, P0, FREQ = 55 * kPa, 30 * kPa, 60 * kPa, 2.0     # drive [Pa], [Pa], [Pa], [Hz]
 T_GRASP, T_SCREW = 0.3, 0.4                             # grasp ramp's end, the circle's start [s]
 BOLT_INERTIA = 2e-5                                     # [kg m^2] (the seed leaves it blank)
 BOLT_DAMPING = 2.5 * 1e-3                               # the seed's mu_Omega = 2.5 N mm s/rad -> [N m s/rad]
@@ -157,6 +182,33 @@ def main(out: Path, quick: bool = False) -> dict:
 
 
 # ------------------------------------------------------------------------------------------------- the steps
+def chamber_shape(phi):
+    """One chamber of the finger's section (2D SDF): the 120 deg sector of the bore (radius BORE) centred at the
+    section angle ``phi`` [rad], between two radial partitions WALL thick."""
+    a1, a2 = phi - np.pi / 3, phi + np.pi / 3
+    d1, d2 = np.array([np.cos(a1), np.sin(a1)]), np.array([np.cos(a2), np.sin(a2)])
+    n1, n2 = np.array([-d1[1], d1[0]]), np.array([d2[1], -d2[0]])      # the edges' normals into the sector
+    s, _ = np.linalg.solve(np.column_stack([d1, -d2]), 0.5 * WALL * (n2 - n1))
+    apex = s * d1 + 0.5 * WALL * n1                                   # where the two partitions' faces meet
+    mid = np.array([np.cos(phi), np.sin(phi)])
+    far = 3 * BORE
+    return sdf.Circle(BORE) & sdf.Polygon([tuple(apex), tuple(apex + far * d1), tuple(apex + 1.5 * far * mid),
+                                           tuple(apex + far * d2)])
+
+
+@functools.lru_cache(maxsize=1)
+def finger_section():
+    """(section SDF, chamber areas [m^2] (3,), chamber centroids (3, 2) [m]): the 12 mm tube with its three
+    sector chambers cut out, and each chamber's area and centroid (numerical section properties, 0.01 mm
+    grid)."""
+    from sorofem.sdf.properties import section_properties
+
+    chambers = [chamber_shape(phi) for phi in PHI]
+    section = sdf.Circle(R) - chambers[0] - chambers[1] - chambers[2]
+    props = [section_properties(c, resolution=0.01 * mm) for c in chambers]
+    return section, np.array([p.area for p in props]), np.array([p.centroid for p in props])
+
+
 def finger(j):
     """Finger j: a Shapes hanging from the ring at angle j pi/2, with three chambers and gravity."""
     from soroshapes import Basis, Shapes
@@ -168,11 +220,12 @@ def finger(j):
     base[:3, 1] = tangential                            # body y tangential
     base[:3, 2] = np.cross(base[:3, 0], tangential)     # body z radially outward
     base[:3, 3] = (RING * np.cos(a), RING * np.sin(a), 0.0)
-    shp = Shapes(Basis.chebyshev(3), (0, 3, 3, 0, 0, 0), length=L, section=sdf.Circle(R),
+    section, areas, centroids = finger_section()
+    shp = Shapes(Basis.chebyshev(3), (0, 3, 3, 0, 0, 0), length=L, section=section,
                  material=materials.NeoHookean(E=1.0e6, nu=0.3, density=2000.0, damping=0.1), base=base,
                  segments=12, contact_radius=R)
-    for k, phi in enumerate(PHI):
-        shp.add_chamber(np.pi * (1.5 * mm) ** 2, (3 * mm * np.cos(phi), 3 * mm * np.sin(phi)), name=f"chamber{k}")
+    for k in range(3):
+        shp.add_chamber(areas[k], tuple(centroids[k]), name=f"chamber{k}")
     shp.add_gravity((0.0, 0.0, -9.81))
     return shp
 

@@ -35,6 +35,7 @@ vectors as polynomials in ``ad``), and its iteration matrix from the mass matrix
 import numpy as np
 from sorofem._numba import njit  # numba.njit with a cache that concurrent processes may share
 
+from ._contact import contact_nodal
 from .lie import _put_skew, _so3_coeffs, _tse3_coeffs, _tse3_dcoeffs, invSE3, logSE3
 
 MAGNUS4_C = np.sqrt(3.0) / 12.0
@@ -692,10 +693,21 @@ def newton_euler(q, qd, a, order, h, B, rows, xi0, g0, w, Md, ag, pl_nodes, pl_W
     ``a`` (n,) the accelerations [unit of q / s^2]; writes ``G``, ``eta``, ``acc`` (P+1, ...), the per-piece
     ``SA`` (P, 6, 6) (Ad of the inverse) and ``SX`` (P, 4, 6) (strains at the two Gauss points,
     :math:`\Omega`, the coefficients c1..c4 of T); ``E`` (4, 4) and ``V`` (32, 6) work arrays; result in ``out``."""
-    n = q.shape[0]
+    _ne_forward(q, qd, a, order, h, B, rows, xi0, g0, G, eta, acc, SA, SX, E, V)
+    _ne_backward(q.shape[0], order, h, B, rows, w, Md, ag, pl_nodes, pl_W, pl_spatial, _NO_POINT_FORCES, G, eta, acc,
+                 SA, SX, V, out)
+
+
+_NO_POINT_FORCES = np.zeros((0, 3))
+
+
+@njit(cache=True)
+def _ne_forward(q, qd, a, order, h, B, rows, xi0, g0, G, eta, acc, SA, SX, E, V):
+    """The forward recursion of :func:`newton_euler`: frames ``G``, twists ``eta``, acceleration twists ``acc``
+    and the per-piece operators ``SA``, ``SX`` at (q, qd, a)."""
     P = h.shape[0]
-    xd1, xd2, xa1, xa2, Omd, Oa, psi, tmp, lam, y, z1, z2, F, dTv, zero = (
-        V[0], V[1], V[2], V[3], V[4], V[5], V[6], V[7], V[8], V[9], V[10], V[11], V[12], V[13], V[14])
+    xd1, xd2, xa1, xa2, Omd, Oa, psi, tmp, y, dTv, zero = (
+        V[0], V[1], V[2], V[3], V[4], V[5], V[6], V[7], V[9], V[13], V[14])
     X, Y, cc, dc = V[15:19], V[19:25], V[25], V[26]
     for r in range(6):
         zero[r] = 0.0
@@ -761,6 +773,16 @@ def newton_euler(q, qd, a, order, h, B, rows, xi0, g0, w, Md, ag, pl_nodes, pl_W
         _tpoly(Om, cc[0], cc[1], cc[2], cc[3], Oa, X, y)
         for r in range(6):
             acc[s + 1, r] += dTv[r] - tmp[r] + y[r]
+
+
+@njit(cache=True)
+def _ne_backward(n, order, h, B, rows, w, Md, ag, pl_nodes, pl_W, pl_spatial, Fp, G, eta, acc, SA, SX, V, out):
+    """The backward recursion of :func:`newton_euler` from the state its forward recursion left, into ``out``
+    (n,); ``Fp`` (P+1, 3) spatial forces at the points (no moment; e.g. contact), or no rows for none."""
+    P = h.shape[0]
+    tmp, lam, y, z1, z2, F = V[7], V[8], V[9], V[10], V[11], V[12]
+    X = V[15:19]
+    forces = Fp.shape[0] > 0
     for k in range(n):
         out[k] = 0.0
     for r in range(6):
@@ -795,6 +817,9 @@ def newton_euler(q, qd, a, order, h, B, rows, xi0, g0, w, Md, ag, pl_nodes, pl_W
                 else:
                     lam[r] -= pl_W[p, r]
                     lam[r + 3] -= pl_W[p, r + 3]
+        if forces:
+            for r in range(3):
+                lam[r + 3] -= G[i, 0, r] * Fp[i, 0] + G[i, 1, r] * Fp[i, 1] + G[i, 2, r] * Fp[i, 2]
         # piece s = i - 1 carries lam (= Lambda_i) to the coordinates and to point s
         s = i - 1
         hs = h[s]
@@ -1261,16 +1286,20 @@ def forward_dynamics(q, qd, f_in, K, D, pl_nodes, pl_W, pl_spatial, order, h, B,
 
 @njit(cache=True)
 def _midpoint_residual(vm, q, qd, dt, fext, K, D, pl_nodes, pl_W, pl_spatial, order, h, B, rows, xi0, g0, w, Md,
-                       ag, G, eta, acc, SA, SX, E, V, qm, a, R):
+                       ag, G, eta, acc, SA, SX, E, V, qm, a, R, contacts, Fp, Kc, Cc):
     r"""R = the implicit-midpoint residual at the mean velocity ``vm``: :func:`newton_euler` at
-    :math:`q_m = q + \tfrac h2 v_m`, :math:`\dot q = v_m`, :math:`a = 2(v_m - \dot q_n)/h`, plus
-    :math:`D v_m + K q_m - f_{ext}`. Returns :math:`|R|` (not finite when the state overflowed)."""
+    :math:`q_m = q + \tfrac h2 v_m`, :math:`\dot q = v_m`, :math:`a = 2(v_m - \dot q_n)/h`, with the forces of
+    the fixed obstacles' ``contacts`` (:func:`_contact_forces`, into ``Fp``, ``Kc``, ``Cc``) at the points, plus
+    :math:`D v_m + K q_m - f_{ext}`. Returns :math:`|R|` (not finite when the state overflowed or a contact force
+    was not finite)."""
     n = q.shape[0]
     for k in range(n):
         qm[k] = q[k] + 0.5 * dt * vm[k]
         a[k] = 2.0 * (vm[k] - qd[k]) / dt
-    newton_euler(qm, vm, a, order, h, B, rows, xi0, g0, w, Md, ag, pl_nodes, pl_W, pl_spatial, G, eta, acc, SA, SX,
-                 E, V, R)
+    _ne_forward(qm, vm, a, order, h, B, rows, xi0, g0, G, eta, acc, SA, SX, E, V)
+    if contacts[0].shape[0] > 0 and not _contact_forces(contacts, G, eta, Fp, Kc, Cc):
+        return np.inf
+    _ne_backward(n, order, h, B, rows, w, Md, ag, pl_nodes, pl_W, pl_spatial, Fp, G, eta, acc, SA, SX, V, R)
     nr = 0.0
     for k in range(n):
         s = R[k] - fext[k]
@@ -1282,9 +1311,64 @@ def _midpoint_residual(vm, q, qd, dt, fext, K, D, pl_nodes, pl_W, pl_spatial, or
 
 
 @njit(cache=True)
+def _contact_forces(contacts, G, eta, Fp, Kc, Cc):
+    """The spatial forces ``Fp`` (P+1, 3) at the points of the beam's contacts with fixed obstacles, and their
+    stiffness and damping matrices ``Kc``, ``Cc`` (P+1, 3, 3) (:func:`soroshapes._contact.contact_nodal`), at the
+    frames ``G`` and twists ``eta``. ``contacts``: (table, floats, ops, consts, memo) of
+    :func:`soroshapes.beam.lower_contacts`. False if a force is not finite."""
+    table, flt, ops, consts, memo = contacts
+    for a in range(Fp.shape[0]):
+        for j in range(3):
+            Fp[a, j] = 0.0
+            for l in range(3):
+                Kc[a, j, l] = 0.0
+                Cc[a, j, l] = 0.0
+    Rb = np.eye(3)
+    pb = np.zeros(3)
+    etab = np.zeros(6)
+    W = np.zeros(6)
+    for c in range(table.shape[0]):
+        o, m, so, sn, co, dv, dp = table[c, 0], table[c, 1], table[c, 2], table[c, 3], table[c, 4], table[c, 5], \
+            table[c, 6]
+        if not contact_nodal(flt[o:o + m], ops[so:so + sn], consts[co:], dv, dp, G, eta, Rb, pb, etab, Fp, W,
+                             memo[c], Kc, Cc):
+            return False
+    return True
+
+
+@njit(cache=True)
+def _add_contact_matrix(J, G, Kc, Cc, hk, S):
+    r"""Add the contacts' part of the iteration matrix, :math:`\sum_a (R_a J_{a,v})^T (h_k K_{c,a} + C_{c,a})
+    (R_a J_{a,v})` (``hk`` = h/2: :math:`\partial q_m/\partial v_m`), to ``S`` (n, n); ``J`` the Jacobians of
+    the points (P+1, 6, n) of :func:`mass_matrix_pieces`."""
+    n = S.shape[0]
+    A = np.empty((3, 3))
+    RJ = np.empty((3, n))
+    for a in range(Kc.shape[0]):
+        nz = False
+        for j in range(3):
+            for l in range(3):
+                A[j, l] = hk * Kc[a, j, l] + Cc[a, j, l]
+                if A[j, l] != 0.0:
+                    nz = True
+        if not nz:
+            continue
+        for j in range(3):
+            for k in range(n):
+                RJ[j, k] = G[a, j, 0] * J[a, 3, k] + G[a, j, 1] * J[a, 4, k] + G[a, j, 2] * J[a, 5, k]
+        for k in range(n):
+            for j in range(3):
+                t = A[j, 0] * RJ[0, k] + A[j, 1] * RJ[1, k] + A[j, 2] * RJ[2, k]
+                if t == 0.0:
+                    continue
+                for l in range(n):
+                    S[l, k] += RJ[j, l] * t
+
+
+@njit(cache=True)
 def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_spatial, K, D, order, h, B, rows,
                        xi0, g0, w, Md, ag, tol, max_it, fd_step, out_t, out_q, out_qd, out_e, out_tip, its, jacs,
-                       G, eta, acc, SA, SX, E, V):
+                       G, eta, acc, SA, SX, E, V, contacts):
     r"""Implicit-midpoint time stepping in one compiled loop (the fast path of :meth:`Shapes.simulate`).
 
     Per step, Newton iterations on the mean velocity :math:`v_m` for the residual :math:`R(v_m)` of
@@ -1313,7 +1397,11 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
     - Convergence: :math:`|\Delta v| \le` ``tol`` :math:`|v_m| + 10^{-12}`, or, from the second iteration, the
       error estimate :math:`\theta/(1-\theta)\,|\Delta v|` of the new iterate below the same bound.
 
-    Point wrenches ``pl_W`` (nsteps, p, 6) and generalized forces ``fext`` (nsteps, n) act at the step midpoints.
+    Point wrenches ``pl_W`` (nsteps, p, 6) and generalized forces ``fext`` (nsteps, n) act at the step midpoints;
+    ``contacts`` (table, floats, ops, consts, memo) of :func:`soroshapes.beam.lower_contacts`: the beam's
+    contacts with fixed obstacles, in the residual at the points' current frames and twists
+    (:func:`_contact_forces`), their stiffness and damping in the M-based matrix (:func:`_add_contact_matrix`),
+    a table without rows for none.
     Records t, q, qd, (kinetic, potential) and the tip position every ``rec_every`` steps (row 0 the start);
     ``its[k]`` the residual evaluations of Newton in step k, ``jacs[k]`` 1 where the matrix was refreshed from
     M, 2 where by finite differences. Work arrays of a :class:`soroshapes.beam.BeamData` (``G`` ... ``V``).
@@ -1339,6 +1427,10 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
     xs = np.empty(n)
     us = np.empty(n)
     hist = np.zeros((3, n))         # mean velocities of the last three steps, newest first
+    npf = P + 1 if contacts[0].shape[0] > 0 else 0
+    Fp = np.zeros((npf, 3))          # the contacts' forces at the points and their stiffness and damping
+    Kc = np.zeros((npf, 3, 3))
+    Cc = np.zeros((npf, 3, 3))
     nhist = 0
     pord = 2                        # the predictor: extrapolation 0 constant, 1 linear, 2 quadratic; 3 the
                                     # linearized step, 4 the linearized step plus its last error
@@ -1411,7 +1503,8 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
             for k in range(n):
                 vm[k] = v0[k]           # the predictor, or on the retry the best iterate of the first attempt
             nr = _midpoint_residual(vm, q, qd, dt, fext[step], K, D, pl_nodes, pl_W[step], pl_spatial, order, h,
-                                    B, rows, xi0, g0, w, Md, ag, G, eta, acc, SA, SX, E, V, qm, a, R)
+                                    B, rows, xi0, g0, w, Md, ag, G, eta, acc, SA, SX, E, V, qm, a, R, contacts, Fp,
+                                    Kc, Cc)
             spent += 1
             if not np.isfinite(nr):
                 return step
@@ -1424,7 +1517,8 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
                     vm[c] = old + e
                     e = vm[c] - old
                     _midpoint_residual(vm, q, qd, dt, fext[step], K, D, pl_nodes, pl_W[step], pl_spatial, order,
-                                       h, B, rows, xi0, g0, w, Md, ag, G, eta, acc, SA, SX, E, V, qm, a, dv)
+                                       h, B, rows, xi0, g0, w, Md, ag, G, eta, acc, SA, SX, E, V, qm, a, dv,
+                                       contacts, Fp, Kc, Cc)
                     vm[c] = old
                     for k in range(n):
                         Sm[k, c] = (dv[k] - R0[k]) / e
@@ -1436,6 +1530,8 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
                 for k in range(n):
                     for l in range(n):
                         Sm[k, l] = 2.0 * Sm[k, l] / dt + D[k, l] + 0.5 * dt * K[k, l]
+                if npf > 0:
+                    _add_contact_matrix(Jw, G, Kc, Cc, 0.5 * dt, Sm)
                 jacs[step] = 1
             if fresh:
                 have = _lu(Sm, piv)
@@ -1474,7 +1570,8 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
                     break
                 prev = ndv
                 nr = _midpoint_residual(vm, q, qd, dt, fext[step], K, D, pl_nodes, pl_W[step], pl_spatial,
-                                        order, h, B, rows, xi0, g0, w, Md, ag, G, eta, acc, SA, SX, E, V, qm, a, R)
+                                        order, h, B, rows, xi0, g0, w, Md, ag, G, eta, acc, SA, SX, E, V, qm, a, R,
+                                        contacts, Fp, Kc, Cc)
                 spent += 1
                 if not np.isfinite(nr):
                     break

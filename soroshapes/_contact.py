@@ -35,7 +35,7 @@ from sorofem.sdf.program import to_program
 
 from ._sdfeval import evaluate
 
-__all__ = ["lower_contact", "contact_force", "CONTACT_HEAD"]
+__all__ = ["lower_contact", "lower_contact_of", "contact_force", "contact_nodal", "CONTACT_HEAD"]
 
 #: floats before the node weights
 CONTACT_HEAD = 7
@@ -44,25 +44,34 @@ CONTACT_HEAD = 7
 def lower_contact(beam, shape, stiffness, damping, friction, regularization):
     """(floats, program) of a contact of ``beam`` (a :class:`~soroshapes.shapes.Shapes`, its tube
     ``contact_radius``) with the 3D SDF ``shape``; ``NotImplementedError`` when the SDF has no program form."""
+    return lower_contact_of(beam.model, beam.contact_radius, shape, stiffness, damping, friction, regularization)
+
+
+def lower_contact_of(model, radius, shape, stiffness, damping, friction, regularization):
+    """(floats, program) of a contact of the beam ``model`` (a :class:`~soroshapes.beam.BeamModel`) with tube
+    radius ``radius`` [m] and the 3D SDF ``shape`` (:func:`lower_contact` for a model without its Shapes)."""
     if getattr(shape, "dim", None) != 3:
         raise ParameterError("a contact obstacle must be a 3D SDF of sorofem.sdf")
     prog = to_program(shape)
-    mdl = beam.model
-    w = np.asarray(mdl.node_weights, dtype=float)
-    head = [stiffness, damping, friction, regularization, beam.contact_radius, mdl.stride, len(w)]
+    w = np.asarray(model.node_weights, dtype=float)
+    head = [stiffness, damping, friction, regularization, radius, model.stride, len(w)]
     return np.concatenate([np.asarray(head, dtype=float), w]), prog
 
 
 @njit(cache=True)
-def contact_force(par, ops, consts, depth_values, depth_points, G, J, eta, Rb, pb, etab, f, W, memo):
-    """Add the contact's generalized force on the beam to ``f`` (n,) and its wrench on the body (body
-    coordinates, about the body origin) to ``W`` (6,), for the beam's kinematics (frames ``G``, Jacobians ``J``,
-    velocities ``eta`` at its chain of points) and the body pose (Rb, pb) and twist etab; ``memo`` (N+1, 4): per
-    node the body point and distance of its last evaluation (module docstring), updated. False if a force is
-    not finite."""
+def contact_nodal(par, ops, consts, depth_values, depth_points, G, eta, Rb, pb, etab, Fc, W, memo, Kc, Cc):
+    """The contact's forces at the beam's nodes: add the spatial force on the tube at node i to ``Fc[i * stride]``
+    (``Fc`` (P+1, 3), indexed by the beam's chain of points like ``G``) and the wrench on the body (body
+    coordinates, about the body origin) to ``W`` (6,), for the beam's frames ``G`` and velocities ``eta`` and the
+    body pose (Rb, pb) and twist etab; ``memo`` (N+1, 4) as in :func:`contact_force`. Unless ``Kc`` has no rows,
+    add to ``Kc[a]`` and ``Cc[a]`` (P+1, 3, 3) the derivatives of minus the force on the tube at point ``a`` with
+    respect to its spatial position and velocity where the node presses: :math:`w k\\,n n^T` and
+    :math:`w(c\\,n n^T + \\mu f_n(P_t - v_t v_t^T/s^2)/s)`, :math:`s = \\sqrt{|v_t|^2 + \\epsilon^2}`,
+    :math:`P_t = I - n n^T` (the obstacle held still, the normal's turning and the velocity's part of the
+    friction's normal force left out: the terms a Newton iteration matrix needs). False if a force is not
+    finite."""
     k, c, mu, eps, r = par[0], par[1], par[2], par[3], par[4]
     stride, nn = int(par[5]), int(par[6])
-    n = J.shape[2]
     Pb = np.empty((nn, 3))
     for i in range(nn):
         a = i * stride
@@ -92,7 +101,9 @@ def contact_force(par, ops, consts, depth_values, depth_points, G, J, eta, Rb, p
             memo[i, 0], memo[i, 1], memo[i, 2], memo[i, 3] = Pn[e, 0], Pn[e, 1], Pn[e, 2], d[e]
     ns = np.empty(3)
     vrel = np.empty(3)
+    vt = np.empty(3)
     F = np.empty(3)
+    tangents = Kc.shape[0] > 0
     for e in range(ne):
         if not d[e] < r:
             continue
@@ -113,18 +124,23 @@ def contact_force(par, ops, consts, depth_values, depth_points, G, J, eta, Rb, p
         for j in range(3):
             vn += vrel[j] * ns[j]
         fn = max(0.0, k * (r - d[e]) - c * vn)
-        vt0, vt1, vt2 = vrel[0] - vn * ns[0], vrel[1] - vn * ns[1], vrel[2] - vn * ns[2]
-        slip = math.sqrt(vt0 * vt0 + vt1 * vt1 + vt2 * vt2 + eps * eps)
+        vt[0], vt[1], vt[2] = vrel[0] - vn * ns[0], vrel[1] - vn * ns[1], vrel[2] - vn * ns[2]
+        slip = math.sqrt(vt[0] * vt[0] + vt[1] * vt[1] + vt[2] * vt[2] + eps * eps)
         wi = par[CONTACT_HEAD + i]
-        F[0] = wi * (fn * ns[0] - mu * (fn / slip) * vt0)
-        F[1] = wi * (fn * ns[1] - mu * (fn / slip) * vt1)
-        F[2] = wi * (fn * ns[2] - mu * (fn / slip) * vt2)
+        F[0] = wi * (fn * ns[0] - mu * (fn / slip) * vt[0])
+        F[1] = wi * (fn * ns[1] - mu * (fn / slip) * vt[1])
+        F[2] = wi * (fn * ns[2] - mu * (fn / slip) * vt[2])
         if not (math.isfinite(F[0]) and math.isfinite(F[1]) and math.isfinite(F[2])):
             return False
-        for j in range(3):                                   # J_v^T R_i^T F on the beam
-            fl = G[a, 0, j] * F[0] + G[a, 1, j] * F[1] + G[a, 2, j] * F[2]
-            for col in range(n):
-                f[col] += J[a, 3 + j, col] * fl
+        for j in range(3):
+            Fc[a, j] += F[j]
+        if tangents and fn > 0.0:
+            ft = wi * mu * fn / slip
+            for j in range(3):
+                for l in range(3):
+                    nnt = ns[j] * ns[l]
+                    Kc[a, j, l] += wi * k * nnt
+                    Cc[a, j, l] += wi * c * nnt + ft * ((1.0 if j == l else 0.0) - nnt - vt[j] * vt[l] / (slip * slip))
         fb0 = -(Rb[0, 0] * F[0] + Rb[1, 0] * F[1] + Rb[2, 0] * F[2])     # -R^T F on the body
         fb1 = -(Rb[0, 1] * F[0] + Rb[1, 1] * F[1] + Rb[2, 1] * F[2])
         fb2 = -(Rb[0, 2] * F[0] + Rb[1, 2] * F[1] + Rb[2, 2] * F[2])
@@ -134,4 +150,29 @@ def contact_force(par, ops, consts, depth_values, depth_points, G, J, eta, Rb, p
         W[3] += fb0
         W[4] += fb1
         W[5] += fb2
+    return True
+
+
+@njit(cache=True)
+def contact_force(par, ops, consts, depth_values, depth_points, G, J, eta, Rb, pb, etab, f, W, memo):
+    """Add the contact's generalized force on the beam to ``f`` (n,) and its wrench on the body (body
+    coordinates, about the body origin) to ``W`` (6,), for the beam's kinematics (frames ``G``, Jacobians ``J``,
+    velocities ``eta`` at its chain of points) and the body pose (Rb, pb) and twist etab; ``memo`` (N+1, 4): per
+    node the body point and distance of its last evaluation (module docstring), updated. The forces of
+    :func:`contact_nodal`, each carried to the coordinates by :math:`J_{i,v}^T R_i^T`. False if a force is not
+    finite."""
+    stride, nn = int(par[5]), int(par[6])
+    n = J.shape[2]
+    Fc = np.zeros((G.shape[0], 3))
+    if not contact_nodal(par, ops, consts, depth_values, depth_points, G, eta, Rb, pb, etab, Fc, W, memo,
+                         np.empty((0, 3, 3)), np.empty((0, 3, 3))):
+        return False
+    for i in range(nn):
+        a = i * stride
+        if Fc[a, 0] == 0.0 and Fc[a, 1] == 0.0 and Fc[a, 2] == 0.0:
+            continue
+        for j in range(3):                                   # J_v^T R_i^T F on the beam
+            fl = G[a, 0, j] * Fc[a, 0] + G[a, 1, j] * Fc[a, 1] + G[a, 2, j] * Fc[a, 2]
+            for col in range(n):
+                f[col] += J[a, 3 + j, col] * fl
     return True

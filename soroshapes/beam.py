@@ -49,7 +49,8 @@ __all__ = ["BeamModel", "BeamData", "StateRangeError", "BeamTrajectory", "IKResu
            "Chamber", "Tendon", "Actuator", "Contact", "UserForce", "check_state", "kinematics", "dynamics",
            "coriolis_jacobian", "inverse_dynamics", "forward_dynamics", "accelerations", "energy", "external_force",
            "input_map", "inputs_at", "motion_terms", "LoadPlan", "statics", "newton_load_stepping", "simulate",
-           "explicit_step_limit", "inverse_kinematics", "damped_least_squares", "time_grid"]
+           "explicit_step_limit", "inverse_kinematics", "damped_least_squares", "time_grid", "lower_contacts",
+           "integrator_loads"]
 
 _NO_NODES, _NO_WRENCH, _NO_FLAGS = np.zeros(0, dtype=np.int64), np.zeros((0, 6)), np.zeros(0, dtype=np.bool_)
 
@@ -555,6 +556,45 @@ def compiled_loads(loads):
     return not any(isinstance(ld, (Contact, UserForce, Tendon)) for ld in loads)
 
 
+_NO_CONTACTS = (np.zeros((0, 7), np.int64), np.zeros(0), np.zeros((0, 3), np.int64), np.zeros(0),
+                np.zeros((0, 1, 4)))
+
+
+def lower_contacts(model, loads):
+    """The :class:`Contact` terms of ``loads`` in the form the compiled integrator takes
+    (:func:`soroshapes._beam.integrate_midpoint`): ``(table, floats, ops, consts, memo)``, per contact a row
+    (floats offset, count, SDF ops offset, count, consts offset, value and point stack depths) over the floats
+    and SDF programs of :func:`soroshapes._contact.lower_contact_of`, and a zero memo (contacts, N+1, 4); None
+    when an obstacle's SDF has no program form (then the Python path runs)."""
+    from ._contact import lower_contact_of
+    terms = [ld for ld in loads if isinstance(ld, Contact)]
+    if not terms:
+        return _NO_CONTACTS
+    rows, flt, ops, consts = [], [], [], []
+    for ld in terms:
+        try:
+            par, prog = lower_contact_of(model, ld.radius, ld.obstacle, ld.stiffness, ld.damping, ld.friction,
+                                         ld.regularization)
+        except NotImplementedError:
+            return None
+        rows.append([sum(len(v) for v in flt), len(par), sum(len(v) for v in ops), len(prog.ops),
+                     sum(len(v) for v in consts), prog.values, prog.points])
+        flt.append(par)
+        ops.append(np.asarray(prog.ops, dtype=np.int64).reshape(-1, 3))
+        consts.append(np.asarray(prog.consts, dtype=float))
+    return (np.array(rows, dtype=np.int64), np.concatenate(flt), np.ascontiguousarray(np.concatenate(ops)),
+            np.concatenate(consts), np.zeros((len(terms), len(model.node_weights), 4)))
+
+
+def integrator_loads(model, loads):
+    """The loads' contacts for the compiled integrator (:func:`lower_contacts`) when every term runs compiled
+    there (gravity, chambers, actuators, point loads, contact with obstacles whose SDF has a program form), else
+    None (tendons, user forces, or an SDF without a program: the Python step loop)."""
+    if any(isinstance(ld, (UserForce, Tendon)) for ld in loads):
+        return None
+    return lower_contacts(model, loads)
+
+
 # ------------------------------------------------------------------------------------------------------------
 # statics
 # ------------------------------------------------------------------------------------------------------------
@@ -767,8 +807,9 @@ def simulate(model, data, loads, t_end, dt, q0=None, qd0=None, u=None, *, tau=0.
     its_all = []
     start = 0
     args = (model, data, loads, u, tau, tol, max_iterations, record_every, rec, its_all)
-    if method == "implicit" and compiled_loads(loads):
-        start, q, qd = _simulate_compiled(q, qd, dt, nsteps, *args)
+    contacts = integrator_loads(model, loads) if method == "implicit" else None
+    if contacts is not None:
+        start, q, qd = _simulate_compiled(q, qd, dt, nsteps, contacts, *args)
     if start < nsteps:
         _simulate_python(q, qd, start, dt, nsteps, method, min_dt, owner, *args)
     wall = time.perf_counter() - t0
@@ -779,10 +820,10 @@ def simulate(model, data, loads, t_end, dt, q0=None, qd0=None, u=None, *, tau=0.
                            "matrix_refreshes": rec.get("refreshes", 0)})
 
 
-def _simulate_compiled(q, qd, dt, nsteps, model, data, loads, u, tau, tol, max_iterations, record_every, rec,
-                       its_all):
-    """The compiled loop (:func:`soroshapes._beam.integrate_midpoint`); returns (steps done, q, qd) and appends
-    its records."""
+def _simulate_compiled(q, qd, dt, nsteps, contacts, model, data, loads, u, tau, tol, max_iterations, record_every,
+                       rec, its_all):
+    """The compiled loop (:func:`soroshapes._beam.integrate_midpoint`) with the lowered ``contacts``
+    (:func:`integrator_loads`); returns (steps done, q, qd) and appends its records."""
     from . import _beam
     n = model.n
     tm = (np.arange(nsteps) + 0.5) * dt
@@ -805,7 +846,7 @@ def _simulate_compiled(q, qd, dt, nsteps, model, data, loads, u, tau, tol, max_i
         q, qd, dt, nsteps, record_every, fext, pl_nodes, pl_W, pl_spatial, model.K, tau * model.K,
         model.order, model.h, model.B, model.rows, model.X0, model.base, model.weights, model.Md,
         gravity_of(loads), float(tol), int(max_iterations), FD_STEP, out_t, out_q, out_qd, out_e, out_tip, its,
-        jacs, data.G, data.eta, data.acc, data.SA, data.SX, data.E, data.NE)
+        jacs, data.G, data.eta, data.acc, data.SA, data.SX, data.E, data.NE, contacts)
     m = done // record_every + 1 + (done == nsteps and nsteps % record_every != 0)
     if done < nsteps:
         m = (done - 1) // record_every + 1 if done > 0 else 1

@@ -774,10 +774,12 @@ class Shapes:
         \tfrac h2 K` (:meth:`coriolis_jacobian`; the configuration derivatives of the inertial and external
         forces are left out: they change the rate of convergence, not the solution)
         until :math:`|\Delta v| \le` ``tol`` :math:`|v_m| + 10^{-12}`; then :math:`q_{n+1} = q_n + h v_m`,
-        :math:`\dot q_{n+1} = 2v_m - \dot q_n`. Scenes with gravity, chambers and point loads only (no
-        contact, tendons or user forces) run in one compiled loop (:func:`soroshapes._beam.integrate_midpoint`:
-        residuals by O(N) Newton-Euler recursions, the linearized step as predictor, the matrix :math:`2M/h + D +
-        \tfrac h2 K` refreshed when convergence slows and the complete, differenced :math:`\partial R/\partial
+        :math:`\dot q_{n+1} = 2v_m - \dot q_n`. Scenes with gravity, chambers, point loads and contact with
+        obstacles whose SDF has a program form (:mod:`sorofem.sdf.program`; no tendons or user forces) run in one
+        compiled loop (:func:`soroshapes._beam.integrate_midpoint`: residuals by O(N) Newton-Euler recursions
+        with the contact forces at the nodes between them, the linearized step as predictor, the matrix
+        :math:`2M/h + D + \tfrac h2 K` plus the contacts' normal stiffness, damping and friction slope
+        refreshed when convergence slows and the complete, differenced :math:`\partial R/\partial
         v_m` for a step that fails with it; ``stats["matrix_refreshes"]`` counts the factorizations). A step that does
         not converge in ``max_iterations`` is halved, down to ``min_dt`` (default dt/1024), then a
         :class:`~sorofem.errors.ConvergenceError` reports the time. ``method="explicit"``: classical RK4

@@ -141,3 +141,40 @@ def test_bench_ik_solves_per_second(record):
     per_s = len(targets) / best
     record(dofs=3, solves_per_s=round(per_s), converged_fraction=float(ok),
            iterations_mean=float(np.mean([r.iterations for r in results])), target=5000, met=bool(per_s >= 5000))
+
+
+def _finger_on_cylinder(python=False):
+    """The finger of the contact test (tests/soroshapes/test_beam.py): 80 mm, R 6 mm, one chamber, gravity,
+    pressed by the chamber onto a cylinder across its path (penalty 2e5 N/m^2, damping 20, friction 0.6); with
+    ``python`` a zero user force sends it to the Python step loop (the path every contact took before)."""
+    shp = Shapes(Basis.chebyshev(3), (0, 3, 3, 0, 0, 0), length=0.08, section=sdf.Circle(0.006),
+                 material=materials.NeoHookean(E=1e6, nu=0.3, density=2000.0, damping=0.1), segments=12,
+                 contact_radius=0.006)
+    shp.add_chamber(np.pi * 0.0015 ** 2, (0.0, 0.003), name="c").add_gravity((0.0, 0.0, -9.81))
+    shp.add_contact(sdf.Cylinder(0.01, 0.1, center=(0.06, 0.0, -0.02), axis=(0.0, 1.0, 0.0)), stiffness=2e5,
+                    damping=20.0, friction=0.6, regularization=2e-3)
+    return shp.add_force(lambda s, q, qd, t: np.zeros(s.n)) if python else shp
+
+
+def test_bench_plant_with_contact_realtime_factor(record):
+    """The simulated board's plant (:class:`sorocontrol.drivers.SimulatedPlant`, one channel) with a beam in
+    contact: the finger above pressed onto the cylinder by a 0-200 kPa square wave (0.5 s period), stepped as
+    the board steps it (one :meth:`apply` per 5 ms tick of a 200 Hz board, i.e. ``beam.simulate(5 ms, 5 ms)``
+    per call), 2 s of plant time, wall and this process's CPU time: the compiled contact (issue 26) against
+    the Python step loop that every contact took before, in one run."""
+    from sorocontrol.drivers import SimulatedPlant
+    t_sim, tick, figures, tips = 2.0, 5e-3, {}, {}
+    for label, python in (("compiled", False), ("python_loop", True)):
+        plant = SimulatedPlant(1, beam=_finger_on_cylinder(python))
+        t0, c0 = time.perf_counter(), time.process_time()
+        for k in range(1, int(round(t_sim / tick)) + 1):
+            t = k * tick
+            plant.apply([200e3 if (t % 0.5) < 0.25 else 0.0], t)
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        tips[label] = plant.beam.positions(plant.q)[-1]
+        figures[label] = {"wall_s": round(wall, 3), "cpu_s": round(cpu, 3), "realtime_factor": round(t_sim / wall, 3),
+                          "realtime_factor_cpu_time": round(t_sim / cpu, 3)}
+    assert np.abs(tips["compiled"] - tips["python_loop"]).max() < 1e-6     # the same plant
+    record(simulated_s=t_sim, tick_s=tick, **figures,
+           speedup_wall=round(figures["python_loop"]["wall_s"] / figures["compiled"]["wall_s"], 1),
+           load_average_1min=round(os.getloadavg()[0], 2))
