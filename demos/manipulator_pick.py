@@ -66,7 +66,7 @@ PICK_PLACE = [(0.0, 30, 30, 30, -30), (0.05, 30, 30, 30, -30), (0.35, 30, 30, 30
 APPROACH = [(0.0, -10, -10, -10, -30), (0.6, 30, 30, 30, -30)]
 
 #: quick (what the tests run) and full
-QUICK = dict(dt=2e-3, approach=False, friction=MU, until=None)
+QUICK = dict(dt=2e-3, approach=False, friction=MU, until=None)   # until [s]: stop early (tests)
 FULL = dict(dt=1e-3, approach=True, friction=MU, until=None)
 
 
@@ -114,11 +114,13 @@ def main(out: Path, quick: bool = False, **over) -> dict:
         grip[i] = grasp_centre(tree, q)
     weight = M_CYL * GRAVITY
     lifted = centre[:, 2] - H_CYL / 2
-    held = lifted > 5 * mm                          # off the table (its rim reaches no lower than 5 mm - tilt)
+    shift = 0.6 if prm["approach"] else 0.0
+    # carried: from the end of the lift (1.1 s) to the opening (3.0 s), and off the table
+    held = (lifted > 5 * mm) & (ts >= 1.1 + shift) & (ts <= 3.0 + shift)
     tilt = np.degrees(np.arccos(np.clip([cyl.pose(x)[2, 2] for x in xc], -1, 1)))
-    i_lift = int(np.searchsorted(ts, 1.3 + (0.6 if prm["approach"] else 0.0)))
-    i_lift = min(i_lift, len(ts) - 1)
-    margin = MU * normal.sum(axis=1) / weight
+    i_lift = min(int(np.searchsorted(ts, 1.3 + shift)), len(ts) - 1)
+    i_closed = min(int(np.searchsorted(ts, 0.5 + shift)), len(ts) - 1)
+    margin = prm["friction"] * normal.sum(axis=1) / weight
     rel = centre - grip                             # the cylinder's position relative to the grasp centre
     slip = float(np.linalg.norm(rel[held] - rel[held][0], axis=1).max()) if held.any() else 0.0
     final = centre[-1]
@@ -131,12 +133,14 @@ def main(out: Path, quick: bool = False, **over) -> dict:
         "place_error_mm": round(float(np.hypot(*(final[:2] - target[:2]))) / mm, 3),
         "final_height_error_mm": round(float(final[2] - H_CYL / 2) / mm, 3),
         "final_tilt_deg": round(float(tilt[-1]), 3), "tilt_deg_max": round(float(tilt.max()), 3),
+        "grasp_normal_force_closed_N": [round(float(v), 4) for v in normal[i_closed]],
         "grasp_normal_force_N": [round(float(v), 4) for v in normal[i_lift]],
         "hold_margin_at_lift": round(float(margin[i_lift]), 3),
-        "hold_margin_min_while_held": round(float(margin[held].min()), 3) if held.any() else 0.0,
-        "finger_lift_force_over_weight_while_held": (round(float(np.median(vertical[held] / weight)), 3)
+        "hold_margin_min_while_carried": round(float(margin[held].min()), 3) if held.any() else 0.0,
+        "release_height_mm": round(float(lifted[min(int(np.searchsorted(ts, 3.0 + shift)), len(ts) - 1)]) / mm, 3),
+        "finger_lift_force_over_weight_while_carried": (round(float(np.median(vertical[held] / weight)), 3)
                                                      if held.any() else 0.0),
-        "held_s": round(float(held.sum() * (ts[1] - ts[0])), 3),
+        "carried_s": round(float(held.sum() * (ts[1] - ts[0])), 3),
         "slip_mm": round(slip / mm, 3),
         "cylinder_weight_N": round(weight, 4), "friction": prm["friction"],
         "simulated_s": round(float(T), 3), "dt": prm["dt"], "wall_time_s_sim": round(wall, 2),
@@ -144,6 +148,9 @@ def main(out: Path, quick: bool = False, **over) -> dict:
         "newton_iterations_per_step": round(tr.stats["newton_iterations"] / max(tr.stats["steps"], 1), 2),
         "png": ["manipulator_pick.png", "manipulator_pick_scene.png"],
     }
+    if prm["until"] is not None:                    # a shortened run (no place): nothing to compare with the target
+        for key in ("place_target_mm", "place_error_mm"):
+            result.pop(key)
     _figures(out, tree, ts, Q, xc, cyl, centre, normal, margin, keys, target)
     return result
 
@@ -273,7 +280,7 @@ def _figures(out, tree, ts, Q, xc, cyl, centre, normal, margin, keys, target):
     from sorofem.io import save_figure
 
     bodies = ["arm"] + [f"gripper{k}" for k in (1, 2, 3)]
-    fig = Figure(figsize=(12, 4.2))
+    fig = Figure(figsize=(15, 4.6))
     pick = [0.0] + [k[0] for k in keys if k[0] > 0]
     snaps = [k for k in (0.36, 1.25, 2.05, 2.95, keys[-1][0]) if k <= keys[-1][0]]
     if keys[0][1] < 0:                                   # the approach
@@ -285,13 +292,19 @@ def _figures(out, tree, ts, Q, xc, cyl, centre, normal, margin, keys, target):
         for b in bodies:
             P = tree.frames(Q[i], b)[:, :3, 3] / mm
             ax.plot(P[:, 0], P[:, 1], P[:, 2], lw=4 if b == "arm" else 2.5, color="C0" if b == "arm" else "C1")
+        hub = np.array([tree.frames(Q[i], f"gripper{k}")[0, :3, 3] for k in (1, 2, 3, 1)]) / mm
+        end = tree.frames(Q[i], "arm")[-1, :3, 3] / mm
+        ax.plot(hub[:, 0], hub[:, 1], hub[:, 2], color="0.3", lw=2)
+        for h in hub[:3]:
+            ax.plot([end[0], h[0]], [end[1], h[1]], [end[2], h[2]], color="0.3", lw=1)
         g = cyl.pose(xc[i])
         for zc in (-H_CYL / 2, H_CYL / 2):
             ring = np.column_stack([R_CYL * np.cos(ang), R_CYL * np.sin(ang), np.full_like(ang, zc)])
             W = (ring @ g[:3, :3].T + g[:3, 3]) / mm
             ax.plot(W[:, 0], W[:, 1], W[:, 2], color="C3")
         ax.scatter([target[0] / mm], [target[1] / mm], [0.0], marker="x", color="k")
-        ax.set(xlim=(-80, 80), ylim=(-60, 100), zlim=(0, 280), title=f"t = {ts[i]:.2f} s")
+        ax.set(xlim=(-60, 60), ylim=(-40, 100), zlim=(0, 280), title=f"t = {ts[i]:.2f} s", xlabel="x [mm]",
+               ylabel="y [mm]")
         ax.view_init(elev=12, azim=-20)
         ax.tick_params(labelsize=6)
     save_figure(fig, out / "manipulator_pick_scene.png")

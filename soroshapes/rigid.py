@@ -63,6 +63,16 @@ moments about any point cancel (Newton's third law) and the contact power is
 :math:`\sum_i F_i\cdot v^{rel}_i` (zero for a frictionless, undamped contact, which is then conservative with
 the energy :math:`\sum_i w_i k\delta_i^2/2`). :func:`couple_contact` wires both into a :class:`Model`.
 
+Tree-body contact
+-----------------
+:func:`tree_contact` does the same for points carried by the bodies of a :class:`~soroshapes.tree.Tree`
+(pads on a gripper's fingers: a beam node or a link frame, a constant offset in that frame, a pad radius),
+with the tree Jacobians of :func:`soroshapes.tree.kinematics`; the stiffness and damping are per point.
+:class:`TreeContact` + :func:`couple_tree_contact` wire it into a :class:`Model`: the tree's block (made with
+``Tree.system(..., force_inputs=True)``) gets the generalized force in its force inputs and the body the
+opposite wrench, both as couplings of the network, so the network's Jacobian sees each side's dependence on
+the other's state (through a tree's ``f_ext`` that reads the body it would not, and Newton stalls at contact).
+
 Ground and grasp
 ----------------
 :func:`ground_contact` / :func:`couple_ground`: a fixed plane (table, floor) pushing on chosen body points

@@ -402,3 +402,15 @@ def test_tree_contact_needs_force_inputs_and_a_shape():
         TreeContact(tree, [("finger", 0.0123, (0, 0, 0), 0.001)], 1000.0)
 
 
+
+
+def test_tree_force_inputs_act_as_a_generalized_force():
+    """Tree.system(force_inputs=True): n more inputs ``force<i>`` whose values enter as f_ext does."""
+    tree, _ = finger_tree()
+    fe = np.array([0.01, -0.2, 0.1, 0.05, 0.02])
+    a = tree.system(name="a", force_inputs=True)
+    b = tree.system(name="b", f_ext=lambda q, qd, t: fe)
+    assert a.m == tree.n and a.input_names == [f"force{i}" for i in range(tree.n)]
+    x = np.r_[np.array([0.1, 2.0, -1.0, 0.5, 0.3]), np.array([0.4, -3.0, 1.0, 2.0, -1.0])]
+    assert np.allclose(a.rhs(x, fe, 0.0), b.rhs(x, np.zeros(0), 0.0), rtol=1e-12, atol=1e-12)
+    assert not np.allclose(a.rhs(x, fe, 0.0), a.rhs(x, np.zeros(tree.n), 0.0))
