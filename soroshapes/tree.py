@@ -623,30 +623,38 @@ class Tree:
                 q[b.col0], qd[b.col0], a[b.col0] = (float(v) for v in b.motion(t))
         return q, qd, a, free
 
-    def system(self, u=None, f_ext=None, name="tree", q0=None, qd0=None, *, data=None):
+    def system(self, u=None, f_ext=None, name="tree", q0=None, qd0=None, *, data=None, force_inputs=False):
         r"""A :class:`~soroshapes.model.StateSpace` block of the free coordinates: state
         :math:`x = (q_f, \dot q_f)`, :math:`\dot x = (\dot q_f, \ddot q_f)` from :func:`accelerations`. ``u``:
         the inputs (:attr:`inputs`) as an array or a callable of t; None makes them the block's inputs, which
         couplings and controllers of a :class:`~soroshapes.model.Model` drive (zeros when unconnected).
         ``f_ext``: callable (q, qd, t) -> (n,) generalized force, or None. The prescribed coordinates follow
-        their motions (:meth:`state` rebuilds the full q, qd)."""
+        their motions (:meth:`state` rebuilds the full q, qd). ``force_inputs``: append n inputs, a generalized force
+        (n,) added to the equations (named ``"force<i>"``, i the coordinate), which a coupling of the network drives (contact with
+        another block, :func:`soroshapes.rigid.couple_tree_contact`): unlike ``f_ext``, the network's Jacobian
+        then sees how it depends on the other blocks' states."""
         from .model import StateSpace
         data = self._data(data)
         free = self._arrays()[7]
         nf = len(free)
         m = 0 if u is not None else len(self.inputs)
+        k = self._n if force_inputs else 0
 
         def f(x, uu, t):
             q, qd, _, _ = self._full(t, x[:nf], x[nf:])
-            return np.concatenate([x[nf:], accelerations(self, data, q, qd, t, uu if m else u, f_ext)[free]])
+            fe = f_ext
+            if k:
+                fu = np.asarray(uu[m:m + k], dtype=float)
+                fe = (lambda qq, vv, tt: fu) if f_ext is None else (lambda qq, vv, tt: fu + f_ext(qq, vv, tt))
+            return np.concatenate([x[nf:], accelerations(self, data, q, qd, t, uu[:m] if m else u, fe)[free]])
         x0 = np.zeros(2 * nf)
         if q0 is not None:
             x0[:nf] = _state(self, q0, "q0")[free]
         if qd0 is not None:
             x0[nf:] = _state(self, qd0, "qd0")[free]
-        sysb = StateSpace(f, 2 * nf, m, name=name, x0=x0)
-        if m:
-            sysb.input_names = list(self.inputs)
+        sysb = StateSpace(f, 2 * nf, m + k, name=name, x0=x0)
+        if m + k:
+            sysb.input_names = (list(self.inputs) if m else []) + [f"force{i}" for i in range(k)]
         return sysb
 
     def state(self, t, x):

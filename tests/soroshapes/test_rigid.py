@@ -335,3 +335,82 @@ def test_bad_wrench_and_contact_inputs():
     mdl = Model().add(shp, "finger").add(b, "body")
     with pytest.raises(ParameterError, match="not a Shapes"):
         couple_contact(mdl, "body", "finger", 1e7)
+
+
+# ------------------------------------------------------------------------------------------------------------
+# contact between points on a tree's bodies and a rigid body (tree_contact, couple_tree_contact)
+# ------------------------------------------------------------------------------------------------------------
+def finger_tree():
+    """A hub on a revolute joint with a two-mode finger on it (7 points on its face, 3 mm off its backbone)."""
+    from soroshapes.tree import Tree
+    shp = Shapes(Basis.chebyshev(2), dofs=(0, 2, 2, 0, 0, 0), length=0.05, section=sdf.Circle(0.004),
+                 material=materials.NeoHookean(E=1e6, nu=0.45, density=1000.0), damping=0.0, segments=6)
+    tree = Tree(gravity=(0.0, 0.0, -9.81)).add_link("hub", 0.02, 4e-6, joint="revolute", axis=(0, 1, 0))
+    tree.add_beam("finger", shp, parent="hub")
+    pts = [("finger", float(s), (0.0, 0.0, -0.003), 0.001) for s in shp.sigma[1:]]
+    return tree, pts
+
+
+def test_tree_contact_is_equal_and_opposite_and_does_virtual_work():
+    """The tree's generalized force is the work-conjugate of the point forces (finite differences of the points'
+    positions), the body's wrench is minus their force and moment, and the contact power is the forces' power
+    on the relative velocity."""
+    from soroshapes.rigid import tree_contact
+    tree, pts = finger_tree()
+    q = np.array([0.1, 2.0, -1.0, 0.5, 0.3])
+    qd = np.array([0.4, -3.0, 1.0, 2.0, -1.0])
+    # a block whose face cuts through the finger's lower face
+    X0 = np.array([tree.frame(q, "finger", at=float(s))[:3, 3] + tree.frame(q, "finger", at=float(s))[:3, :3]
+                   @ (0, 0, -0.003) for _, s, _, _ in pts])
+    g = lie.expSE3(np.array([0.1, -0.2, 0.05, 0.0, 0.0, 0.0]))
+    body = RigidBody(0.05, 1e-5, shape=sdf.Box((0.2, 0.2, 0.02)))
+    n = g[:3, 2]
+    g[:3, 3] = X0.mean(axis=0) - n * (0.01 + 0.0005)          # its top face 0.5 mm below the points' mean
+    x = body.state(g, [0.3, -0.2, 1.0, 0.01, 0.02, -0.01])
+    f, W, F, X = tree_contact(tree, body, pts, 2000.0, damping=1.0, friction=0.5, q=q, qd=qd, x=x, forces=True)
+    assert np.allclose(X, X0, atol=1e-15)
+    hit = np.nonzero(np.linalg.norm(F, axis=1))[0]
+    assert len(hit) >= 2
+    R, p = g[:3, :3], g[:3, 3]
+    assert np.allclose(R @ W[3:], -F.sum(axis=0), rtol=1e-12, atol=1e-12 * np.abs(F).max())
+    assert np.allclose(R @ W[:3], -np.cross(X - p, F).sum(axis=0), rtol=1e-10, atol=1e-12 * np.abs(F).max())
+
+    def points(qq):
+        return np.array([tree.frame(qq, "finger", at=float(s)) @ np.r_[0.0, 0.0, -0.003, 1.0] for _, s, _, _ in pts])
+    h = 1e-7
+    dX = [(points(q + h * e) - points(q - h * e))[:, :3] / (2 * h) for e in np.eye(tree.n)]
+    assert np.allclose(f, [np.sum(F * d) for d in dX], rtol=1e-6, atol=1e-8 * np.abs(f).max())
+    v_pts = sum(qd[i] * dX[i] for i in range(tree.n))
+    etab = body.twist(x)
+    v_body = (etab[3:] + np.cross(etab[:3], (X - p) @ R)) @ R.T
+    assert np.isclose(f @ qd + W @ etab, np.sum(F * (v_pts - v_body)), rtol=1e-6)
+
+
+def test_tree_contact_needs_force_inputs_and_a_shape():
+    from soroshapes.rigid import TreeContact, couple_tree_contact
+    tree, pts = finger_tree()
+    c = TreeContact(tree, pts, 1000.0)
+    mdl = Model().add(tree.system(name="t")).add(RigidBody(0.05, 1e-5, shape=sdf.Sphere(0.01), name="b"))
+    with pytest.raises(ParameterError, match="force_inputs=True"):
+        couple_tree_contact(mdl, "t", "b", c)
+    mdl = Model().add(tree.system(name="t", force_inputs=True)).add(RigidBody(0.05, 1e-5, name="b"))
+    with pytest.raises(ParameterError, match="no shape"):
+        couple_tree_contact(mdl, "t", "b", c)
+    with pytest.raises(ParameterError, match="stiffness"):
+        TreeContact(tree, pts, -1.0)
+    with pytest.raises(ParameterError, match="sit at a beam.s nodes"):
+        TreeContact(tree, [("finger", 0.0123, (0, 0, 0), 0.001)], 1000.0)
+
+
+
+
+def test_tree_force_inputs_act_as_a_generalized_force():
+    """Tree.system(force_inputs=True): n more inputs ``force<i>`` whose values enter as f_ext does."""
+    tree, _ = finger_tree()
+    fe = np.array([0.01, -0.2, 0.1, 0.05, 0.02])
+    a = tree.system(name="a", force_inputs=True)
+    b = tree.system(name="b", f_ext=lambda q, qd, t: fe)
+    assert a.m == tree.n and a.input_names == [f"force{i}" for i in range(tree.n)]
+    x = np.r_[np.array([0.1, 2.0, -1.0, 0.5, 0.3]), np.array([0.4, -3.0, 1.0, 2.0, -1.0])]
+    assert np.allclose(a.rhs(x, fe, 0.0), b.rhs(x, np.zeros(0), 0.0), rtol=1e-12, atol=1e-12)
+    assert not np.allclose(a.rhs(x, fe, 0.0), a.rhs(x, np.zeros(tree.n), 0.0))
