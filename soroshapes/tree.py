@@ -623,22 +623,46 @@ class Tree:
                 q[b.col0], qd[b.col0], a[b.col0] = (float(v) for v in b.motion(t))
         return q, qd, a, free
 
-    def system(self, u=None, f_ext=None, name="tree", q0=None, qd0=None, *, data=None):
+    def system(self, u=None, f_ext=None, name="tree", q0=None, qd0=None, *, data=None, compiled=True):
         r"""A :class:`~soroshapes.model.StateSpace` block of the free coordinates: state
         :math:`x = (q_f, \dot q_f)`, :math:`\dot x = (\dot q_f, \ddot q_f)` from :func:`accelerations`. ``u``:
         the inputs (:attr:`inputs`) as an array or a callable of t; None makes them the block's inputs, which
         couplings and controllers of a :class:`~soroshapes.model.Model` drive (zeros when unconnected).
         ``f_ext``: callable (q, qd, t) -> (n,) generalized force, or None. The prescribed coordinates follow
-        their motions (:meth:`state` rebuilds the full q, qd)."""
+        their motions (:meth:`state` rebuilds the full q, qd). ``compiled``: the accelerations by one compiled
+        call over the whole tree (:func:`soroshapes._treeblock.tree_rhs`, the same equations); False: by
+        :func:`accelerations` (a compiled call per body)."""
         from .model import StateSpace
         data = self._data(data)
         free = self._arrays()[7]
         nf = len(free)
         m = 0 if u is not None else len(self.inputs)
+        if compiled:
+            from . import _treeblock
+            low = _treeblock.lower(self)
+            n, nu = self._n, len(self.inputs)
+            acc, zero_u, zero_f = np.zeros(n), np.zeros(nu), np.zeros(n)
 
-        def f(x, uu, t):
-            q, qd, _, _ = self._full(t, x[:nf], x[nf:])
-            return np.concatenate([x[nf:], accelerations(self, data, q, qd, t, uu if m else u, f_ext)[free]])
+            def f(x, uu, t):
+                q, qd, a, _ = self._full(t, x[:nf], x[nf:])
+                v = uu if m else u
+                v = zero_u if v is None else np.asarray(v(t) if callable(v) else v, dtype=float).reshape(-1)
+                if v.shape != (nu,) or not np.all(np.isfinite(v)):
+                    raise ParameterError(f"u must give {nu} finite inputs ({', '.join(self.inputs)}), got {v.shape}")
+                fe = zero_f
+                if f_ext is not None:
+                    fe = np.asarray(f_ext(q, qd, t), dtype=float).reshape(-1)
+                    if fe.shape != (n,) or not np.all(np.isfinite(fe)):
+                        raise DataError(f"f_ext returned {fe.shape} / non-finite values; expected {n} finite")
+                if not _treeblock.tree_rhs(*low.args, q, qd, a, v, fe, acc):
+                    raise DataError("the tree's accelerations are not finite, or the mass matrix of the free "
+                                    "coordinates is singular (a joint moving a massless chain, or an overflowed "
+                                    "state: use a smaller dt)")
+                return np.concatenate([x[nf:], acc[free]])
+        else:
+            def f(x, uu, t):
+                q, qd, _, _ = self._full(t, x[:nf], x[nf:])
+                return np.concatenate([x[nf:], accelerations(self, data, q, qd, t, uu if m else u, f_ext)[free]])
         x0 = np.zeros(2 * nf)
         if q0 is not None:
             x0[:nf] = _state(self, q0, "q0")[free]
@@ -656,13 +680,15 @@ class Tree:
         return q, qd
 
     def simulate(self, t_end, dt, q0=None, qd0=None, u=None, *, f_ext=None, method="midpoint", rtol=1e-6,
-                 atol=1e-9, record_every=1, data=None):
+                 atol=1e-9, record_every=1, data=None, compiled=True):
         r"""Integrate the tree from (``q0``, ``qd0``) (default rest) over ``t_end`` [s] with steps ``dt`` [s] by
         the implicit ``method`` of :meth:`Model.simulate <soroshapes.model.Model.simulate>` ("midpoint",
-        "trapezoidal", "bdf2"; Newton to ``rtol``, ``atol``). Returns a :class:`TreeTrajectory`."""
+        "trapezoidal", "bdf2"; Newton to ``rtol``, ``atol``). ``compiled``: as in :meth:`system`. Returns a
+        :class:`TreeTrajectory`."""
         from .model import Model
         data = self._data(data)
-        sysb = self.system(np.zeros(len(self.inputs)) if u is None else u, f_ext, "tree", q0, qd0, data=data)
+        sysb = self.system(np.zeros(len(self.inputs)) if u is None else u, f_ext, "tree", q0, qd0, data=data,
+                           compiled=compiled)
         traj = Model().add(sysb).simulate(t_end, dt, method=method, rtol=rtol, atol=atol,
                                           record_every=record_every)
         ts, xs = np.asarray(traj.t), np.asarray(traj["tree"].x)
