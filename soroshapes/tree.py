@@ -80,7 +80,7 @@ import numpy as np
 
 from sorofem.errors import DataError, ParameterError
 
-__all__ = ["Tree", "TreeData", "TreeTrajectory", "spin", "kinematics", "dynamics", "inverse_dynamics",
+__all__ = ["Tree", "TreeData", "TreeTrajectory", "TreeEquilibrium", "spin", "kinematics", "dynamics", "inverse_dynamics",
            "accelerations"]
 
 _JOINTS = ("fixed", "revolute", "prismatic")
@@ -611,6 +611,65 @@ class Tree:
         return IKResult(q=q, error=float(err), iterations=int(it), converged=bool(err < tol))
 
     # ------------------------------------------------------------------------------------------------
+    # statics
+    # ------------------------------------------------------------------------------------------------
+    def statics(self, u=None, q0=None, *, f_ext=None, t=0.0, steps=1, tol=1e-9, max_iterations=40, min_step=1e-4,
+                data=None):
+        r"""Static equilibrium :math:`Kq = f_g(q) + Bu + f_{ext}(q)` of the free coordinates (the prescribed
+        ones held at their motion's value at ``t``) by the Newton solver with load stepping of every static
+        problem (:func:`soroshapes.beam.newton_load_stepping`; gravity, inputs and ``f_ext`` ramped together).
+
+        Parameters
+        ----------
+        u : (m,) inputs (:attr:`inputs`) or a callable of t; None: zeros.
+        q0 : (n,) start (default zeros; the prescribed entries are overwritten).
+        f_ext : callable (q, t) -> (n,) generalized force [N m per coordinate], or None.
+        steps, tol, max_iterations, min_step : as in :func:`~soroshapes.beam.newton_load_stepping`.
+
+        Returns
+        -------
+        :class:`TreeEquilibrium`
+        """
+        from .beam import newton_load_stepping
+        data = self._data(data)
+        q = _state(self, q0, "q0").copy()
+        free = self._arrays()[7]
+        for b in self._bodies:
+            if b.motion is not None:
+                q[b.col0] = float(b.motion(t)[0])
+        if not len(free):
+            raise ParameterError("statics: every coordinate is prescribed; nothing to solve")
+        fu = self._input_force(u, t)
+        K = self.K
+        Kf = K[np.ix_(free, free)]
+        kmax = float(np.abs(np.diag(Kf)).max())
+        if kmax <= 0.0:
+            raise ParameterError("statics: the free coordinates have no stiffness (joints without springs only): "
+                                 "give a joint stiffness= or prescribe it")
+
+        def aug(x, scale):
+            qq = q.copy()
+            qq[free] = x
+            try:
+                fg = dynamics(self, data, qq, None, want_c=False)[2]
+            except DataError:                    # an iterate left the finite range: the line search backs off
+                return np.full(len(free), np.nan)
+            f = fg + fu
+            if f_ext is not None:
+                fe = np.asarray(f_ext(qq, t), dtype=float).reshape(-1)
+                if fe.shape != (self._n,) or not np.all(np.isfinite(fe)):
+                    raise DataError(f"f_ext returned {fe.shape} / non-finite values; expected {self._n} finite")
+                f = f + fe
+            return (K @ qq - scale * f)[free]
+        lengths = [b.model.length for b in self._bodies if b.kind == "beam"]
+        x, its, _ = newton_load_stepping(aug, q[free].copy(), len(free), lambda y: Kf @ y, kmax,
+                                         max(lengths, default=1.0), steps=steps, tol=tol,
+                                         max_iterations=max_iterations, min_step=min_step)
+        q[free] = x
+        r = aug(x, 1.0)
+        return TreeEquilibrium(q=q, iterations=list(its), residual=float(np.linalg.norm(r)))
+
+    # ------------------------------------------------------------------------------------------------
     # simulation with the Model integrators
     # ------------------------------------------------------------------------------------------------
     def _full(self, t, qf, vf):
@@ -699,6 +758,16 @@ class Tree:
             e = self.energy(Q[k], QD[k], data=data)
             kin[k], pot[k] = e["kinetic"], e["elastic"] + e["gravity"]
         return TreeTrajectory(ts, Q, QD, kin, pot, dict(traj.stats) if hasattr(traj, "stats") else {})
+
+
+@dataclass
+class TreeEquilibrium:
+    """Result of :meth:`Tree.statics`: coordinates ``q`` (n,), Newton ``iterations`` per accepted load increment,
+    and the norm of the force residual :math:`|Kq - f|_f` at the solution [N m per coordinate]."""
+
+    q: np.ndarray
+    iterations: list
+    residual: float
 
 
 @dataclass
