@@ -682,7 +682,8 @@ class Tree:
                 q[b.col0], qd[b.col0], a[b.col0] = (float(v) for v in b.motion(t))
         return q, qd, a, free
 
-    def system(self, u=None, f_ext=None, name="tree", q0=None, qd0=None, *, data=None, compiled=True):
+    def system(self, u=None, f_ext=None, name="tree", q0=None, qd0=None, *, data=None, compiled=True,
+               controlled=None):
         r"""A :class:`~soroshapes.model.StateSpace` block of the free coordinates: state
         :math:`x = (q_f, \dot q_f)`, :math:`\dot x = (\dot q_f, \ddot q_f)` from :func:`accelerations`. ``u``:
         the inputs (:attr:`inputs`) as an array or a callable of t; None makes them the block's inputs, which
@@ -690,7 +691,12 @@ class Tree:
         ``f_ext``: callable (q, qd, t) -> (n,) generalized force, or None. The prescribed coordinates follow
         their motions (:meth:`state` rebuilds the full q, qd). ``compiled``: the accelerations by one compiled
         call over the whole tree (:func:`soroshapes._treeblock.tree_rhs`, the same equations); False: by
-        :func:`accelerations` (a compiled call per body)."""
+        :func:`accelerations` (a compiled call per body).
+
+        The controllers of :mod:`soroshapes.control` drive the block as they drive a beam, over the whole
+        tree: its coordinates q (n,), K, f_g, M, C, the input matrix B, and, for :func:`~soroshapes.control.impedance`,
+        the frames of the body ``controlled`` (default the body added last; ``at`` an arc length on it) with
+        their tree Jacobians (the block's ``beam_view``; a tree with prescribed joints has none)."""
         from .model import StateSpace
         data = self._data(data)
         free = self._arrays()[7]
@@ -730,6 +736,11 @@ class Tree:
         sysb = StateSpace(f, 2 * nf, m, name=name, x0=x0)
         if m:
             sysb.input_names = list(self.inputs)
+        if controlled is not None or not len(self.prescribed):
+            if len(self.prescribed):
+                raise ParameterError("controlled=: a tree with prescribed joints has no controller face (its state "
+                                     "holds the free coordinates only); drop the motion= or control it yourself")
+            sysb.beam_view = _ControlledFrame(self, self.bodies[-1] if controlled is None else controlled)
         return sysb
 
     def state(self, t, x):
@@ -758,6 +769,38 @@ class Tree:
             e = self.energy(Q[k], QD[k], data=data)
             kin[k], pot[k] = e["kinetic"], e["elastic"] + e["gravity"]
         return TreeTrajectory(ts, Q, QD, kin, pot, dict(traj.stats) if hasattr(traj, "stats") else {})
+
+
+class _ControlledFrame:
+    r"""The face of a tree block that :mod:`soroshapes.control` reads from a beam (:meth:`Tree.system`): n, K,
+    gravity, the input map (constant B), ``dynamics`` (M, C, f_g copies), and the stacked frames
+    (``forward_kinematics``) with ``node(at)`` the row of the ``body``'s frame at ``at`` and its tree Jacobian
+    and rate. A workspace of its own (a controller evaluates between the integrator's calls)."""
+
+    def __init__(self, tree, body):
+        tree._body(body)
+        self.tree, self.body, self.data = tree, body, tree.make_data()
+        self.n, self.K, self.gravity = tree.n, tree.K, tree.gravity
+
+    def input_map(self, q):
+        return self.tree.input_matrix
+
+    def dynamics(self, q, qd):
+        M, C, fg = dynamics(self.tree, self.data, q, qd)
+        return M.copy(), C.copy(), fg.copy()
+
+    def forward_kinematics(self, q):
+        kinematics(self.tree, self.data, q)
+        return self.data.G.copy()
+
+    def node(self, at):
+        return self.tree.row(self.body, at)
+
+    def jacobian(self, q, at=None):
+        return self.tree.jacobian(q, self.body, at, data=self.data)
+
+    def jacobian_rate(self, q, qd, at=None):
+        return self.tree.jacobian_rate(q, qd, self.body, at, data=self.data)
 
 
 @dataclass

@@ -479,3 +479,43 @@ def test_statics_refuses_a_tree_without_stiffness():
     tree = Tree(gravity=(0, 0, -9.81)).add_link("l", 0.1, 1e-5, com=(0.1, 0, 0), joint="revolute", axis=(0, 1, 0))
     with pytest.raises(ParameterError, match="stiffness"):
         tree.statics()
+
+
+def controlled_arm():
+    """A hub on a revolute joint about z (actuated: a torque) with a soft arm bending about z (two linear
+    actuators on its two curvature modes), under gravity along -y: planar in x-y, 3 coordinates, 3 inputs."""
+    arm = rod(0.1, (0, 0, 2, 0, 0, 0), segments=4, radius=2e-3)
+    arm.add_actuator(np.array([1e-3, 0.0])).add_actuator(np.array([0.0, 1e-3]))
+    return (Tree(gravity=(0.0, -9.81, 0.0))
+            .add_link("hub", 0.01, 1e-6, joint="revolute", axis=(0, 0, 1), actuated=True, damping=1e-4)
+            .add_beam("arm", arm, parent="hub", damping=0.01))
+
+
+def test_the_impedance_controller_brings_a_tree_tip_to_its_set_point():
+    r"""soroshapes.control.impedance on the whole tree (Tree.system's controller face: M, C, f_g, K, B and the
+    arm's tip frame with its tree Jacobian over the hub and the arm): with elastic and gravity compensation the
+    closed loop rests where :math:`J^T K_c(p_d - p)` balances the null-space term, which vanishes at the
+    posture reached, so the tip sits on :math:`p_d`. From a bent arm (the straight one is a singular posture of
+    the planar task: both columns move the tip along y only) the error decays about 5x per 0.1 s (measured:
+    1.8e-9 m at 1 s); after 1.5 s within 1e-6 m (the Newton tolerance's share is far below)."""
+    from soroshapes import Model
+    from soroshapes.control import impedance, pd
+    tree = controlled_arm()
+    assert tree.n == 3 and len(tree.inputs) == 3
+    target = np.array([0.05, 0.07])
+    ctrl = impedance("tree", stiffness=1.0, damping=0.06, setpoint=target, axes=(0, 1), null_damping=1e-5)
+    q0 = np.array([0.0, 8.0, 0.0])
+    net = Model().add(tree.system(q0=q0), "tree").set_controller(ctrl)
+    traj = net.simulate(1.5, 0.005, "trapezoidal")
+    q, _ = tree.state(traj.t[-1], traj["tree"].x[-1])
+    tip = tree.frame(q, "arm")[:3, 3]
+    start = tree.frame(q0, "arm")[:3, 3]
+    assert np.linalg.norm(start[:2] - target) > 0.05
+    assert np.linalg.norm(tip[:2] - target) < 1e-6
+    assert abs(q[0]) > 1e-3 and abs(q[2]) > 1e-4          # the hub and both arm modes took part
+    # joint-space PD with compensation holds the whole tree's coordinates at a set-point
+    qd = np.array([0.4, 5.0, -2.0])
+    net = Model().add(tree.system(), "tree").set_controller(pd("tree", kp=[1e-2, 1e-3, 1e-4], kd=[1e-3, 1e-5, 1e-6],
+                                                               setpoint=qd))
+    traj = net.simulate(3.0, 0.005, "trapezoidal")
+    assert np.allclose(traj["tree"].x[-1, :3], qd, atol=1e-4 * np.abs(qd).max())
