@@ -215,3 +215,46 @@ def tree_rhs(tint, tflt, twork, trows, w, Md, ag, K, D, Bu, free, G, J, Jd, eta,
         out[free[r]] = rhs[r]
         s += rhs[r]
     return math.isfinite(s)
+
+
+# ------------------------------------------------------------------------------------------------------------
+# the tree as a block of a compiled network (soroshapes.network: kind TREE, its arrays at the end of the tuple)
+# ------------------------------------------------------------------------------------------------------------
+def block_args(tree, u):
+    """The arrays of a tree block in a compiled network: those of :func:`tree_rhs`, then the constant inputs
+    ``u`` (used when the block has no network inputs), zero prescribed accelerations and a zero external
+    force. Only a tree without prescribed joints (its state is then (q, qd))."""
+    low = lower(tree)
+    n = tree.n
+    ubar = np.zeros(len(tree.inputs)) if u is None else np.ascontiguousarray(u, dtype=float).reshape(-1)
+    return low.args + (ubar, np.zeros(n), np.zeros(n))
+
+
+def empty_block_args():
+    """Arrays of the same types as :func:`block_args` for a network without a tree (one kernel signature)."""
+    z1, z2, z3, i1 = np.zeros(0), np.zeros((0, 0)), np.zeros((0, 0, 0)), np.zeros(0, np.int64)
+    return (np.zeros((0, 13), np.int64), z1, z1, i1, z1, z2, np.zeros(3), z2, z2, z2, i1, z3, z3, z3, z2, z2, z2,
+            z2, z1, np.zeros((6, 6, 6)), np.zeros((8, 6)), z2, z2, i1, z1, z1, z1)
+
+
+@njit(cache=True)
+def block_rhs(tb, x, xo, w, wo, m, out):
+    r"""The derivative :math:`(\dot q, \ddot q)` of the tree block whose state starts at ``x[xo]`` into ``out``
+    (its inputs ``w[wo:wo + m]``, or the constant ones when m = 0); False if the state overflowed or M is
+    singular."""
+    (tint, tflt, twork, trows, wq, Md, ag, K, D, Bu, free, G, J, Jd, eta, etad, M, C, fg, S, V, Y, LU, piv, ubar,
+     a0, fext) = tb
+    n = K.shape[0]
+    q = x[xo:xo + n]
+    qd = x[xo + n:xo + 2 * n]
+    acc = np.empty(n)
+    if m:
+        ok = tree_rhs(tint, tflt, twork, trows, wq, Md, ag, K, D, Bu, free, G, J, Jd, eta, etad, M, C, fg, S, V, Y,
+                      LU, piv, q, qd, a0, w[wo:wo + m], fext, acc)
+    else:
+        ok = tree_rhs(tint, tflt, twork, trows, wq, Md, ag, K, D, Bu, free, G, J, Jd, eta, etad, M, C, fg, S, V, Y,
+                      LU, piv, q, qd, a0, ubar, fext, acc)
+    for k in range(n):
+        out[xo + k] = qd[k]
+        out[xo + n + k] = acc[k]
+    return ok

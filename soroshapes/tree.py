@@ -49,9 +49,13 @@ linear actuators (constant columns), then a torque [N m] or force [N] per ``actu
 Simulation uses the integrator family of :class:`~soroshapes.model.Model` (its implicit midpoint, trapezoidal
 or BDF2 rule on the first-order state :math:`(q_f, \dot q_f)` of the free coordinates): :meth:`Tree.system`
 makes the :class:`~soroshapes.model.StateSpace` block (a network's couplings and controller may drive its
-inputs), :meth:`Tree.simulate` runs it alone; on the Python path of the network for now (a compiled tree block
-of :mod:`soroshapes.network` is the next step). :meth:`Tree.inverse_kinematics` runs the beam's damped
-least-squares iterations (:func:`soroshapes.beam.damped_least_squares`) on the tree Jacobians.
+inputs), :meth:`Tree.simulate` runs it alone. The block's accelerations are one compiled call over the whole tree
+(:mod:`soroshapes._treeblock`), and a tree without prescribed joints runs inside the compiled network kernel (a
+TREE block of :mod:`soroshapes.network`, integrated by :mod:`soroshapes.integrate`); otherwise the network's
+Python path. The controllers of :mod:`soroshapes.control` drive the block over the whole tree (the block's
+``beam_view``); :meth:`Tree.statics` solves :math:`Kq = f_g + Bu + f_{ext}` by the one Newton with load stepping.
+:meth:`Tree.inverse_kinematics` runs the beam's damped least-squares iterations
+(:func:`soroshapes.beam.damped_least_squares`) on the tree Jacobians.
 
 Units: SI (m, kg, s, N, rad).
 
@@ -691,7 +695,9 @@ class Tree:
         ``f_ext``: callable (q, qd, t) -> (n,) generalized force, or None. The prescribed coordinates follow
         their motions (:meth:`state` rebuilds the full q, qd). ``compiled``: the accelerations by one compiled
         call over the whole tree (:func:`soroshapes._treeblock.tree_rhs`, the same equations); False: by
-        :func:`accelerations` (a compiled call per body).
+        :func:`accelerations` (a compiled call per body). A compiled block of a tree without prescribed joints,
+        ``f_ext`` and Python ``u`` also runs inside the compiled network kernel (:mod:`soroshapes.network`, one
+        tree block per network; :meth:`Model.simulate <soroshapes.model.Model.simulate>` picks it).
 
         The controllers of :mod:`soroshapes.control` drive the block as they drive a beam, over the whole
         tree: its coordinates q (n,), K, f_g, M, C, the input matrix B, and, for :func:`~soroshapes.control.impedance`,
@@ -741,6 +747,9 @@ class Tree:
                 raise ParameterError("controlled=: a tree with prescribed joints has no controller face (its state "
                                      "holds the free coordinates only); drop the motion= or control it yourself")
             sysb.beam_view = _ControlledFrame(self, self.bodies[-1] if controlled is None else controlled)
+        if compiled and not len(self.prescribed) and f_ext is None and not callable(u):
+            from . import _treeblock            # the block runs inside a compiled network (soroshapes.network)
+            sysb.tree_block = _treeblock.block_args(self, None if m else u)
         return sysb
 
     def state(self, t, x):
@@ -976,8 +985,9 @@ def accelerations(tree, data, q, qd, t=0.0, u=None, f_ext=None):
 
 
 def precompile():
-    """Compile the tree kernel (:func:`soroshapes._tree.attach`) and the beam kernels on the tree's arrays into
-    numba's cache (a beam on a revolute link, one forward-dynamics evaluation). Returns the seconds it took."""
+    """Compile the tree kernels (:func:`soroshapes._tree.attach`, :mod:`soroshapes._treeblock`) and the beam kernels
+    on the tree's arrays into numba's cache (a beam on a revolute link, one forward-dynamics evaluation, two
+    steps in the compiled network). Returns the seconds it took."""
     import time
     from sorofem import materials, sdf
     from .basis import Basis
@@ -990,4 +1000,5 @@ def precompile():
     q = np.full(tree.n, 0.1)
     tree.forward_dynamics(q, q)
     tree.coriolis(q, q)
+    tree.simulate(2e-3, 1e-3)                   # the tree block of the compiled network (soroshapes._treeblock)
     return time.perf_counter() - t0
