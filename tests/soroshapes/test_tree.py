@@ -519,3 +519,28 @@ def test_the_impedance_controller_brings_a_tree_tip_to_its_set_point():
                                                                setpoint=qd))
     traj = net.simulate(3.0, 0.005, "trapezoidal")
     assert np.allclose(traj["tree"].x[-1, :3], qd, atol=1e-4 * np.abs(qd).max())
+
+
+def test_a_tree_block_runs_inside_the_compiled_network_kernel_as_on_the_python_path():
+    """Tree.simulate picks the compiled network (soroshapes.network's TREE block, the integrator of
+    soroshapes.integrate): the undamped beam-on-beam swing agrees with the Python path (compiled=False) to the
+    Newton tolerance (corrections below 1e-3 of rtol = 1e-6 relative per step, two stopping rules: 1e-6 of the
+    largest coordinate over 100 steps), and a hub torque from a Schedule controller drives the tree alike on
+    both paths."""
+    from soroshapes import Model
+    from soroshapes.network import Schedule
+    sw = swing_tree()
+    q0 = np.zeros(sw.n)
+    q0[sw.coordinates("upper")] = 2.0
+    fast = sw.simulate(0.1, 1e-3, q0=q0)
+    slow = sw.simulate(0.1, 1e-3, q0=q0, compiled=False)
+    assert fast.stats["path"] == "compiled" and slow.stats["path"] == "python"
+    assert np.abs(fast.q - slow.q).max() < 1e-6 * np.abs(slow.q).max()
+    tree = controlled_arm()
+    sched = Schedule([0.0, 0.1, 0.2], [[0.0, 0.0, 0.0], [2e-3, 0.01, -0.01], [0.0, 0.0, 0.0]])
+    runs = [Model().add(tree.system(q0=np.array([0.0, 8.0, 0.0])), "tree").set_controller(sched)
+            .simulate(0.3, 2e-3, "midpoint", compiled=c) for c in (None, False)]
+    assert runs[0].stats["path"] == "compiled" and runs[1].stats["path"] == "python"
+    x0, x1 = runs[0]["tree"].x, runs[1]["tree"].x
+    assert np.abs(x0[:, :3] - x1[:, :3]).max() < 1e-6 * np.abs(x1[:, :3]).max()
+    assert np.abs(x1[-1, 0]) > 1e-3                                   # the torque turned the hub
