@@ -84,8 +84,8 @@ import numpy as np
 
 from sorofem.errors import DataError, ParameterError
 
-__all__ = ["Tree", "TreeData", "TreeTrajectory", "TreeEquilibrium", "spin", "kinematics", "dynamics", "inverse_dynamics",
-           "accelerations"]
+__all__ = ["Tree", "TreeData", "TreeTrajectory", "TreeEquilibrium", "spin", "kinematics", "dynamics",
+           "inverse_dynamics", "accelerations"]
 
 _JOINTS = ("fixed", "revolute", "prismatic")
 _NO_NODES, _NO_WRENCH, _NO_FLAGS = np.zeros(0, dtype=np.int64), np.zeros((0, 6)), np.zeros(0, dtype=np.bool_)

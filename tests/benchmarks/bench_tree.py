@@ -3,12 +3,12 @@
 The manipulator with its three-finger gripper as one tree: a soft arm (Chebyshev(3) in both bendings, 0.2 m), a
 rigid palm glued to its tip (20 g), three soft fingers (Chebyshev(2) in both bendings, 50 mm) on the palm at
 120 degrees, 18 coordinates, released under gravity; implicit midpoint of the Model integrators at dt = 1 ms for
-0.2 s: the tree block inside the compiled network kernel (soroshapes.network's TREE block, one compiled call over
-the tree, soroshapes._treeblock) against the Python path with a compiled call per body (compiled=False, what
-this benchmark ran before), in the same run; wall and CPU time. Figures, in one run: the real-time factor, and against the arm alone
-(a one-body tree on the same path) the ratio of simulation costs; the tree's forward dynamics and (M, C, f_g)
-evaluations per second, and (M, C, f_g) of the arm alone as a Shapes (the beam's compiled kernels) as the
-baseline ratio. Correctness of what was timed is asserted (finite states, energy kept to 1e-3 of the
+0.2 s: the tree block inside the compiled network kernel (soroshapes.network's TREE block, one compiled call
+over the tree, soroshapes._treeblock) against the Python path with a compiled call per body (compiled=False,
+what this benchmark ran before), in the same run; wall and CPU time. Figures, in one run: the real-time factor,
+and against the arm alone (a one-body tree on the same path) the ratio of simulation costs; the tree's forward
+dynamics and (M, C, f_g) evaluations per second, and (M, C, f_g) of the arm alone as a Shapes (the beam's
+compiled kernels) as the baseline ratio. Correctness of what was timed is asserted (finite states, energy kept to 1e-3 of the
 exchanged energy), never a time.
 """
 import os
