@@ -8,8 +8,8 @@ over the tree, soroshapes._treeblock) against the Python path with a compiled ca
 what this benchmark ran before), in the same run; wall and CPU time. Figures, in one run: the real-time factor,
 and against the arm alone (a one-body tree on the same path) the ratio of simulation costs; the tree's forward
 dynamics and (M, C, f_g) evaluations per second, and (M, C, f_g) of the arm alone as a Shapes (the beam's
-compiled kernels) as the baseline ratio. Correctness of what was timed is asserted (finite states, energy kept to 1e-3 of the
-exchanged energy), never a time.
+compiled kernels) as the baseline ratio. Correctness of what was timed is asserted (finite states, energy kept
+to 1e-3 of the exchanged energy), never a time.
 """
 import os
 
