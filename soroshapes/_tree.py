@@ -28,22 +28,52 @@ def attach(gp, Jp, Jdp, etap, X, Gl, Jl, Jdl, etal, col0, rate, G, J, Jd, eta):
     Jacobian rates ``Jd`` of the m local frames ``Gl`` (Jacobians ``Jl`` (m, 6, nb) over the tree coordinates
     ``col0 .. col0 + nb``, rates ``Jdl``, twists ``etal``) hung from the parent frame ``gp`` (``Jp``, ``Jdp``
     (6, n), ``etap`` (6,)) through the offset ``X`` (see the module docstring)."""
+    attach_upto(gp, Jp, Jdp, etap, X, Gl, Jl, Jdl, etal, col0, rate, Jp.shape[1], G, J, Jd, eta)
+
+
+@njit(cache=True)
+def attach_upto(gp, Jp, Jdp, etap, X, Gl, Jl, Jdl, etal, col0, rate, ncp, G, J, Jd, eta):
+    r""":func:`attach` when the parent's Jacobian and rate are zero beyond column ``ncp`` (a body's parent chain
+    owns coordinates added before it: ``ncp = col0``), with explicit loops over those columns only."""
     m = Gl.shape[0]
     nb = Jl.shape[2]
-    AJ = np.empty((6, Jp.shape[1]))
+    n = J.shape[2]
+    h = np.empty((4, 4))
+    A = np.empty((6, 6))
+    ad = np.empty((6, 6))
+    AJ = np.empty((6, ncp))
     for i in range(m):
-        h = X @ Gl[i]
-        A = Ad(invSE3(h))
-        G[i] = gp @ h
-        np.dot(A, Jp, AJ)
-        J[i] = AJ
-        eta[i] = A @ etap
+        for r in range(4):
+            for c in range(4):
+                h[r, c] = X[r, 0] * Gl[i, 0, c] + X[r, 1] * Gl[i, 1, c] + X[r, 2] * Gl[i, 2, c] + X[r, 3] * Gl[i, 3, c]
+        for r in range(4):
+            for c in range(4):
+                G[i, r, c] = gp[r, 0] * h[0, c] + gp[r, 1] * h[1, c] + gp[r, 2] * h[2, c] + gp[r, 3] * h[3, c]
+        A[:, :] = Ad(invSE3(h))
         for r in range(6):
-            eta[i, r] += etal[i, r]
+            s = 0.0
+            for c in range(6):
+                s += A[r, c] * etap[c]
+            eta[i, r] = s + etal[i, r]
+            for k in range(ncp):
+                s = 0.0
+                for c in range(6):
+                    s += A[r, c] * Jp[c, k]
+                AJ[r, k] = s
+                J[i, r, k] = s
+            for k in range(ncp, n):
+                J[i, r, k] = 0.0
             for k in range(nb):
                 J[i, r, col0 + k] += Jl[i, r, k]
         if rate:
-            Jd[i] = A @ Jdp - ad6(etal[i]) @ AJ
+            ad[:, :] = ad6(etal[i])
             for r in range(6):
+                for k in range(ncp):
+                    s = 0.0
+                    for c in range(6):
+                        s += A[r, c] * Jdp[c, k] - ad[r, c] * AJ[c, k]
+                    Jd[i, r, k] = s
+                for k in range(ncp, n):
+                    Jd[i, r, k] = 0.0
                 for k in range(nb):
                     Jd[i, r, col0 + k] += Jdl[i, r, k]

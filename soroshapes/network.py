@@ -70,6 +70,7 @@ from ._beam import newton_euler as _ne
 from ._beam import newton_euler_planar as _ne_planar
 from ._beam import mass_coriolis_gravity as _mcg
 from ._contact import contact_force as _contact_force
+from . import _treeblock        # issue 25: the tree block kind
 from .numerics import FD_STEP
 from .valves import orifice_flow
 
@@ -238,6 +239,7 @@ class Schedule:
 # lowering: the network as flat arrays
 # ------------------------------------------------------------------------------------------------------------
 BEAM, FLUIDIC, LINEAR, RIGID = 0, 1, 2, 3
+TREE = 4     # issue 25: a tree of bodies (soroshapes._treeblock), its arrays the last entry of the tuple
 #: floats per reservoir (rows of ``fpar``): isothermal, R, T, p0, n, leak, filter gain, regulated, kp, ki, max flow,
 #: filtered, volume kind and value, valve kind (0 saturation, 1 orifice) and the orifice's gain, b, supply, exhaust
 #: and full flow (soroshapes.valves)
@@ -473,6 +475,7 @@ def lower(blocks, links, volumes, controller, free):
         return len(mapint) - 1
 
     fo = wo = io = 0
+    tree_args = None                                # issue 25: the tree block's arrays (soroshapes._treeblock)
     for i, b in enumerate(blocks):
         table[i, 1:5] = b["xoff"], b["n"], b["woff"], b["nw"]
         if b["kind"] == "shapes":
@@ -541,6 +544,11 @@ def lower(blocks, links, volumes, controller, free):
             lint.append([A.shape[0], B.shape[1], C.shape[0], sum(len(v) for v in lflt)])
             lflt.append(np.concatenate([A.reshape(-1), B.reshape(-1), C.reshape(-1), D.reshape(-1)]))
             kind[i], table[i, 5] = LINEAR, len(lint) - 1
+        elif getattr(b["system"], "tree_block", None) is not None:     # issue 25: a Tree.system block
+            if tree_args is not None:
+                raise NotImplementedError(f"tree {b['name']!r} (one tree block per compiled network)")
+            tree_args = b["system"].tree_block
+            kind[i], table[i, 5] = TREE, 0
         else:
             raise NotImplementedError(f"system {b['name']!r} (a StateSpace with a Python f; StateSpace.linear "
                                       "runs compiled)")
@@ -698,7 +706,8 @@ def lower(blocks, links, volumes, controller, free):
               np.array(wsum, np.int64).reshape(-1, 5), np.array(wterm, np.int64).reshape(-1, 9), cat(wflt),
               np.asarray(cint, np.int64), np.asarray(cflt, float), np.zeros(N),
               np.concatenate(sops).astype(np.int64) if sops else np.zeros((0, 3), np.int64), cat(sconsts),
-              *_term_cache(wterm, table, bint, nb))
+              *_term_cache(wterm, table, bint, nb),
+              _treeblock.empty_block_args() if tree_args is None else tree_args)          # issue 25: net[33]
     return Lowered(arrays, N, NW, groups, dep)
 
 
@@ -1606,10 +1615,13 @@ def _rigid_rhs(ri, x, xo, w, wo, rflt, out):
 
 
 @njit(cache=True)
-def _system_rhs_a(i, x, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt, out):
+def _system_rhs_a(i, x, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt, tblk, out):
     """The derivative of system i (any kind) at x with its inputs in w, into its rows of out, from the network's
-    arrays (see :func:`_beam_arrays`); False if a beam's state is out of range."""
+    arrays (see :func:`_beam_arrays`; ``tblk`` the tree block's, net[33]); False if a beam's or the tree's state is
+    out of range."""
     xo, nx, wo = table[i, 1], table[i, 2], table[i, 3]
+    if table[i, 0] == TREE:                     # issue 25
+        return _treeblock.block_rhs(tblk, x, xo, w, wo, table[i, 4], out)
     if table[i, 0] == BEAM:
         return _beam_rhs(table[i, 5], x, xo, w, wo, bint, bflt, bwork, bintb, bext, out)
     if table[i, 0] == FLUIDIC:
@@ -1640,7 +1652,7 @@ def rhs(t, x, net, w, out, only):
     if not _assemble(t, x, net, w, only):
         return False
     for i in range(table.shape[0]):
-        if only[i] and not _system_rhs_a(i, x, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt, out):
+        if only[i] and not _system_rhs_a(i, x, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt, net[33], out):
             return False
     return _finite_rows(table, only, out)
 
@@ -1660,7 +1672,7 @@ def _evaluate(t, x, net, w, out, mode):
         return False
     for i in range(table.shape[0]):
         if mode[i] == _DERIVATIVE:
-            if not _system_rhs_a(i, x, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt, out):
+            if not _system_rhs_a(i, x, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt, net[33], out):
                 return False
         elif mode[i] == _INPUT_FORCE:
             bi, xo, wo = table[i, 5], table[i, 1], table[i, 3]
@@ -1694,7 +1706,7 @@ def residual(t, xe, x1, xhat, gam, net, w, out, only):
                                   out):
                 return False
             continue
-        _system_rhs_a(i, xe, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt, out)
+        _system_rhs_a(i, xe, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt, net[33], out)
         for j in range(xo, xo + nx):
             out[j] = x1[j] - xhat[j] - gam * out[j]
     return _finite_rows(table, only, out)

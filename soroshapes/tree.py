@@ -49,9 +49,13 @@ linear actuators (constant columns), then a torque [N m] or force [N] per ``actu
 Simulation uses the integrator family of :class:`~soroshapes.model.Model` (its implicit midpoint, trapezoidal
 or BDF2 rule on the first-order state :math:`(q_f, \dot q_f)` of the free coordinates): :meth:`Tree.system`
 makes the :class:`~soroshapes.model.StateSpace` block (a network's couplings and controller may drive its
-inputs), :meth:`Tree.simulate` runs it alone; on the Python path of the network for now (a compiled tree block
-of :mod:`soroshapes.network` is the next step). :meth:`Tree.inverse_kinematics` runs the beam's damped
-least-squares iterations (:func:`soroshapes.beam.damped_least_squares`) on the tree Jacobians.
+inputs), :meth:`Tree.simulate` runs it alone. The block's accelerations are one compiled call over the whole tree
+(:mod:`soroshapes._treeblock`), and a tree without prescribed joints runs inside the compiled network kernel (a
+TREE block of :mod:`soroshapes.network`, integrated by :mod:`soroshapes.integrate`); otherwise the network's
+Python path. The controllers of :mod:`soroshapes.control` drive the block over the whole tree (the block's
+``beam_view``); :meth:`Tree.statics` solves :math:`Kq = f_g + Bu + f_{ext}` by the one Newton with load stepping.
+:meth:`Tree.inverse_kinematics` runs the beam's damped least-squares iterations
+(:func:`soroshapes.beam.damped_least_squares`) on the tree Jacobians.
 
 Units: SI (m, kg, s, N, rad).
 
@@ -80,8 +84,8 @@ import numpy as np
 
 from sorofem.errors import DataError, ParameterError
 
-__all__ = ["Tree", "TreeData", "TreeTrajectory", "spin", "kinematics", "dynamics", "inverse_dynamics",
-           "accelerations"]
+__all__ = ["Tree", "TreeData", "TreeTrajectory", "TreeEquilibrium", "spin", "kinematics", "dynamics",
+           "inverse_dynamics", "accelerations"]
 
 _JOINTS = ("fixed", "revolute", "prismatic")
 _NO_NODES, _NO_WRENCH, _NO_FLAGS = np.zeros(0, dtype=np.int64), np.zeros((0, 6)), np.zeros(0, dtype=np.bool_)
@@ -611,6 +615,65 @@ class Tree:
         return IKResult(q=q, error=float(err), iterations=int(it), converged=bool(err < tol))
 
     # ------------------------------------------------------------------------------------------------
+    # statics
+    # ------------------------------------------------------------------------------------------------
+    def statics(self, u=None, q0=None, *, f_ext=None, t=0.0, steps=1, tol=1e-9, max_iterations=40, min_step=1e-4,
+                data=None):
+        r"""Static equilibrium :math:`Kq = f_g(q) + Bu + f_{ext}(q)` of the free coordinates (the prescribed
+        ones held at their motion's value at ``t``) by the Newton solver with load stepping of every static
+        problem (:func:`soroshapes.beam.newton_load_stepping`; gravity, inputs and ``f_ext`` ramped together).
+
+        Parameters
+        ----------
+        u : (m,) inputs (:attr:`inputs`) or a callable of t; None: zeros.
+        q0 : (n,) start (default zeros; the prescribed entries are overwritten).
+        f_ext : callable (q, t) -> (n,) generalized force [N m per coordinate], or None.
+        steps, tol, max_iterations, min_step : as in :func:`~soroshapes.beam.newton_load_stepping`.
+
+        Returns
+        -------
+        :class:`TreeEquilibrium`
+        """
+        from .beam import newton_load_stepping
+        data = self._data(data)
+        q = _state(self, q0, "q0").copy()
+        free = self._arrays()[7]
+        for b in self._bodies:
+            if b.motion is not None:
+                q[b.col0] = float(b.motion(t)[0])
+        if not len(free):
+            raise ParameterError("statics: every coordinate is prescribed; nothing to solve")
+        fu = self._input_force(u, t)
+        K = self.K
+        Kf = K[np.ix_(free, free)]
+        kmax = float(np.abs(np.diag(Kf)).max())
+        if kmax <= 0.0:
+            raise ParameterError("statics: the free coordinates have no stiffness (joints without springs only): "
+                                 "give a joint stiffness= or prescribe it")
+
+        def aug(x, scale):
+            qq = q.copy()
+            qq[free] = x
+            try:
+                fg = dynamics(self, data, qq, None, want_c=False)[2]
+            except DataError:                    # an iterate left the finite range: the line search backs off
+                return np.full(len(free), np.nan)
+            f = fg + fu
+            if f_ext is not None:
+                fe = np.asarray(f_ext(qq, t), dtype=float).reshape(-1)
+                if fe.shape != (self._n,) or not np.all(np.isfinite(fe)):
+                    raise DataError(f"f_ext returned {fe.shape} / non-finite values; expected {self._n} finite")
+                f = f + fe
+            return (K @ qq - scale * f)[free]
+        lengths = [b.model.length for b in self._bodies if b.kind == "beam"]
+        x, its, _ = newton_load_stepping(aug, q[free].copy(), len(free), lambda y: Kf @ y, kmax,
+                                         max(lengths, default=1.0), steps=steps, tol=tol,
+                                         max_iterations=max_iterations, min_step=min_step)
+        q[free] = x
+        r = aug(x, 1.0)
+        return TreeEquilibrium(q=q, iterations=list(its), residual=float(np.linalg.norm(r)))
+
+    # ------------------------------------------------------------------------------------------------
     # simulation with the Model integrators
     # ------------------------------------------------------------------------------------------------
     def _full(self, t, qf, vf):
@@ -623,30 +686,66 @@ class Tree:
                 q[b.col0], qd[b.col0], a[b.col0] = (float(v) for v in b.motion(t))
         return q, qd, a, free
 
-    def system(self, u=None, f_ext=None, name="tree", q0=None, qd0=None, *, data=None, force_inputs=False):
+    def system(self, u=None, f_ext=None, name="tree", q0=None, qd0=None, *, data=None, compiled=True,
+               controlled=None, force_inputs=False):
         r"""A :class:`~soroshapes.model.StateSpace` block of the free coordinates: state
         :math:`x = (q_f, \dot q_f)`, :math:`\dot x = (\dot q_f, \ddot q_f)` from :func:`accelerations`. ``u``:
         the inputs (:attr:`inputs`) as an array or a callable of t; None makes them the block's inputs, which
         couplings and controllers of a :class:`~soroshapes.model.Model` drive (zeros when unconnected).
         ``f_ext``: callable (q, qd, t) -> (n,) generalized force, or None. The prescribed coordinates follow
-        their motions (:meth:`state` rebuilds the full q, qd). ``force_inputs``: append n inputs, a generalized force
-        (n,) added to the equations (named ``"force<i>"``, i the coordinate), which a coupling of the network drives (contact with
-        another block, :func:`soroshapes.rigid.couple_tree_contact`): unlike ``f_ext``, the network's Jacobian
-        then sees how it depends on the other blocks' states."""
+        their motions (:meth:`state` rebuilds the full q, qd). ``compiled``: the accelerations by one compiled
+        call over the whole tree (:func:`soroshapes._treeblock.tree_rhs`, the same equations); False: by
+        :func:`accelerations` (a compiled call per body). A compiled block of a tree without prescribed joints,
+        ``f_ext`` and Python ``u`` also runs inside the compiled network kernel (:mod:`soroshapes.network`, one
+        tree block per network; :meth:`Model.simulate <soroshapes.model.Model.simulate>` picks it).
+
+        The controllers of :mod:`soroshapes.control` drive the block as they drive a beam, over the whole
+        tree: its coordinates q (n,), K, f_g, M, C, the input matrix B, and, for :func:`~soroshapes.control.impedance`,
+        the frames of the body ``controlled`` (default the body added last; ``at`` an arc length on it) with
+        their tree Jacobians (the block's ``beam_view``; a tree with prescribed joints has none).
+
+        ``force_inputs``: append n inputs, a generalized force (n,) added to the equations (named ``"force<i>"``,
+        i the coordinate), which a coupling of the network drives (contact with another block,
+        :func:`soroshapes.rigid.couple_tree_contact`): unlike ``f_ext``, the network's Jacobian then sees how it
+        depends on the other blocks' states. Such a block runs on the Python path of the network (the compiled
+        tree block has no force inputs)."""
         from .model import StateSpace
         data = self._data(data)
         free = self._arrays()[7]
         nf = len(free)
         m = 0 if u is not None else len(self.inputs)
         k = self._n if force_inputs else 0
+        if compiled:
+            from . import _treeblock
+            low = _treeblock.lower(self)
+            n, nu = self._n, len(self.inputs)
+            acc, zero_u, zero_f = np.zeros(n), np.zeros(nu), np.zeros(n)
 
-        def f(x, uu, t):
-            q, qd, _, _ = self._full(t, x[:nf], x[nf:])
-            fe = f_ext
-            if k:
-                fu = np.asarray(uu[m:m + k], dtype=float)
-                fe = (lambda qq, vv, tt: fu) if f_ext is None else (lambda qq, vv, tt: fu + f_ext(qq, vv, tt))
-            return np.concatenate([x[nf:], accelerations(self, data, q, qd, t, uu[:m] if m else u, fe)[free]])
+            def f(x, uu, t):
+                q, qd, a, _ = self._full(t, x[:nf], x[nf:])
+                v = uu[:m] if m else u
+                v = zero_u if v is None else np.asarray(v(t) if callable(v) else v, dtype=float).reshape(-1)
+                if v.shape != (nu,) or not np.all(np.isfinite(v)):
+                    raise ParameterError(f"u must give {nu} finite inputs ({', '.join(self.inputs)}), got {v.shape}")
+                fe = np.asarray(uu[m:m + k], dtype=float) if k else zero_f
+                if f_ext is not None:
+                    fx = np.asarray(f_ext(q, qd, t), dtype=float).reshape(-1)
+                    if fx.shape != (n,) or not np.all(np.isfinite(fx)):
+                        raise DataError(f"f_ext returned {fx.shape} / non-finite values; expected {n} finite")
+                    fe = fe + fx
+                if not _treeblock.tree_rhs(*low.args, q, qd, a, v, fe, acc):
+                    raise DataError("the tree's accelerations are not finite, or the mass matrix of the free "
+                                    "coordinates is singular (a joint moving a massless chain, or an overflowed "
+                                    "state: use a smaller dt)")
+                return np.concatenate([x[nf:], acc[free]])
+        else:
+            def f(x, uu, t):
+                q, qd, _, _ = self._full(t, x[:nf], x[nf:])
+                fe = f_ext
+                if k:
+                    fu = np.asarray(uu[m:m + k], dtype=float)
+                    fe = (lambda qq, vv, tt: fu) if f_ext is None else (lambda qq, vv, tt: fu + f_ext(qq, vv, tt))
+                return np.concatenate([x[nf:], accelerations(self, data, q, qd, t, uu[:m] if m else u, fe)[free]])
         x0 = np.zeros(2 * nf)
         if q0 is not None:
             x0[:nf] = _state(self, q0, "q0")[free]
@@ -655,6 +754,14 @@ class Tree:
         sysb = StateSpace(f, 2 * nf, m + k, name=name, x0=x0)
         if m + k:
             sysb.input_names = (list(self.inputs) if m else []) + [f"force{i}" for i in range(k)]
+        if controlled is not None or not len(self.prescribed):
+            if len(self.prescribed):
+                raise ParameterError("controlled=: a tree with prescribed joints has no controller face (its state "
+                                     "holds the free coordinates only); drop the motion= or control it yourself")
+            sysb.beam_view = _ControlledFrame(self, self.bodies[-1] if controlled is None else controlled)
+        if compiled and not k and not len(self.prescribed) and f_ext is None and not callable(u):
+            from . import _treeblock            # the block runs inside a compiled network (soroshapes.network)
+            sysb.tree_block = _treeblock.block_args(self, None if m else u)
         return sysb
 
     def state(self, t, x):
@@ -664,13 +771,15 @@ class Tree:
         return q, qd
 
     def simulate(self, t_end, dt, q0=None, qd0=None, u=None, *, f_ext=None, method="midpoint", rtol=1e-6,
-                 atol=1e-9, record_every=1, data=None):
+                 atol=1e-9, record_every=1, data=None, compiled=True):
         r"""Integrate the tree from (``q0``, ``qd0``) (default rest) over ``t_end`` [s] with steps ``dt`` [s] by
         the implicit ``method`` of :meth:`Model.simulate <soroshapes.model.Model.simulate>` ("midpoint",
-        "trapezoidal", "bdf2"; Newton to ``rtol``, ``atol``). Returns a :class:`TreeTrajectory`."""
+        "trapezoidal", "bdf2"; Newton to ``rtol``, ``atol``). ``compiled``: as in :meth:`system`. Returns a
+        :class:`TreeTrajectory`."""
         from .model import Model
         data = self._data(data)
-        sysb = self.system(np.zeros(len(self.inputs)) if u is None else u, f_ext, "tree", q0, qd0, data=data)
+        sysb = self.system(np.zeros(len(self.inputs)) if u is None else u, f_ext, "tree", q0, qd0, data=data,
+                           compiled=compiled)
         traj = Model().add(sysb).simulate(t_end, dt, method=method, rtol=rtol, atol=atol,
                                           record_every=record_every)
         ts, xs = np.asarray(traj.t), np.asarray(traj["tree"].x)
@@ -681,6 +790,48 @@ class Tree:
             e = self.energy(Q[k], QD[k], data=data)
             kin[k], pot[k] = e["kinetic"], e["elastic"] + e["gravity"]
         return TreeTrajectory(ts, Q, QD, kin, pot, dict(traj.stats) if hasattr(traj, "stats") else {})
+
+
+class _ControlledFrame:
+    r"""The face of a tree block that :mod:`soroshapes.control` reads from a beam (:meth:`Tree.system`): n, K,
+    gravity, the input map (constant B), ``dynamics`` (M, C, f_g copies), and the stacked frames
+    (``forward_kinematics``) with ``node(at)`` the row of the ``body``'s frame at ``at`` and its tree Jacobian
+    and rate. A workspace of its own (a controller evaluates between the integrator's calls)."""
+
+    def __init__(self, tree, body):
+        tree._body(body)
+        self.tree, self.body, self.data = tree, body, tree.make_data()
+        self.n, self.K, self.gravity = tree.n, tree.K, tree.gravity
+
+    def input_map(self, q):
+        return self.tree.input_matrix
+
+    def dynamics(self, q, qd):
+        M, C, fg = dynamics(self.tree, self.data, q, qd)
+        return M.copy(), C.copy(), fg.copy()
+
+    def forward_kinematics(self, q):
+        kinematics(self.tree, self.data, q)
+        return self.data.G.copy()
+
+    def node(self, at):
+        return self.tree.row(self.body, at)
+
+    def jacobian(self, q, at=None):
+        return self.tree.jacobian(q, self.body, at, data=self.data)
+
+    def jacobian_rate(self, q, qd, at=None):
+        return self.tree.jacobian_rate(q, qd, self.body, at, data=self.data)
+
+
+@dataclass
+class TreeEquilibrium:
+    """Result of :meth:`Tree.statics`: coordinates ``q`` (n,), Newton ``iterations`` per accepted load increment,
+    and the norm of the force residual :math:`|Kq - f|_f` at the solution [N m per coordinate]."""
+
+    q: np.ndarray
+    iterations: list
+    residual: float
 
 
 @dataclass
@@ -846,8 +997,9 @@ def accelerations(tree, data, q, qd, t=0.0, u=None, f_ext=None):
 
 
 def precompile():
-    """Compile the tree kernel (:func:`soroshapes._tree.attach`) and the beam kernels on the tree's arrays into
-    numba's cache (a beam on a revolute link, one forward-dynamics evaluation). Returns the seconds it took."""
+    """Compile the tree kernels (:func:`soroshapes._tree.attach`, :mod:`soroshapes._treeblock`) and the beam kernels
+    on the tree's arrays into numba's cache (a beam on a revolute link, one forward-dynamics evaluation, two
+    steps in the compiled network). Returns the seconds it took."""
     import time
     from sorofem import materials, sdf
     from .basis import Basis
@@ -860,4 +1012,5 @@ def precompile():
     q = np.full(tree.n, 0.1)
     tree.forward_dynamics(q, q)
     tree.coriolis(q, q)
+    tree.simulate(2e-3, 1e-3)                   # the tree block of the compiled network (soroshapes._treeblock)
     return time.perf_counter() - t0

@@ -2,12 +2,14 @@
 
 The manipulator with its three-finger gripper as one tree: a soft arm (Chebyshev(3) in both bendings, 0.2 m), a
 rigid palm glued to its tip (20 g), three soft fingers (Chebyshev(2) in both bendings, 50 mm) on the palm at
-120 degrees, 18 coordinates, released under gravity; implicit midpoint of the Model integrators (Python path of
-a StateSpace block) at dt = 1 ms for 0.2 s. Figures, in one run: the real-time factor, and against the arm alone
-(a one-body tree on the same path) the ratio of simulation costs; the tree's forward dynamics and (M, C, f_g)
-evaluations per second, and (M, C, f_g) of the arm alone as a Shapes (the beam's compiled kernels) as the
-baseline ratio. Correctness of what was timed is asserted (finite states, energy kept to 1e-3 of the
-exchanged energy), never a time.
+120 degrees, 18 coordinates, released under gravity; implicit midpoint of the Model integrators at dt = 1 ms for
+0.2 s: the tree block inside the compiled network kernel (soroshapes.network's TREE block, one compiled call
+over the tree, soroshapes._treeblock) against the Python path with a compiled call per body (compiled=False,
+what this benchmark ran before), in the same run; wall and CPU time. Figures, in one run: the real-time factor,
+and against the arm alone (a one-body tree on the same path) the ratio of simulation costs; the tree's forward
+dynamics and (M, C, f_g) evaluations per second, and (M, C, f_g) of the arm alone as a Shapes (the beam's
+compiled kernels) as the baseline ratio. Correctness of what was timed is asserted (finite states, energy kept
+to 1e-3 of the exchanged energy), never a time.
 """
 import os
 
@@ -52,26 +54,27 @@ def _rate(fn, calls, repeat=3):
     return calls / best
 
 
-def _run(tree, t_sim):
-    """(best wall time [s] of two runs, the trajectory)."""
-    tree.simulate(0.003, 1e-3)                               # warm up
-    wall = np.inf
+def _run(tree, t_sim, compiled=True):
+    """(best wall time [s] of two runs, its CPU time [s], the trajectory, the energy drift)."""
+    tree.simulate(0.003, 1e-3, compiled=compiled)            # warm up
+    wall = cpu = np.inf
     for _ in range(2):
-        t0 = time.perf_counter()
-        tr = tree.simulate(t_sim, 1e-3, record_every=10)
-        wall = min(wall, time.perf_counter() - t0)
+        t0, c0 = time.perf_counter(), time.process_time()
+        tr = tree.simulate(t_sim, 1e-3, record_every=10, compiled=compiled)
+        wall, cpu = min(wall, time.perf_counter() - t0), min(cpu, time.process_time() - c0)
     assert np.all(np.isfinite(tr.q))
     drift = float(np.abs(tr.total - tr.total[0]).max() / tr.kinetic.max())
     assert drift < 1e-3
-    return wall, tr, drift
+    return wall, cpu, tr, drift
 
 
 def test_bench_manipulator_with_gripper(record):
     tree = manipulator_with_gripper()
     assert tree.n == 18
     t_sim = 0.2
-    wall, tr, drift = _run(tree, t_sim)
-    alone, _, _ = _run(Tree(gravity=(0.0, 0.0, -9.81)).add_beam("arm", arm()), t_sim)   # same path, arm only
+    wall, cpu, tr, drift = _run(tree, t_sim)
+    wall_py, cpu_py, tr_py, _ = _run(tree, t_sim, compiled=False)       # the per-body path of before
+    alone, _, _, _ = _run(Tree(gravity=(0.0, 0.0, -9.81)).add_beam("arm", arm()), t_sim)   # same path, arm only
     rng = np.random.default_rng(0)
     q, qd = rng.normal(size=tree.n), rng.normal(size=tree.n)
     shp = arm().add_gravity()
@@ -79,9 +82,16 @@ def test_bench_manipulator_with_gripper(record):
     tree_rate = _rate(lambda: tree.coriolis(q, qd), 300)
     fd_rate = _rate(lambda: tree.forward_dynamics(q, qd), 300)
     beam_rate = _rate(lambda: shp.dynamics(qa, qda), 300)
-    record(dofs=tree.n, dt=1e-3, simulated_s=t_sim, wall_s=round(wall, 3), realtime_factor=round(t_sim / wall, 3),
+    record(dofs=tree.n, dt=1e-3, simulated_s=t_sim, wall_s=round(wall, 3), cpu_s=round(cpu, 3),
+           realtime_factor=round(t_sim / wall, 3), realtime_factor_cpu=round(t_sim / cpu, 3),
+           per_body_path_realtime_factor=round(t_sim / wall_py, 3),
+           per_body_path_realtime_factor_cpu=round(t_sim / cpu_py, 3),
+           speedup_cpu=round(cpu_py / cpu, 2), speedup_wall=round(wall_py / wall, 2),
+           paths_max_q_difference=float(np.abs(tr.q - tr_py.q).max()),
            newton_iterations_per_step=round(tr.stats["newton_iterations"] / tr.stats["steps"], 2),
+           jacobians=tr.stats["jacobians"],
            energy_drift=drift, arm_alone_realtime_factor=round(t_sim / alone, 3),
            cost_ratio_simulation_tree_to_arm=round(wall / alone, 2), tree_forward_dynamics_per_s=round(fd_rate),
            tree_m_c_fg_per_s=round(tree_rate), arm_alone_m_c_fg_per_s=round(beam_rate),
-           cost_ratio_tree_to_arm=round(beam_rate / tree_rate, 2), path=tr.stats.get("path"))
+           cost_ratio_tree_to_arm=round(beam_rate / tree_rate, 2), path=tr.stats.get("path"),
+           per_body_path=tr_py.stats.get("path"))
