@@ -47,7 +47,9 @@ import numpy as np
 from sorofem.errors import ParameterError, SoroError
 
 __all__ = ["Scene", "SCENES", "MEASURES", "FEM_FAMILIES", "BEAM_FAMILIES", "richardson", "fem_ladder",
-           "beam_ladder", "ladder", "pareto_front", "ladder_table", "ladder_figure", "error_budget", "select",
+           "beam_ladder", "ladder", "pareto_front", "CantileverScene", "elastica", "cantilever_fem_ladder",
+           "cantilever_beam_ladder", "cantilever_ladder", "cantilever_budget", "cost_table", "ladder_table",
+           "ladder_figure", "error_budget", "select",
            "write_model", "load_model", "validate", "run_ladder", "parse_tolerance", "beam_within",
            "strain_floor", "selected"]
 
@@ -503,6 +505,11 @@ class CantileverScene:
         return self.E / (1 - self.nu ** 2) * self.height ** 3 / 12
 
 
+SCENES["cantilever"] = {"full": CantileverScene(repeats=15, fem_repeats=3),
+                        "quick": CantileverScene(size=5e-3, modes=(1, 2, 3, 4), fem_families=("fem-p1", "fem-p2mixed"),
+                                                 repeats=5, eigen=False, t_dyn=0.05)}
+
+
 def elastica(L, EI, w, P, sigma, tol=1e-10):
     r"""The inextensible, unshearable clamped elastica under a distributed dead load ``w`` [N/m] and a dead tip
     load ``P`` [N], both along -y: :math:`EI\,\theta'' = (P + w\,(L - s))\cos\theta`, :math:`\theta(0) = 0`,
@@ -672,6 +679,9 @@ def cantilever_fem_ladder(scene, out, progress=None):
     return doc
 
 
+_CANTILEVER_DEPTH = 0.01    # [m] of the beam rungs' section (plane strain: any depth, the loads scale with it)
+
+
 def _cantilever_beam(scene, bases, dofs, level=1.0, segments=40):
     """The beam rung: bending-only Cosserat beam with the plane-strain modulus E/(1 - nu^2), a section of the
     height (along body y: in-plane bending about z) x 10 mm (any depth: the loads scale with it), gravity and
@@ -679,7 +689,7 @@ def _cantilever_beam(scene, bases, dofs, level=1.0, segments=40):
     from sorofem import sdf
     from soroshapes import Shapes
 
-    depth = 0.01
+    depth = _CANTILEVER_DEPTH
     w, P = scene.loads()
     shp = Shapes(bases, dofs, length=scene.length, section=sdf.Rectangle(scene.height, depth),   # (body y, z)
                  material=scene.material(), E=scene.E / (1 - scene.nu ** 2), damping=0.0, segments=segments)
@@ -716,8 +726,9 @@ def cantilever_beam_ladder(scene, doc, out):
     (``tip_elastica``); costs: build (the DVS's includes the FEM training ramp), median static solve
     (interleaved), memory (peak RSS during build, solve and dynamics run minus the RSS at the rung's start,
     as the FEM rungs; the numba kernels are compiled beforehand), and the time per simulated second (implicit midpoint, ``dt_beam``, released from rest)."""
-    from soroshapes.dvs import Backbone
-    from soroshapes.dvs import recover_strains
+    import tracemalloc
+
+    from soroshapes.dvs import Backbone, recover_strains
 
     out = Path(out)
     L = scene.length
@@ -742,6 +753,10 @@ def cantilever_beam_ladder(scene, doc, out):
             shp = _cantilever_beam(scene, *bd, level=scene.test_level)
             q = shp.statics(steps=4)
             t_build = time.perf_counter() - t0 + (t_recover + doc["reference"]["train_s"] if fam == "dvs" else 0.0)
+            tracemalloc.start()             # allocations of a second build + solve (untimed)
+            _cantilever_beam(scene, *bd, level=scene.test_level).statics(steps=4)
+            alloc_kb = tracemalloc.get_traced_memory()[1] / 1024
+            tracemalloc.stop()
             P = _positions_at(shp, q, sigma)
             tip, shape = _errors(P, Pref, L)
             tip_el, shape_el = _errors(P, Pel, L)
@@ -752,7 +767,7 @@ def cantilever_beam_ladder(scene, doc, out):
             rows.append({"family": fam, "modes": k, "unknowns": k, "size": None, "estimated": False,
                          "build_s": t_build, "tip_unseen": tip, "shape_unseen": shape, "volume_unseen": np.nan,
                          "tip_elastica": tip_el, "shape_elastica": shape_el,
-                         "freq": None, "sim_s_per_s": t_dyn / scene.t_dyn, "rss_mb": _peak_rss_mb() - base,
+                         "freq": None, "sim_s_per_s": t_dyn / scene.t_dyn, "rss_mb": _peak_rss_mb() - base, "alloc_kb": alloc_kb,
                          "_shapes": shp, "_bd": bd, "_ident": None})
             if doc["rungs"][-1].get("freq"):
                 f0 = doc["rungs"][-1]["freq"]
@@ -788,12 +803,110 @@ def cantilever_ladder(scene, out, progress=None):
         if "dyn_s" in r:
             row["sim_s_per_s"] = r["dyn_s"] / scene.t_dyn
     rows = fem_rows + cantilever_beam_ladder(scene, doc, out)
+    beams = [r for r in rows if "_bd" in r and r["family"] == "chebyshev"]
+    ti = None
+    if beams:         # time integration: the last Chebyshev beam's dynamics run with dt and dt/2
+        r = beams[-1]
+        tips = []
+        for dt in (scene.dt_beam, scene.dt_beam / 2):
+            shp = _cantilever_beam(scene, *r["_bd"], level=1.0)
+            tr = shp.simulate(scene.t_dyn, dt)
+            tips.append(shp.positions(tr.q[-1])[-1])
+        ti = {"family": r["family"], "modes": r["modes"], "dt": scene.dt_beam, "t": scene.t_dyn,
+              "error": float(np.linalg.norm(tips[0] - tips[1]) / scene.length)}
     ref_el = _errors(np.asarray(doc["rungs"][-1]["backbone"]), Pel, scene.length)
     w, P = scene.loads()
     lin = scene.test_level * (w * scene.length ** 4 / 8 + P * scene.length ** 3 / 3) / scene.EI()
-    return rows, {"richardson": rich, "length": scene.length, "fem": doc,
+    return rows, {"richardson": rich, "length": scene.length, "fem": doc, "time_integration": ti,
                   "elastica": {"tip": ref_el[0], "shape": ref_el[1], "tip_deflection": float(-Pel[-1, 1]),
                                "euler_bernoulli_linear": float(lin)}}
+
+
+def _scene_from(d):
+    """The scene of a model file's ``meta["scene"]`` (its dataclass fields)."""
+    d = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
+    return CantileverScene(**d) if d.get("name") == "cantilever" else Scene(**d)
+
+
+def _validate_cantilever(path, scene, out, measure):
+    """The cantilever's :func:`validate`: the model file read back, loaded at ``validation_level``, against the
+    reference's backbone there (errors as fractions of L)."""
+    if measure == "volume":
+        raise ParameterError("the cantilever has no cavity: validate on 'tip' or 'shape'")
+    doc = json.loads((Path(out) / "fem.json").read_text())
+    Pref = np.asarray(doc["reference"]["validation_backbone"])
+    sigma = _midline(scene, len(Pref))
+    kind, model, extra = load_model(path)
+    lv = scene.validation_level
+    if kind == "beam":
+        w, P = scene.loads()
+        depth = _CANTILEVER_DEPTH
+        if scene.gravity:
+            model.add_gravity((0.0, -9.80665 * lv, 0.0))
+        model.add_point_load(force=(0.0, -lv * P * depth, 0.0))
+        Pm = _positions_at(model, model.statics(steps=4), sigma)
+    else:
+        model.solve(load_level=lv, steps=scene.test_steps, max_step=lv / scene.test_steps, progress=False)
+        Pm = _fem_backbone(scene, model, sigma)
+    tip, shape = _errors(Pm, Pref, scene.length)
+    return tip if measure == "tip" else shape
+
+
+def cantilever_budget(rows, info):
+    """The cantilever's error budget (fractions of L, tip at the top unseen load), text and dict: the FEM
+    reference's discretization (Richardson), the FEM reference against the elastica (what the elastica omits:
+    shear, the finite thickness, the material's nonlinearity), each beam family's truncation (against the
+    elastica, which a bending-only beam converges to) at its fewest and most modes, and the beams' time
+    integration (tip at the end of the dynamics run with dt against dt/2, ``info["time_integration"]``)."""
+    L = info["length"]
+    rt = info["richardson"]["tip"]
+    el = info["elastica"]
+    budget = {"reference_discretization": rt["error"] / L, "reference_order": rt["order"],
+              "reference_vs_elastica": el["tip"], "beams": []}
+    lines = [f"reference discretization (Richardson on h, h/2, h/4 of the P2 mixed tip): {100 * rt['error'] / L:.4f} "
+             f"% of L (observed order {rt['order']:.2f})",
+             f"reference vs the elastica (the closed form omits shear and thickness, ~(H/L)^2, and the material's "
+             f"nonlinearity): {100 * el['tip']:.4f} % of L (tip deflection {1e3 * el['tip_deflection']:.3f} mm; "
+             f"linear Euler-Bernoulli {1e3 * el['euler_bernoulli_linear']:.3f} mm)"]
+    for fam in BEAM_FAMILIES:
+        r = [row for row in rows if row["family"] == fam and "tip_elastica" in row]
+        if not r:
+            continue
+        lo, hi = r[0], r[-1]
+        budget["beams"].append({"family": fam, "modes": [lo["modes"], hi["modes"]],
+                                "truncation": [lo["tip_elastica"], hi["tip_elastica"]]})
+        lines.append(f"{fam}: basis truncation (beam vs elastica) {100 * lo['tip_elastica']:.4f} % at "
+                     f"{lo['modes']} modes, {100 * hi['tip_elastica']:.2e} % at {hi['modes']}")
+    ti = info.get("time_integration")
+    if ti:
+        budget["time_integration"] = ti
+        lines.append(f"time integration ({ti['family']} {ti['modes']} modes, implicit midpoint, dt = "
+                     f"{1e3 * ti['dt']:.2f} ms vs dt/2, tip after {ti['t']:g} s): {100 * ti['error']:.4f} % of L")
+    lines.append("identification: none (the cantilever's beams are physical: plane-strain modulus, no fitted "
+                 "actuation)")
+    return "\n".join(lines), budget
+
+
+def _fmt(row, key, spec):
+    v = row.get(key)
+    return format(v, spec) if v is not None and np.isfinite(v) else "-"
+
+
+def cost_table(rows):
+    """The costs beyond the solve time, as text: memory (peak RSS added during the rung [MB]; for beams also
+    the peak of numpy/Python allocations during build and solve, tracemalloc [kB]) and wall time per simulated
+    second of dynamics."""
+    head = f"{'family':<12} {'size':>11} {'tip vs elastica %':>17} {'peak RSS +MB':>12} {'alloc kB':>9} {'s per sim s':>11}"
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        pe = dict(r, tip_elastica=100 * r["tip_elastica"]) if r.get("tip_elastica") is not None else r
+        lines.append(f"{r['family']:<12} {_label(r):>11} {_fmt(pe, 'tip_elastica', '.4f'):>17} {_fmt(r, 'rss_mb', '.1f'):>12} "
+                     f"{_fmt(r, 'alloc_kb', '.0f'):>9} {_fmt(r, 'sim_s_per_s', '.3f'):>11}")
+    lines.append("peak RSS: VmHWM reset per rung (/proc/self/clear_refs) minus the RSS at its start (page "
+                 "resolution: 0.0 = below 4 kB pages touched); s per sim s: wall time of a dynamics run / its "
+                 "simulated time (FEM: generalized-alpha on the coarsest displacement rungs; sorofem has no dynamics "
+                 "for the mixed formulation)")
+    return "\n".join(lines)
 
 
 # ------------------------------------------------------------------------------------------------ Pareto
@@ -977,7 +1090,9 @@ def write_model(row, scene, path, measure, tolerance):
     if "_shapes" in row:
         from soroshapes.io import save_beam
 
-        ident = row["_ident"]
+        ident = row["_ident"]     # None: a physical beam (the cantilever's), its loads are the scene's
+        if ident is None:
+            return save_beam(path, row["_shapes"], {}, {}, meta=meta)
         return save_beam(path, row["_shapes"], ident.coefficients, ident.volume_models, meta=meta)
     from sorofem.io import atomic_path
     degree, mixed = FEM_FAMILIES[row["family"]]
@@ -994,7 +1109,9 @@ def load_model(path):
     (the FEM rung rebuilt at the scene's top pressure, :func:`demos.pneunet_inflation.build`)."""
     doc = json.loads(Path(path).read_text())
     if doc.get("format") == "soro-fem-rung":
-        sc = Scene(**{k: tuple(v) if isinstance(v, list) else v for k, v in doc["meta"]["scene"].items()})
+        sc = _scene_from(doc["meta"]["scene"])
+        if isinstance(sc, CantileverScene):
+            return "fem", _cantilever_fem(sc, doc["degree"], doc["mixed"], doc["size"]), sc.length
         fem, length = _pneunet().build(2, sc.chambers, doc["size"], sc.p_max, degree=doc["degree"],
                                        mixed=doc["mixed"])
         return "fem", fem, length
@@ -1011,6 +1128,8 @@ def validate(path, scene, out, measure):
     from soroshapes.dvs import recover_strains
 
     out = Path(out)
+    if isinstance(scene, CantileverScene):
+        return _validate_cantilever(path, scene, out, measure)
     pn = _pneunet()
     doc = json.loads((out / "fem.json").read_text())
     L = doc["length"]
@@ -1108,17 +1227,23 @@ def run_ladder(scene_name="pneunet2d", tolerance=None, measure="tip", out=None, 
         print(f"soro trade: {e}", file=sys.stderr)
         return 2
     scene = SCENES[scene_name]["quick" if quick else "full"]
+    if isinstance(scene, CantileverScene) and measure == "volume":
+        print("soro trade: the cantilever has no cavity: use --measure tip or shape", file=sys.stderr)
+        return 2
     out = Path(out or Path("out") / "ladder" / scene_name)
     try:
         rows, info = ladder(scene, out, progress=lambda m: print(m, file=stream, flush=True))
     except SoroError as e:
         print(f"soro trade: {e}", file=sys.stderr)
         return 2
+    cant = isinstance(scene, CantileverScene)
     pick = select(rows, tol, measure) if tol is not None else None
     table = ladder_table(rows, tol, measure)
-    budget_text, budget = error_budget(rows, info)
+    budget_text, budget = cantilever_budget(rows, info) if cant else error_budget(rows, info)
     text = table + "\n\nerror budget (tip)\n" + budget_text
-    for m in MEASURES:
+    if cant:
+        text += "\n\ncosts\n" + cost_table(rows)
+    for m in (("tip", "shape") if cant else MEASURES):
         fig = ladder_figure(rows, m, tol if m == measure else None, pick if m == measure else None)
         with atomic_path(out / f"ladder_{m}.png") as tmp:
             fig.savefig(tmp, dpi=110, format="png")
@@ -1147,7 +1272,7 @@ def run_ladder(scene_name="pneunet2d", tolerance=None, measure="tip", out=None, 
                 val = validate(path, scene, out, measure)
             verdict = (f"selected: {pick['family']} {_label(pick)} ({100 * pick[f'{measure}_unseen']:.4g} % "
                        f"on the unseen loads, {1e3 * pick['solve_time_s']:.3f} ms per solve, median); model file "
-                       f"{path}; validation load {scene.validation_level:g} x p_max: {100 * val:.4g} % "
+                       f"{path}; validation load {scene.validation_level:g} x the top load: {100 * val:.4g} % "
                        f"{'(the reference itself: its Richardson estimate) ' if pick.get('estimated') else ''}"
                        f"({'within' if val <= tol else 'NOT within'} {100 * tol:g} %)")
             result.update(selected={"family": pick["family"], "modes": pick["modes"], "model": str(path)},
