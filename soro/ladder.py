@@ -33,6 +33,12 @@ median solve time, ties within :data:`soro.trade.TIME_BAND` go to fewer unknowns
 model file (:mod:`soroshapes.io` for a beam; a ``soro-fem-rung`` JSON for a FEM rung, :func:`load_model`
 reads both), validated on the validation load; ``soro play soro.ladder:selected`` drives the selected beam live
 (:func:`selected`).
+
+Scenes: ``pneunet2d`` (:class:`Scene`, beams identified on FEM data) and ``cantilever``
+(:class:`CantileverScene`: a soft strip under a dead tip load, plane strain; the closed-form elastica
+(:func:`elastica`) is a second reference beside the FEM one; its beams are physical, nothing identified; its
+solve times are CPU times; it also measures memory per rung and the wall time per simulated second,
+:func:`cost_table`, and its own error budget, :func:`cantilever_budget`).
 """
 from __future__ import annotations
 
@@ -726,7 +732,8 @@ def cantilever_beam_ladder(scene, doc, out):
     against the FEM reference (``*_unseen``; the top level against its backbone) and against the elastica
     (``tip_elastica``); costs: build (the DVS's includes the FEM training ramp), median static solve
     (interleaved), memory (peak RSS during build, solve and dynamics run minus the RSS at the rung's start,
-    as the FEM rungs; the numba kernels are compiled beforehand), and the time per simulated second (implicit midpoint, ``dt_beam``, released from rest)."""
+    as the FEM rungs; the numba kernels are compiled beforehand), and the time per simulated second (implicit
+    midpoint, ``dt_beam``, released from rest)."""
     import tracemalloc
 
     from soroshapes.dvs import Backbone, recover_strains
@@ -768,7 +775,8 @@ def cantilever_beam_ladder(scene, doc, out):
             rows.append({"family": fam, "modes": k, "unknowns": k, "size": None, "estimated": False,
                          "build_s": t_build, "tip_unseen": tip, "shape_unseen": shape, "volume_unseen": np.nan,
                          "tip_elastica": tip_el, "shape_elastica": shape_el,
-                         "freq": None, "sim_s_per_s": t_dyn / scene.t_dyn, "rss_mb": _peak_rss_mb() - base, "alloc_kb": alloc_kb,
+                         "freq": None, "sim_s_per_s": t_dyn / scene.t_dyn, "rss_mb": _peak_rss_mb() - base,
+                         "alloc_kb": alloc_kb,
                          "_shapes": shp, "_bd": bd, "_ident": None})
             if doc["rungs"][-1].get("freq"):
                 f0 = doc["rungs"][-1]["freq"]
@@ -903,11 +911,13 @@ def cost_table(rows):
     """The costs beyond the solve time, as text: memory (peak RSS added during the rung [MB]; for beams also
     the peak of numpy/Python allocations during build and solve, tracemalloc [kB]) and wall time per simulated
     second of dynamics."""
-    head = f"{'family':<12} {'size':>11} {'tip vs elastica %':>17} {'peak RSS +MB':>12} {'alloc kB':>9} {'s per sim s':>11}"
+    head = (f"{'family':<12} {'size':>11} {'tip vs elastica %':>17} {'peak RSS +MB':>12} {'alloc kB':>9} "
+            f"{'s per sim s':>11}")
     lines = [head, "-" * len(head)]
     for r in rows:
         pe = dict(r, tip_elastica=100 * r["tip_elastica"]) if r.get("tip_elastica") is not None else r
-        lines.append(f"{r['family']:<12} {_label(r):>11} {_fmt(pe, 'tip_elastica', '.4f'):>17} {_fmt(r, 'rss_mb', '.1f'):>12} "
+        lines.append(f"{r['family']:<12} {_label(r):>11} {_fmt(pe, 'tip_elastica', '.4f'):>17} "
+                     f"{_fmt(r, 'rss_mb', '.1f'):>12} "
                      f"{_fmt(r, 'alloc_kb', '.0f'):>9} {_fmt(r, 'sim_s_per_s', '.3f'):>11}")
     lines.append("peak RSS: VmHWM reset per rung (/proc/self/clear_refs) minus the RSS at its start (page "
                  "resolution: 0.0 = below 4 kB pages touched); s per sim s: wall time of a dynamics run / its "
