@@ -1038,7 +1038,7 @@ def _beam_model(bi, bint, bflt, bintb):
 def _beam_input_force(xo, n, m, bflt, go, w, wo, bext, f_in, deg=1, ho=0):
     """The generalized force of beam inputs and couplings, :math:`G u` plus a grasp's share, into f_in (G the
     (n, m) input matrix at bflt[go:]); with ``deg`` > 1 (issue 24: identified polynomial actuators) plus
-    :math:`\sum_{d=2}^{deg} C_d u^d` elementwise in u, the (deg-1, n, m) coefficients at bflt[ho:]."""
+    :math:`\\sum_{d=2}^{deg} C_d u^d` elementwise in u, the (deg-1, n, m) coefficients at bflt[ho:]."""
     for k in range(n):
         s = bext[xo + k]                            # forces of couplings (a grasp)
         for j in range(m):
