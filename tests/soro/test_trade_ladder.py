@@ -281,3 +281,30 @@ def test_the_cantilever_selection_is_written_validated_and_repeatable(cantilever
     assert validate(path, scene, out, "tip") <= 0.01
     again = select(ladder(scene, out)[0], 0.01, "tip")
     assert (again["family"], again["modes"]) == (pick["family"], pick["modes"])
+
+
+def test_a_polynomial_actuator_runs_compiled_in_a_network_and_matches_the_python_path():
+    """An identified actuator tau(u) = c1 u + c2 u^2 + c3 u^3 (soroshapes.dvs.PolynomialForce) beside a linear
+    one on a second beam: the network lowers (evaluation_path "compiled") and its trajectory equals the Python
+    path's to 10 x the Newton tolerance (as tests/soroshapes/test_network.py); a cubic term that matters (the u^3 part is ~30 % of the force at the top
+    input) so that a kernel ignoring it would be off by far more."""
+    from sorofem import materials, sdf
+    from soroshapes import Basis, Model, Shapes
+    from soroshapes.dvs import PolynomialForce
+    from soroshapes.network import Schedule
+
+    def beam():
+        return Shapes(Basis.chebyshev(2), (0, 0, 2, 0, 0, 0), length=0.08, section=sdf.Rectangle(0.01, 0.01),
+                      material=materials.Ecoflex0030(), damping=0.01, segments=12)
+    c = np.array([[2e-7, 5e-8], [1e-11, -2e-12], [6e-15, 2e-16]])          # (degree 3, n 2), u in Pa
+    a = beam().add_actuator(PolynomialForce(c), name="p")
+    b = beam().add_actuator(c[0].copy(), name="p")
+    mdl = Model().add(a, "poly").add(b, "lin")
+    mdl.set_controller(Schedule([0.0, 0.05, 0.2], {"poly": [[0.0], [3e3], [3e3]], "lin": [[0.0], [3e3], [3e3]]}))
+    assert mdl.evaluation_path == "compiled"
+    fast = mdl.simulate(0.2, 2e-3)
+    slow = mdl.simulate(0.2, 2e-3, compiled=False)
+    np.testing.assert_allclose(fast.x, slow.x, rtol=1e-5, atol=1e-8)     # 10 x the Newton tolerance (rtol 1e-6)
+    u = 3e3
+    assert abs(c[2, 0] * u ** 3) > 0.2 * abs(c[0, 0] * u)            # the cubic term matters
+    assert not np.allclose(fast["poly"].x[-1], fast["lin"].x[-1], rtol=0.05)
