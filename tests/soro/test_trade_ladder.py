@@ -308,3 +308,18 @@ def test_a_polynomial_actuator_runs_compiled_in_a_network_and_matches_the_python
     u = 3e3
     assert abs(c[2, 0] * u ** 3) > 0.2 * abs(c[0, 0] * u)            # the cubic term matters
     assert not np.allclose(fast["poly"].x[-1], fast["lin"].x[-1], rtol=0.05)
+
+
+def test_a_controller_on_a_polynomial_beam_keeps_the_python_path():
+    """A compiled controller maps torques to inputs by G+ (linear inputs): on a beam with a polynomial actuator
+    the network refuses to lower it and says why (the Python path maps through Shapes.input_map)."""
+    from sorofem import materials, sdf
+    from soroshapes import Basis, Model, Shapes
+    from soroshapes.control import gravity_compensation
+    from soroshapes.dvs import PolynomialForce
+
+    shp = Shapes(Basis.chebyshev(2), (0, 0, 2, 0, 0, 0), length=0.08, section=sdf.Rectangle(0.01, 0.01),
+                 material=materials.Ecoflex0030(), damping=0.01, segments=12)
+    shp.add_actuator(PolynomialForce(np.array([[2e-7, 5e-8], [1e-11, -2e-12]])), name="p")
+    mdl = Model().add(shp, "poly").set_controller(gravity_compensation("poly"))
+    assert mdl.evaluation_path.startswith("python") and "polynomial actuator" in mdl.evaluation_path
