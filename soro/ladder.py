@@ -33,6 +33,12 @@ median solve time, ties within :data:`soro.trade.TIME_BAND` go to fewer unknowns
 model file (:mod:`soroshapes.io` for a beam; a ``soro-fem-rung`` JSON for a FEM rung, :func:`load_model`
 reads both), validated on the validation load; ``soro play soro.ladder:selected`` drives the selected beam live
 (:func:`selected`).
+
+Scenes: ``pneunet2d`` (:class:`Scene`, beams identified on FEM data) and ``cantilever``
+(:class:`CantileverScene`: a soft strip under a dead tip load, plane strain; the closed-form elastica
+(:func:`elastica`) is a second reference beside the FEM one; its beams are physical, nothing identified; its
+solve times are CPU times; it also measures memory per rung and the wall time per simulated second,
+:func:`cost_table`, and its own error budget, :func:`cantilever_budget`).
 """
 from __future__ import annotations
 
@@ -47,7 +53,9 @@ import numpy as np
 from sorofem.errors import ParameterError, SoroError
 
 __all__ = ["Scene", "SCENES", "MEASURES", "FEM_FAMILIES", "BEAM_FAMILIES", "richardson", "fem_ladder",
-           "beam_ladder", "ladder", "pareto_front", "ladder_table", "ladder_figure", "error_budget", "select",
+           "beam_ladder", "ladder", "pareto_front", "CantileverScene", "elastica", "cantilever_fem_ladder",
+           "cantilever_beam_ladder", "cantilever_ladder", "cantilever_budget", "cost_table", "ladder_table",
+           "ladder_figure", "error_budget", "select",
            "write_model", "load_model", "validate", "run_ladder", "parse_tolerance", "beam_within",
            "strain_floor", "selected"]
 
@@ -263,7 +271,8 @@ def _fem_rows(doc):
         row = {"family": r["family"], "modes": r["unknowns"], "unknowns": r["unknowns"], "size": r["size"],
                "tip_unseen": float(np.linalg.norm(P[-1] - Pref[-1]) / L),
                "shape_unseen": float(np.sqrt(np.mean(np.sum((P - Pref) ** 2, axis=1))) / L),
-               "volume_unseen": abs((r["volume"] - r["volume_rest"]) - (ref["volume"] - ref["volume_rest"])) / dv,
+               "volume_unseen": (abs((r["volume"] - r["volume_rest"]) - (ref["volume"] - ref["volume_rest"])) / dv
+                                 if dv > 0 else float("nan")),     # no cavity (the cantilever): no volume
                "build_s": float(np.median(r["build_s"])), "solve_time_s": float(np.median(r["solve_s"])),
                "solve_iqr_s": _iqr(r["solve_s"]), "estimated": r is ref}
         if r["freq"] is not None and ref["freq"]:
@@ -271,7 +280,7 @@ def _fem_rows(doc):
         if r is ref:     # the reference against the limit: Richardson
             row["tip_unseen"] = rich["tip"]["error"] / L
             row["shape_unseen"] = rich["shape"]["error"] / np.sqrt(len(P)) / L
-            row["volume_unseen"] = rich["volume"]["error"] / dv
+            row["volume_unseen"] = rich["volume"]["error"] / dv if dv > 0 else float("nan")
             if "freq" in rich:
                 row["freq"] = rich["freq"]["error"] / ref["freq"]
         rows.append(row)
@@ -435,10 +444,486 @@ def ladder(scene, out, progress=None):
     """The whole ladder: (rows, info) with the FEM rows first (:func:`fem_ladder`, cached in ``out``) then the
     beam rows (:func:`beam_ladder`, measured on every call), and ``info`` with the reference's Richardson
     estimates ``richardson`` (per measure), ``length`` [m] and the FEM document ``fem``."""
+    if isinstance(scene, CantileverScene):
+        return cantilever_ladder(scene, out, progress)
     doc = fem_ladder(scene, out, progress)
     fem_rows, rich = _fem_rows(doc)
     rows = fem_rows + beam_ladder(scene, doc, out)
     return rows, {"richardson": rich, "length": doc["length"], "fem": doc}
+
+
+# ------------------------------------------------------------------------------------------------ cantilever
+@dataclass(frozen=True)
+class CantileverScene:
+    r"""A soft rectangular cantilever (plane strain, clamped at x = 0, along +x) under a dead tip load along -y
+    of :math:`P = ` ``tip_load`` :math:`EI/L^2` at load level 1 (2: tip rotation ~ 0.8 rad, surface strain ~
+    5 %) and, with ``gravity``, its own weight (ramped with it; off by default: a silicone strip this size
+    would sag by more than its length; see also the note on stiffness below): the
+    classic case with a closed form, the inextensible elastica :func:`elastica` (a second reference beside the
+    finest P2 mixed FEM and its Richardson estimate). ``length`` x ``height`` [m], neo-Hookean ``E`` [Pa],
+    ``nu``, ``density`` [kg/m^3]; FEM element sizes ``size``, /2, /4 [m]; load levels as :class:`Scene`;
+    ``t_dyn`` [s]: the dynamics run that measures the time per simulated second (the body released from rest
+    under its full load), beams with step ``dt_beam`` [s], the coarsest FEM rungs with ``dt_fem`` [s].
+
+    The modulus is soft (100 kPa): with E = 2 MPa and nu = 0.49 the P2 mixed model did not converge even at
+    zero load (Newton's increment test mixes the pressure field [Pa] with the displacement [m]; a sorofem
+    issue, reported)."""
+
+    name: str = "cantilever"
+    length: float = 0.1
+    height: float = 5e-3
+    E: float = 100e3
+    nu: float = 0.49
+    density: float = 1070.0
+    tip_load: float = 2.0
+    gravity: bool = False
+    size: float = 2.5e-3
+    train_steps: int = 8
+    test_level: float = 0.85
+    test_steps: int = 4
+    validation_level: float = 0.65
+    modes: tuple = (1, 2, 3, 4, 5, 6)
+    fem_families: tuple = tuple(FEM_FAMILIES)
+    repeats: int = 7
+    fem_repeats: int = 1
+    eigen: bool = True
+    t_dyn: float = 0.25
+    dt_beam: float = 2.5e-3
+    dt_fem: float = 5e-3
+    fem_dynamics: bool = True
+
+    sizes = Scene.sizes
+    fem_settings = Scene.fem_settings
+
+    def material(self):
+        from sorofem import materials
+
+        return materials.NeoHookean(E=self.E, nu=self.nu, density=self.density)
+
+    def loads(self):
+        """(w [N/m per m of depth], P [N per m of depth]): the weight per length (0 without ``gravity``) and
+        the tip load at level 1."""
+        w = self.density * 9.80665 * self.height if self.gravity else 0.0
+        return w, self.tip_load * self.EI() / self.length ** 2
+
+    def EI(self):
+        """Plane-strain bending stiffness per m of depth [N m]: E/(1 - nu^2) h^3/12."""
+        return self.E / (1 - self.nu ** 2) * self.height ** 3 / 12
+
+
+SCENES["cantilever"] = {"full": CantileverScene(repeats=15, fem_repeats=3),
+                        "quick": CantileverScene(size=5e-3, modes=(1, 2, 3, 4), fem_families=("fem-p1", "fem-p2mixed"),
+                                                 repeats=5, eigen=False, t_dyn=0.05)}
+
+
+def elastica(L, EI, w, P, sigma, tol=1e-10):
+    r"""The inextensible, unshearable clamped elastica under a distributed dead load ``w`` [N/m] and a dead tip
+    load ``P`` [N], both along -y: :math:`EI\,\theta'' = (P + w\,(L - s))\cos\theta`, :math:`\theta(0) = 0`,
+    :math:`\theta'(L) = 0`, :math:`x' = \cos\theta`, :math:`y' = \sin\theta`; scipy's collocation BVP solver by
+    continuation in the load from the linear (Euler-Bernoulli) shape. Returns the backbone (len(sigma), 3) [m]
+    at arc lengths ``sigma``. Its small-load limit is :math:`y(L) = -wL^4/(8EI) - PL^3/(3EI)`."""
+    from scipy.integrate import solve_bvp
+
+    s = np.linspace(0.0, L, 201)
+    slope = (w * L ** 3 / 6 + P * L ** 2 / 2) / EI          # the linear tip slope [rad]
+    steps = max(1, int(np.ceil(slope / 0.3)))
+    y = np.zeros((4, len(s)))
+    y[2] = s
+
+    def bc(ya, yb):
+        return np.array([ya[0], yb[1], ya[2], ya[3]])
+    sol = None
+    for i in range(1, steps + 1):
+        a = i / steps
+
+        def rhs(s, y, a=a):
+            return np.vstack([y[1], a * (P + w * (L - s)) * np.cos(y[0]) / EI, np.cos(y[0]), np.sin(y[0])])
+        sol = solve_bvp(rhs, bc, s if sol is None else sol.x, y if sol is None else sol.y, tol=tol,
+                        max_nodes=100000)
+        if not sol.success:
+            raise SoroError(f"the elastica BVP did not converge at load step {i}/{steps}: {sol.message}")
+    Y = sol.sol(np.asarray(sigma, dtype=float))
+    return np.column_stack([Y[2], Y[3], np.zeros(len(sigma))])
+
+
+def _peak_rss_reset():
+    """Reset the process's peak resident set size (Linux: ``/proc/self/clear_refs`` ``5``); False if not
+    possible (then the peak is the process's peak so far)."""
+    try:
+        Path("/proc/self/clear_refs").write_text("5")
+        return True
+    except OSError:
+        return False
+
+
+def _peak_rss_mb(key="VmHWM"):
+    """The process's peak resident set size [MB] (``VmHWM`` of /proc/self/status; ru_maxrss elsewhere), or
+    with ``key="VmRSS"`` the current one."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith(key + ":"):
+                return float(line.split()[1]) / 1024
+    except OSError:
+        pass
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def _cantilever_fem(scene, degree, mixed, size):
+    from sorofem.fem import Fem
+    from sorofem.mesh import Mesh
+
+    w, P = scene.loads()
+    msh = Mesh.rectangle(scene.length, scene.height, size=size, center=(scene.length / 2, 0.0))
+    fem = Fem(msh, scene.material(), degree=degree, mixed=mixed)
+    fem.add_support("left").add_traction("right", [0.0, -P / scene.height])
+    if scene.gravity:
+        fem.add_gravity()
+    return fem
+
+
+def _midline(scene, samples=81):
+    return np.linspace(0.0, scene.length, samples)
+
+
+def _fem_backbone(scene, fem, sigma):
+    X = np.column_stack([sigma, np.zeros_like(sigma)])
+    X[-1, 0] *= 1 - 1e-12                                 # inside the mesh
+    u = fem.evaluate(X)
+    return np.column_stack([sigma + u[:, 0], u[:, 1], np.zeros(len(sigma))])
+
+
+def cantilever_fem_ladder(scene, out, progress=None):
+    """The FEM part of the cantilever's ladder (as :func:`fem_ladder`; cached and resumable in ``out``): per
+    rung the backbone at the top unseen load, the build and solve times, the first frequency, the memory of
+    its build and solve (``rss_mb``: the process's peak RSS, VmHWM, reset before the rung, minus the RSS at
+    its start; the JIT-compiled forms are loaded beforehand) and, for the coarsest
+    mesh of each family, the wall time of ``t_dyn`` simulated seconds (``dyn_s``; generalized-alpha, step
+    ``dt_fem``) and the tip at its end (``dyn_tip``)."""
+    from sorofem.io import atomic_path
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    cache = out / "fem.json"
+    if cache.is_file():
+        doc = json.loads(cache.read_text())
+        if doc.get("settings") == scene.fem_settings():
+            return doc
+    say = progress or (lambda msg: None)
+    sigma = _midline(scene)
+    rungs = []
+    for fam in scene.fem_families:
+        degree, mixed = FEM_FAMILIES[fam]
+        warm = False
+        for i, h in enumerate(scene.sizes()):
+            path = out / f"{fam}-h{i}.h5"
+            done = out / f"{fam}-h{i}.json"
+            if done.is_file():
+                rec = json.loads(done.read_text())
+                if rec.get("settings") == scene.fem_settings() and path.is_file():
+                    rungs.append(rec["rung"])
+                    continue
+            if not warm:        # compile the family's forms outside the timings
+                _cantilever_fem(scene, degree, mixed, scene.size).solve(load_level=0.01, steps=1, progress=False)
+                warm = True
+            builds, solves, rss, walls = [], [], [], []
+            for rep in range(max(1, scene.fem_repeats)):
+                _peak_rss_reset()
+                base = _peak_rss_mb("VmRSS")
+                t0 = time.perf_counter()
+                fem = _cantilever_fem(scene, degree, mixed, h)
+                t1, c1 = time.perf_counter(), time.process_time()
+                traj = fem.solve(load_level=scene.test_level, steps=scene.test_steps,
+                                 max_step=scene.test_level / scene.test_steps, progress=False)
+                t2, c2 = time.perf_counter(), time.process_time()
+                rss.append(_peak_rss_mb() - base)
+                builds.append(t1 - t0)
+                solves.append(c2 - c1)           # CPU time, as the beams' (see _time_statics)
+                walls.append(t2 - t1)
+                if t2 - t1 > SLOW_FEM_S:
+                    break
+            traj.save(path)
+            P = _fem_backbone(scene, fem, sigma)
+            freq = None
+            if scene.eigen:
+                freq = float(_cantilever_fem(scene, degree, mixed, h).eigen(n=1).frequencies[0])
+            rung = {"family": fam, "level": i, "size": h, "degree": degree, "mixed": mixed,
+                    "unknowns": int(fem.num_dofs), "tip": P[-1].tolist(), "backbone": P.tolist(),
+                    "volume": 0.0, "volume_rest": 0.0, "freq": freq, "build_s": builds, "solve_s": solves,
+                    "solve_wall_s": walls, "rss_mb": float(np.median(rss)), "path": path.name}
+            if scene.fem_dynamics and i == 0 and not mixed:   # sorofem's dynamics: displacement formulation only
+                dyn = _cantilever_fem(scene, degree, mixed, h)
+                t0 = time.perf_counter()
+                dyn.simulate(scene.t_dyn, scene.dt_fem, record_every=1000, progress=False)
+                rung["dyn_s"] = time.perf_counter() - t0
+                rung["dyn_tip"] = _fem_backbone(scene, dyn, sigma)[-1].tolist()
+            rungs.append(rung)
+            with atomic_path(done) as tmp:
+                Path(tmp).write_text(json.dumps({"settings": scene.fem_settings(), "rung": rung}))
+            say(f"cantilever {fam} h={1e3 * h:.3f} mm: solve {np.median(solves):.2f} s, {rung['unknowns']} dofs, "
+                f"peak RSS {rung['rss_mb']:.0f} MB")
+    ref = rungs[-1]
+    degree, mixed = FEM_FAMILIES[ref["family"]]
+    fem = _cantilever_fem(scene, degree, mixed, ref["size"])
+    t0 = time.perf_counter()
+    fem.solve(load_level=1.0, steps=scene.train_steps, max_step=1.0 / scene.train_steps,
+              progress=False).save(out / "train.h5")
+    t_train = time.perf_counter() - t0
+    fem = _cantilever_fem(scene, degree, mixed, ref["size"])
+    fem.solve(load_level=scene.validation_level, steps=scene.test_steps,
+              max_step=scene.validation_level / scene.test_steps, progress=False)
+    w, Pt = scene.loads()
+    doc = {"settings": scene.fem_settings(), "length": scene.length, "rungs": rungs,
+           "reference": {"family": ref["family"], "size": ref["size"], "train": "train.h5", "unseen": ref["path"],
+                         "validation_backbone": _fem_backbone(scene, fem, sigma).tolist(), "train_s": t_train},
+           "elastica": {"unseen": elastica(scene.length, scene.EI(), scene.test_level * w, scene.test_level * Pt,
+                                           sigma).tolist(),
+                        "validation": elastica(scene.length, scene.EI(), scene.validation_level * w,
+                                               scene.validation_level * Pt, sigma).tolist()}}
+    with atomic_path(cache) as tmp:
+        Path(tmp).write_text(json.dumps(doc))
+    return doc
+
+
+_CANTILEVER_DEPTH = 0.01    # [m] of the beam rungs' section (plane strain: any depth, the loads scale with it)
+
+
+def _cantilever_beam(scene, bases, dofs, level=1.0, segments=40):
+    """The beam rung: bending-only Cosserat beam with the plane-strain modulus E/(1 - nu^2), a section of the
+    height (along body y: in-plane bending about z) x 10 mm (any depth: the loads scale with it), gravity and
+    the tip load at ``level``."""
+    from sorofem import sdf
+    from soroshapes import Shapes
+
+    depth = _CANTILEVER_DEPTH
+    w, P = scene.loads()
+    shp = Shapes(bases, dofs, length=scene.length, section=sdf.Rectangle(scene.height, depth),   # (body y, z)
+                 material=scene.material(), E=scene.E / (1 - scene.nu ** 2), damping=0.0, segments=segments)
+    if scene.gravity:
+        shp.add_gravity((0.0, -9.80665 * level, 0.0))
+    shp.add_point_load(force=(0.0, -level * P * depth, 0.0))
+    return shp
+
+
+def _cantilever_bases(fam, k, train):
+    from soroshapes.basis import Basis
+    from soroshapes.dvs import dvs_basis
+
+    dofs = (0, 0, k, 0, 0, 0)
+    if fam == "dvs":
+        bases, kept, _ = dvs_basis(train, dofs)
+        return (bases, dofs) if kept[2] >= k else None
+    if fam == "chebyshev":
+        return [Basis.chebyshev(k).orthonormalize(train.length) if i == 2 else None for i in range(6)], dofs
+    if fam == "pcc":
+        return [Basis.pcc(k) if i == 2 else None for i in range(6)], dofs
+    raise ParameterError(f"unknown beam family {fam!r}: use {', '.join(BEAM_FAMILIES)}")
+
+
+def _errors(P, Pref, L):
+    return (float(np.linalg.norm(P[-1] - Pref[-1]) / L),
+            float(np.sqrt(np.mean(np.sum((P - Pref) ** 2, axis=1))) / L))
+
+
+def cantilever_beam_ladder(scene, doc, out):
+    """The beam rungs of the cantilever: DVS (POD of the reference's training snapshots), Chebyshev and PCC
+    with 1-6 bending modes, physical (plane-strain modulus; nothing identified). Errors on the unseen levels
+    against the FEM reference (``*_unseen``; the top level against its backbone) and against the elastica
+    (``tip_elastica``); costs: build (the DVS's includes the FEM training ramp), median static solve
+    (interleaved), memory (peak RSS during build, solve and dynamics run minus the RSS at the rung's start,
+    as the FEM rungs; the numba kernels are compiled beforehand), and the time per simulated second (implicit
+    midpoint, ``dt_beam``, released from rest)."""
+    import tracemalloc
+
+    from soroshapes.dvs import Backbone, recover_strains
+
+    out = Path(out)
+    L = scene.length
+    sigma = _midline(scene)
+    t0 = time.perf_counter()
+    train = recover_strains(out / doc["reference"]["train"], Backbone.line([0.0, 0.0], [L, 0.0]), samples=81)
+    t_recover = time.perf_counter() - t0
+    Pref = np.asarray(doc["rungs"][-1]["backbone"])
+    Pel = np.asarray(doc["elastica"]["unseen"])
+    warm = _cantilever_beam(scene, *_cantilever_bases("chebyshev", 1, train))
+    warm.statics(steps=2)
+    warm.simulate(10 * scene.dt_beam, scene.dt_beam)
+    rows = []
+    for fam in BEAM_FAMILIES:
+        for k in scene.modes:
+            _peak_rss_reset()
+            base = _peak_rss_mb("VmRSS")
+            t0 = time.perf_counter()
+            bd = _cantilever_bases(fam, k, train)
+            if bd is None:
+                continue
+            shp = _cantilever_beam(scene, *bd, level=scene.test_level)
+            q = shp.statics(steps=4)
+            t_build = time.perf_counter() - t0 + (t_recover + doc["reference"]["train_s"] if fam == "dvs" else 0.0)
+            tracemalloc.start()             # allocations of a second build + solve (untimed)
+            _cantilever_beam(scene, *bd, level=scene.test_level).statics(steps=4)
+            alloc_kb = tracemalloc.get_traced_memory()[1] / 1024
+            tracemalloc.stop()
+            P = _positions_at(shp, q, sigma)
+            tip, shape = _errors(P, Pref, L)
+            tip_el, shape_el = _errors(P, Pel, L)
+            dyn = _cantilever_beam(scene, *bd, level=1.0)
+            t1 = time.perf_counter()
+            dyn.simulate(scene.t_dyn, scene.dt_beam)
+            t_dyn = time.perf_counter() - t1
+            rows.append({"family": fam, "modes": k, "unknowns": k, "size": None, "estimated": False,
+                         "build_s": t_build, "tip_unseen": tip, "shape_unseen": shape, "volume_unseen": np.nan,
+                         "tip_elastica": tip_el, "shape_elastica": shape_el,
+                         "freq": None, "sim_s_per_s": t_dyn / scene.t_dyn, "rss_mb": _peak_rss_mb() - base,
+                         "alloc_kb": alloc_kb,
+                         "_shapes": shp, "_bd": bd, "_ident": None})
+            if doc["rungs"][-1].get("freq"):
+                f0 = doc["rungs"][-1]["freq"]
+                rows[-1]["freq"] = abs(float(_cantilever_beam(scene, *bd).natural_frequencies(1)[0]) - f0) / f0
+    _time_statics(rows, scene.repeats)
+    return rows
+
+
+def _time_statics(rows, repeats):
+    """``solve_time_s`` (median of the process CPU time, interleaved rounds as :func:`_time_interleaved`) of a
+    static solve from rest at the top unseen load (4 load steps) of each beam row, its IQR ``solve_iqr_s``, and
+    the wall-clock median ``solve_wall_s``. CPU time, because on a loaded machine a millisecond solve is
+    preempted in about half of the samples (wall medians of 15 interleaved repeats jumped between 1.4 and 12 ms
+    for the same model at load 10 on 2 cores); the process is single-threaded, so CPU = wall when idle."""
+    samples = [[] for _ in rows]
+    walls = [[] for _ in rows]
+    for _ in range(max(1, int(repeats))):
+        for i, r in enumerate(rows):
+            c0, t0 = time.process_time(), time.perf_counter()
+            r["_shapes"].statics(steps=4)
+            samples[i].append(time.process_time() - c0)
+            walls[i].append(time.perf_counter() - t0)
+    for r, t, tw in zip(rows, samples, walls):
+        r["solve_time_s"], r["solve_iqr_s"], r["solve_wall_s"] = float(np.median(t)), _iqr(t), float(np.median(tw))
+
+
+def cantilever_ladder(scene, out, progress=None):
+    """The cantilever's ladder: (rows, info) as :func:`ladder`; every row also carries its errors against the
+    elastica (``tip_elastica``, ``shape_elastica``), ``rss_mb`` and (beams; coarsest FEM rungs) the wall time
+    per simulated second ``sim_s_per_s``; ``info["elastica"]``: the FEM reference against the elastica."""
+    doc = cantilever_fem_ladder(scene, out, progress)
+    fem_rows, rich = _fem_rows(doc)
+    Pel = np.asarray(doc["elastica"]["unseen"])
+    for row, r in zip(fem_rows, doc["rungs"]):
+        row["tip_elastica"], row["shape_elastica"] = _errors(np.asarray(r["backbone"]), Pel, scene.length)
+        row["solve_wall_s"] = float(np.median(r["solve_wall_s"]))
+        row["rss_mb"] = r.get("rss_mb")
+        row["volume_unseen"] = np.nan
+        if "dyn_s" in r:
+            row["sim_s_per_s"] = r["dyn_s"] / scene.t_dyn
+    rows = fem_rows + cantilever_beam_ladder(scene, doc, out)
+    beams = [r for r in rows if "_bd" in r and r["family"] == "chebyshev"]
+    ti = None
+    if beams:         # time integration: the last Chebyshev beam's dynamics run with dt and dt/2
+        r = beams[-1]
+        tips = []
+        for dt in (scene.dt_beam, scene.dt_beam / 2):
+            shp = _cantilever_beam(scene, *r["_bd"], level=1.0)
+            tr = shp.simulate(scene.t_dyn, dt)
+            tips.append(shp.positions(tr.q[-1])[-1])
+        ti = {"family": r["family"], "modes": r["modes"], "dt": scene.dt_beam, "t": scene.t_dyn,
+              "error": float(np.linalg.norm(tips[0] - tips[1]) / scene.length)}
+    ref_el = _errors(np.asarray(doc["rungs"][-1]["backbone"]), Pel, scene.length)
+    w, P = scene.loads()
+    lin = scene.test_level * (w * scene.length ** 4 / 8 + P * scene.length ** 3 / 3) / scene.EI()
+    return rows, {"richardson": rich, "length": scene.length, "fem": doc, "time_integration": ti,
+                  "elastica": {"tip": ref_el[0], "shape": ref_el[1], "tip_deflection": float(-Pel[-1, 1]),
+                               "euler_bernoulli_linear": float(lin)}}
+
+
+def _scene_from(d):
+    """The scene of a model file's ``meta["scene"]`` (its dataclass fields)."""
+    d = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
+    return CantileverScene(**d) if d.get("name") == "cantilever" else Scene(**d)
+
+
+def _validate_cantilever(path, scene, out, measure):
+    """The cantilever's :func:`validate`: the model file read back, loaded at ``validation_level``, against the
+    reference's backbone there (errors as fractions of L)."""
+    if measure == "volume":
+        raise ParameterError("the cantilever has no cavity: validate on 'tip' or 'shape'")
+    doc = json.loads((Path(out) / "fem.json").read_text())
+    Pref = np.asarray(doc["reference"]["validation_backbone"])
+    sigma = _midline(scene, len(Pref))
+    kind, model, extra = load_model(path)
+    lv = scene.validation_level
+    if kind == "beam":
+        w, P = scene.loads()
+        depth = _CANTILEVER_DEPTH
+        if scene.gravity:
+            model.add_gravity((0.0, -9.80665 * lv, 0.0))
+        model.add_point_load(force=(0.0, -lv * P * depth, 0.0))
+        Pm = _positions_at(model, model.statics(steps=4), sigma)
+    else:
+        model.solve(load_level=lv, steps=scene.test_steps, max_step=lv / scene.test_steps, progress=False)
+        Pm = _fem_backbone(scene, model, sigma)
+    tip, shape = _errors(Pm, Pref, scene.length)
+    return tip if measure == "tip" else shape
+
+
+def cantilever_budget(rows, info):
+    """The cantilever's error budget (fractions of L, tip at the top unseen load), text and dict: the FEM
+    reference's discretization (Richardson), the FEM reference against the elastica (what the elastica omits:
+    shear, the finite thickness, the material's nonlinearity), each beam family's truncation (against the
+    elastica, which a bending-only beam converges to) at its fewest and most modes, and the beams' time
+    integration (tip at the end of the dynamics run with dt against dt/2, ``info["time_integration"]``)."""
+    L = info["length"]
+    rt = info["richardson"]["tip"]
+    el = info["elastica"]
+    budget = {"reference_discretization": rt["error"] / L, "reference_order": rt["order"],
+              "reference_vs_elastica": el["tip"], "beams": []}
+    lines = [f"reference discretization (Richardson on h, h/2, h/4 of the P2 mixed tip): {100 * rt['error'] / L:.4f} "
+             f"% of L (observed order {rt['order']:.2f})",
+             f"reference vs the elastica (the closed form omits shear and thickness, ~(H/L)^2, and the material's "
+             f"nonlinearity): {100 * el['tip']:.4f} % of L (tip deflection {1e3 * el['tip_deflection']:.3f} mm; "
+             f"linear Euler-Bernoulli {1e3 * el['euler_bernoulli_linear']:.3f} mm)"]
+    for fam in BEAM_FAMILIES:
+        r = [row for row in rows if row["family"] == fam and "tip_elastica" in row]
+        if not r:
+            continue
+        lo, hi = r[0], r[-1]
+        budget["beams"].append({"family": fam, "modes": [lo["modes"], hi["modes"]],
+                                "truncation": [lo["tip_elastica"], hi["tip_elastica"]]})
+        lines.append(f"{fam}: basis truncation (beam vs elastica) {100 * lo['tip_elastica']:.4f} % at "
+                     f"{lo['modes']} modes, {100 * hi['tip_elastica']:.2e} % at {hi['modes']}")
+    ti = info.get("time_integration")
+    if ti:
+        budget["time_integration"] = ti
+        lines.append(f"time integration ({ti['family']} {ti['modes']} modes, implicit midpoint, dt = "
+                     f"{1e3 * ti['dt']:.2f} ms vs dt/2, tip after {ti['t']:g} s): {100 * ti['error']:.4f} % of L")
+    lines.append("identification: none (the cantilever's beams are physical: plane-strain modulus, no fitted "
+                 "actuation)")
+    return "\n".join(lines), budget
+
+
+def _fmt(row, key, spec):
+    v = row.get(key)
+    return format(v, spec) if v is not None and np.isfinite(v) else "-"
+
+
+def cost_table(rows):
+    """The costs beyond the solve time, as text: memory (peak RSS added during the rung [MB]; for beams also
+    the peak of numpy/Python allocations during build and solve, tracemalloc [kB]) and wall time per simulated
+    second of dynamics."""
+    head = (f"{'family':<12} {'size':>11} {'tip vs elastica %':>17} {'peak RSS +MB':>12} {'alloc kB':>9} "
+            f"{'s per sim s':>11}")
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        pe = dict(r, tip_elastica=100 * r["tip_elastica"]) if r.get("tip_elastica") is not None else r
+        lines.append(f"{r['family']:<12} {_label(r):>11} {_fmt(pe, 'tip_elastica', '.4f'):>17} "
+                     f"{_fmt(r, 'rss_mb', '.1f'):>12} "
+                     f"{_fmt(r, 'alloc_kb', '.0f'):>9} {_fmt(r, 'sim_s_per_s', '.3f'):>11}")
+    lines.append("peak RSS: VmHWM reset per rung (/proc/self/clear_refs) minus the RSS at its start (page "
+                 "resolution: 0.0 = below 4 kB pages touched); s per sim s: wall time of a dynamics run / its "
+                 "simulated time (FEM: generalized-alpha on the coarsest displacement rungs; sorofem has no dynamics "
+                 "for the mixed formulation)")
+    return "\n".join(lines)
 
 
 # ------------------------------------------------------------------------------------------------ Pareto
@@ -492,10 +977,11 @@ def ladder_table(rows, tolerance=None, measure="tip"):
 _STYLE = {"fem-p1": "v-", "fem-p2": "D-", "fem-p2mixed": "P-", "dvs": "o-", "chebyshev": "s-", "pcc": "^-"}
 
 
-def ladder_figure(rows, measure, tolerance=None, pick=None):
+def ladder_figure(rows, measure, tolerance=None, pick=None, floor=None):
     """Unseen ``measure`` error vs median time per solve, log-log: one line per family through its rungs in
     order of cost, the Pareto front as a grey step line, the tolerance dotted, the reference's own estimated
-    error dashed (errors below it cannot be resolved), the selected model circled. Returns a matplotlib
+    error dashed (errors below it cannot be resolved), ``floor`` (a second reference's distance from the
+    first, the cantilever's elastica) dash-dotted, the selected model circled. Returns a matplotlib
     ``Figure``."""
     from matplotlib.figure import Figure
 
@@ -520,7 +1006,9 @@ def ladder_figure(rows, measure, tolerance=None, pick=None):
     ref = _reference_error(rows, measure)
     if ref > 0:
         ax.axhline(100 * ref, color="0.4", lw=1.0, ls="--", label="the reference's own error (Richardson)")
-    ax.set_xlabel("time per static solve from rest [s] (median)")
+    if floor is not None:       # the cantilever: the elastica's distance from the FEM reference
+        ax.axhline(100 * floor, color="tab:red", lw=1.0, ls="-.", label="the elastica vs the reference (beams' floor)")
+    ax.set_xlabel("time per static solve from rest [s] (median; the cantilever: CPU time)")
     ax.set_ylabel(f"{measure} error on unseen loads [%]")
     ax.set_title(f"fidelity ladder: {measure} (reference: finest P2 mixed, its own error by Richardson)",
                  fontsize=9)
@@ -622,7 +1110,9 @@ def write_model(row, scene, path, measure, tolerance):
     if "_shapes" in row:
         from soroshapes.io import save_beam
 
-        ident = row["_ident"]
+        ident = row["_ident"]     # None: a physical beam (the cantilever's), its loads are the scene's
+        if ident is None:
+            return save_beam(path, row["_shapes"], {}, {}, meta=meta)
         return save_beam(path, row["_shapes"], ident.coefficients, ident.volume_models, meta=meta)
     from sorofem.io import atomic_path
     degree, mixed = FEM_FAMILIES[row["family"]]
@@ -639,7 +1129,9 @@ def load_model(path):
     (the FEM rung rebuilt at the scene's top pressure, :func:`demos.pneunet_inflation.build`)."""
     doc = json.loads(Path(path).read_text())
     if doc.get("format") == "soro-fem-rung":
-        sc = Scene(**{k: tuple(v) if isinstance(v, list) else v for k, v in doc["meta"]["scene"].items()})
+        sc = _scene_from(doc["meta"]["scene"])
+        if isinstance(sc, CantileverScene):
+            return "fem", _cantilever_fem(sc, doc["degree"], doc["mixed"], doc["size"]), sc.length
         fem, length = _pneunet().build(2, sc.chambers, doc["size"], sc.p_max, degree=doc["degree"],
                                        mixed=doc["mixed"])
         return "fem", fem, length
@@ -656,6 +1148,8 @@ def validate(path, scene, out, measure):
     from soroshapes.dvs import recover_strains
 
     out = Path(out)
+    if isinstance(scene, CantileverScene):
+        return _validate_cantilever(path, scene, out, measure)
     pn = _pneunet()
     doc = json.loads((out / "fem.json").read_text())
     L = doc["length"]
@@ -753,18 +1247,25 @@ def run_ladder(scene_name="pneunet2d", tolerance=None, measure="tip", out=None, 
         print(f"soro trade: {e}", file=sys.stderr)
         return 2
     scene = SCENES[scene_name]["quick" if quick else "full"]
+    if isinstance(scene, CantileverScene) and measure == "volume":
+        print("soro trade: the cantilever has no cavity: use --measure tip or shape", file=sys.stderr)
+        return 2
     out = Path(out or Path("out") / "ladder" / scene_name)
     try:
         rows, info = ladder(scene, out, progress=lambda m: print(m, file=stream, flush=True))
     except SoroError as e:
         print(f"soro trade: {e}", file=sys.stderr)
         return 2
+    cant = isinstance(scene, CantileverScene)
     pick = select(rows, tol, measure) if tol is not None else None
     table = ladder_table(rows, tol, measure)
-    budget_text, budget = error_budget(rows, info)
+    budget_text, budget = cantilever_budget(rows, info) if cant else error_budget(rows, info)
     text = table + "\n\nerror budget (tip)\n" + budget_text
-    for m in MEASURES:
-        fig = ladder_figure(rows, m, tol if m == measure else None, pick if m == measure else None)
+    if cant:
+        text += "\n\ncosts\n" + cost_table(rows)
+    for m in (("tip", "shape") if cant else MEASURES):
+        fig = ladder_figure(rows, m, tol if m == measure else None, pick if m == measure else None,
+                            floor=info["elastica"][m] if cant else None)
         with atomic_path(out / f"ladder_{m}.png") as tmp:
             fig.savefig(tmp, dpi=110, format="png")
     status = 0
@@ -792,7 +1293,7 @@ def run_ladder(scene_name="pneunet2d", tolerance=None, measure="tip", out=None, 
                 val = validate(path, scene, out, measure)
             verdict = (f"selected: {pick['family']} {_label(pick)} ({100 * pick[f'{measure}_unseen']:.4g} % "
                        f"on the unseen loads, {1e3 * pick['solve_time_s']:.3f} ms per solve, median); model file "
-                       f"{path}; validation load {scene.validation_level:g} x p_max: {100 * val:.4g} % "
+                       f"{path}; validation load {scene.validation_level:g} x the top load: {100 * val:.4g} % "
                        f"{'(the reference itself: its Richardson estimate) ' if pick.get('estimated') else ''}"
                        f"({'within' if val <= tol else 'NOT within'} {100 * tol:g} %)")
             result.update(selected={"family": pick["family"], "modes": pick["modes"], "model": str(path)},

@@ -271,6 +271,40 @@ def _beam_ne_work(n, P):
     return (Np * 6, P * 36, P * 24, 192, 36, Np * 6 * n, Np * 6 * n, 6 * n, n * n, n * n, n, n, n, n)
 
 
+# --- issue 24 (ladder): identified polynomial actuators, compiled (begin) ---
+def _polynomial_inputs(loads, n):
+    r"""``(D, C)`` with ``C`` (D, n, m) when every input of a beam is a chamber, a linear actuator or an identified
+    polynomial actuator (:class:`soroshapes.dvs.PolynomialForce`): :math:`f_{in} = \sum_j \sum_{d=1}^{D}
+    C_{d-1,:,j}\,u_j^d`; None otherwise (a Python force keeps the Python path)."""
+    from .beam import Actuator, Chamber, input_terms
+    from .dvs import PolynomialForce
+
+    cols = []
+    for ld in input_terms(loads):
+        if isinstance(ld, Chamber):
+            cols.append(np.asarray(ld.column, float).reshape(1, n))
+        elif isinstance(ld, Actuator) and isinstance(getattr(ld.fn, "column", None), np.ndarray):
+            cols.append(np.asarray(ld.fn.column, float).reshape(1, n))
+        elif isinstance(ld, Actuator) and isinstance(ld.fn, PolynomialForce):
+            cols.append(np.asarray(ld.fn.coefficients, float).reshape(-1, n))
+        else:
+            return None
+    D = max(len(c) for c in cols)
+    C = np.zeros((D, n, len(cols)))
+    for j, c in enumerate(cols):
+        C[:len(c), :, j] = c
+    return D, C
+
+
+def _has_polynomial_actuator(shp):
+    """Whether a beam has an identified polynomial actuator (a controller's torque-to-input map :math:`G^+`
+    assumes linear inputs: refused on such a beam)."""
+    from .dvs import PolynomialForce
+
+    return any(isinstance(getattr(ld, "fn", None), PolynomialForce) for ld in shp.loads)
+# --- issue 24 (ladder): identified polynomial actuators, compiled (end) ---
+
+
 def _lower_impedance(spec, blocks, index, free_rows, inputs):
     """The set-point table and the integer and float data of a Cartesian impedance controller
     (:func:`soroshapes.control.impedance`), or NotImplementedError; ``inputs``: the beams' input matrices
@@ -297,6 +331,8 @@ def _lower_impedance(spec, blocks, index, free_rows, inputs):
     rows = [r for r in free_rows if b["woff"] <= r < b["woff"] + b["nw"]]
     if len(rows) != b["m"]:
         raise NotImplementedError(f"an impedance controller on beam {name!r} whose inputs are also coupled")
+    if _has_polynomial_actuator(shp):                  # issue 24: G+ maps torques to linear inputs only
+        raise NotImplementedError(f"an impedance controller on beam {name!r} with a polynomial actuator")
     Kn, Dn, qn, null = spec["null"](n)
     cint = [index[name], k, shp.node(spec["at"]) * shp.model.stride, int(spec["coriolis"]), int(spec["gravity"]),
             int(spec["elastic"]), int(null), len(rows), *spec["axes"], *rows]
@@ -373,6 +409,8 @@ def _lower_terms(spec, blocks, index, free_rows):
         rows = [r for r in free_rows if b["woff"] <= r < b["woff"] + b["nw"]]
         if len(rows) != b["m"]:
             raise NotImplementedError(f"a controller on beam {name!r} whose inputs are also coupled")
+        if _has_polynomial_actuator(b["system"]):      # issue 24: G+ maps torques to linear inputs only
+            raise NotImplementedError(f"a controller on beam {name!r} with a polynomial actuator")
         integral = -1
         if sp["kind"] == "joint":
             kind = _JOINT
@@ -497,10 +535,14 @@ def lower(blocks, links, volumes, controller, free):
                 raise NotImplementedError(f"beam {b['name']!r} ({shp.evaluation_path})")
             if len(plan.point_loads):
                 raise NotImplementedError(f"beam {b['name']!r} (point loads)")
-            if plan.input_matrix is None:
-                raise NotImplementedError(f"beam {b['name']!r} (a nonlinear actuator)")
+            Gin, deg, higher = plan.input_matrix, 1, None
+            if Gin is None:                             # issue 24: an identified polynomial actuator
+                poly = _polynomial_inputs(own, mdl.n)
+                if poly is None:
+                    raise NotImplementedError(f"beam {b['name']!r} (a nonlinear actuator)")
+                deg, Gin, higher = poly[0], poly[1][0], poly[1][1:]
             n, m, P, ng = mdl.n, b["m"], mdl.h.shape[0], mdl.B.shape[1]
-            arrays = [mdl.K, plan.D, plan.input_matrix, mdl.h, mdl.B, mdl.X0, mdl.base, mdl.weights, mdl.Md,
+            arrays = [mdl.K, plan.D, Gin, mdl.h, mdl.B, mdl.X0, mdl.base, mdl.weights, mdl.Md,
                       plan.gravity]
             for a, size in zip(arrays, _beam_floats(n, m, P, ng)):
                 a = np.ascontiguousarray(a, dtype=float).reshape(-1)
@@ -508,8 +550,12 @@ def lower(blocks, links, volumes, controller, free):
                     raise ParameterError(f"beam {b['name']!r}: unexpected model array size {a.size} != {size}")
                 bflt.append(a)
             bintb.append(np.asarray(mdl.rows, dtype=np.int64))
-            bint.append([n, m, P, ng, mdl.order, fo, wo, io, io + n, int(_is_planar(mdl.rows, mdl.X0))])
             fo += sum(_beam_floats(n, m, P, ng))
+            bint.append([n, m, P, ng, mdl.order, fo - sum(_beam_floats(n, m, P, ng)), wo, io, io + n,
+                         int(_is_planar(mdl.rows, mdl.X0)), deg, fo])      # issue 24: degree, higher terms at fo
+            if higher is not None:                      # issue 24: the coefficients of u^2..u^D, (D-1, n, m)
+                bflt.append(np.ascontiguousarray(higher, dtype=float).reshape(-1))
+                fo += higher.size
             wo += sum(_beam_work(n, P)) + sum(_beam_ne_work(n, P))
             bintb.append(np.zeros(n, np.int64))             # pivots
             io += 2 * n
@@ -697,7 +743,7 @@ def lower(blocks, links, volumes, controller, free):
     def cat(parts, dtype=float):
         return np.concatenate(parts).astype(dtype) if parts else np.zeros(0, dtype)
 
-    arrays = (table, np.array(bint, np.int64).reshape(-1, 10), cat(bflt), np.zeros(wo), cat(bintb, np.int64),
+    arrays = (table, np.array(bint, np.int64).reshape(-1, 12), cat(bflt), np.zeros(wo), cat(bintb, np.int64),
               np.array(fpar, float).reshape(-1, _FLUIDIC_FLOATS), np.array(mapint, np.int64).reshape(-1, 4), cat(maps),
               np.array(link_tab, np.int64).reshape(-1, 4), np.array(link_rows, np.int64),
               np.int64(ckind), np.ascontiguousarray(ctimes, float), np.ascontiguousarray(cvals, float).reshape(
@@ -998,13 +1044,18 @@ def _beam_model(bi, bint, bflt, bintb):
 
 
 @njit(cache=True)
-def _beam_input_force(xo, n, m, bflt, go, w, wo, bext, f_in):
+def _beam_input_force(xo, n, m, bflt, go, w, wo, bext, f_in, deg=1, ho=0):
     """The generalized force of beam inputs and couplings, :math:`G u` plus a grasp's share, into f_in (G the
-    (n, m) input matrix at bflt[go:])."""
+    (n, m) input matrix at bflt[go:]); with ``deg`` > 1 (issue 24: identified polynomial actuators) plus
+    :math:`\\sum_{d=2}^{deg} C_d u^d` elementwise in u, the (deg-1, n, m) coefficients at bflt[ho:]."""
     for k in range(n):
         s = bext[xo + k]                            # forces of couplings (a grasp)
         for j in range(m):
             s += bflt[go + k * m + j] * w[wo + j]
+            p = w[wo + j]
+            for d in range(deg - 1):
+                p *= w[wo + j]
+                s += bflt[ho + (d * n + k) * m + j] * p
         f_in[k] = s
 
 
@@ -1015,7 +1066,7 @@ def _beam_rhs(bi, x, xo, w, wo, bint, bflt, bwork, bintb, bext, out):
     (n, m, order, K, D, Gin, h, B, X0, base, wts, Md, ag, rows, piv, G, J, Jd, eta, etad, S, E, V, Op, AJ, W, M, C,
      fg, R, qdd, f_in, wko, end) = _beam_arrays(bi, bint, bflt, bwork, bintb)
     acc, SA, SX, NV, T, Jm, Ym, Opm, Mm, LU, a, v, R, f, G, eta, E, start, stop = _beam_ne_arrays(bi, bint, bwork)
-    _beam_input_force(xo, n, m, bflt, bint[bi, 5] + 2 * n * n, w, wo, bext, f_in)
+    _beam_input_force(xo, n, m, bflt, bint[bi, 5] + 2 * n * n, w, wo, bext, f_in, bint[bi, 10], bint[bi, 11])
     q = x[xo:xo + n]
     qd = x[xo + n:xo + 2 * n]
     nodes = np.zeros(0, np.int64)
@@ -1047,7 +1098,7 @@ def _beam_residual(bi, xe, x1, xhat, gam, xo, w, wo, bint, bflt, bwork, bintb, b
     pass's per-piece operators for :func:`_beam_mass_matrix`. False if the state is out of range."""
     n, m, order, K, D, h, B, X0, base, wts, Md, ag, rows, go = _beam_model(bi, bint, bflt, bintb)
     acc, SA, SX, NV, T, Jm, Ym, Opm, Mm, LU, a, v, R, f_in, G, eta, E, start, stop = _beam_ne_arrays(bi, bint, bwork)
-    _beam_input_force(xo, n, m, bflt, go, w, wo, bext, f_in)
+    _beam_input_force(xo, n, m, bflt, go, w, wo, bext, f_in, bint[bi, 10], bint[bi, 11])
     q = xe[xo:xo + n]
     qd = xe[xo + n:xo + 2 * n]
     for k in range(n):
@@ -1678,7 +1729,8 @@ def _evaluate(t, x, net, w, out, mode):
             bi, xo, wo = table[i, 5], table[i, 1], table[i, 3]
             n, m = bint[bi, 0], bint[bi, 1]
             f_in = _beam_ne_arrays(bi, bint, bwork)[13]
-            _beam_input_force(xo, n, m, bflt, bint[bi, 5] + 2 * n * n, w, wo, bext, f_in)
+            _beam_input_force(xo, n, m, bflt, bint[bi, 5] + 2 * n * n, w, wo, bext, f_in, bint[bi, 10],
+                              bint[bi, 11])
             for k in range(n):
                 out[xo + k] = 0.0
                 out[xo + n + k] = f_in[k]

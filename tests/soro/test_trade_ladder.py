@@ -203,3 +203,123 @@ def test_soro_play_loads_the_selected_model(quick, tmp_path, monkeypatch):
     monkeypatch.setenv("SORO_MODEL", str(tmp_path / "none.json"))
     with pytest.raises(SceneError, match="soro trade pneunet2d --tol"):
         load_scene("soro.ladder:selected")
+
+
+# ------------------------------------------------------------------------------------------------ cantilever
+def test_the_elastica_meets_euler_bernoulli_at_small_loads_and_bends_less_at_large_ones():
+    """Small load (tip slope 1e-4 rad): y(L) = -wL^4/(8EI) - PL^3/(3EI) to 1e-6 (the next term is of order
+    slope^2); at P L^2/EI = 2 (no weight) against tests/analytic.elastica_tip (an independent BVP) to 1e-6 L."""
+    import sys
+    from pathlib import Path
+
+    from soro.ladder import elastica
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from analytic import elastica_tip
+
+    L, EI = 0.1, 1e-3
+    w, P = 1e-4 * EI / L ** 3 * 6 / 2, 1e-4 * EI / L ** 2 / 2        # each half of a 1e-4 rad linear slope
+    y = elastica(L, EI, w, P, [0.0, L])[-1, 1]
+    assert y == pytest.approx(-w * L ** 4 / (8 * EI) - P * L ** 3 / (3 * EI), rel=1e-6)
+    P = 2 * EI / L ** 2
+    tip = elastica(L, EI, 0.0, P, np.linspace(0, L, 5))[-1]
+    dx, dy = elastica_tip(L, EI, P)
+    assert tip[0] - L == pytest.approx(dx, abs=1e-6 * L) and tip[1] == pytest.approx(dy, abs=1e-6 * L)
+
+
+@pytest.fixture(scope="module")
+def cantilever(tmp_path_factory):
+    """The quick cantilever ladder (P1 and P2 mixed on h = 5, 2.5, 1.25 mm; beams with 1-4 modes)."""
+    from soro.ladder import SCENES, ladder
+
+    out = tmp_path_factory.mktemp("cantilever")
+    scene = SCENES["cantilever"]["quick"]
+    rows, info = ladder(scene, out)
+    return scene, out, rows, info
+
+
+def test_the_cantilever_references_agree_within_the_elasticas_model_error(cantilever):
+    """The finest P2 mixed and the elastica differ by the shear and thickness terms the elastica omits:
+    ~ E/(kG) (H/L)^2 ~ 1 % of the deflection (45 mm of 100 mm: ~0.4 % of L) at most; the P2 mixed converges
+    (observed order > 1) to within 0.1 % of L."""
+    scene, out, rows, info = cantilever
+    rich = info["richardson"]["tip"]
+    assert rich["converging"] and rich["order"] > 1.0 and rich["error"] / scene.length < 1e-3
+    assert info["elastica"]["tip"] < 4e-3
+
+
+def test_a_converged_chebyshev_beam_is_the_elastica(cantilever):
+    """A bending-only beam with physical (plane-strain) stiffness is the elastica once its basis resolves the
+    curvature: Chebyshev with 4 modes within 1e-5 L (the curvature is smooth: spectral convergence); one mode
+    (constant curvature) is off by ~10 % L; P1 elements lock (> 10 % L)."""
+    scene, out, rows, info = cantilever
+    cheb = {r["modes"]: r for r in rows if r["family"] == "chebyshev"}
+    assert cheb[4]["tip_elastica"] < 1e-5
+    assert cheb[1]["tip_elastica"] > 0.05
+    assert min(r["tip_unseen"] for r in rows if r["family"] == "fem-p1") > 0.1
+
+
+def test_the_cantilever_costs_are_measured(cantilever):
+    """Every beam row has a time per simulated second and its allocations; the coarsest P1 rung too (FEM
+    dynamics); the time-integration estimate of the budget is small (dt = 2.5 ms against a ~2 Hz mode)."""
+    scene, out, rows, info = cantilever
+    beams = [r for r in rows if "_shapes" in r]
+    assert beams and all(r["sim_s_per_s"] > 0 and r["alloc_kb"] > 0 for r in beams)
+    assert next(r for r in rows if r["family"] == "fem-p1")["sim_s_per_s"] > 0
+    assert info["time_integration"]["error"] < 1e-3
+
+
+def test_the_cantilever_selection_is_written_validated_and_repeatable(cantilever, tmp_path):
+    """--tol 1 % picks a beam; its file, read back and loaded at the validation level (not used to choose it),
+    is within 1 %; a second selection on re-timed rows picks the same model."""
+    from soro.ladder import ladder, select, validate, write_model
+
+    scene, out, rows, info = cantilever
+    pick = select(rows, 0.01, "tip")
+    assert pick is not None and "_shapes" in pick
+    path = write_model(pick, scene, tmp_path / "model.json", "tip", 0.01)
+    assert validate(path, scene, out, "tip") <= 0.01
+    again = select(ladder(scene, out)[0], 0.01, "tip")
+    assert (again["family"], again["modes"]) == (pick["family"], pick["modes"])
+
+
+def test_a_polynomial_actuator_runs_compiled_in_a_network_and_matches_the_python_path():
+    """An identified actuator tau(u) = c1 u + c2 u^2 + c3 u^3 (soroshapes.dvs.PolynomialForce) beside a linear
+    one on a second beam: the network lowers (evaluation_path "compiled") and its trajectory equals the Python
+    path's to 10 x the Newton tolerance (as tests/soroshapes/test_network.py); a cubic term that matters (the u^3 part is ~30 % of the force at the top
+    input) so that a kernel ignoring it would be off by far more."""
+    from sorofem import materials, sdf
+    from soroshapes import Basis, Model, Shapes
+    from soroshapes.dvs import PolynomialForce
+    from soroshapes.network import Schedule
+
+    def beam():
+        return Shapes(Basis.chebyshev(2), (0, 0, 2, 0, 0, 0), length=0.08, section=sdf.Rectangle(0.01, 0.01),
+                      material=materials.Ecoflex0030(), damping=0.01, segments=12)
+    c = np.array([[2e-7, 5e-8], [1e-11, -2e-12], [6e-15, 2e-16]])          # (degree 3, n 2), u in Pa
+    a = beam().add_actuator(PolynomialForce(c), name="p")
+    b = beam().add_actuator(c[0].copy(), name="p")
+    mdl = Model().add(a, "poly").add(b, "lin")
+    mdl.set_controller(Schedule([0.0, 0.05, 0.2], {"poly": [[0.0], [3e3], [3e3]], "lin": [[0.0], [3e3], [3e3]]}))
+    assert mdl.evaluation_path == "compiled"
+    fast = mdl.simulate(0.2, 2e-3)
+    slow = mdl.simulate(0.2, 2e-3, compiled=False)
+    np.testing.assert_allclose(fast.x, slow.x, rtol=1e-5, atol=1e-8)     # 10 x the Newton tolerance (rtol 1e-6)
+    u = 3e3
+    assert abs(c[2, 0] * u ** 3) > 0.2 * abs(c[0, 0] * u)            # the cubic term matters
+    assert not np.allclose(fast["poly"].x[-1], fast["lin"].x[-1], rtol=0.05)
+
+
+def test_a_controller_on_a_polynomial_beam_keeps_the_python_path():
+    """A compiled controller maps torques to inputs by G+ (linear inputs): on a beam with a polynomial actuator
+    the network refuses to lower it and says why (the Python path maps through Shapes.input_map)."""
+    from sorofem import materials, sdf
+    from soroshapes import Basis, Model, Shapes
+    from soroshapes.control import gravity_compensation
+    from soroshapes.dvs import PolynomialForce
+
+    shp = Shapes(Basis.chebyshev(2), (0, 0, 2, 0, 0, 0), length=0.08, section=sdf.Rectangle(0.01, 0.01),
+                 material=materials.Ecoflex0030(), damping=0.01, segments=12)
+    shp.add_actuator(PolynomialForce(np.array([[2e-7, 5e-8], [1e-11, -2e-12]])), name="p")
+    mdl = Model().add(shp, "poly").set_controller(gravity_compensation("poly"))
+    assert mdl.evaluation_path.startswith("python") and "polynomial actuator" in mdl.evaluation_path
