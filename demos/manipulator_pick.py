@@ -230,17 +230,9 @@ def robot(z_tips=4 * mm):
 
 
 def statics(tree, u, q0=None):
-    """Static equilibrium q of the tree under gravity and inputs ``u`` (Newton on the generalized force with a
-    finite-difference Jacobian)."""
-    from scipy.optimize import fsolve
-    from sorofem.errors import ConvergenceError
-
-    zero = np.zeros(tree.n)
-    q, info, ok, msg = fsolve(lambda x: tree.generalized_force(x, zero, 0.0, u), zero if q0 is None else q0,
-                              xtol=1e-12, full_output=True)
-    if ok != 1:
-        raise ConvergenceError(f"statics of the manipulator did not converge ({msg})")
-    return q
+    """Static equilibrium q of the tree under gravity and inputs ``u`` (:meth:`soroshapes.Tree.statics`: the one
+    Newton with load stepping)."""
+    return tree.statics(u, q0, steps=4).q
 
 
 def finger_points(tree):
