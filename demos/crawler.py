@@ -59,7 +59,51 @@ Where it differs from the seed, and why
 Convergence of the gait (the demo's functions: ``crawler_problem(size)``, ``Fem.simulate`` over ONE period
 from rest, :func:`centre_of_mass`; gmsh 4.8 meshes):
 
-STUDY_TABLE
+The seed's code parameters (the demo's; Debian 12, load 8-11 while they ran):
+
+=========  =======  =====  =============  ============  ==========  =============
+mesh [mm]  dt [ms]  cells  dx [mm]        CoM rise      legs lift   wall [s]
+=========  =======  =====  =============  ============  ==========  =============
+3          4        769    +0.2615        0.177 mm      0.17 mm     51 (quick)
+3          2        769    +0.2563        0.156         0.12        181
+2          4        1376   +0.2736        0.180         0.18        157
+2          2        1376   +0.2674        0.151         0.11        334
+1.5        4        2319   +0.2794        0.193         0.22        243
+1.5        2        2319   +0.2727        0.163         0.14        627
+=========  =======  =====  =============  ============  ==========  =============
+
+The gain per period converges: refining the mesh 3 -> 2 -> 1.5 mm changes it by +0.0121, +0.0058 mm
+(dt 4 ms) and +0.0111, +0.0053 mm (dt 2 ms): the differences halve while h falls by 1.5 and 1.33, an observed
+order p = 1.1 in h (P2 elements, but the contact's active set and the legs' corners limit it); halving dt
+changes it by -2.0 %, -2.3 %, -2.4 % on the three meshes (generalized-alpha, second order: the dt -> 0 limit lies
+a third of that below the 2 ms figure). Richardson: gain per period = 0.2727 + 0.0142 (mesh, p = 1.1;
+0.0159 with p = 1) - 0.0022 (step) = 0.285 mm, estimated error +-0.008 mm (the spread of p, and the 1 %
+between a mesh and its mirror image: -0.2585 vs +0.2563 mm at 3 mm / 2 ms): a speed of 0.380 +- 0.011 mm/s
+at the seed's code parameters. The quick run's 0.2615 mm is 8 % below it, the 1.5 mm / 2 ms run 4.5 %. The
+second period gains 2.3 % less than the first (3 mm / 4 ms: 0.2555 vs 0.2615 mm; the first starts with the
+body settling under gravity, the CoM's 0.07 mm drop and its ~0.1 mm bounces in com.png's first 0.2 s). The gait
+is small: the CoM rises 0.15-0.19 mm, the middle legs lift at most 0.22 mm, the front and back legs never; the
+front segment's inflation (first third of the period), then the middle's and the back's, carry the body
+forward, and it rests while no chamber is pressurized (the last sixth of the period: the flat end of
+com.png's horizontal curve).
+
+The seed's paper parameters (``crawler_problem(size, seed="paper")`` with the segments in the Fig. 8 caption's
+order, back first; earlier session, same section):
+
+=========  =======  =====  ==========  ===============  ===============
+mesh [mm]  dt [ms]  cells  dx [mm]     dx at T/2 [mm]   CoM rise [mm]
+=========  =======  =====  ==========  ===============  ===============
+3          4        769    +11.29      (quick run)      ~31
+3          2        769    +1.77       -1.55            30.6
+2          2        1376   +15.46      -1.05            33.1
+2          1        1376   +2.04       -2.06            33.2
+1.5        2        2319   +0.28       -2.02            32.9
+=========  =======  =====  ==========  ===============  ===============
+
+Every paper run arches the body 31-33 mm (that figure converges) and slips back 1-2 mm in the first half
+period; the net gain is decided by where the arch lands and scatters from 0.3 to 15 mm per period: no
+converged speed. (With the code's materials at the paper's 45 kPa, period 0.75 s, quick settings: the middle
+legs lift 15-16 mm, the CoM rises 11 mm and the period ends 0.65 mm backward: also a leap.)
 
 Output: ``com.png`` (centre-of-mass history), ``gait.png`` (the body at six instants), ``crawler.xdmf`` (+ .xdmf.h5,
 the whole gait for ParaView),
