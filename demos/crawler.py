@@ -83,9 +83,9 @@ at the seed's code parameters. The quick run's 0.2615 mm is 8 % below it, the 1.
 second period gains 2.3 % less than the first (3 mm / 4 ms: 0.2555 vs 0.2615 mm; the first starts with the
 body settling under gravity, the CoM's 0.07 mm drop and its ~0.1 mm bounces in com.png's first 0.2 s). The gait
 is small: the CoM rises 0.15-0.19 mm, the middle legs lift at most 0.22 mm, the front and back legs never; the
-front segment's inflation (first third of the period), then the middle's and the back's, carry the body
-forward, and it rests while no chamber is pressurized (the last sixth of the period: the flat end of
-com.png's horizontal curve).
+body gains most while two neighbouring segments are pressurized at once (0.125-0.5 s: front and middle, then
+middle and back), and rests while no chamber is (the last sixth of the period: the flat end of com.png's
+horizontal curve).
 
 The seed's paper parameters (``crawler_problem(size, seed="paper")`` with the segments in the Fig. 8 caption's
 order, back first; earlier session, same section):
