@@ -59,7 +59,8 @@ Where it differs from the seed, and why
 Convergence of the gait (the demo's functions: ``crawler_problem(size)``, ``Fem.simulate`` over ONE period
 from rest, :func:`centre_of_mass`; gmsh 4.8 meshes):
 
-The seed's code parameters (the demo's; Debian 12, load 8-11 while they ran):
+The seed's code parameters (the demo's; Debian 12, ``out/study.py``-style runs of these functions at load
+0.8-12; the wall times only say what a run costs):
 
 =========  =======  =====  =============  ============  ==========  =============
 mesh [mm]  dt [ms]  cells  dx [mm]        CoM rise      legs lift   wall [s]
@@ -67,25 +68,29 @@ mesh [mm]  dt [ms]  cells  dx [mm]        CoM rise      legs lift   wall [s]
 3          4        769    +0.2615        0.177 mm      0.17 mm     51 (quick)
 3          2        769    +0.2563        0.156         0.12        181
 2          4        1376   +0.2736        0.180         0.18        157
-2          2        1376   +0.2674        0.151         0.11        334
+2          2        1376   +0.2674        0.151         0.11        334 (full)
 1.5        4        2319   +0.2794        0.193         0.22        243
 1.5        2        2319   +0.2727        0.163         0.14        627
+1          4        4016   +0.2904        0.196         0.22        361
+1          2        4016   +0.2780        0.169         0.15        495
+0.75       4        7511   +0.2817        0.197         0.22        505
 =========  =======  =====  =============  ============  ==========  =============
 
-The gain per period converges: refining the mesh 3 -> 2 -> 1.5 mm changes it by +0.0121, +0.0058 mm
-(dt 4 ms) and +0.0111, +0.0053 mm (dt 2 ms): the differences halve while h falls by 1.5 and 1.33, an observed
-order p = 1.1 in h (P2 elements, but the contact's active set and the legs' corners limit it); halving dt
-changes it by -2.0 %, -2.3 %, -2.4 % on the three meshes (generalized-alpha, second order: the dt -> 0 limit lies
-a third of that below the 2 ms figure). Richardson: gain per period = 0.2727 + 0.0142 (mesh, p = 1.1;
-0.0159 with p = 1) - 0.0022 (step) = 0.285 mm, estimated error +-0.008 mm (the spread of p, and the 1 %
-between a mesh and its mirror image: -0.2585 vs +0.2563 mm at 3 mm / 2 ms): a speed of 0.380 +- 0.011 mm/s
-at the seed's code parameters. The quick run's 0.2615 mm is 8 % below it, the 1.5 mm / 2 ms run 4.5 %. The
-second period gains 2.3 % less than the first (3 mm / 4 ms: 0.2555 vs 0.2615 mm; the first starts with the
-body settling under gravity, the CoM's 0.07 mm drop and its ~0.1 mm bounces in com.png's first 0.2 s). The gait
-is small: the CoM rises 0.15-0.19 mm, the middle legs lift at most 0.22 mm, the front and back legs never; the
-body gains most while two neighbouring segments are pressurized at once (0.125-0.5 s: front and middle, then
-middle and back), and rests while no chamber is (the last sixth of the period: the flat end of com.png's
-horizontal curve).
+The gain per period converges. At dt = 2 ms (the seed's step) refining the mesh 3 -> 2 -> 1.5 -> 1 mm changes
+it by +0.0111, +0.0053, +0.0053 mm; at 4 ms 3 -> 2 -> 1.5 -> 1 -> 0.75 mm by +0.0121, +0.0058, +0.0110,
+-0.0087 mm: on meshes of 1.5 mm and finer it scatters by +-3 % (a mesh and its mirror image alone differ by
+1 %: -0.2585 vs +0.2563 mm at 3 mm / 2 ms), without a clean order in h (P2 elements, but the contact's active
+set and the legs' corners change from mesh to mesh). Halving dt lowers it by 2.0, 2.3, 2.4, 4.3 % on the 3,
+2, 1.5, 1 mm meshes; generalized-alpha is second order, so the dt -> 0 limit lies a third of that below the
+2 ms figure. Estimate: 0.2780 (1 mm, 2 ms) - 0.0041 (step) = 0.274 mm per period, +-0.009 mm (the fine
+meshes' 3 % scatter): 0.365 +- 0.012 mm/s over the first period from rest. The quick run's 0.2615 mm is 4.6 %
+below it. The first period includes the body settling under gravity (it starts unloaded: the CoM's 0.07 mm
+drop and its ~0.1 mm bounces in com.png's first 0.2 s); the second period gains 2.3 % (3 mm / 4 ms: 0.2555
+mm) to 4.0 % (the full run, 2 mm / 2 ms: 0.2566 mm) less: the steady speed is ~0.35 mm/s. The gait is small:
+the CoM rises 0.15-0.20 mm, the middle legs lift at most 0.22 mm, the front and back legs never; the body
+gains most while two neighbouring segments are pressurized at once (0.125-0.5 s: front and middle, then
+middle and back), and rests while no chamber is (the last sixth of the period: the flat steps of com.png's
+horizontal curve). Full run (2 mm, dt 2 ms, two periods): +0.2674 and +0.2566 mm, 0.349 mm/s.
 
 The seed's paper parameters (``crawler_problem(size, seed="paper")`` with the segments in the Fig. 8 caption's
 order, back first; earlier session, same section):
