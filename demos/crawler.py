@@ -59,8 +59,8 @@ Where it differs from the seed, and why
 Convergence of the gait (the demo's functions: ``crawler_problem(size)``, ``Fem.simulate`` over ONE period
 from rest, :func:`centre_of_mass`; gmsh 4.8 meshes):
 
-The seed's code parameters (the demo's; Debian 12, ``out/study.py``-style runs of these functions at load
-0.8-12; the wall times only say what a run costs):
+The seed's code parameters (the demo's; Debian 12, runs at load 0.8-12: the wall times only say what a run
+costs):
 
 =========  =======  =====  =============  ============  ==========  =============
 mesh [mm]  dt [ms]  cells  dx [mm]        CoM rise      legs lift   wall [s]
