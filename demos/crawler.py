@@ -92,8 +92,9 @@ gains most while two neighbouring segments are pressurized at once (0.125-0.5 s:
 middle and back), and rests while no chamber is (the last sixth of the period: the flat steps of com.png's
 horizontal curve). Full run (2 mm, dt 2 ms, two periods): +0.2674 and +0.2566 mm, 0.349 mm/s.
 
-The seed's paper parameters (``crawler_problem(size, seed="paper")`` with the segments in the Fig. 8 caption's
-order, back first; earlier session, same section):
+The seed's paper parameters (same section; an earlier session, which inflated the back segment first, as the
+Fig. 8 caption; ``crawler_problem(size, seed="paper")`` inflates the front first and gives the mirrored gait,
+dx with the other sign):
 
 =========  =======  =====  ==========  ===============  ===============
 mesh [mm]  dt [ms]  cells  dx [mm]     dx at T/2 [mm]   CoM rise [mm]
