@@ -303,6 +303,9 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
                     continue
                 nrm = _solve_component(comps, k, LUc, pivc, r, rc, x1, rtol, atol, scale)
                 cits[k] += 1
+                if it == 0 and math.isfinite(nrm):
+                    st[26] += 1.0 if nrm <= 1.0 else 0.0   # first corrections within the tolerance (norm 1)
+                    st[27] += 1.0 if fresh[k] else 0.0     # first corrections with a matrix factored at this step
                 if not math.isfinite(nrm):
                     finite = False
                     break
@@ -345,6 +348,7 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
         if ok:
             _learn(method, x1, gam, net, rtol, atol, scale, ws, st)
             for k in range(nc):
+                st[19 + min(cits[k], 6)] += 1          # corrections per component: a histogram, 1 ... 6 or more
                 cst[k, 1] += 1                         # the matrix served one more step; refresh it next step
                 if ckept[k] > cst[k, 2]:
                     cst[k, 2] = ckept[k]               # the largest rate the kept matrix showed
