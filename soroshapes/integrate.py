@@ -62,8 +62,8 @@ import numpy as np
 from sorofem._numba import njit
 
 from ._beam import REFRESH_ITS, REFRESH_STEPS, _lu_solve
-from .network import (BEAM, _beam_mass_matrix, _cheap_rows_of, _iteration_matrix_of, assemble, jacobian, residual,
-                      rhs)
+from .network import (BEAM, _beam_mass, _beam_mass_matrix, _cheap_rows_of, _iteration_matrix_of, assemble, jacobian,
+                      residual, rhs)
 
 __all__ = ["TRAPEZOIDAL", "MIDPOINT", "BDF2", "integrate"]
 
@@ -89,6 +89,92 @@ def _solve_component(comps, k, LUc, pivc, r, rc, x1, rtol, atol, scale):
     return nrm
 
 
+@njit(cache=True)
+def _predict(x0, gam, c, net, scale, ws, st, guess):
+    r"""The BDF2 predictor of each connected component: the step of the equations linearized about the last
+    state :math:`x_k`, :math:`A(x - x_k) = \hat x + \gamma F_k - x_k` (in force units, :math:`\tfrac1\gamma M`
+    times it, in a beam's rate rows), with :math:`A` the factored iteration matrix and :math:`F_k = (x_k - \hat
+    x_k)/\gamma_k` the derivative the last step's own equations gave (no evaluation: one solve per component;
+    exact for a linear network, whatever its stiff modes), or that step plus the error it made in the last step
+    (what varies on the resolved time scale: the schedule's drive, the nonlinear part), or the extrapolation
+    already in ``guess``; per component the candidate that would have predicted the last step best
+    (:func:`_learn`; the linearized step when there is no last one). Needs a valid factor for this ``c`` and
+    :math:`F_k` (``st[16]``); ``xq`` keeps the extrapolation, ``xl`` the linearized step (``st[17]`` = 1 when
+    it was formed at this step, ``st[19]`` = 1 when the last step's choice and error are known; ``st[18]``
+    counts the components predicted by it)."""
+    (w, f0, fp, xp, r, g_, Jac, JF, LUc, pivc, rc, fx0, pp, xhat, xe, cst, Fk, xq, xl, elin, pk) = ws
+    N = x0.shape[0]
+    for i in range(N):
+        xq[i] = guess[i]
+    if not (st[16] == 1.0 and st[11] == 1.0 and st[12] == c):
+        return
+    table, comps = net[0], net[18]
+    for i in range(N):
+        r[i] = -(xhat[i] + gam * Fk[i] - x0[i])        # minus the predicted correction's right-hand side
+        xl[i] = x0[i]
+    for b in range(table.shape[0]):                   # a beam's rate rows are in force units: M/gam times it
+        if table[b, 0] == BEAM:
+            n = table[b, 2] // 2
+            o = table[b, 1] + n
+            M = _beam_mass(table[b, 5], net)
+            for k in range(n):
+                s = 0.0
+                for l in range(n):
+                    s += M[k, l] * r[o + l]
+                fp[k] = s / gam
+            for k in range(n):
+                r[o + k] = fp[k]
+    for k in range(comps.shape[0]):
+        if not math.isfinite(_solve_component(comps, k, LUc, pivc, r, rc, xl, 0.0, 1.0, scale)):
+            return
+    valid = st[19] == 1.0                             # pk and elin are from the last step
+    for k in range(comps.shape[0]):
+        choice = pk[k] if valid else 1
+        s = 0
+        while s < comps.shape[1] and comps[k, s] >= 0:
+            j = comps[k, s]
+            if choice == 1:
+                guess[j] = xl[j]
+            elif choice == 2:
+                guess[j] = xl[j] + elin[j]
+            s += 1
+        if choice > 0:
+            st[18] += 1
+    st[17] = 1.0
+
+
+@njit(cache=True)
+def _learn(method, x1, gam, net, rtol, atol, scale, ws, st):
+    """After a successful step: the derivative its equations give at x1 for the next linearized predictor (BDF2
+    and trapezoidal, whose evaluation point is x1), and per component the predictor (0 extrapolation, 1
+    linearized step, 2 linearized step plus its last error) that would have predicted this step best, in the
+    Newton norm (see :func:`_predict`)."""
+    (w, f0, fp, xp, r, g_, Jac, JF, LUc, pivc, rc, fx0, pp, xhat, xe, cst, Fk, xq, xl, elin, pk) = ws
+    N = x1.shape[0]
+    comps = net[18]
+    st[19] = st[17]
+    if st[17] == 1.0:
+        for k in range(comps.shape[0]):
+            e = np.zeros(3)
+            s = 0
+            while s < comps.shape[1] and comps[k, s] >= 0:
+                j = comps[k, s]
+                wj = rtol * abs(x1[j]) + atol * scale[j]
+                e[0] = max(e[0], abs(x1[j] - xq[j]) / wj)
+                e[1] = max(e[1], abs(x1[j] - xl[j]) / wj)
+                e[2] = max(e[2], abs(x1[j] - xl[j] - elin[j]) / wj)
+                s += 1
+            pk[k] = np.argmin(e)
+        for j in range(N):
+            elin[j] = x1[j] - xl[j]
+    if method == MIDPOINT:
+        st[16] = 0.0
+        return
+    for j in range(N):
+        Fk[j] = (x1[j] - xhat[j]) / gam
+    st[16] = 1.0
+
+
 #: method codes
 TRAPEZOIDAL, MIDPOINT, BDF2 = 0, 1, 2
 #: The factored iteration matrix is kept for the next step unless the step's Newton contraction rate (of the
@@ -108,7 +194,7 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
     factored). ``ws[15]`` (components, 3): per connected component, 1 when its last step asks for a fresh matrix,
     the steps its matrix served, and the largest contraction rate that matrix showed at a third correction (-1:
     none yet)."""
-    (w, f0, fp, xp, r, guess, Jac, JF, LUc, pivc, rc, fx0, pp, xhat, xe, cst) = ws
+    (w, f0, fp, xp, r, guess, Jac, JF, LUc, pivc, rc, fx0, pp, xhat, xe, cst, Fk, xq, xl, elin, pk) = ws
     N = x0.shape[0]
     table = net[0]
     nb = table.shape[0]
@@ -116,6 +202,7 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
     nc = comps.shape[0]
     alls = np.ones(nb, np.bool_)
     only = np.ones(nb, np.bool_)
+    st[17] = 0.0                                        # no linearized prediction formed yet (_predict)
     conv = np.zeros(nc, np.bool_)
     prevc = np.zeros(nc)
     fresh = np.zeros(nc, np.bool_)
@@ -145,6 +232,7 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
         if st[5] == 1.0:                                # quadratic extrapolation through three states
             for i in range(N):
                 guess[i] = 3.0 * x0[i] - 3.0 * xprev[i] + pp[i]
+        _predict(x0, gam, c, net, scale, ws, st, guess)
     for i in range(N):
         x1[i] = guess[i]
     force = False                   # rebuild the iteration matrix whatever the reuse rule says
@@ -215,6 +303,9 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
                     continue
                 nrm = _solve_component(comps, k, LUc, pivc, r, rc, x1, rtol, atol, scale)
                 cits[k] += 1
+                if it == 0 and math.isfinite(nrm):
+                    st[26] += 1.0 if nrm <= 1.0 else 0.0   # first corrections within the tolerance (norm 1)
+                    st[27] += 1.0 if fresh[k] else 0.0     # first corrections with a matrix factored at this step
                 if not math.isfinite(nrm):
                     finite = False
                     break
@@ -255,7 +346,9 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
             for b in range(nb):
                 only[b] = not conv[block_comp[b]]
         if ok:
+            _learn(method, x1, gam, net, rtol, atol, scale, ws, st)
             for k in range(nc):
+                st[19 + min(cits[k], 6)] += 1          # corrections per component: a histogram, 1 ... 6 or more
                 cst[k, 1] += 1                         # the matrix served one more step; refresh it next step
                 if ckept[k] > cst[k, 2]:
                     cst[k, 2] = ckept[k]               # the largest rate the kept matrix showed
@@ -320,8 +413,10 @@ def integrate(x, t0, h, nsteps, method, record_every, min_dt, net, scale, rtol, 
     nc, mc = comps.shape[0], comps.shape[1]
     ws = (np.zeros(NW), np.zeros(N), np.zeros(N), np.zeros(N), np.zeros(N), np.zeros(N), np.zeros((N, N)),
           np.zeros((N, N)), np.zeros((nc, mc, mc)), np.zeros((nc, mc), np.int64), np.zeros(mc), np.zeros(N),
-          np.zeros(N), np.zeros(N), np.zeros(N), np.zeros((nc, 3)))
+          np.zeros(N), np.zeros(N), np.zeros(N), np.zeros((nc, 3)), np.zeros(N), np.zeros(N),
+          np.zeros(N), np.zeros(N), np.zeros(nc, np.int64))
     xn, prev, tmp = np.zeros(N), x.copy(), np.zeros(N)
+    net[34][0] = np.nan                 # the schedule's cached row (network._assemble): the table may have changed
     have_prev = False
     rec = 1
     for k in range(nsteps):

@@ -1140,15 +1140,18 @@ class Model:
         rows = 1 + nsteps // record_every + (1 if nsteps % record_every else 0)
         out_t, out_x, out_w = np.zeros(rows), np.zeros((rows, self._N)), np.zeros((rows, self._NW))
         out_t[0], out_x[0], out_w[0] = t0, x, w0
-        st = np.zeros(16)
+        st = np.zeros(28)
         code = {"trapezoidal": itg.TRAPEZOIDAL, "midpoint": itg.MIDPOINT, "bdf2": itg.BDF2}[method]
         wall = _time.perf_counter()
         got = itg.integrate(x.copy(), t0, h, nsteps, code, record_every, min_dt, net.arrays, self._scale,
                                 self._rtol, self._atol, self._maxit, 1e-3, out_t, out_x, out_w, st)
         self._stats.update(steps=int(st[0]), newton_iterations=int(st[2]), jacobians=int(st[3]),
                            cut_steps=int(st[6]), system_evaluations=int(st[8]), model_matrix_failures=int(st[10]),
-                           matrices=int(st[15]), wall_time=_time.perf_counter() - wall, method=method,
-                           path="compiled")
+                           matrices=int(st[15]), linearized_predictions=int(st[18]),
+                           component_corrections=st[20:26].astype(int).tolist(),
+                           first_corrections_within_tolerance=int(st[26]),
+                           first_corrections_fresh_matrix=int(st[27]),
+                           wall_time=_time.perf_counter() - wall, method=method, path="compiled")
         if got < 0:
             raise ConvergenceError(f"Model.simulate: Newton failed at t = {st[7]:.6g} s down to dt = {min_dt:.3g} s "
                                    f"({method}, compiled network: Newton did not converge, or an evaluation failed "

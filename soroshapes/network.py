@@ -753,7 +753,8 @@ def lower(blocks, links, volumes, controller, free):
               np.asarray(cint, np.int64), np.asarray(cflt, float), np.zeros(N),
               np.concatenate(sops).astype(np.int64) if sops else np.zeros((0, 3), np.int64), cat(sconsts),
               *_term_cache(wterm, table, bint, nb),
-              _treeblock.empty_block_args() if tree_args is None else tree_args)          # issue 25: net[33]
+              _treeblock.empty_block_args() if tree_args is None else tree_args,          # issue 25: net[33]
+              np.full(1 + len(free_rows), np.nan))          # net[34]: the schedule's row cached per time
     return Lowered(arrays, N, NW, groups, dep)
 
 
@@ -841,9 +842,9 @@ def assemble(t, x, net, w):
 def _assemble(t, x, net, w, only):
     """:func:`assemble` for an evaluation of the blocks with ``only[i]`` True: a feedback controller that drives
     the inputs of a block left out is not evaluated (its inputs are not read)."""
-    (table, bint, bflt, bwork, bintb, fpar, mapint, maps, link_tab, link_rows, ckind, ctimes, cvals, cper,
-     free_rows, groups, dep, col_block, comps, block_comp, lint, lflt, rflt, wsum, wterm, wflt, cint, cflt,
-     bext, sops, sconsts) = net[:31]
+    table, fpar, mapint, maps, link_tab, link_rows = net[0], net[5], net[6], net[7], net[8], net[9]
+    ckind, ctimes, cvals, cper, free_rows = net[10], net[11], net[12], net[13], net[14]
+    lint, lflt, wsum, cint, bext = net[20], net[21], net[23], net[26], net[28]
     for j in range(w.shape[0]):
         w[j] = 0.0
     for j in range(bext.shape[0]):
@@ -872,10 +873,12 @@ def _assemble(t, x, net, w, only):
         if not _controller_terms(t, x, net, w, only):
             ok = False
     elif ckind == 1 and free_rows.shape[0] > 0:
-        u = np.empty(free_rows.shape[0])
-        _interp_row(ctimes, cvals, cper, t, u)
+        u = net[34]                                  # [t, the schedule's row at t]: once per time, not per sweep
+        if u[0] != t:
+            _interp_row(ctimes, cvals, cper, t, u[1:])
+            u[0] = t
         for j in range(free_rows.shape[0]):
-            w[free_rows[j]] = u[j]
+            w[free_rows[j]] = u[1 + j]
     for li in range(link_tab.shape[0]):
         lk, src, ro, nr = link_tab[li, 0], link_tab[li, 1], link_tab[li, 2], link_tab[li, 3]
         if lk == 2:
@@ -886,6 +889,8 @@ def _assemble(t, x, net, w, only):
                 ok = False
             for r in range(6):
                 w[link_rows[ro + r]] = W[r]
+            continue
+        if nr > 0 and not _link_needed(table, link_rows[ro], only):
             continue
         for r in range(nr):
             if lk == 1:
@@ -908,6 +913,16 @@ def _assemble(t, x, net, w, only):
                 v = x[table[src, 1] + r]
             w[link_rows[ro + r]] = v
     return ok
+
+
+@njit(cache=True)
+def _link_needed(table, row, only):
+    """Whether :func:`_assemble` must write the coupling into input row ``row``: its system is evaluated
+    (``only``), or it is a linear system, whose inputs a later coupling may read (feed-through :math:`Du`)."""
+    for b in range(table.shape[0]):
+        if table[b, 3] <= row < table[b, 3] + table[b, 4]:
+            return bool(only[b]) or table[b, 0] == LINEAR
+    return True
 
 
 @njit(cache=True)

@@ -167,6 +167,9 @@ def _compiled_breakdown(mdl, st, wall):
                 component_matrices_per_step=round(st["matrices"] / steps, 3),
                 matrices_per_step=round(st["matrices"] / steps / comps.shape[0], 3), network_residual_us=round(cost["network"], 1),
                 finger_residual_us=round(cost["one_finger"], 1), matrix_refresh_us=round(cost["refresh"], 1),
+                component_corrections_histogram_1_to_6=st["component_corrections"],
+                first_corrections_within_tolerance=st["first_corrections_within_tolerance"],
+                linearized_predictions=st["linearized_predictions"],
                 wall_us_per_step=round(1e6 * wall / steps, 1))
 
 

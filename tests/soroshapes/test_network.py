@@ -738,3 +738,27 @@ def test_a_refresh_of_some_components_rebuilds_their_rows_and_factors_only():
     rows0 = comps[0][comps[0] >= 0]
     assert np.array_equal(J[rows1], full_J[rows1]) and np.all(J[rows0] == 7.0)
     assert np.array_equal(LU[1], full_LU[1]) and np.all(LU[0] == 7.0)
+
+
+def test_bdf2_linearized_predictor_is_exact_for_a_linear_network():
+    r"""Two coupled linear systems (a stiff lag, time constant 1 ms, feeding a lightly damped oscillator at
+    10 Hz; BDF2, dt = 2 ms): the step of the equations linearized about the last state (one solve with the
+    factored iteration matrix, :func:`soroshapes.integrate._predict`) is the step itself for a linear network,
+    so from the third step on Newton's first correction is round-off and every step takes one sweep (the
+    extrapolation through the last states took two: its error is ~1e-3 of the state, far above the tolerance).
+    The trajectory is the Python path's, whose Newton solves each step to the tolerance."""
+    w0 = 2 * np.pi * 10.0
+
+    def make():
+        lag = StateSpace.linear([[-1000.0]], [[1000.0]], x0=[1.0])
+        osc = StateSpace.linear([[0.0, 1.0], [-w0 * w0, -2 * 0.05 * w0]], [[0.0], [w0 * w0]], [[1.0, 0.0]],
+                                x0=[0.0, 0.0])
+        return Model().add(lag, "lag").add(osc, "osc").connect("lag", "osc").set_controller(
+            Schedule([0.0, 1.0], {"lag": [[0.2], [0.2]]}))
+    rtol, atol = 1e-7, 1e-9
+    a, b = both(make, 0.4, 2e-3, "bdf2", rtol=rtol, atol=atol)
+    st = a.stats
+    assert st["linearized_predictions"] > 0.9 * st["steps"]
+    assert st["newton_iterations"] <= st["steps"] + 4, st
+    assert close(a["osc"].x, b["osc"].x, rtol, atol) < 10
+    assert np.max(np.abs(a["osc"].x[:, 0])) > 0.1                  # it moved
