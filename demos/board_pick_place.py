@@ -174,3 +174,37 @@ def scene(quick=False):
     channels.append(Channel("gripper", 0.0, GRIP, label="gripper"))
     return Scene(shp, channels, target=Target(tuple(shp.positions(np.zeros(shp.n))[-1])), dt=2e-3,
                  view=(0.0, 0.0), title="board_pick_place")
+
+
+# ------------------------------------------------------------------------------------------ the object plant
+#: The object: a 20 g cube of 16 mm, its top centre (the grasp point) at the pick waypoint, on a table.
+OBJ_MASS, OBJ_SIDE = 0.020, 16 * mm
+PICK, PLACE, TABLE_TOP = (0.096, -0.062), (0.0995, -0.062), -0.062 - 16 * mm
+
+
+def plant_network(pressures, grasp=True):
+    """The board's network plant (:class:`sorocontrol.NetworkRecipe`): the arm, the object on the table
+    (:func:`soroshapes.rigid.couple_ground` at its four base corners) and the gripper
+    (:func:`soroshapes.rigid.couple_grasp` at the arm's tip on the object's top centre), engaged in proportion to
+    the gripper channel's pressure ``pressures()[4] / GRIP`` (0..1). ``grasp=False``: no gripper coupling."""
+    from soroshapes import Model
+    from soroshapes.rigid import RigidBody, couple_grasp, couple_ground
+
+    shp = arm()
+    q0 = shp.statics(u=pressures_of([0, 0], 0))
+    h = OBJ_SIDE / 2
+    pose = np.eye(4)
+    pose[:3, 3] = (PICK[0], 0.0, TABLE_TOP + h)
+    body = RigidBody(OBJ_MASS, OBJ_MASS * OBJ_SIDE**2 / 6, pose0=pose, damping=(0.02, 1e-5), name="object")
+    m = Model().add(shp, "arm", x0=np.concatenate([q0, np.zeros(shp.n)])).add(body, "object")
+    corners = [(sx * h, sy * h, -h) for sx in (-1, 1) for sy in (-1, 1)]
+    # 4 x 300 N/m: 0.16 mm under the 0.2 N weight; damping near critical for the 20 g on 1200 N/m
+    couple_ground(m, "object", corners, stiffness=300.0, damping=1.0, friction=0.6,
+                  plane=((0.0, 0.0, TABLE_TOP), (0.0, 0.0, 1.0)))
+    if grasp:
+        couple_grasp(m, "arm", "object", (0.0, 0.0, h), stiffness=100.0, damping=0.5,
+                     engaged=lambda t: min(max(pressures()[4] / GRIP, 0.0), 1.0))
+    return m
+
+
+pressures_of = pressures
