@@ -35,7 +35,7 @@ Parameters
 arm                2 x 60 mm, circular section of radius 8 mm, Dragon Skin 30 (Yeoh preset)
 chambers           60 mm^2 at +-5 mm, per segment; activations bounded to 90 kPa
 board              5 channels, -100..100 kPa, slew limit 1 MPa/s, watchdog 0.5 s, board loop 200 Hz
-host loop          100 Hz for the whole sequence (9 waypoints x 1.2 s; quick: 4 x 1.0 s)
+host loop          100 Hz for the whole sequence (9 waypoints x 3.5 s; quick: the first 7 x 3.0 s)
 =================  =====================================================================================
 """
 import time
@@ -53,20 +53,27 @@ GRIP = 60 * kPa
 
 #: The full run and the short one (`--quick`, what the tests run): the waypoints played (indices into the
 #: sequence of main), each held [s].
-FULL = dict(waypoints=tuple(range(9)), hold=1.2)
-QUICK = dict(waypoints=(1, 3, 5, 8), hold=1.0)
+#: The board's plant simulates at about a third of real time on this machine (its step is capped per board tick,
+#: :class:`sorocontrol.SimulatedPlant` ``max_advance``), so a hold of 3 s of board time is ~1 s of plant time.
+FULL = dict(waypoints=tuple(range(9)), hold=3.5)
+QUICK = dict(waypoints=tuple(range(7)), hold=3.0)
+#: The gripper coupling in the plant (False: the demo's control experiment, the object must stay).
+GRASP = True
 
 
 def main(out: Path, quick: bool = False) -> dict:
     from sorocontrol import Board
+    from sorocontrol.drivers import NetworkRecipe
 
     shp = arm()
     home = shp.positions(shp.statics(u=pressures([0, 0], 0)))[-1]
-    # waypoints: (name, x, z, gripper) -- above the object, at it, (grip), lift, above the place, place, release
-    # in the arm's workspace (a crescent 100-120 mm out, -69..47 mm high: two segments of fixed length)
-    seq = [("above_pick", 0.106, -0.050, 0.0), ("pick", 0.101, -0.058, 0.0), ("grip", 0.101, -0.058, GRIP),
-           ("lift", 0.111, -0.040, GRIP), ("above_place", 0.114, 0.036, GRIP), ("place", 0.116, 0.026, GRIP),
-           ("release", 0.116, 0.026, 0.0), ("retreat", 0.119, 0.010, 0.0), ("home", home[0], home[2], 0.0)]
+    # waypoints: (name, x, z, gripper) of the tip -- above the object, at it (its top centre), grip, lift, above
+    # the place, place, release, retreat, home; the arm's workspace is a crescent 89-119 mm out, -69..0 mm high
+    # (two segments of fixed length), only 4 mm wide at the table's height: the carry is short, the lift not
+    (px, pz), (qx, qz) = PICK, PLACE
+    seq = [("above_pick", 0.100, -0.056, 0.0), ("pick", px, pz, 0.0), ("grip", px, pz, GRIP),
+           ("lift", 0.110, -0.038, GRIP), ("above_place", 0.1015, -0.055, GRIP), ("place", qx, qz, GRIP),
+           ("release", qx, qz, 0.0), ("retreat", 0.110, -0.038, 0.0), ("home", home[0], home[2], 0.0)]
     prm = QUICK if quick else FULL
     seq = [seq[i] for i in prm["waypoints"]]
     hold = prm["hold"]
@@ -74,22 +81,26 @@ def main(out: Path, quick: bool = False) -> dict:
     plans = plan(shp, [(x, z) for _, x, z, _ in seq])
     plan_s = time.perf_counter() - t0
 
-    log_t, log_tip, log_p = [], [], []
+    log_t, log_tip, log_obj, log_p = [], [], [], []
+    recipe = NetworkRecipe(str(Path(__file__).resolve()), "plant_network", (("grasp", GRASP),))
     # keepalive: the session survives any pause before brd.loop starts (which then feeds the watchdog itself)
-    with Board.simulated(channels=5, beam=shp, board_rate=200.0, keepalive=True) as brd:
+    with Board.simulated(channels=5, network=recipe, network_dt=5e-3, board_rate=200.0, keepalive=True) as brd:
         for t in brd.loop(duration=hold * len(seq), rate=100.0):
             i = min(int(t // hold), len(seq) - 1)
             (a, _), grip = plans[i], seq[i][3]
             s = brd.set_pressure(pressures(a, grip))
             log_t.append(t)
             log_tip.append(s.sensors[:3].copy())
+            log_obj.append(s.sensors[3:6].copy())
             log_p.append(s.measured.copy())
         stats = brd.loop_stats
-    log_t, log_tip, log_p = np.array(log_t), np.array(log_tip), np.array(log_p)
+    log_t, log_tip, log_obj, log_p = np.array(log_t), np.array(log_tip), np.array(log_obj), np.array(log_p)
     # each waypoint's tip: the last sample of its hold, found by time (a loaded machine skips loop
     # iterations, so an iteration count would land in a later hold)
     reached = [log_tip[np.searchsorted(log_t, (i + 1) * hold, side="left") - 1] for i in range(len(seq))]
     errors = [float(np.hypot(r[0] - x, r[2] - z)) for r, (_, x, z, _) in zip(reached, seq)]
+    start, final = log_obj[0], log_obj[-1]
+    place_xyz = np.array([PLACE[0], 0.0, start[2]])     # the object's centre when it stands at the place
 
     from matplotlib.figure import Figure
 
@@ -98,6 +109,9 @@ def main(out: Path, quick: bool = False) -> dict:
     fig = Figure(figsize=(10, 4))
     (ax, bx) = fig.subplots(1, 2)
     ax.plot(log_tip[:, 0] / mm, log_tip[:, 2] / mm, lw=1, label="tip (board sensors)")
+    ax.plot(log_obj[:, 0] / mm, log_obj[:, 2] / mm, lw=1, color="C1", label="object centre (board sensors)")
+    ax.plot(PLACE[0] / mm, start[2] / mm, "x", color="C1", label="place target (object centre)")
+    ax.axhline(TABLE_TOP / mm, color="0.3", lw=1)
     for (name, x, z, g), r in zip(seq, reached):
         ax.plot(x / mm, z / mm, "o", mfc="none", color="C3" if g else "C2")
         ax.annotate(name, (x / mm, z / mm), fontsize=7, xytext=(3, 3), textcoords="offset points")
@@ -113,6 +127,11 @@ def main(out: Path, quick: bool = False) -> dict:
     save_figure(fig, out / "pick_place.png")
 
     return {
+        "object_start_mm": [round(v / mm, 3) for v in start],
+        "object_final_mm": [round(v / mm, 3) for v in final],
+        "object_moved_mm": round(float(np.linalg.norm(final - start)) / mm, 3),
+        "place_error_mm": round(float(np.linalg.norm(final - place_xyz)) / mm, 3),
+        "lift_mm": round(float(log_obj[:, 2].max() - start[2]) / mm, 3),
         "waypoints": [name for name, *_ in seq],
         "waypoint_error_mm": [round(e / mm, 3) for e in errors],
         "max_waypoint_error_mm": round(max(errors) / mm, 3),
@@ -177,9 +196,9 @@ def scene(quick=False):
 
 
 # ------------------------------------------------------------------------------------------ the object plant
-#: The object: a 20 g cube of 16 mm, its top centre (the grasp point) at the pick waypoint, on a table.
-OBJ_MASS, OBJ_SIDE = 0.020, 16 * mm
-PICK, PLACE, TABLE_TOP = (0.096, -0.062), (0.0995, -0.062), -0.062 - 16 * mm
+#: The object: a 5 g cube of 16 mm, its top centre (the grasp point) at the pick waypoint, on a table.
+OBJ_MASS, OBJ_SIDE = 0.005, 16 * mm
+PICK, PLACE, TABLE_TOP = (0.095, -0.062), (0.0985, -0.062), -0.062 - 16 * mm
 
 
 def plant_network(pressures, grasp=True):
@@ -195,10 +214,10 @@ def plant_network(pressures, grasp=True):
     h = OBJ_SIDE / 2
     pose = np.eye(4)
     pose[:3, 3] = (PICK[0], 0.0, TABLE_TOP + h)
-    body = RigidBody(OBJ_MASS, OBJ_MASS * OBJ_SIDE**2 / 6, pose0=pose, damping=(0.02, 1e-5), name="object")
+    body = RigidBody(OBJ_MASS, OBJ_MASS * OBJ_SIDE**2 / 6, pose0=pose, damping=(0.05, 3e-5), name="object")
     m = Model().add(shp, "arm", x0=np.concatenate([q0, np.zeros(shp.n)])).add(body, "object")
     corners = [(sx * h, sy * h, -h) for sx in (-1, 1) for sy in (-1, 1)]
-    # 4 x 300 N/m: 0.16 mm under the 0.2 N weight; damping near critical for the 20 g on 1200 N/m
+    # 4 x 300 N/m: 0.04 mm under the 0.05 N weight; damping 1 N s/m per corner: overdamped (critical 2 sqrt(1200 x 0.005) = 4.9 N s/m in total)
     couple_ground(m, "object", corners, stiffness=300.0, damping=1.0, friction=0.6,
                   plane=((0.0, 0.0, TABLE_TOP), (0.0, 0.0, 1.0)))
     if grasp:
