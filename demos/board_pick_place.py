@@ -49,7 +49,13 @@ arm                2 x 60 mm, circular section of radius 8 mm, Dragon Skin 30 (Y
 chambers           60 mm^2 at +-5 mm, per segment; activations bounded to 90 kPa
 board              5 channels, -100..100 kPa, slew limit 1 MPa/s, watchdog 0.5 s, board loop 200 Hz
 host loop          100 Hz for the whole sequence (9 waypoints x 3.5 s; quick: the first 8 x 3.0 s)
+object             5 g cube of 16 mm on a table 16 mm under the pick point; pick at x = 95 mm, place at 98.5 mm
+gripper            grasp spring 100 N/m, 0.5 N s/m at the tip, engaged by the gripper channel (60 kPa: closed)
 =================  =====================================================================================
+
+The network plant runs on the Python path of :meth:`soroshapes.Model.simulate` (the grasp's engagement is a
+Python function of the gripper channel), slower than real time: the board caps each of its steps
+(``max_advance``) and the plant lags the board's clock, which the long holds absorb.
 """
 import time
 from pathlib import Path
