@@ -221,29 +221,28 @@ OBJ_MASS, OBJ_SIDE = 0.005, 16 * mm
 PICK, PLACE, TABLE_TOP = (0.095, -0.062), (0.0985, -0.062), -0.062 - 16 * mm
 
 
-def plant_network(pressures, grasp=True):
+def plant_network(measured, grasp=True):
     """The board's network plant (:class:`sorocontrol.NetworkRecipe`): the arm, the object on the table
     (:func:`soroshapes.rigid.couple_ground` at its four base corners) and the gripper
     (:func:`soroshapes.rigid.couple_grasp` at the arm's tip on the object's top centre), engaged in proportion to
-    the gripper channel's pressure ``pressures()[4] / GRIP`` (0..1). ``grasp=False``: no gripper coupling."""
+    the gripper channel's pressure ``measured()[4] / GRIP`` (0..1). ``grasp=False``: no gripper coupling."""
     from soroshapes import Model
     from soroshapes.rigid import RigidBody, couple_grasp, couple_ground
 
     shp = arm()
-    q0 = shp.statics(u=pressures_of([0, 0], 0))
+    q0 = shp.statics(u=pressures([0, 0], 0))
     h = OBJ_SIDE / 2
     pose = np.eye(4)
     pose[:3, 3] = (PICK[0], 0.0, TABLE_TOP + h)
     body = RigidBody(OBJ_MASS, OBJ_MASS * OBJ_SIDE**2 / 6, pose0=pose, damping=(0.05, 3e-5), name="object")
     m = Model().add(shp, "arm", x0=np.concatenate([q0, np.zeros(shp.n)])).add(body, "object")
     corners = [(sx * h, sy * h, -h) for sx in (-1, 1) for sy in (-1, 1)]
-    # 4 x 300 N/m: 0.04 mm under the 0.05 N weight; damping 1 N s/m per corner: overdamped (critical 2 sqrt(1200 x 0.005) = 4.9 N s/m in total)
+    # 4 x 300 N/m: 0.04 mm under the 0.05 N weight; 4 x 1 N s/m: damping ratio 0.8 (critical: 2 sqrt(1200 x
+    # 0.005) = 4.9 N s/m in total)
     couple_ground(m, "object", corners, stiffness=300.0, damping=1.0, friction=0.6,
                   plane=((0.0, 0.0, TABLE_TOP), (0.0, 0.0, 1.0)))
     if grasp:
         couple_grasp(m, "arm", "object", (0.0, 0.0, h), stiffness=100.0, damping=0.5,
-                     engaged=lambda t: min(max(pressures()[4] / GRIP, 0.0), 1.0))
+                     engaged=lambda t: min(max(measured()[4] / GRIP, 0.0), 1.0))
     return m
 
-
-pressures_of = pressures

@@ -139,7 +139,9 @@ class SimulatedPlant(Driver):
         of the same signature) returning a :class:`soroshapes.Model` whose free inputs are the channels (see
         :class:`NetworkRecipe`). Each call of :meth:`apply` continues it over the elapsed board time with its
         own integrator (``Model.simulate(..., x0=, t0=)``, trapezoidal steps of at most ``network_dt``), the
-        channel pressures held at their measured values. Sensors: for each beam of the model (in the model's
+        channel pressures held at their values measured at the end of the tick (as for ``beam``). It runs on
+        the Model's Python path when any coupling is a Python function (slower than real time for an arm and
+        a grasped body: then ``max_advance`` caps each call and the plant lags the board's clock). Sensors: for each beam of the model (in the model's
         order) its tip position [m] (3), then for each rigid body its position [m] (3). A step that does not
         converge raises :class:`~sorofem.errors.ConvergenceError` out of :meth:`apply`: the board server
         vents every channel and reports the driver error (as for any driver failure); the plant then keeps

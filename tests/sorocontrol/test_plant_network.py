@@ -22,7 +22,7 @@ def _pick_and_lift(grasp):
     plant = SimulatedPlant(5, network=NetworkRecipe(str(DEMO), "plant_network", (("grasp", grasp),)),
                            network_dt=5e-3)
     assert plant.sensor_names == ("arm_tip_x", "arm_tip_y", "arm_tip_z", "object_x", "object_y", "object_z")
-    start = plant._sensors()[3:].copy()
+    start = plant.network_sensors()[3:].copy()
     plans = d["plan"](d["arm"](), [d["PICK"], (0.110, -0.038)])
     t = 0.0
     for (a, _), grip, dur in ((plans[0], 0.0, 0.6), (plans[0], d["GRIP"], 0.4), (plans[1], d["GRIP"], 0.8)):
