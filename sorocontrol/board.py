@@ -153,12 +153,15 @@ class Board:
 
     @classmethod
     def simulated(cls, channels=4, *, p_min=-100e3, p_max=100e3, rate=1e6, watchdog=0.5, board_rate=400.0,
-                  volume=20e-6, time_constant=0.03, max_flow=2e-3, beam=None, timeout=5.0, keepalive=True):
+                  volume=20e-6, time_constant=0.03, max_flow=2e-3, beam=None, timeout=5.0, keepalive=True,
+                  network=None, network_dt=2e-3):
         """Start a simulated board (:class:`~sorocontrol.drivers.SimulatedPlant` behind a
         :class:`~sorocontrol.server.BoardServer`, same limits and watchdog as a real one) in a child process
         (``python -m sorocontrol.server --driver simulated --plant-from-parent``) on loopback and connect to
         it; closing the board stops the process. ``beam``: a :class:`soroshapes.Shapes` with one chamber input
         per channel, simulated as the robot (its tip position and coordinates are the state's ``sensors``).
+        ``network``: instead, a :class:`~sorocontrol.drivers.NetworkRecipe` of a network plant (an arm and an
+        object, ...), built in the child (:class:`~sorocontrol.drivers.SimulatedPlant`).
 
         The plant goes to the child over its stdin pipe (no file), and the child watches that pipe: when
         this process ends, whatever way (SIGKILL included), the simulated board vents and exits."""
@@ -170,6 +173,8 @@ class Board:
 
         secret = os.urandom(32).hex()
         plant = dict(volume=volume, time_constant=time_constant, max_flow=max_flow, beam=beam)
+        if network is not None:
+            plant.update(network=network, network_dt=network_dt)
         cmd = [sys.executable, "-m", "sorocontrol.server", "--driver", "simulated", "--channels", str(channels),
                "--port", "0", "--p-min", repr(p_min), "--p-max", repr(p_max), "--rate", repr(rate),
                "--watchdog", repr(watchdog), "--board-rate", repr(board_rate), "--plant-from-parent"]

@@ -16,7 +16,8 @@ and reports it.
   :class:`soroshapes.Fluidic` model (PI regulator with valve saturation,
   :math:`\dot m = \mathrm{sat}(k_p e + k_i z)`, :math:`\dot z = e`, :math:`p = mRT/V - p_0`), integrated
   with RK4 sub-steps; optionally the chambers drive a :class:`soroshapes.Shapes` beam, whose tip position
-  and coordinates are reported as sensors.
+  and coordinates are reported as sensors, or a network plant (a :class:`soroshapes.Model`: an arm, a grasped
+  object on a table, ...) built in the plant's process from a :class:`NetworkRecipe`.
 """
 import logging
 import math
@@ -28,7 +29,8 @@ from sorofem.errors import DependencyError, ParameterError
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Driver", "MockDriver", "SimulatedPlant", "I2CDriver", "ChannelCalibration", "BoardProfile"]
+__all__ = ["Driver", "MockDriver", "SimulatedPlant", "NetworkRecipe", "I2CDriver", "ChannelCalibration",
+           "BoardProfile"]
 
 
 class Driver:
@@ -85,6 +87,32 @@ def _channels(n):
     return n
 
 
+@dataclass(frozen=True)
+class NetworkRecipe:
+    """Where a network plant is built: the function ``function`` of the Python file ``path``, called as
+    ``function(pressures, **kwargs)`` in the plant's process, returns a :class:`soroshapes.Model` whose free
+    inputs (:attr:`Model.inputs <soroshapes.model.Model.inputs>`, as many as the board's channels, in channel
+    order) the plant sets to the channel pressures; ``pressures()`` returns them [Pa] (n,) (held over each
+    board tick), for couplings that depend on a channel (a gripper's engagement). A recipe rather than the
+    Model itself: a Model with couplings holds closures, which do not pickle to the board's process
+    (:meth:`sorocontrol.Board.simulated`)."""
+    path: str
+    function: str
+    kwargs: tuple = ()
+
+    def build(self, pressures):
+        import runpy
+
+        try:
+            ns = runpy.run_path(str(self.path))
+        except FileNotFoundError:
+            raise ParameterError(f"NetworkRecipe: no file {self.path}") from None
+        fn = ns.get(self.function)
+        if not callable(fn):
+            raise ParameterError(f"NetworkRecipe: {self.path} has no function {self.function!r}")
+        return fn(pressures, **dict(self.kwargs))
+
+
 class SimulatedPlant(Driver):
     r"""Regulated pneumatic channels (and optionally a beam) in real time.
 
@@ -106,6 +134,20 @@ class SimulatedPlant(Driver):
         A beam with as many inputs (chambers, in that order) as ``channels``; it is integrated with the
         implicit midpoint rule at the board's tick, driven by the measured pressures, from its static
         equilibrium at zero pressure. Its tip position [m] (3) and coordinates q (n) are the sensors.
+    network : NetworkRecipe or callable, optional
+        Instead of ``beam``: a network plant, ``network(pressures)`` (a :class:`NetworkRecipe` or a function
+        of the same signature) returning a :class:`soroshapes.Model` whose free inputs are the channels (see
+        :class:`NetworkRecipe`). Each call of :meth:`apply` continues it over the elapsed board time with its
+        own integrator (``Model.simulate(..., x0=, t0=)``, trapezoidal steps of at most ``network_dt``), the
+        channel pressures held at their values measured at the end of the tick (as for ``beam``). It runs on
+        the Model's Python path when any coupling is a Python function (slower than real time for an arm and
+        a grasped body: then ``max_advance`` caps each call and the plant lags the board's clock). Sensors: for each beam of the model (in the model's
+        order) its tip position [m] (3), then for each rigid body its position [m] (3). A step that does not
+        converge raises :class:`~sorofem.errors.ConvergenceError` out of :meth:`apply`: the board server
+        vents every channel and reports the driver error (as for any driver failure); the plant then keeps
+        its last converged state.
+    network_dt : float [s]
+        Largest integration step of the network plant (default 2 ms).
     substep : float [s]
         Largest RK4 step of the pneumatics (default 1 ms: the loop's poles are at -1/(2 tau), so the
         truncation error is ~(h/2tau)^4 ~ 1e-7 relative at tau = 30 ms).
@@ -129,7 +171,7 @@ class SimulatedPlant(Driver):
     """
 
     def __init__(self, channels, volume=20e-6, time_constant=0.03, max_flow=2e-3, beam=None, substep=1e-3,
-                 max_advance=0.025, T=293.15, gas_constant=287.05, p0=101325.0):
+                 max_advance=0.025, T=293.15, gas_constant=287.05, p0=101325.0, network=None, network_dt=2e-3):
         from soroshapes.model import Fluidic
 
         self.channels = _channels(channels)
@@ -154,6 +196,43 @@ class SimulatedPlant(Driver):
             self.qd = np.zeros(beam.n)
             beam.simulate(1e-4, 1e-4, q0=self.q, u=np.zeros(self.channels))   # compile now, not in the loop
             self.sensor_names = ("tip_x", "tip_y", "tip_z") + tuple(f"q{i}" for i in range(beam.n))
+        self.network = None
+        if network is not None:
+            if beam is not None:
+                raise ParameterError("SimulatedPlant takes a beam or a network plant, not both (put the beam "
+                                     "into the network's Model)")
+            self._init_network(network, float(network_dt))
+
+    def _init_network(self, network, dt):
+        from soroshapes.model import Model
+        from soroshapes.rigid import RigidBody
+        from soroshapes.shapes import Shapes
+
+        if not (np.isfinite(dt) and dt > 0):
+            raise ParameterError(f"SimulatedPlant network_dt must be positive and finite [s], got {dt!r}")
+        build = network.build if isinstance(network, NetworkRecipe) else network
+        if not callable(build):
+            raise ParameterError("SimulatedPlant network must be a NetworkRecipe or a function(pressures) -> Model")
+        self._u = np.zeros(self.channels)
+        model = build(lambda: self._u)
+        if not isinstance(model, Model):
+            raise ParameterError(f"the network recipe returned a {type(model).__name__}, not a soroshapes.Model")
+        model.set_controller(lambda m: self._u, reads=())
+        if len(model.inputs) != self.channels:
+            raise ParameterError(f"the network plant has {len(model.inputs)} free inputs ({model.inputs}), the "
+                                 f"board {self.channels} channels: they must match (one input per channel)")
+        self.network, self.network_dt = model, dt
+        self._beams = [s for s in model.systems if isinstance(model[s].system, Shapes)]
+        self._bodies = [s for s in model.systems if isinstance(model[s].system, RigidBody)]
+        self.xn = model.initial_state()
+        self.tn = 0.0
+        names = []
+        for s in self._beams:
+            names += [f"{s}_tip_{c}" for c in "xyz"]
+        for s in self._bodies:
+            names += [f"{s}_{c}" for c in "xyz"]
+        self.sensor_names = tuple(names)
+        self._step_network(1e-4)           # compile/validate now, not in the board loop
 
     def pressures(self):
         """Gauge pressures [Pa] of the channels now."""
@@ -190,6 +269,10 @@ class SimulatedPlant(Driver):
                 traj = self.beam.simulate(dt_total, min(dt_total, 5e-3), q0=self.q, qd0=self.qd,
                                           u=self.pressures())
                 self.q, self.qd = traj.q[-1].copy(), traj.qd[-1].copy()
+            if self.network is not None:
+                self.t = float(t)          # a step that fails is not retried: the board vents on the error
+                self._u = self.pressures()
+                self._step_network(dt_total)
             self.t = float(t)
         return self.pressures(), self._sensors(), np.zeros(self.channels, bool)
 
@@ -209,7 +292,26 @@ class SimulatedPlant(Driver):
                         1e3 * elapsed, 1e3 * self.max_advance, 1e3 * self.max_advance, self.skipped, self.late)
         return self.max_advance
 
+    def _step_network(self, dt_total):
+        """Continue the network plant over ``dt_total`` [s] from its state (ConvergenceError propagates)."""
+        traj = self.network.simulate(dt_total, min(dt_total, self.network_dt), x0=self.xn, t0=self.tn)
+        self.xn, self.tn = traj.x[-1].copy(), float(traj.t[-1])
+
+    def network_sensors(self, x=None):
+        """The network plant's sensors at its state ``x`` (default now): beam tips, then body positions [m]."""
+        m, x = self.network, self.xn if x is None else x
+        m.set_state(self.tn, x)
+        out = []
+        for s in self._beams:
+            shp = m[s].system
+            out.append(shp.positions(np.asarray(m.state(s))[:shp.n])[-1])
+        for s in self._bodies:
+            out.append(np.asarray(m.state(s))[:3])
+        return np.concatenate(out) if out else np.zeros(0)
+
     def _sensors(self):
+        if self.network is not None:
+            return self.network_sensors()
         if self.beam is None:
             return np.zeros(0)
         return np.concatenate([self.beam.positions(self.q)[-1], self.q])

@@ -333,11 +333,18 @@ def check_soft_hand(report, out):
 
 
 def check_board_pick_place(report, out):
-    # the open-loop plan played through the simulated board reaches each waypoint (0.07-3.3 mm measured at
-    # 1 s holds; bound 5 mm = the arm's radius), the gripper channel is driven. The loop's rate and missed
-    # deadlines are reported, not checked: they measure the machine (bench_board measures them).
-    assert report["max_waypoint_error_mm"] < 5.0
-    assert report["gripper_peak_kPa"] > 55 and report["loop_rate_hz"] > 0
+    # the simulated board's plant holds the object (a 5 g cube on a table) and the arm: the open-loop plan picks it
+    # through the gripper channel (the grasp engages with its pressure), lifts it (21.3 mm measured twice) and
+    # puts it down 3.5 mm away (0.66, 1.19 mm from the place target measured); bound 2 mm: the planned carry is
+    # 3.5 mm, so a place within 2 mm is a carried object, not one left behind or dropped. The gripper is open at
+    # the end (the last hold vents it). Without the grasp the object stays (tests/sorocontrol/
+    # test_plant_network.py). Tip errors up to 7.8 mm measured: the plan ignores the object's weight, which
+    # sags the soft arm; bound 15 mm. The loop's rate and missed deadlines are reported, not checked.
+    assert report["object_moved_mm"] > 1.5 and report["place_error_mm"] < 2.0
+    assert report["lift_mm"] > 10.0
+    assert abs(report["object_final_mm"][2] - report["object_start_mm"][2]) < 0.5      # standing on the table
+    assert report["max_waypoint_error_mm"] < 15.0
+    assert report["gripper_peak_kPa"] > 55 and report["gripper_final_kPa"] < 5 and report["loop_rate_hz"] > 0
     assert (out / report["png"]).stat().st_size > 0
 
 
