@@ -67,19 +67,12 @@ BEAM_FAMILIES = ("dvs", "chebyshev", "pcc")
 
 
 @dataclass(frozen=True)
-class Scene:
-    """The 2D (plane strain) PneuNet of ``demos/dvs_pneunet.py``: ``chambers``, coarsest element size ``size``
-    [m] (the rungs use size, size/2, size/4), top training pressure ``p_max`` [Pa] in ``train_steps`` steps, the
-    unseen ramp to ``test_level`` x p_max in ``test_steps`` steps, the validation load ``validation_level`` x
-    p_max, beam modes ``modes``, timing ``repeats`` of each beam solve, ``fem_repeats`` of each FEM solve."""
+class _Levels:
+    """What every ladder scene shares: the unseen load ``test_level`` and the validation load
+    ``validation_level`` (fractions of the top training load), beam ``modes``, the FEM families, timing
+    ``repeats`` of each beam solve and ``fem_repeats`` of each FEM solve, ``eigen`` (first natural frequency)."""
 
-    name: str = "pneunet2d"
-    chambers: int = 4
-    size: float = 2.4e-3
-    p_max: float = 5e3
-    train_steps: int = 10
     test_level: float = 0.85
-    test_steps: int = 5
     validation_level: float = 0.65
     modes: tuple = (1, 2, 3, 4, 5, 6)
     fem_families: tuple = tuple(FEM_FAMILIES)
@@ -98,6 +91,21 @@ class Scene:
             d.pop(k)
         d["fem_families"] = list(d["fem_families"])
         return d
+
+
+@dataclass(frozen=True)
+class Scene(_Levels):
+    """The 2D (plane strain) PneuNet of ``demos/dvs_pneunet.py``: ``chambers``, coarsest element size ``size``
+    [m] (the rungs use size, size/2, size/4), top training pressure ``p_max`` [Pa] in ``train_steps`` steps, the
+    unseen ramp to ``test_level`` x p_max in ``test_steps`` steps, the validation load ``validation_level`` x
+    p_max, beam modes ``modes``, timing ``repeats`` of each beam solve, ``fem_repeats`` of each FEM solve."""
+
+    name: str = "pneunet2d"
+    chambers: int = 4
+    size: float = 2.4e-3
+    p_max: float = 5e3
+    train_steps: int = 10
+    test_steps: int = 5
 
 
 #: A FEM solve longer than this [s] is timed once (``fem_repeats`` apply to the faster ones): a minute-long
@@ -177,6 +185,47 @@ def _solve_case(scene, pn, degree, mixed, size, level, steps, path):
     return t1 - t0, t2 - t1, fem, length, traj
 
 
+def _cached_fem(scene, out):
+    """The FEM part of a ladder from ``out/fem.json`` if it was made with these settings, else None."""
+    out.mkdir(parents=True, exist_ok=True)
+    cache = out / "fem.json"
+    if cache.is_file():
+        doc = json.loads(cache.read_text())
+        if doc.get("settings") == scene.fem_settings():
+            return doc
+    return None
+
+
+def _fem_rungs(scene, out, warm, make):
+    """Every FEM rung of ``scene`` (families x element sizes), each resumed from its record ``out/<family>-h<i>
+    .json`` when it was made with these settings (an interrupted ladder resumes), else made by ``make(family,
+    degree, mixed, i, h, path)`` -> (rung, extra) and recorded (atomically). ``warm(degree, mixed)`` runs once per
+    family before its first made rung (the forms' JIT outside the timings). Returns (rungs, the last extra)."""
+    from sorofem.io import atomic_path
+
+    rungs, extra = [], {}
+    for fam in scene.fem_families:
+        degree, mixed = FEM_FAMILIES[fam]
+        warmed = False
+        for i, h in enumerate(scene.sizes()):
+            path = out / f"{fam}-h{i}.h5"
+            done = out / f"{fam}-h{i}.json"
+            if done.is_file():
+                rec = json.loads(done.read_text())
+                if rec.get("settings") == scene.fem_settings() and path.is_file():
+                    rungs.append(rec["rung"])
+                    extra = rec.get("extra", {"length": rec["length"]} if "length" in rec else extra)
+                    continue
+            if not warmed:
+                warm(degree, mixed)
+                warmed = True
+            rung, extra = make(fam, degree, mixed, i, h, path)
+            rungs.append(rung)
+            with atomic_path(done) as tmp:
+                Path(tmp).write_text(json.dumps({"settings": scene.fem_settings(), "rung": rung, "extra": extra}))
+    return rungs, extra
+
+
 def fem_ladder(scene, out, progress=None):
     """The FEM part of the ladder: every rung's unseen ramp, the reference's training ramp and validation load.
 
@@ -188,57 +237,42 @@ def fem_ladder(scene, out, progress=None):
     from soroshapes.dvs import recover_strains
 
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    cache = out / "fem.json"
-    if cache.is_file():
-        doc = json.loads(cache.read_text())
-        if doc.get("settings") == scene.fem_settings():
-            return doc
+    doc = _cached_fem(scene, out)
+    if doc is not None:
+        return doc
     from sorofem.io import atomic_path
 
     pn = _pneunet()
     say = progress or (lambda msg: None)
-    rungs = []
-    length = None
-    for fam in scene.fem_families:
-        degree, mixed = FEM_FAMILIES[fam]
-        warm = False
-        for i, h in enumerate(scene.sizes()):
-            path = out / f"{fam}-h{i}.h5"
-            done = out / f"{fam}-h{i}.json"              # one record per rung: an interrupted ladder resumes
-            if done.is_file():
-                rec = json.loads(done.read_text())
-                if rec.get("settings") == scene.fem_settings() and path.is_file():
-                    rungs.append(rec["rung"])
-                    length = rec["length"]
-                    continue
-            if not warm:        # compile the family's forms (DOLFINx JIT) outside the timings: one small step
-                _solve_case(scene, pn, degree, mixed, scene.size, 0.01, 1, None)
-                warm = True
-            builds, solves = [], []
-            for rep in range(max(1, scene.fem_repeats)):
-                b, s, fem, length, traj = _solve_case(scene, pn, degree, mixed, h, scene.test_level,
-                                                      scene.test_steps, path)
-                builds.append(b)
-                solves.append(s)
-                if s > SLOW_FEM_S:                   # one sample of a slow solve: its noise is small relative
-                    break
-            freq = None
-            if scene.eigen:
-                fem2, _ = pn.build(2, scene.chambers, h, scene.p_max, degree=degree, mixed=mixed)
-                freq = float(fem2.eigen(n=1).frequencies[0])
-            data = recover_strains(path, _backbone(pn, length), samples=81, steps=[len(traj.times) - 1])
-            P = data.positions()[0]
-            v0 = float(_volume({k: np.asarray(v)[:1] for k, v in traj.cavity_volumes.items()})[0])
-            rungs.append({"family": fam, "level": i, "size": h, "degree": degree, "mixed": mixed,
-                          "unknowns": int(len(traj.vertices) * 2 * (3 if degree == 2 else 1)),
-                          "tip": P[-1].tolist(), "backbone": P.tolist(),
-                          "volume": float(_volume(traj.cavity_volumes)[-1]), "volume_rest": v0, "freq": freq,
-                          "build_s": builds, "solve_s": solves, "path": path.name})
-            with atomic_path(done) as tmp:
-                Path(tmp).write_text(json.dumps({"settings": scene.fem_settings(), "length": length,
-                                                 "rung": rungs[-1]}))
-            say(f"{fam} h={1e3 * h:.2f} mm: solve {np.median(solves):.2f} s")
+
+    def warm(degree, mixed):
+        _solve_case(scene, pn, degree, mixed, scene.size, 0.01, 1, None)
+
+    def rung(fam, degree, mixed, i, h, path):
+        builds, solves = [], []
+        for rep in range(max(1, scene.fem_repeats)):
+            b, s, fem, length, traj = _solve_case(scene, pn, degree, mixed, h, scene.test_level,
+                                                  scene.test_steps, path)
+            builds.append(b)
+            solves.append(s)
+            if s > SLOW_FEM_S:                   # one sample of a slow solve: its noise is small relative
+                break
+        freq = None
+        if scene.eigen:
+            fem2, _ = pn.build(2, scene.chambers, h, scene.p_max, degree=degree, mixed=mixed)
+            freq = float(fem2.eigen(n=1).frequencies[0])
+        data = recover_strains(path, _backbone(pn, length), samples=81, steps=[len(traj.times) - 1])
+        P = data.positions()[0]
+        v0 = float(_volume({k: np.asarray(v)[:1] for k, v in traj.cavity_volumes.items()})[0])
+        say(f"{fam} h={1e3 * h:.2f} mm: solve {np.median(solves):.2f} s")
+        return ({"family": fam, "level": i, "size": h, "degree": degree, "mixed": mixed,
+                 "unknowns": int(len(traj.vertices) * 2 * (3 if degree == 2 else 1)),
+                 "tip": P[-1].tolist(), "backbone": P.tolist(),
+                 "volume": float(_volume(traj.cavity_volumes)[-1]), "volume_rest": v0, "freq": freq,
+                 "build_s": builds, "solve_s": solves, "path": path.name}, {"length": length})
+
+    rungs, extra = _fem_rungs(scene, out, warm, rung)
+    length = extra["length"]
     ref = rungs[-1]
     degree, mixed = FEM_FAMILIES[ref["family"]]
     _, t_train, *_ = _solve_case(scene, pn, degree, mixed, ref["size"], 1.0, scene.train_steps, out / "train.h5")
@@ -247,7 +281,7 @@ def fem_ladder(scene, out, progress=None):
     doc = {"settings": scene.fem_settings(), "length": length, "rungs": rungs,
            "reference": {"family": ref["family"], "size": ref["size"], "train": "train.h5",
                          "unseen": ref["path"], "validation": "validation.h5", "train_s": t_train}}
-    with atomic_path(cache) as tmp:
+    with atomic_path(out / "fem.json") as tmp:
         Path(tmp).write_text(json.dumps(doc))
     return doc
 
@@ -454,7 +488,7 @@ def ladder(scene, out, progress=None):
 
 # ------------------------------------------------------------------------------------------------ cantilever
 @dataclass(frozen=True)
-class CantileverScene:
+class CantileverScene(_Levels):
     r"""A soft rectangular cantilever (plane strain, clamped at x = 0, along +x) under a dead tip load along -y
     of :math:`P = ` ``tip_load`` :math:`EI/L^2` at load level 1 (2: tip rotation ~ 0.8 rad, surface strain ~
     5 %) and, with ``gravity``, its own weight (ramped with it; off by default: a silicone strip this size
@@ -479,21 +513,11 @@ class CantileverScene:
     gravity: bool = False
     size: float = 2.5e-3
     train_steps: int = 8
-    test_level: float = 0.85
     test_steps: int = 4
-    validation_level: float = 0.65
-    modes: tuple = (1, 2, 3, 4, 5, 6)
-    fem_families: tuple = tuple(FEM_FAMILIES)
-    repeats: int = 7
-    fem_repeats: int = 1
-    eigen: bool = True
     t_dyn: float = 0.25
     dt_beam: float = 2.5e-3
     dt_fem: float = 5e-3
     fem_dynamics: bool = True
-
-    sizes = Scene.sizes
-    fem_settings = Scene.fem_settings
 
     def material(self):
         from sorofem import materials
@@ -604,65 +628,52 @@ def cantilever_fem_ladder(scene, out, progress=None):
     from sorofem.io import atomic_path
 
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    cache = out / "fem.json"
-    if cache.is_file():
-        doc = json.loads(cache.read_text())
-        if doc.get("settings") == scene.fem_settings():
-            return doc
+    doc = _cached_fem(scene, out)
+    if doc is not None:
+        return doc
     say = progress or (lambda msg: None)
     sigma = _midline(scene)
-    rungs = []
-    for fam in scene.fem_families:
-        degree, mixed = FEM_FAMILIES[fam]
-        warm = False
-        for i, h in enumerate(scene.sizes()):
-            path = out / f"{fam}-h{i}.h5"
-            done = out / f"{fam}-h{i}.json"
-            if done.is_file():
-                rec = json.loads(done.read_text())
-                if rec.get("settings") == scene.fem_settings() and path.is_file():
-                    rungs.append(rec["rung"])
-                    continue
-            if not warm:        # compile the family's forms outside the timings
-                _cantilever_fem(scene, degree, mixed, scene.size).solve(load_level=0.01, steps=1, progress=False)
-                warm = True
-            builds, solves, rss, walls = [], [], [], []
-            for rep in range(max(1, scene.fem_repeats)):
-                _peak_rss_reset()
-                base = _peak_rss_mb("VmRSS")
-                t0 = time.perf_counter()
-                fem = _cantilever_fem(scene, degree, mixed, h)
-                t1, c1 = time.perf_counter(), time.process_time()
-                traj = fem.solve(load_level=scene.test_level, steps=scene.test_steps,
-                                 max_step=scene.test_level / scene.test_steps, progress=False)
-                t2, c2 = time.perf_counter(), time.process_time()
-                rss.append(_peak_rss_mb() - base)
-                builds.append(t1 - t0)
-                solves.append(c2 - c1)           # CPU time, as the beams' (see _time_statics)
-                walls.append(t2 - t1)
-                if t2 - t1 > SLOW_FEM_S:
-                    break
-            traj.save(path)
-            P = _fem_backbone(scene, fem, sigma)
-            freq = None
-            if scene.eigen:
-                freq = float(_cantilever_fem(scene, degree, mixed, h).eigen(n=1).frequencies[0])
-            rung = {"family": fam, "level": i, "size": h, "degree": degree, "mixed": mixed,
-                    "unknowns": int(fem.num_dofs), "tip": P[-1].tolist(), "backbone": P.tolist(),
-                    "volume": 0.0, "volume_rest": 0.0, "freq": freq, "build_s": builds, "solve_s": solves,
-                    "solve_wall_s": walls, "rss_mb": float(np.median(rss)), "path": path.name}
-            if scene.fem_dynamics and i == 0 and not mixed:   # sorofem's dynamics: displacement formulation only
-                dyn = _cantilever_fem(scene, degree, mixed, h)
-                t0 = time.perf_counter()
-                dyn.simulate(scene.t_dyn, scene.dt_fem, record_every=1000, progress=False)
-                rung["dyn_s"] = time.perf_counter() - t0
-                rung["dyn_tip"] = _fem_backbone(scene, dyn, sigma)[-1].tolist()
-            rungs.append(rung)
-            with atomic_path(done) as tmp:
-                Path(tmp).write_text(json.dumps({"settings": scene.fem_settings(), "rung": rung}))
-            say(f"cantilever {fam} h={1e3 * h:.3f} mm: solve {np.median(solves):.2f} s, {rung['unknowns']} dofs, "
-                f"peak RSS {rung['rss_mb']:.0f} MB")
+
+    def warm(degree, mixed):
+        _cantilever_fem(scene, degree, mixed, scene.size).solve(load_level=0.01, steps=1, progress=False)
+
+    def make(fam, degree, mixed, i, h, path):
+        builds, solves, rss, walls = [], [], [], []
+        for rep in range(max(1, scene.fem_repeats)):
+            _peak_rss_reset()
+            base = _peak_rss_mb("VmRSS")
+            t0 = time.perf_counter()
+            fem = _cantilever_fem(scene, degree, mixed, h)
+            t1, c1 = time.perf_counter(), time.process_time()
+            traj = fem.solve(load_level=scene.test_level, steps=scene.test_steps,
+                             max_step=scene.test_level / scene.test_steps, progress=False)
+            t2, c2 = time.perf_counter(), time.process_time()
+            rss.append(_peak_rss_mb() - base)
+            builds.append(t1 - t0)
+            solves.append(c2 - c1)           # CPU time, as the beams' (see _time_statics)
+            walls.append(t2 - t1)
+            if t2 - t1 > SLOW_FEM_S:
+                break
+        traj.save(path)
+        P = _fem_backbone(scene, fem, sigma)
+        freq = None
+        if scene.eigen:
+            freq = float(_cantilever_fem(scene, degree, mixed, h).eigen(n=1).frequencies[0])
+        rung = {"family": fam, "level": i, "size": h, "degree": degree, "mixed": mixed,
+                "unknowns": int(fem.num_dofs), "tip": P[-1].tolist(), "backbone": P.tolist(),
+                "volume": 0.0, "volume_rest": 0.0, "freq": freq, "build_s": builds, "solve_s": solves,
+                "solve_wall_s": walls, "rss_mb": float(np.median(rss)), "path": path.name}
+        if scene.fem_dynamics and i == 0 and not mixed:   # sorofem's dynamics: displacement formulation only
+            dyn = _cantilever_fem(scene, degree, mixed, h)
+            t0 = time.perf_counter()
+            dyn.simulate(scene.t_dyn, scene.dt_fem, record_every=1000, progress=False)
+            rung["dyn_s"] = time.perf_counter() - t0
+            rung["dyn_tip"] = _fem_backbone(scene, dyn, sigma)[-1].tolist()
+        say(f"cantilever {fam} h={1e3 * h:.3f} mm: solve {np.median(solves):.2f} s, {rung['unknowns']} dofs, "
+            f"peak RSS {rung['rss_mb']:.0f} MB")
+        return rung, {}
+
+    rungs, _ = _fem_rungs(scene, out, warm, make)
     ref = rungs[-1]
     degree, mixed = FEM_FAMILIES[ref["family"]]
     fem = _cantilever_fem(scene, degree, mixed, ref["size"])
@@ -681,7 +692,7 @@ def cantilever_fem_ladder(scene, out, progress=None):
                                            sigma).tolist(),
                         "validation": elastica(scene.length, scene.EI(), scene.validation_level * w,
                                                scene.validation_level * Pt, sigma).tolist()}}
-    with atomic_path(cache) as tmp:
+    with atomic_path(out / "fem.json") as tmp:
         Path(tmp).write_text(json.dumps(doc))
     return doc
 

@@ -142,7 +142,9 @@ class SimulatedPlant(Driver):
         channel pressures held at their values measured at the end of the tick (as for ``beam``). It runs on
         the Model's Python path when any coupling is a Python function (slower than real time for an arm and
         a grasped body: then ``max_advance`` caps each call and the plant lags the board's clock). Sensors: for each beam of the model (in the model's
-        order) its tip position [m] (3), then for each rigid body its position [m] (3). A step that does not
+        order) its tip position [m] (3), then for each rigid body its position [m] (3), last the plant's own
+        time [s] (it lags the board's clock when ``max_advance`` caps a call: a host that sequences by the
+        plant's time gets the same motion on a loaded machine). A step that does not
         converge raises :class:`~sorofem.errors.ConvergenceError` out of :meth:`apply`: the board server
         vents every channel and reports the driver error (as for any driver failure); the plant then keeps
         its last converged state.
@@ -231,7 +233,7 @@ class SimulatedPlant(Driver):
             names += [f"{s}_tip_{c}" for c in "xyz"]
         for s in self._bodies:
             names += [f"{s}_{c}" for c in "xyz"]
-        self.sensor_names = tuple(names)
+        self.sensor_names = tuple(names) + ("plant_time",)
         self._step_network(1e-4)           # compile/validate now, not in the board loop
 
     def pressures(self):
@@ -298,7 +300,8 @@ class SimulatedPlant(Driver):
         self.xn, self.tn = traj.x[-1].copy(), float(traj.t[-1])
 
     def network_sensors(self, x=None):
-        """The network plant's sensors at its state ``x`` (default now): beam tips, then body positions [m]."""
+        """The network plant's sensors at its state ``x`` (default now): beam tips, then body positions [m],
+        last the plant's time [s]."""
         m, x = self.network, self.xn if x is None else x
         m.set_state(self.tn, x)
         out = []
@@ -307,7 +310,8 @@ class SimulatedPlant(Driver):
             out.append(shp.positions(np.asarray(m.state(s))[:shp.n])[-1])
         for s in self._bodies:
             out.append(np.asarray(m.state(s))[:3])
-        return np.concatenate(out) if out else np.zeros(0)
+        out.append(np.array([self.tn]))
+        return np.concatenate(out)
 
     def _sensors(self):
         if self.network is not None:

@@ -21,8 +21,9 @@ def _pick_and_lift(grasp):
     d = _demo()
     plant = SimulatedPlant(5, network=NetworkRecipe(str(DEMO), "plant_network", (("grasp", grasp),)),
                            network_dt=5e-3)
-    assert plant.sensor_names == ("arm_tip_x", "arm_tip_y", "arm_tip_z", "object_x", "object_y", "object_z")
-    start = plant.network_sensors()[3:].copy()
+    assert plant.sensor_names == ("arm_tip_x", "arm_tip_y", "arm_tip_z", "object_x", "object_y", "object_z",
+                                  "plant_time")
+    start = plant.network_sensors()[3:6].copy()
     plans = d["plan"](d["arm"](), [d["PICK"], (0.110, -0.038)])
     t = 0.0
     for (a, _), grip, dur in ((plans[0], 0.0, 0.6), (plans[0], d["GRIP"], 0.4), (plans[1], d["GRIP"], 0.8)):
@@ -30,7 +31,8 @@ def _pick_and_lift(grasp):
             t += 0.01
             _, s, faults = plant.apply(d["pressures"](a, grip), t)
             assert not faults.any() and np.all(np.isfinite(s))
-    return start, s[3:], s[:3]
+    assert s[-1] == pytest.approx(t + 1e-4, abs=1e-9)    # the plant's time: every tick simulated, after its 0.1 ms warm-up step
+    return start, s[3:6], s[:3]
 
 
 @pytest.mark.slow
