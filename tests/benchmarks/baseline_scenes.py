@@ -2,8 +2,8 @@
 OUT.json`` with the tree to measure first on ``sys.path``); only the public API that both trees share is used.
 
 An optional fourth argument sets the beam quadrature of this tree (``trapezoid``: the baseline's discretization,
-so that the two trees compute the same model). Each scene prints nothing and writes ``{"wall_s", "simulated_s", "figures"}`` (``figures``: arrays or numbers
-to compare between the trees) to OUT.json. Demos are loaded from the ``demos/`` folder of the measured tree.
+so that the two trees compute the same model). Each scene prints nothing and writes ``{"wall_s", "simulated_s",
+"figures"}`` (``figures``: arrays or numbers to compare between the trees) to OUT.json. Demos are loaded from the ``demos/`` folder of the measured tree.
 """
 import importlib.util
 import json
