@@ -3,7 +3,9 @@ OUT.json`` with the tree to measure first on ``sys.path``); only the public API 
 
 An optional fourth argument sets the beam quadrature of this tree (``trapezoid``: the baseline's discretization,
 so that the two trees compute the same model). Each scene prints nothing and writes ``{"wall_s", "simulated_s",
-"figures"}`` (``figures``: arrays or numbers to compare between the trees) to OUT.json. Demos are loaded from the ``demos/`` folder of the measured tree.
+"figures"}`` (``figures``: arrays or numbers to compare between the trees) to OUT.json. Demos are loaded from the
+``demos/`` folder of the measured tree (the two changed scenes from the baseline's: ``BASELINE_SCENE``, whose Python
+functions of time this tree plays as Schedule tables, ``_time_tables``).
 """
 import importlib.util
 import json
