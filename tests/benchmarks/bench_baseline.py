@@ -103,7 +103,13 @@ def test_bench_against_the_baseline(scene, record):
         figures["reported_not_compared"] = {k: {"this_tree": new["reported"][k], "same_model": same["reported"][k],
                                                 "baseline": old["reported"].get(k)} for k in new["reported"]}
     figures["met"] = bool(sim and sim / new["wall_s"] >= figures["target_realtime_factor"])
+    if "runs" in new:                      # the baseline's scene played by this tree (Schedule tables)
+        figures["runs"] = new["runs"]
     record(**figures)
+    # the baseline's scenes, whose inputs are Python functions of time, run in this tree on the compiled path
+    # (baseline_scenes._time_tables): a Python callable left in the network would put them on the Python path
+    for run in (same, new):
+        assert all(r["path"] == "compiled" for r in run.get("runs", [{"path": "compiled"}])), run.get("runs")
     # the same model, solved by reorganized kernels (other rounding): agreement to a few times the scenes'
     # integrator tolerances (rtol 1e-4 to 1e-6; the rod's Newton tolerance 1e-8); an impact scene compares the
     # figures that average over its run (baseline_scenes.IMPACT_FIGURES), within its time-discretization error
@@ -165,3 +171,49 @@ def test_bench_cold_start(record):
         figures["this_tree"]["other_user_statics_plus_simulate_s"] = round(other["wall_s"], 3)
     best = figures["this_tree"]["after_bootstrap_statics_plus_simulate_s"]
     record(**figures, target_s=3.0, met=bool(best <= 3.0))
+
+
+def test_time_functions_of_the_baseline_scenes_run_compiled(monkeypatch):
+    """The baseline's scenes drive their inputs by Python functions of time; this tree plays them as Schedule
+    tables (baseline_scenes._time_tables), so the network runs compiled and the inputs equal the functions (to the
+    tables' interpolation error), while a controller that reads the state keeps the Python path."""
+    sys.path.insert(0, str(SCENES.parent))
+    try:
+        import baseline_scenes
+    finally:
+        sys.path.remove(str(SCENES.parent))
+    from sorofem import materials, sdf
+    from soroshapes import Basis, Model, Shapes
+    import soroshapes.control as control
+    from soroshapes.network import Schedule
+
+    def beam():
+        shp = Shapes(Basis.chebyshev(2), (0, 2, 0, 0, 0, 0), length=0.1, section=sdf.Circle(0.005),
+                     material=materials.NeoHookean(E=1e6, nu=0.45, density=1000.0, damping=0.1), segments=6)
+        return shp.add_chamber(area=5e-5, offset=(0.003, 0.0)).add_gravity()
+
+    def pressure(t):                       # a 2 Hz drive: the tables' error is 1.6e-6 of its amplitude
+        return 2e4 * (1.0 + np.sin(4 * np.pi * t))
+
+    def setpoint(t):
+        return np.array([0.09, 0.01 * np.sin(2 * np.pi * t)])
+
+    plain = Model().add(beam(), "arm").set_controller(lambda m: {"arm": [pressure(m.t)]})
+    assert plain.evaluation_path.startswith("python")         # what the scene gives without the tables
+    monkeypatch.setattr(baseline_scenes, "RUNS", [])
+    monkeypatch.setattr(control, "impedance", lambda *args, setpoint, **kw: setpoint)   # shows what it receives
+    baseline_scenes._time_tables(monkeypatch.setattr)
+    mdl = Model().add(beam(), "arm").set_controller(lambda m: {"arm": [pressure(m.t)]})
+    assert mdl.evaluation_path == "compiled", mdl.evaluation_path
+    tr = mdl.simulate(0.05, 2e-3, "bdf2")
+    assert baseline_scenes.RUNS[-1]["path"] == "compiled" and tr.stats["path"] == "compiled"
+    ref = plain.simulate(0.05, 2e-3, "bdf2")
+    assert np.max(np.abs(tr["arm"].q - ref["arm"].q)) <= 1e-4 * np.max(np.abs(ref["arm"].q))
+    # the impedance's set-point function becomes a table (what the wall scene's impedance controller receives)
+    table = control.impedance("arm", stiffness=150.0, damping=15.0, setpoint=setpoint, axes=(0, 2))
+    assert isinstance(table, Schedule)
+    assert np.allclose(table.at(0.3), setpoint(0.3), rtol=0.0, atol=1e-7)
+    reads = Model().add(beam(), "arm").set_controller(lambda m: {"arm": [1e3 * m["arm"].x[0]]})
+    assert reads.evaluation_path.startswith("python")
+    with pytest.raises(ValueError, match="TABLE_HORIZON"):
+        mdl.simulate(1.0, 2e-3, t0=baseline_scenes.TABLE_HORIZON)
