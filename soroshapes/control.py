@@ -74,7 +74,7 @@ __all__ = ["torque_to_inputs", "gravity_compensation", "pd", "pid", "feedforward
 def _beam(model, system):
     """(shapes, q, qd) of the beam ``system`` at the model's current iterate."""
     view = model[system]
-    shp = getattr(view.system, "beam_view", view.system)   # issue 25: a tree block (Tree.system) shows a beam's face
+    shp = getattr(view.system, "beam_view", view.system)   # a tree block (Tree.system) shows a beam's face
     if not hasattr(shp, "input_map"):
         raise ParameterError(f"system {system!r} is a {type(shp).__name__}, not a Shapes beam: these "
                              "controllers act on beams")

@@ -70,7 +70,7 @@ from ._beam import newton_euler as _ne
 from ._beam import newton_euler_planar as _ne_planar
 from ._beam import mass_coriolis_gravity as _mcg
 from ._contact import contact_force as _contact_force
-from . import _treeblock        # issue 25: the tree block kind
+from . import _treeblock        # the tree block kind
 from .numerics import FD_STEP
 from .valves import orifice_flow
 
@@ -239,7 +239,7 @@ class Schedule:
 # lowering: the network as flat arrays
 # ------------------------------------------------------------------------------------------------------------
 BEAM, FLUIDIC, LINEAR, RIGID = 0, 1, 2, 3
-TREE = 4     # issue 25: a tree of bodies (soroshapes._treeblock), its arrays the last entry of the tuple
+TREE = 4     # a tree of bodies (soroshapes._treeblock), its arrays the last entry of the tuple
 #: floats per reservoir (rows of ``fpar``): isothermal, R, T, p0, n, leak, filter gain, regulated, kp, ki, max flow,
 #: filtered, volume kind and value, valve kind (0 saturation, 1 orifice) and the orifice's gain, b, supply, exhaust
 #: and full flow (soroshapes.valves)
@@ -271,7 +271,7 @@ def _beam_ne_work(n, P):
     return (Np * 6, P * 36, P * 24, 192, 36, Np * 6 * n, Np * 6 * n, 6 * n, n * n, n * n, n, n, n, n)
 
 
-# --- issue 24 (ladder): identified polynomial actuators, compiled (begin) ---
+# --- identified polynomial actuators (soroshapes.dvs.PolynomialForce), compiled ---
 def _polynomial_inputs(loads, n):
     r"""``(D, C)`` with ``C`` (D, n, m) when every input of a beam is a chamber, a linear actuator or an identified
     polynomial actuator (:class:`soroshapes.dvs.PolynomialForce`): :math:`f_{in} = \sum_j \sum_{d=1}^{D}
@@ -302,7 +302,6 @@ def _has_polynomial_actuator(shp):
     from .dvs import PolynomialForce
 
     return any(isinstance(getattr(ld, "fn", None), PolynomialForce) for ld in shp.loads)
-# --- issue 24 (ladder): identified polynomial actuators, compiled (end) ---
 
 
 def _lower_impedance(spec, blocks, index, free_rows, inputs):
@@ -331,7 +330,7 @@ def _lower_impedance(spec, blocks, index, free_rows, inputs):
     rows = [r for r in free_rows if b["woff"] <= r < b["woff"] + b["nw"]]
     if len(rows) != b["m"]:
         raise NotImplementedError(f"an impedance controller on beam {name!r} whose inputs are also coupled")
-    if _has_polynomial_actuator(shp):                  # issue 24: G+ maps torques to linear inputs only
+    if _has_polynomial_actuator(shp):                  # G+ maps torques to linear inputs only
         raise NotImplementedError(f"an impedance controller on beam {name!r} with a polynomial actuator")
     Kn, Dn, qn, null = spec["null"](n)
     cint = [index[name], k, shp.node(spec["at"]) * shp.model.stride, int(spec["coriolis"]), int(spec["gravity"]),
@@ -409,7 +408,7 @@ def _lower_terms(spec, blocks, index, free_rows):
         rows = [r for r in free_rows if b["woff"] <= r < b["woff"] + b["nw"]]
         if len(rows) != b["m"]:
             raise NotImplementedError(f"a controller on beam {name!r} whose inputs are also coupled")
-        if _has_polynomial_actuator(b["system"]):      # issue 24: G+ maps torques to linear inputs only
+        if _has_polynomial_actuator(b["system"]):      # G+ maps torques to linear inputs only
             raise NotImplementedError(f"a controller on beam {name!r} with a polynomial actuator")
         integral = -1
         if sp["kind"] == "joint":
@@ -513,7 +512,7 @@ def lower(blocks, links, volumes, controller, free):
         return len(mapint) - 1
 
     fo = wo = io = 0
-    tree_args = None                                # issue 25: the tree block's arrays (soroshapes._treeblock)
+    tree_args = None                                # the tree block's arrays (soroshapes._treeblock)
     for i, b in enumerate(blocks):
         table[i, 1:5] = b["xoff"], b["n"], b["woff"], b["nw"]
         if b["kind"] == "shapes":
@@ -536,7 +535,7 @@ def lower(blocks, links, volumes, controller, free):
             if len(plan.point_loads):
                 raise NotImplementedError(f"beam {b['name']!r} (point loads)")
             Gin, deg, higher = plan.input_matrix, 1, None
-            if Gin is None:                             # issue 24: an identified polynomial actuator
+            if Gin is None:                             # an identified polynomial actuator
                 poly = _polynomial_inputs(own, mdl.n)
                 if poly is None:
                     raise NotImplementedError(f"beam {b['name']!r} (a nonlinear actuator)")
@@ -552,8 +551,8 @@ def lower(blocks, links, volumes, controller, free):
             bintb.append(np.asarray(mdl.rows, dtype=np.int64))
             fo += sum(_beam_floats(n, m, P, ng))
             bint.append([n, m, P, ng, mdl.order, fo - sum(_beam_floats(n, m, P, ng)), wo, io, io + n,
-                         int(_is_planar(mdl.rows, mdl.X0)), deg, fo])      # issue 24: degree, higher terms at fo
-            if higher is not None:                      # issue 24: the coefficients of u^2..u^D, (D-1, n, m)
+                         int(_is_planar(mdl.rows, mdl.X0)), deg, fo])      # degree, higher terms at fo
+            if higher is not None:                      # the coefficients of u^2..u^D, (D-1, n, m)
                 bflt.append(np.ascontiguousarray(higher, dtype=float).reshape(-1))
                 fo += higher.size
             wo += sum(_beam_work(n, P)) + sum(_beam_ne_work(n, P))
@@ -590,7 +589,7 @@ def lower(blocks, links, volumes, controller, free):
             lint.append([A.shape[0], B.shape[1], C.shape[0], sum(len(v) for v in lflt)])
             lflt.append(np.concatenate([A.reshape(-1), B.reshape(-1), C.reshape(-1), D.reshape(-1)]))
             kind[i], table[i, 5] = LINEAR, len(lint) - 1
-        elif getattr(b["system"], "tree_block", None) is not None:     # issue 25: a Tree.system block
+        elif getattr(b["system"], "tree_block", None) is not None:     # a Tree.system block
             if tree_args is not None:
                 raise NotImplementedError(f"tree {b['name']!r} (one tree block per compiled network)")
             tree_args = b["system"].tree_block
@@ -753,7 +752,7 @@ def lower(blocks, links, volumes, controller, free):
               np.asarray(cint, np.int64), np.asarray(cflt, float), np.zeros(N),
               np.concatenate(sops).astype(np.int64) if sops else np.zeros((0, 3), np.int64), cat(sconsts),
               *_term_cache(wterm, table, bint, nb),
-              _treeblock.empty_block_args() if tree_args is None else tree_args,          # issue 25: net[33]
+              _treeblock.empty_block_args() if tree_args is None else tree_args,          # net[33]: the tree block
               np.full(1 + len(free_rows), np.nan))          # net[34]: the schedule's row cached per time
     return Lowered(arrays, N, NW, groups, dep)
 
@@ -1061,7 +1060,7 @@ def _beam_model(bi, bint, bflt, bintb):
 @njit(cache=True)
 def _beam_input_force(xo, n, m, bflt, go, w, wo, bext, f_in, deg=1, ho=0):
     """The generalized force of beam inputs and couplings, :math:`G u` plus a grasp's share, into f_in (G the
-    (n, m) input matrix at bflt[go:]); with ``deg`` > 1 (issue 24: identified polynomial actuators) plus
+    (n, m) input matrix at bflt[go:]); with ``deg`` > 1 (identified polynomial actuators) plus
     :math:`\\sum_{d=2}^{deg} C_d u^d` elementwise in u, the (deg-1, n, m) coefficients at bflt[ho:]."""
     for k in range(n):
         s = bext[xo + k]                            # forces of couplings (a grasp)
@@ -1686,7 +1685,7 @@ def _system_rhs_a(i, x, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, li
     arrays (see :func:`_beam_arrays`; ``tblk`` the tree block's, net[33]); False if a beam's or the tree's state is
     out of range."""
     xo, nx, wo = table[i, 1], table[i, 2], table[i, 3]
-    if table[i, 0] == TREE:                     # issue 25
+    if table[i, 0] == TREE:                     # a tree of bodies (soroshapes._treeblock)
         return _treeblock.block_rhs(tblk, x, xo, w, wo, table[i, 4], out)
     if table[i, 0] == BEAM:
         return _beam_rhs(table[i, 5], x, xo, w, wo, bint, bflt, bwork, bintb, bext, out)
@@ -1718,7 +1717,8 @@ def rhs(t, x, net, w, out, only):
     if not _assemble(t, x, net, w, only):
         return False
     for i in range(table.shape[0]):
-        if only[i] and not _system_rhs_a(i, x, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt, net[33], out):
+        if only[i] and not _system_rhs_a(i, x, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt,
+                                         net[33], out):
             return False
     return _finite_rows(table, only, out)
 

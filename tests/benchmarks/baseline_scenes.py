@@ -200,8 +200,7 @@ def cold_start(tree):
 
 
 SCENES = {"rod15": rod15, "soft_hand": soft_hand, "suzumori_gripper": _quick_demo("suzumori_gripper"),
-          "wavy_wall": _quick_demo("wavy_wall"), "manipulator_pick": _quick_demo("manipulator_pick"),
-          "cold_start": cold_start}
+          "wavy_wall": _quick_demo("wavy_wall"), "cold_start": cold_start}
 
 def _quadrature(name):
     """Make ``name`` the default quadrature of every Shapes built in this process (this tree only: the baseline

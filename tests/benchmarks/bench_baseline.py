@@ -70,7 +70,11 @@ def _difference(new, old, allowed=None):
     return worst
 
 
-@pytest.mark.parametrize("scene", ["rod15", "soft_hand", "suzumori_gripper", "wavy_wall", "manipulator_pick"])
+# manipulator_pick is not here: the demo is now the three-bellow 3D manipulator with a three-finger gripper tree
+# holding the cylinder by contact (a coupling on the Model's Python path, 0.04-0.06x real time), a scene the
+# baseline cannot run; the baseline's planar arm with a grasp spring ran at 5.6x (this tree, session 9). The tree's
+# speed is measured by bench_tree.py (compiled tree block vs the per-body path).
+@pytest.mark.parametrize("scene", ["rod15", "soft_hand", "suzumori_gripper", "wavy_wall"])
 def test_bench_against_the_baseline(scene, record):
     """Three runs: the baseline, this tree with the baseline's discretization (trapezoidal quadrature: the same
     model, so the trajectories must agree to the integrator tolerance), and this tree as it is (Gregory's rule:
