@@ -264,7 +264,13 @@ fetch("/scene").then(r => r.json()).then(scene => {
   build(scene);
   const es = new EventSource("/events");
   es.onopen = () => { S.connected = true; };
-  es.onmessage = ev => show(JSON.parse(ev.data));
+  // a slow page (a loaded laptop) draws only the newest frame at its next paint: frames that arrive while it
+  // draws replace each other instead of queueing up behind the drawing (and behind the user's input)
+  let latest = null;
+  es.onmessage = ev => {
+    if (latest === null) requestAnimationFrame(() => { const d = latest; latest = null; show(JSON.parse(d)); });
+    latest = ev.data;
+  };
   es.onerror = () => { S.connected = false; document.getElementById("msg").textContent = "lost the server"; };
 });
 </script></body></html>

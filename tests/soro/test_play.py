@@ -62,7 +62,8 @@ def test_browser_slider_moves_the_tip_and_the_tip_follows_the_dragged_target(fin
         wait_for(page, f"Math.hypot(...soroPlay.frame.tip.map((v, i) => v - {[float(v) for v in ref]}[i])) < {TIP_TOL}",
                  what=f"the tip settles at the closed-form {ref} m")
         assert page.evaluate("soroPlay.latencies.length") >= 1  # the slider's change came back in a drawn frame
-        assert "model" in page.inner_text("#source")
+        wait_for(page, "document.getElementById('source').textContent.includes('the model')", timeout=60,
+                 what="the page says its 3D view is the model")
         # drag the IK target (drawn at the straight tip) to a reachable point of the bending plane
         goal = [0.045, 0.0, 0.025]
         x0, y0 = page.evaluate("soroPlay.clientOf(soroPlay.frame.target)")
@@ -100,7 +101,8 @@ def _board_session(tmp_path):
         with browser_page(tmp_path / "chromium") as page:
             page.goto(srv.url)
             wait_for(page, "window.soroPlay && soroPlay.framesDrawn > 2", timeout=60, what="the page draws frames")
-            assert "estimated from the board's sensors" in page.inner_text("#source")
+            wait_for(page, "document.getElementById('source').textContent.includes(\"estimated from the board's sensors\")",
+                     timeout=60, what="the page says its 3D view is the shape estimated from the board's sensors")
             page.locator("#ch0").focus()
             page.keyboard.press("End")
             import time
