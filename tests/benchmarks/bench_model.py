@@ -307,3 +307,42 @@ def test_bench_soft_hand_adaptive_steps(record):
            speedup_over_fixed=round(adaptive["realtime_factor_cpu_time"] / fixed["realtime_factor_cpu_time"], 2),
            speedup_over_fixed_rtol_1e3=round(loose["realtime_factor_cpu_time"] / fixed["realtime_factor_cpu_time"], 2),
            target=50, met=bool(max(adaptive["realtime_factor_cpu_time"], fixed["realtime_factor_cpu_time"]) >= 50))
+
+
+def test_bench_soft_hand_newton_tolerance(record):
+    """Fewer Newton sweeps by a looser Newton tolerance? The demo's fixed 2 ms BDF2 run with the compiled driver
+    (soroshapes.integrate.integrate, as Model.simulate calls it) at Newton tolerances ``ntol`` 1e-3 (Model.simulate's)
+    to 1e-1 of the step tolerance: sweeps per step, the components' corrections histogram (1 .. 6+), CPU real-time
+    factor (best of three) and the tip-angle error against the 0.125 ms reference. Each component takes at least
+    two corrections (the rate estimate needs a second), so the sweeps stay above 3 while the error does not move."""
+    from soroshapes import integrate as itg
+
+    H = _hand()
+    t_sim = 2.0
+    mdl, fingers = H.build()
+    ref = mdl.simulate(t_sim, 1.25e-4, method="bdf2", rtol=1e-6, atol=1e-8, record_every=16)
+    a_ref = np.array([H.tip_angle(f, ref[n].q) for f, n in zip(fingers, H.NAMES)])
+    mdl.simulate(0.02, 2e-3, method="bdf2", rtol=1e-4, atol=1e-6)                     # warm up (numba)
+    net, x0 = mdl._lowered(), mdl.initial_state()
+    scale, N = mdl._scales(x0), len(x0)
+    cols = [slice(12 * i, 12 * i + 5) for i in range(5)]      # q of each finger (10 states, then its reservoir: 2)
+    assert [mdl.systems[2 * i] for i in range(5)] == list(H.NAMES) and mdl.n == 60
+    rows = {}
+    for ntol in (1e-3, 1e-2, 1e-1):
+        cpu = np.inf
+        for _ in range(3):
+            out_t, out_x, out_w = np.zeros(1001), np.zeros((1001, N)), np.zeros((1001, net.NW))
+            out_x[0] = x0
+            st = np.zeros(32)
+            c0 = time.process_time()
+            got = itg.integrate(x0.copy(), 0.0, 2e-3, 1000, itg.BDF2, 1, 2e-3 / 1024, net.arrays, scale, 1e-4, 1e-6,
+                                12, ntol, out_t, out_x, out_w, st)
+            cpu = min(cpu, time.process_time() - c0)
+        assert got == 1001
+        a = np.array([H.tip_angle(f, out_x[:, c]) for f, c in zip(fingers, cols)])
+        rows[f"ntol_{ntol:g}"] = dict(realtime_factor_cpu_time=round(t_sim / cpu, 2),
+                                      newton_sweeps_per_step=round(st[2] / st[0], 2),
+                                      component_matrices_per_step=round(st[15] / st[0], 3),
+                                      component_corrections_histogram_1_to_6=st[20:26].astype(int).tolist(),
+                                      tip_angle_error_deg=round(float(np.degrees(np.abs(a - a_ref).max())), 4))
+    record(**rows)
