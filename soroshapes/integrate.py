@@ -1,5 +1,5 @@
 r"""The implicit integrator family of compiled networks: trapezoidal, implicit midpoint and BDF2, one Newton
-solver and one step-splitting rule, run many steps per compiled call.
+solver, one step-splitting rule and one step-size controller, run many steps per compiled call.
 
 Methods (step :math:`h`, :math:`\dot x = F(t, x)`; all second order)
 ---------------------------------------------------------------------
@@ -51,9 +51,36 @@ converges linearly). A step that fails (no convergence within ``maxit`` iteratio
 evaluation out of range) is covered by halved steps down to ``min_dt``; below it :func:`integrate` returns -1
 with the time in ``st[7]``.
 
+Step sizes
+----------
+:func:`integrate` runs fixed steps (a failed step is covered by halved ones). :func:`integrate_adaptive` controls
+the local error; it is the one step-size rule of both paths of :meth:`Model.simulate
+<soroshapes.model.Model.simulate>` (``adaptive=True``):
+
+* estimate (Milne's device): with :math:`x_p` the quadratic through the last three states extrapolated to
+  :math:`t_k + h` (:func:`lagrange3`; error :math:`-E_p y'''`, :math:`E_p = h(h + h_1)(h + h_1 + h_2)/6` for
+  the last steps :math:`h_1, h_2`) and the method's own error :math:`E_c y'''` (trapezoidal :math:`h^3/12`, the
+  midpoint rule the same for linear F, variable-step BDF2 :math:`h^2H^2/(6(H + h))`, :math:`H = h + h_1`), the
+  local error is :math:`e = E_c/(E_c + E_p)(x_{k+1} - x_p)` (:func:`local_error`), measured by the RMS of
+  :math:`e_j/(\text{rtol}\max(|x_{kj}|, |x_{k+1,j}|) + \text{atol}\, s_j)`; the first two steps (no three states
+  yet) are not estimated and run at the first step size;
+* control (:func:`step_factor`): a step with a norm above 1 is repeated from the same state with
+  :math:`h \cdot \max(0.2, 0.9\,\text{err}^{-1/3})`; after an accepted one the next step is
+  :math:`h\min(2, 0.9\,\text{err}^{-1/3})`, but kept at :math:`h` when that is less than 1.25 h (a new step size
+  costs a new factored matrix, twice with BDF2). A growth of at most 2 keeps variable-step BDF2 zero-stable
+  (:math:`\omega < 1 + \sqrt 2`);
+* Newton failure: the step is halved, down to ``min_dt``, keeping the history (no restart);
+* variable-step BDF2 (step ratio :math:`\omega = h/h_1`): :math:`x_{k+1} - \tfrac{(1+\omega)^2}{1+2\omega}x_k
+  + \tfrac{\omega^2}{1+2\omega}x_{k-1} = h\tfrac{1+\omega}{1+2\omega}F_{k+1}`, i.e. :math:`\gamma = h(1 +
+  \omega)/(1 + 2\omega)`; the first step trapezoidal;
+* output: the trajectory is recorded at the requested output times (:math:`t_0 + k\,\Delta t_{out}` and the end),
+  not at the steps: :func:`dense_output` evaluates the quadratic through the step's end and the two states
+  before it (second order like the methods; the straight line in the first step).
+
 The Python path of :meth:`Model.simulate <soroshapes.model.Model.simulate>` implements the same methods,
-predictors (linear for BDF2), refresh rule and splitting in Python over the whole network (any callable, sparse
-LU for large networks, adaptive step doubling); it stops on the plain correction test.
+predictors (linear for BDF2), refresh rule, splitting and step-size rule (it calls :func:`local_error`,
+:func:`step_factor` and :func:`dense_output`) in Python over the whole network (any callable, sparse LU for large
+networks); it stops on the plain correction test.
 """
 import math
 
@@ -65,7 +92,8 @@ from ._beam import REFRESH_ITS, REFRESH_STEPS, _lu_solve
 from .network import (BEAM, _beam_mass, _beam_mass_matrix, _cheap_rows_of, _iteration_matrix_of, assemble, jacobian,
                       residual, rhs)
 
-__all__ = ["TRAPEZOIDAL", "MIDPOINT", "BDF2", "integrate"]
+__all__ = ["TRAPEZOIDAL", "MIDPOINT", "BDF2", "integrate", "integrate_adaptive", "local_error", "step_factor",
+           "lagrange3", "dense_output"]
 
 
 @njit(cache=True)
@@ -185,7 +213,7 @@ THETA_REFRESH = 0.1
 
 
 @njit(cache=True)
-def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, x1):
+def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, x1, hp):
     """One implicit step from (t, x0) into x1; True on success. ``ws``: work arrays; ``st``: statistics and the
     state of the iteration matrix (st[4] = 1 when the differenced Jacobian is valid; st[5] = 1 when the
     quadratic BDF2 predictor may use ``ws[12]``, the state before ``xprev``; st[9] = 1 once the model rows of the
@@ -193,7 +221,8 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
     is valid, for c = st[12]; st[13] = 1 asks for a fresh one everywhere; st[15] counts the components' matrices
     factored). ``ws[15]`` (components, 3): per connected component, 1 when its last step asks for a fresh matrix,
     the steps its matrix served, and the largest contraction rate that matrix showed at a third correction (-1:
-    none yet)."""
+    none yet). ``hp``: the two previous step sizes (h_{k-1}, h_{k-2}) [s] for the variable-step BDF2 and its
+    predictor (equal to ``h`` in fixed steps)."""
     (w, f0, fp, xp, r, guess, Jac, JF, LUc, pivc, rc, fx0, pp, xhat, xe, cst, Fk, xq, xl, elin, pk) = ws
     N = x0.shape[0]
     table = net[0]
@@ -224,7 +253,7 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
         for i in range(N):
             xhat[i] = x0[i]
             guess[i] = x0[i] + h * fx0[i]
-    else:
+    elif hp[0] == h and hp[1] == h:                     # BDF2, equal steps
         gam, c, te = 2.0 * h / 3.0, 2.0 * h / 3.0, t + h
         for i in range(N):
             xhat[i] = (4.0 * x0[i] - xprev[i]) / 3.0
@@ -232,6 +261,19 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
         if st[5] == 1.0:                                # quadratic extrapolation through three states
             for i in range(N):
                 guess[i] = 3.0 * x0[i] - 3.0 * xprev[i] + pp[i]
+        _predict(x0, gam, c, net, scale, ws, st, guess)
+    else:                                               # BDF2 after a step of hp[0]: omega = h/hp[0]
+        om = h / hp[0]
+        d = 1.0 + 2.0 * om
+        gam = h * (1.0 + om) / d
+        c, te = gam, t + h
+        for i in range(N):
+            xhat[i] = ((1.0 + om) ** 2 * x0[i] - om * om * xprev[i]) / d
+        if st[5] == 1.0:
+            lagrange3(x0, xprev, pp, h, hp[0], hp[1], guess)
+        else:
+            for i in range(N):
+                guess[i] = x0[i] + om * (x0[i] - xprev[i])
         _predict(x0, gam, c, net, scale, ws, st, guess)
     for i in range(N):
         x1[i] = guess[i]
@@ -386,7 +428,8 @@ def _split(method, t, x, h, hh, min_dt, net, scale, rtol, atol, maxit, ntol, ws,
         step = min(hh, end - t)
         for i in range(x.shape[0]):
             tmp[i] = xn[i]
-        if not _step(method, t, tmp, step, tmp, net, scale, rtol, atol, maxit, ntol, ws, st, xn):
+        if not _step(method, t, tmp, step, tmp, net, scale, rtol, atol, maxit, ntol, ws, st, xn,
+                     np.array([step, step])):
             for i in range(x.shape[0]):
                 xn[i] = tmp[i]
             hh *= 0.5
@@ -408,13 +451,8 @@ def integrate(x, t0, h, nsteps, method, record_every, min_dt, net, scale, rtol, 
     beams' model rows failed, then the matrix reuse state (11-14, see :func:`_step`), matrices factored.
     Returns the number of recorded rows, or -1 when Newton failed down to ``min_dt`` (the time in st[7])."""
     N = x.shape[0]
-    NW = out_w.shape[1]
-    comps = net[18]
-    nc, mc = comps.shape[0], comps.shape[1]
-    ws = (np.zeros(NW), np.zeros(N), np.zeros(N), np.zeros(N), np.zeros(N), np.zeros(N), np.zeros((N, N)),
-          np.zeros((N, N)), np.zeros((nc, mc, mc)), np.zeros((nc, mc), np.int64), np.zeros(mc), np.zeros(N),
-          np.zeros(N), np.zeros(N), np.zeros(N), np.zeros((nc, 3)), np.zeros(N), np.zeros(N),
-          np.zeros(N), np.zeros(N), np.zeros(nc, np.int64))
+    ws = _workspace(N, out_w.shape[1], net)
+    hp = np.array([h, h])
     xn, prev, tmp = np.zeros(N), x.copy(), np.zeros(N)
     net[34][0] = np.nan                 # the schedule's cached row (network._assemble): the table may have changed
     have_prev = False
@@ -422,7 +460,7 @@ def integrate(x, t0, h, nsteps, method, record_every, min_dt, net, scale, rtol, 
     for k in range(nsteps):
         t = t0 + k * h
         if method == BDF2 and have_prev:
-            ok = _step(BDF2, t, x, h, prev, net, scale, rtol, atol, maxit, ntol, ws, st, xn)
+            ok = _step(BDF2, t, x, h, prev, net, scale, rtol, atol, maxit, ntol, ws, st, xn, hp)
             if ok:
                 for i in range(N):
                     ws[12][i] = prev[i]
@@ -438,7 +476,7 @@ def integrate(x, t0, h, nsteps, method, record_every, min_dt, net, scale, rtol, 
                 have_prev = False
         else:
             base = TRAPEZOIDAL if method == BDF2 else method
-            ok = _step(base, t, x, h, prev, net, scale, rtol, atol, maxit, ntol, ws, st, xn)
+            ok = _step(base, t, x, h, prev, net, scale, rtol, atol, maxit, ntol, ws, st, xn, hp)
             if not ok:
                 reached = _split(base, t, x, h, 0.5 * h, min_dt, net, scale, rtol, atol, maxit, ntol, ws, st, xn, tmp)
                 if reached < t + h - 1e-12 * h:
@@ -460,3 +498,166 @@ def integrate(x, t0, h, nsteps, method, record_every, min_dt, net, scale, rtol, 
             rec += 1
     return rec
 
+
+
+@njit(cache=True)
+def _workspace(N, NW, net):
+    """The work arrays of :func:`_step` (see its unpacking) for N states and NW inputs."""
+    comps = net[18]
+    nc, mc = comps.shape[0], comps.shape[1]
+    return (np.zeros(NW), np.zeros(N), np.zeros(N), np.zeros(N), np.zeros(N), np.zeros(N), np.zeros((N, N)),
+            np.zeros((N, N)), np.zeros((nc, mc, mc)), np.zeros((nc, mc), np.int64), np.zeros(mc), np.zeros(N),
+            np.zeros(N), np.zeros(N), np.zeros(N), np.zeros((nc, 3)), np.zeros(N), np.zeros(N),
+            np.zeros(N), np.zeros(N), np.zeros(nc, np.int64))
+
+
+# ------------------------------------------------------------------------------------- the step-size controller
+#: Controller constants: the proposed step h (SAFETY err^(-1/3)), limited to [SHRINK_MIN, GROW_MAX] h (GROW_MAX
+#: < 1 + sqrt 2 keeps variable-step BDF2 zero-stable); an accepted step keeps h unless the proposal grows it
+#: by at least KEEP_BELOW (a new step size costs a new Newton matrix, twice for BDF2).
+SAFETY, SHRINK_MIN, GROW_MAX, KEEP_BELOW = 0.9, 0.2, 2.0, 1.25
+
+
+@njit(cache=True)
+def lagrange3(x0, x1, x2, s, h1, h2, out):
+    """The quadratic through (0, x0), (-h1, x1), (-h1-h2, x2) at s (into out): the predictor at s = h, the
+    dense output between the last two states at s in [-h1, 0]."""
+    H = h1 + h2
+    l0 = (s + h1) * (s + H) / (h1 * H)
+    l1 = -s * (s + H) / (h1 * h2)
+    l2 = s * (s + h1) / (H * h2)
+    for i in range(x0.shape[0]):
+        out[i] = l0 * x0[i] + l1 * x1[i] + l2 * x2[i]
+
+
+@njit(cache=True)
+def dense_output(s, x1, x0, xm1, h, h1, nhist, out):
+    """The state at s [s] from the end of an accepted step of ``h`` from x0 to x1 (-h <= s <= 0), into out: the
+    quadratic through (x1, x0, xm1) (``xm1`` the state ``h1`` before x0) or, in the first step (``nhist`` = 0),
+    the straight line; second order like the methods."""
+    if s >= -1e-9 * h:
+        for i in range(x1.shape[0]):
+            out[i] = x1[i]
+    elif nhist >= 1:
+        lagrange3(x1, x0, xm1, s, h, h1, out)
+    else:
+        a = 1.0 + s / h
+        for i in range(x1.shape[0]):
+            out[i] = (1.0 - a) * x0[i] + a * x1[i]
+
+
+@njit(cache=True)
+def local_error(method, x0, x1, xp, h, h1, h2, rtol, atol, scale):
+    r"""The weighted RMS norm of the local error estimate of the step of ``h`` from x0 to x1 (Milne's device):
+    ``xp`` is the quadratic extrapolation through the three last states (times :math:`t_k, t_k - h_1, t_k - h_1
+    - h_2`), whose error is :math:`-E_p y'''` with :math:`E_p = h(h + h_1)(h + h_1 + h_2)/6`; the method's own
+    is :math:`E_c y'''`, :math:`E_c = h^3/12` (trapezoidal; midpoint for linear F) and :math:`h^2 H^2/(6(H + h))`,
+    :math:`H = h + h_1` (variable-step BDF2; :math:`\tfrac29 h^3` in equal steps), so the error is
+    :math:`e = E_c/(E_c + E_p)\,(x_1 - x_p)`, measured by :math:`\sqrt{\tfrac1N\sum_j (e_j/(\text{rtol}
+    \max(|x_{0j}|, |x_{1j}|) + \text{atol}\,s_j))^2}`: a step is accepted when it is at most 1."""
+    Ep = h * (h + h1) * (h + h1 + h2) / 6.0
+    if method == BDF2:
+        H = h + h1
+        Ec = h * h * H * H / (6.0 * (H + h))
+    else:
+        Ec = h * h * h / 12.0
+    C = Ec / (Ec + Ep)
+    s = 0.0
+    N = x0.shape[0]
+    for j in range(N):
+        v = C * (x1[j] - xp[j]) / (rtol * max(abs(x0[j]), abs(x1[j])) + atol * scale[j])
+        s += v * v
+    return math.sqrt(s / N)
+
+
+@njit(cache=True)
+def step_factor(err, accepted):
+    """The next step over this one from the error norm ``err`` of this one (:func:`local_error`; < 0: unknown,
+    keep the step): SAFETY err^(-1/3) within [SHRINK_MIN, GROW_MAX]; an accepted step below KEEP_BELOW keeps
+    its size."""
+    if err < 0.0:
+        return 1.0
+    if not math.isfinite(err):
+        return SHRINK_MIN
+    fac = SAFETY * err ** (-1.0 / 3.0) if err > 0.0 else GROW_MAX
+    fac = min(GROW_MAX, max(SHRINK_MIN, fac))
+    if accepted and fac < KEEP_BELOW:
+        return 1.0
+    return fac
+
+
+@njit(cache=True)
+def integrate_adaptive(x, t0, t_end, h, dt_out, max_dt, method, min_dt, net, scale, rtol, atol, maxit, ntol, out_t,
+                       out_x, out_w, st):
+    """Error-controlled integration of the network from (t0, x) to ``t_end`` [s], first step ``h``, steps at most
+    ``max_dt``: each step's local error (:func:`local_error`, from the third step on) is kept below the
+    tolerance, a step above it is repeated with the step :func:`step_factor` proposes, and a step whose Newton
+    iteration fails is halved (down to ``min_dt``). BDF2 runs in variable steps (its first step trapezoidal).
+    Records (t, x, w) at t0 + k ``dt_out`` and at ``t_end`` into out_t, out_x, out_w from row 1, by the quadratic
+    through the last three states (the straight line in the first step). ``st`` as :func:`integrate`, and: 1
+    steps rejected by the error test, 28 the smallest and 29 the largest step accepted [s], 30 steps whose error
+    was estimated. Returns the number of rows recorded, or -1 (the time in st[7])."""
+    N = x.shape[0]
+    ws = _workspace(N, out_w.shape[1], net)
+    xn, xm1, xp, xo = np.zeros(N), x.copy(), np.zeros(N), np.zeros(N)
+    pp = ws[12]                                   # the state before xm1 (the quadratic predictor's third point)
+    hp = np.array([h, h])                         # the last two step sizes
+    net[34][0] = np.nan                           # the schedule's cached row (see integrate)
+    nhist = 0                                     # past states known before x: 0, 1 (xm1) or 2 (and pp)
+    rows = out_t.shape[0]
+    rec = 1
+    t = t0
+    h = min(h, max_dt)
+    st[28], st[29] = np.inf, 0.0
+    while rec < rows:
+        if t + h > t_end - 1e-9 * h:
+            h = t_end - t
+        m = method
+        if method == BDF2 and nhist == 0:
+            m = TRAPEZOIDAL
+        st[5] = 1.0 if nhist == 2 else 0.0
+        if not _step(m, t, x, h, xm1, net, scale, rtol, atol, maxit, ntol, ws, st, xn, hp):
+            st[6] += 1                            # Newton failed: halve the step
+            st[16], st[19] = 0.0, 0.0             # the linearized predictor's memory is of the failed step
+            h *= 0.5
+            if h < min_dt:
+                st[7] = t
+                return -1
+            continue
+        err = -1.0
+        if nhist == 2:
+            lagrange3(x, xm1, pp, h, hp[0], hp[1], xp)
+            err = local_error(m, x, xn, xp, h, hp[0], hp[1], rtol, atol, scale)
+            st[30] += 1
+        if err > 1.0:
+            st[1] += 1
+            st[16], st[19] = 0.0, 0.0
+            h *= step_factor(err, False)
+            if h < min_dt:
+                st[7] = t
+                return -1
+            continue
+        # accepted: record the output times in (t, t + h]
+        tn = t + h
+        while rec < rows:
+            to = t0 + rec * dt_out if rec < rows - 1 else t_end
+            if to > tn + 1e-9 * h:
+                break
+            dense_output(to - tn, xn, x, xm1, h, hp[0], nhist, xo)
+            out_t[rec] = to
+            for i in range(N):
+                out_x[rec, i] = xo[i]
+            assemble(to, xo, net, out_w[rec])
+            rec += 1
+        for i in range(N):
+            pp[i] = xm1[i]
+            xm1[i] = x[i]
+            x[i] = xn[i]
+        hp[1], hp[0] = hp[0], h
+        nhist = min(nhist + 1, 2)
+        st[0] += 1
+        st[28] = min(st[28], h)
+        st[29] = max(st[29], h)
+        t = tn
+        h = min(h * step_factor(err, True), max_dt)
+    return rec

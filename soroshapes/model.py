@@ -27,7 +27,7 @@ Integration (``Model.simulate``)
 --------------------------------
 Two paths, one family of methods. A network whose every part has a compiled form (beams with gravity and
 chambers, reservoirs, :meth:`StateSpace.linear` systems, output couplings, :class:`~soroshapes.network.StateMap`
-couplings and a :class:`~soroshapes.network.Schedule` controller) runs with fixed steps in one compiled kernel
+couplings and a :class:`~soroshapes.network.Schedule` controller) runs in one compiled kernel
 (:mod:`soroshapes.network`, :mod:`soroshapes.integrate`: Newton per connected component, the beams' iteration
 rows re-scaled by the current mass matrix); :attr:`Model.evaluation_path` says which path runs and, for the
 Python path, which part forces it. The Python path, described here, runs any network:
@@ -48,10 +48,9 @@ reads together are perturbed in the same evaluation (Curtis-Powell-Reid grouping
 2 evaluations instead of 2N). From 200 states on (``linear_solver="auto"``) the matrix is assembled block-sparse
 and factorized by SuperLU, below that dense by LAPACK. It is reused across steps until Newton contracts slowly. Newton stops when every correction is below
 :math:`10^{-3}(\text{rtol}|x_j| + \text{atol}\, s_j)` (:math:`s_j` a per-state scale given by the subsystem).
-With ``adaptive=True`` (one-step methods), the local error is estimated by step doubling,
-:math:`e = (x_{h/2,h/2} - x_h)/3`, the step is accepted when :math:`\|e\|_{RMS}` weighted by
-:math:`\text{rtol}|x| + \text{atol}\, s` is below 1 (the two-half-step solution is kept) and resized by
-:math:`0.9\,\|e\|^{-1/3}`.
+With ``adaptive=True`` both paths run the one step-size controller of :mod:`soroshapes.integrate` (Milne's
+estimate of the local error from the step and the quadratic extrapolation of the last three states,
+variable-step BDF2, records at the output times by dense output).
 
 Fluidic reservoir (eq. (25)-(29) of the paper)
 ----------------------------------------------
@@ -1040,19 +1039,26 @@ class Model:
 
     # -- integration -----------------------------------------------------------------------------------
     def simulate(self, t_end, dt, method="trapezoidal", x0=None, rtol=1e-6, atol=1e-9, adaptive=False, *,
-                 max_iterations=12, record_every=1, min_dt=None, t0=0.0, linear_solver="auto", compiled=None):
-        """Integrate the network from ``t0`` to ``t0 + t_end`` [s] with step ``dt`` [s] (fixed:
-        ``t_end/ceil(t_end/dt)``; adaptive: the first step) by the implicit ``method`` ("trapezoidal",
+                 max_iterations=12, record_every=1, min_dt=None, max_dt=None, t0=0.0, linear_solver="auto",
+                 compiled=None):
+        """Integrate the network from ``t0`` to ``t0 + t_end`` [s] by the implicit ``method`` ("trapezoidal",
         "midpoint", "bdf2"); ``t0`` lets a simulation continue from a state reached earlier (time-dependent
-        volumes, signals and controllers see the absolute time).
+        volumes, signals and controllers see the absolute time). The trajectory is recorded every
+        ``record_every`` multiples of ``h = t_end/ceil(t_end/dt)`` and at the end, in both modes:
 
-        ``rtol``, ``atol``: Newton stops when every correction is below 1e-3 of ``rtol*|x_j| + atol*s_j``; with
-        ``adaptive=True`` (trapezoidal or midpoint) the step-doubling local error is kept below the same
-        tolerance. A step whose Newton iterations fail is split (down to ``min_dt``, default dt/1024), then a
-        :class:`~sorofem.errors.ConvergenceError` gives the time. ``linear_solver``: the Newton matrix
+        * ``adaptive=False``: fixed steps of ``h``;
+        * ``adaptive=True``: error-controlled steps (:func:`soroshapes.integrate.integrate_adaptive`, the same
+          rule on both paths), the first of ``h``, at most ``max_dt`` [s] (default: no limit), each step's local
+          error estimate kept below ``rtol*|x_j| + atol*s_j`` (RMS); the records at the output times are the
+          methods' second-order dense output (the quadratic through the last three states), not steps.
+
+        ``rtol``, ``atol``: also the Newton tolerance: Newton stops when every correction is below 1e-3 of
+        ``rtol*|x_j| + atol*s_j``. A step whose Newton iterations fail is split (fixed) or halved (adaptive) down
+        to ``min_dt`` (default h/1024, adaptive h*1e-6), then a :class:`~sorofem.errors.ConvergenceError` gives
+        the time. ``linear_solver``: the Newton matrix
         :math:`I - cJ` is factorized dense (LAPACK) or sparse (SuperLU on the block-sparse :meth:`jacobian`);
         ``"auto"`` takes sparse from 200 states on. ``compiled``: None runs the network in one compiled kernel
-        (:mod:`soroshapes.network`, fixed steps, dense LU) when every part of it has a compiled form and on the
+        (:mod:`soroshapes.network`, dense LU) when every part of it has a compiled form and on the
         Python path otherwise (:attr:`evaluation_path` says which and why); True requires the compiled kernel (a
         :class:`~sorofem.errors.ParameterError` names the part that has none); False forces the Python path.
         Returns a :class:`ModelTrajectory`.
@@ -1062,9 +1068,8 @@ class Model:
         t_end, dt = float(t_end), float(dt)
         if not (t_end > 0 and dt > 0 and np.isfinite(t_end) and np.isfinite(dt)):
             raise ParameterError(f"t_end and dt must be positive [s], got {t_end!r}, {dt!r}")
-        if adaptive and method == "bdf2":
-            raise ParameterError("adaptive steps use step doubling of a one-step method: use method='trapezoidal' "
-                                 "or 'midpoint' with adaptive=True (variable-step BDF2 is not implemented)")
+        if max_dt is not None and not (float(max_dt) > 0 and np.isfinite(float(max_dt))):
+            raise ParameterError(f"max_dt must be a positive step [s] or None (no limit), got {max_dt!r}")
         if not (rtol > 0 and atol > 0):
             raise ParameterError("rtol and atol must be positive")
         if linear_solver not in ("auto", "dense", "sparse"):
@@ -1088,15 +1093,18 @@ class Model:
                 raise ParameterError(f"simulate(compiled=True): the network has no compiled form: {net}; use "
                                      "StateMap couplings and a Schedule controller (soroshapes.network), or "
                                      "compiled=None for the Python path")
-            if compiled and adaptive:
-                raise ParameterError("simulate(compiled=True) runs fixed steps: use adaptive=False")
-            if not isinstance(net, str) and not adaptive:
-                return self._simulate_compiled(net, x, t0, t_end, dt, method, record_every, min_dt, rec_w[0])
+            if not isinstance(net, str):
+                return self._simulate_compiled(net, x, t0, t_end, dt, method, record_every, min_dt, rec_w[0],
+                                               adaptive, max_dt)
         else:
             net = None
         wall = _time.perf_counter()
         if adaptive:
-            self._run_adaptive(x, t0, t0 + t_end, dt, method, rec_t, rec_x, rec_w)
+            h = t_end / int(np.ceil(t_end / dt - 1e-9))
+            self._stats["rejected"] = 0
+            self._run_adaptive(x, t0, t0 + t_end, h, h * max(1, int(record_every)),
+                               np.inf if max_dt is None else float(max_dt),
+                               h * 1e-6 if min_dt is None else float(min_dt), method, rec_t, rec_x, rec_w)
         else:
             nsteps = int(np.ceil(t_end / dt - 1e-9))
             h = t_end / nsteps
@@ -1127,23 +1135,34 @@ class Model:
         self._stats["wall_time"] = _time.perf_counter() - wall
         self._stats["method"] = method
         self._stats["path"] = "python"
+        self._stats["adaptive"] = bool(adaptive)
         return self._trajectory(np.array(rec_t), np.array(rec_x), np.array(rec_w), net)
 
-    def _simulate_compiled(self, net, x, t0, t_end, dt, method, record_every, min_dt, w0):
+    def _simulate_compiled(self, net, x, t0, t_end, dt, method, record_every, min_dt, w0, adaptive=False,
+                           max_dt=None):
         """Fixed steps by :func:`soroshapes.integrate.integrate` (the methods, refresh rule and splitting of the
-        Python path; Newton per connected component with a rate-based stopping estimate)."""
+        Python path; Newton per connected component with a rate-based stopping estimate), error-controlled ones
+        by :func:`soroshapes.integrate.integrate_adaptive`."""
         from . import integrate as itg
         nsteps = int(np.ceil(t_end / dt - 1e-9))
         h = t_end / nsteps
-        min_dt = h / 1024 if min_dt is None else float(min_dt)
         record_every = max(1, int(record_every))
         rows = 1 + nsteps // record_every + (1 if nsteps % record_every else 0)
         out_t, out_x, out_w = np.zeros(rows), np.zeros((rows, self._N)), np.zeros((rows, self._NW))
         out_t[0], out_x[0], out_w[0] = t0, x, w0
-        st = np.zeros(28)
+        st = np.zeros(32)
         code = {"trapezoidal": itg.TRAPEZOIDAL, "midpoint": itg.MIDPOINT, "bdf2": itg.BDF2}[method]
         wall = _time.perf_counter()
-        got = itg.integrate(x.copy(), t0, h, nsteps, code, record_every, min_dt, net.arrays, self._scale,
+        if adaptive:
+            min_dt = h * 1e-6 if min_dt is None else float(min_dt)
+            got = itg.integrate_adaptive(x.copy(), t0, t0 + t_end, h, h * record_every,
+                                         np.inf if max_dt is None else float(max_dt), code, min_dt, net.arrays,
+                                         self._scale, self._rtol, self._atol, self._maxit, 1e-3, out_t, out_x, out_w,
+                                         st)
+            self._stats.update(rejected=int(st[1]), min_step=float(st[28]), max_step=float(st[29]))
+        else:
+            min_dt = h / 1024 if min_dt is None else float(min_dt)
+            got = itg.integrate(x.copy(), t0, h, nsteps, code, record_every, min_dt, net.arrays, self._scale,
                                 self._rtol, self._atol, self._maxit, 1e-3, out_t, out_x, out_w, st)
         self._stats.update(steps=int(st[0]), newton_iterations=int(st[2]), jacobians=int(st[3]),
                            cut_steps=int(st[6]), system_evaluations=int(st[8]), model_matrix_failures=int(st[10]),
@@ -1151,7 +1170,8 @@ class Model:
                            component_corrections=st[20:26].astype(int).tolist(),
                            first_corrections_within_tolerance=int(st[26]),
                            first_corrections_fresh_matrix=int(st[27]),
-                           wall_time=_time.perf_counter() - wall, method=method, path="compiled")
+                           wall_time=_time.perf_counter() - wall, method=method, path="compiled",
+                           adaptive=bool(adaptive))
         if got < 0:
             raise ConvergenceError(f"Model.simulate: Newton failed at t = {st[7]:.6g} s down to dt = {min_dt:.3g} s "
                                    f"({method}, compiled network: Newton did not converge, or an evaluation failed "
@@ -1184,8 +1204,9 @@ class Model:
     def _weights(self, x):
         return self._rtol * np.abs(x) + self._atol * self._scale
 
-    def _step(self, method, t, x0, h, xprev=None):
-        """One implicit step; returns x1 or None when Newton fails."""
+    def _step(self, method, t, x0, h, xprev=None, omega=1.0):
+        """One implicit step; returns x1 or None when Newton fails. BDF2 after a step of h/omega (variable-step
+        coefficients, :mod:`soroshapes.integrate`)."""
         N = self._N
         if method == "trapezoidal":
             f0 = self._rhs(t, x0)
@@ -1198,11 +1219,18 @@ class Model:
             res = lambda x1: x1 - x0 - h * self._rhs(tm, 0.5 * (x0 + x1))            # noqa: E731
             jac_at = lambda x1: (tm, 0.5 * (x0 + x1))                              # noqa: E731
             guess = x0 + h * self._rhs(t, x0)
-        else:
+        elif omega == 1.0:
             c, t1 = 2.0 * h / 3.0, t + h
             res = lambda x1: x1 - 4.0 / 3.0 * x0 + xprev / 3.0 - c * self._rhs(t1, x1)   # noqa: E731
             jac_at = lambda x1: (t1, x1)                                            # noqa: E731
             guess = 2.0 * x0 - xprev
+        else:
+            d = 1.0 + 2.0 * omega
+            c, t1 = h * (1.0 + omega) / d, t + h
+            xhat = ((1.0 + omega) ** 2 * x0 - omega ** 2 * xprev) / d
+            res = lambda x1: x1 - xhat - c * self._rhs(t1, x1)                     # noqa: E731
+            jac_at = lambda x1: (t1, x1)                                            # noqa: E731
+            guess = x0 + omega * (x0 - xprev)
         from scipy.linalg import lu_factor, lu_solve
         for attempt in range(2):
             fresh = self._J is None or attempt == 1
@@ -1257,31 +1285,56 @@ class Model:
         self._J = None
         return None
 
-    def _run_adaptive(self, x, t, t_end, h, method, rec_t, rec_x, rec_w):
-        min_dt = h * 1e-6
-        while t < t_end - 1e-12 * t_end:
-            h = min(h, t_end - t)
-            big = self._step(method, t, x, h)
-            half = self._step(method, t, x, 0.5 * h)
-            fine = None if half is None else self._step(method, t + 0.5 * h, half, 0.5 * h)
-            if big is None or fine is None:
-                err = np.inf
-            else:
-                e = (fine - big) / 3.0
-                err = float(np.sqrt(np.mean((e / (self._rtol * np.maximum(np.abs(x), np.abs(fine))
-                                                  + self._atol * self._scale)) ** 2)))
-            if err <= 1.0:
-                t, x = t + h, fine
-                self._stats["steps"] += 1
-                rec_t.append(t)
-                rec_x.append(x.copy())
-                rec_w.append(self._assemble(t, x).copy())
-            else:
+    def _run_adaptive(self, x, t0, t_end, h, dt_out, max_dt, min_dt, method, rec_t, rec_x, rec_w):
+        """Error-controlled steps: the rule of :func:`soroshapes.integrate.integrate_adaptive` (its error
+        estimate, step factor and dense output) over the Python step."""
+        from . import integrate as itg
+        code = {"trapezoidal": itg.TRAPEZOIDAL, "midpoint": itg.MIDPOINT, "bdf2": itg.BDF2}
+        n_out = int(np.ceil((t_end - t0) / dt_out - 1e-9))
+        outs = [t0 + k * dt_out for k in range(1, n_out)] + [t_end]
+        N = self._N
+        xm1, pp, xp, xo = x.copy(), x.copy(), np.zeros(N), np.zeros(N)
+        h1, h2, nhist, t, k = h, h, 0, t0, 0
+        h = min(h, max_dt)
+        steps = []
+        while k < len(outs):
+            if t + h > t_end - 1e-9 * h:
+                h = t_end - t
+            m = "trapezoidal" if method == "bdf2" and nhist == 0 else method
+            xn = self._step(m, t, x, h, xm1, h / h1)
+            if xn is None:
+                self._stats["cut_steps"] += 1
+                h *= 0.5
+                if h < min_dt:
+                    why = getattr(self, "_last_error", None)
+                    raise ConvergenceError(f"Model.simulate (adaptive): Newton failed at t = {t:.6g} s down to dt = "
+                                           f"{min_dt:.3g} s ({method}); check the couplings and controller for "
+                                           "discontinuities, or loosen rtol" + (f" (last error: {why})" if why else ""))
+                continue
+            err = -1.0
+            if nhist == 2:
+                itg.lagrange3(x, xm1, pp, h, h1, h2, xp)
+                err = itg.local_error(code[m], x, xn, xp, h, h1, h2, self._rtol, self._atol, self._scale)
+            if err > 1.0:
                 self._stats["rejected"] += 1
-            h *= min(4.0, max(0.2, 0.9 * (err if err > 0 else 1e-12) ** (-1.0 / 3.0))) if np.isfinite(err) else 0.25
-            if h < min_dt:
-                raise ConvergenceError(f"Model.simulate (adaptive): the step fell below {min_dt:.3g} s at t = {t:.6g} "
-                                       "s; loosen rtol/atol or check the model for discontinuities")
+                h *= itg.step_factor(err, False)
+                if h < min_dt:
+                    raise ConvergenceError(f"Model.simulate (adaptive): the step fell below {min_dt:.3g} s at "
+                                           f"t = {t:.6g} s; loosen rtol/atol or check the model for discontinuities")
+                continue
+            tn = t + h
+            while k < len(outs) and outs[k] <= tn + 1e-9 * h:
+                itg.dense_output(outs[k] - tn, xn, x, xm1, h, h1, nhist, xo)
+                rec_t.append(outs[k])
+                rec_x.append(xo.copy())
+                rec_w.append(self._assemble(outs[k], xo).copy())
+                k += 1
+            pp, xm1, x = xm1, x, xn
+            h2, h1, nhist, t = h1, h, min(nhist + 1, 2), tn
+            steps.append(h)
+            self._stats["steps"] += 1
+            h = min(h * itg.step_factor(err, True), max_dt)
+        self._stats.update(min_step=min(steps), max_step=max(steps))
 
     def _trajectory(self, t, X, W, net=None):
         net = self._lowered() if net is None else net          # lowered once per simulate

@@ -31,6 +31,7 @@ def warm_up():
            .connect(StateMap("beam", [1e-8], index=0, offset=1e-6), "p", port="volume")
            .set_controller(Schedule([0.0, 1.0], {"lag": [[0.0], [1e3]]})))
     mdl.simulate(4e-3, 1e-3, "bdf2", compiled=True)
+    mdl.simulate(4e-3, 1e-3, "bdf2", compiled=True, adaptive=True)       # the error-controlled driver
     from .tree import precompile as tree_kernels          # trees of bodies (issue 25)
     tree_kernels()
     return time.perf_counter() - t0

@@ -54,7 +54,8 @@ def test_order_of_accuracy_on_a_damped_oscillator(method, jac):
 
 
 @pytest.mark.parametrize("method", ["trapezoidal", "midpoint"])
-def test_adaptive_step_doubling_is_tolerance_proportional(method):
+def test_adaptive_steps_are_tolerance_proportional(method):
+    """The error-controlled steps (soroshapes.integrate's rule; more in tests/soroshapes/test_integrate.py)."""
     ref = expm(3.0 * A_OSC) @ X0_OSC
     errs, steps = [], []
     for rtol in (1e-6, 1e-8):
