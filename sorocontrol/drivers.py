@@ -232,6 +232,7 @@ class SimulatedPlant(Driver):
             self._q = slice(self.channels * nf, self.channels * nf + beam.n)
             self._qd = slice(self._q.stop, self._q.stop + beam.n)
             self.sensor_names = ("tip_x", "tip_y", "tip_z") + tuple(f"q{i}" for i in range(beam.n))
+        self._held = None
         self._hold(np.zeros(self.channels))
         self.x = self.model.initial_state()
         self._vented = self.x[self._reservoirs].copy()          # every channel at 0 Pa gauge, integrators empty
@@ -246,9 +247,12 @@ class SimulatedPlant(Driver):
 
     def _hold(self, setpoints):
         """Make the constant ``setpoints`` [Pa] (channels,) the model's controller (its free inputs: the
-        reservoirs' set-points), a Schedule, so that the model stays compiled."""
+        reservoirs' set-points), a Schedule, so that the model stays compiled; kept while they do not change."""
         from soroshapes.network import Schedule
+        if self._held is not None and np.array_equal(setpoints, self._held):
+            return
         self.model.set_controller(Schedule([0.0, 1.0], np.vstack([setpoints, setpoints])))
+        self._held = np.array(setpoints, float)
 
     def _init_network(self, network, dt):
         from soroshapes.model import Model
