@@ -9,6 +9,10 @@ period) for 10 s. Recorded: achieved rate, period jitter p50/p99/max, release la
 deadlines, round-trip time p50/p99, and the tracking of the last set-point (asserted: the loop really
 controlled the plant). Never a timed assertion.
 
+``test_bench_simulated_plant_cost_per_tick``: what the simulated plant (a compiled soroshapes Model of the
+channels' reservoirs, and of a beam) costs the board loop per tick, against the former RK4 plant kept in this
+file as the baseline, in one run.
+
 The safety figures (issue 16): the rate at which wrong secrets are checked with the per-address backoff
 against a server without it (same run), operator logins that succeed while a loop floods the board with
 connections that never log in, the time from SIGSTOP of an interactive (keepalive) client to the vent, and the
