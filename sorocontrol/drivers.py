@@ -12,12 +12,13 @@ and reports it.
   the calibration of each regulator come from a :class:`BoardProfile` file (``hardware/README.md``), never
   from the safety limits: vent writes the DAC code of 0 kPa gauge of that calibration.
 * :class:`MockDriver`: reads back exactly what was set (protocol and safety tests).
-* :class:`SimulatedPlant`: each channel is a regulated isothermal air reservoir, the
-  :class:`soroshapes.Fluidic` model (PI regulator with valve saturation,
-  :math:`\dot m = \mathrm{sat}(k_p e + k_i z)`, :math:`\dot z = e`, :math:`p = mRT/V - p_0`), integrated
-  with RK4 sub-steps; optionally the chambers drive a :class:`soroshapes.Shapes` beam, whose tip position
-  and coordinates are reported as sensors, or a network plant (a :class:`soroshapes.Model`: an arm, a grasped
-  object on a table, ...) built in the plant's process from a :class:`NetworkRecipe`.
+* :class:`SimulatedPlant`: each channel is a regulated isothermal air reservoir, a
+  :class:`soroshapes.Fluidic` (PI regulator with valve saturation,
+  :math:`\dot m = \mathrm{sat}(k_p e + k_i z)`, :math:`\dot z = e`, :math:`p = mRT/V - p_0`) of one
+  :class:`soroshapes.Model`, continued by ``Model.simulate`` over each board tick (compiled); optionally the
+  chambers drive a :class:`soroshapes.Shapes` beam in the same model, whose tip position and coordinates are
+  reported as sensors, or a network plant (a :class:`soroshapes.Model`: an arm, a grasped object on a table,
+  ...) built in the plant's process from a :class:`NetworkRecipe`.
 """
 import logging
 import math
@@ -114,7 +115,17 @@ class NetworkRecipe:
 
 
 class SimulatedPlant(Driver):
-    r"""Regulated pneumatic channels (and optionally a beam) in real time.
+    r"""Regulated pneumatic channels (and optionally a beam or a network plant) in real time, as a
+    :class:`soroshapes.Model` continued over each board tick.
+
+    Each channel is a :class:`soroshapes.Fluidic` reservoir of the plant's :attr:`model` (systems
+    ``channel0``, ``channel1``, ...); with ``beam`` the model also holds the beam (system ``beam``), each
+    channel's gauge pressure coupled to the beam's input of the same index. Each call of :meth:`apply` holds
+    the set-points over the elapsed board time (a constant :class:`soroshapes.network.Schedule` as the
+    model's controller) and continues the model from its state with ``Model.simulate(dt_total, substep,
+    x0=, t0=)`` (trapezoidal steps, compiled: :attr:`Model.evaluation_path
+    <soroshapes.model.Model.evaluation_path>` is ``"compiled"`` unless the beam has a load without a
+    compiled form, which then runs on the Model's slower Python path and says so in the log).
 
     Parameters
     ----------
@@ -131,28 +142,27 @@ class SimulatedPlant(Driver):
         Valve saturation; large steps rise at :math:`RT\dot m_{max}/V` [Pa/s] (default 2e-3 kg/s: 8.4 MPa/s
         into 20 ml, a step of 100 kPa in ~12 ms plus the loop's settling).
     beam : soroshapes.Shapes, optional
-        A beam with as many inputs (chambers, in that order) as ``channels``; it is integrated with the
-        implicit midpoint rule at the board's tick, driven by the measured pressures, from its static
-        equilibrium at zero pressure. Its tip position [m] (3) and coordinates q (n) are the sensors.
+        A beam with as many inputs (chambers, in that order) as ``channels``, driven by the channels'
+        pressures inside the plant's model from its static equilibrium at zero pressure. Its tip position
+        [m] (3) and coordinates q (n) are the sensors.
     network : NetworkRecipe or callable, optional
         Instead of ``beam``: a network plant, ``network(pressures)`` (a :class:`NetworkRecipe` or a function
         of the same signature) returning a :class:`soroshapes.Model` whose free inputs are the channels (see
         :class:`NetworkRecipe`). Each call of :meth:`apply` continues it over the elapsed board time with its
         own integrator (``Model.simulate(..., x0=, t0=)``, trapezoidal steps of at most ``network_dt``), the
-        channel pressures held at their values measured at the end of the tick (as for ``beam``). It runs on
-        the Model's Python path when any coupling is a Python function (slower than real time for an arm and
-        a grasped body: then ``max_advance`` caps each call and the plant lags the board's clock). Sensors: for each beam of the model (in the model's
-        order) its tip position [m] (3), then for each rigid body its position [m] (3), last the plant's own
-        time [s] (it lags the board's clock when ``max_advance`` caps a call: a host that sequences by the
-        plant's time gets the same motion on a loaded machine). A step that does not
-        converge raises :class:`~sorofem.errors.ConvergenceError` out of :meth:`apply`: the board server
-        vents every channel and reports the driver error (as for any driver failure); the plant then keeps
-        its last converged state.
+        channel pressures held at their values at the end of the tick (the reservoirs' model runs first). It
+        runs on the Model's Python path when any coupling is a Python function (slower than real time for an
+        arm and a grasped body: then ``max_advance`` caps each call and the plant lags the board's clock).
+        Sensors: for each beam of the model (in the model's order) its tip position [m] (3), then for each
+        rigid body its position [m] (3), last the plant's own time [s] (it lags the board's clock when
+        ``max_advance`` caps a call: a host that sequences by the plant's time gets the same motion on a
+        loaded machine).
     network_dt : float [s]
         Largest integration step of the network plant (default 2 ms).
     substep : float [s]
-        Largest RK4 step of the pneumatics (default 1 ms: the loop's poles are at -1/(2 tau), so the
-        truncation error is ~(h/2tau)^4 ~ 1e-7 relative at tau = 30 ms).
+        Largest step of the plant's model (trapezoidal, second order; default 1 ms: the regulator loop's
+        poles are at :math:`-a = -1/(2\tau)`, and the trapezoidal rule's relative error on them is
+        :math:`\approx (ah)^2/12` per unit of :math:`at`, 2e-5 at h = 1 ms, tau = 30 ms).
     max_advance : float [s]
         Most plant time one :meth:`apply` simulates (default 25 ms, ten ticks of a 400 Hz board). When more
         board time has passed since the last call (the host was busy), the plant simulates this much and
@@ -162,8 +172,21 @@ class SimulatedPlant(Driver):
         the board time: :attr:`skipped` [s] in total over :attr:`late` calls, and a warning in the log at
         most once a second.
 
+    A step that does not converge raises :class:`~sorofem.errors.ConvergenceError` out of :meth:`apply`: the
+    board server vents every channel and reports the driver error (as for any driver failure) and refuses
+    commands until the next login; the plant keeps its last converged state and does not simulate the failed
+    tick's time again. The models are built and their kernels compiled (or loaded from the cache) in the
+    constructor, not in the board loop.
+
     Attributes
     ----------
+    model : soroshapes.Model
+        The reservoirs (and the beam).
+    x : ndarray
+        The state of :attr:`model` (the channels' (mass [kg], regulator integral [Pa s]) in order, then the
+        beam's (q, qd)).
+    plant_time : float [s]
+        Time of :attr:`model` (behind the board's time by :attr:`skipped`).
     t : float [s]
         Board time of the last call.
     skipped : float [s]
@@ -174,36 +197,62 @@ class SimulatedPlant(Driver):
 
     def __init__(self, channels, volume=20e-6, time_constant=0.03, max_flow=2e-3, beam=None, substep=1e-3,
                  max_advance=0.025, T=293.15, gas_constant=287.05, p0=101325.0, network=None, network_dt=2e-3):
-        from soroshapes.model import Fluidic
+        from soroshapes.model import Fluidic, Model
 
         self.channels = _channels(channels)
         for what, v in (("volume", volume), ("time_constant", time_constant), ("max_flow", max_flow),
                         ("substep", substep), ("max_advance", max_advance)):
             if not (np.isfinite(v) and v > 0):
                 raise ParameterError(f"SimulatedPlant {what} must be positive and finite, got {v!r}")
+        if beam is not None and network is not None:
+            raise ParameterError("SimulatedPlant takes a beam or a network plant, not both (put the beam into the "
+                                 "network's Model)")
         kp = volume / (gas_constant * T * time_constant)
         self.fluidic = Fluidic(volume, p0=p0, T=T, gas_constant=gas_constant,
                                regulator=dict(kp=kp, ki=kp / (4 * time_constant), max_flow=max_flow))
         self.volume, self.substep, self.max_advance = float(volume), float(substep), float(max_advance)
-        self.x = np.tile(self.fluidic.initial_state(volume), (self.channels, 1))
         self.t = 0.0
         self.skipped, self.late = 0.0, 0
         self._warned_at = -math.inf
+        self.model = Model()
+        for i in range(self.channels):
+            self.model.add(self.fluidic, name=f"channel{i}")
+        nf = self.fluidic.n
+        self._mass = np.arange(self.channels) * nf + self.fluidic.states.index("mass")   # rows of the masses
+        self._reservoirs = slice(0, self.channels * nf)
         self.beam = beam
         if beam is not None:
             if len(beam.inputs) != self.channels:
                 raise ParameterError(f"the simulated beam has {len(beam.inputs)} inputs, the board "
                                      f"{self.channels} channels: they must match (one chamber per channel)")
-            self.q = beam.statics(u=np.zeros(self.channels), steps=4)   # at rest under its own weight
-            self.qd = np.zeros(beam.n)
-            beam.simulate(1e-4, 1e-4, q0=self.q, u=np.zeros(self.channels))   # compile now, not in the loop
+            q = beam.statics(u=np.zeros(self.channels), steps=4)     # at rest under its own weight
+            self.model.add(beam, name="beam", x0=np.concatenate([q, np.zeros(beam.n)]))
+            for i in range(self.channels):
+                self.model.connect(f"channel{i}", "beam", index=i)
+            self._q = slice(self.channels * nf, self.channels * nf + beam.n)
+            self._qd = slice(self._q.stop, self._q.stop + beam.n)
             self.sensor_names = ("tip_x", "tip_y", "tip_z") + tuple(f"q{i}" for i in range(beam.n))
+        self._held = None
+        self._hold(np.zeros(self.channels))
+        self.x = self.model.initial_state()
+        self._vented = self.x[self._reservoirs].copy()          # every channel at 0 Pa gauge, integrators empty
+        self.plant_time = 0.0
+        path = self.model.evaluation_path
+        if path != "compiled":
+            log.info("simulated plant: its model runs on the Python path (%s), slower than the compiled one", path)
+        self.model.simulate(1e-4, 1e-4, x0=self.x, record_every=_LAST_ONLY)   # compile now, not in the loop
         self.network = None
         if network is not None:
-            if beam is not None:
-                raise ParameterError("SimulatedPlant takes a beam or a network plant, not both (put the beam "
-                                     "into the network's Model)")
             self._init_network(network, float(network_dt))
+
+    def _hold(self, setpoints):
+        """Make the constant ``setpoints`` [Pa] (channels,) the model's controller (its free inputs: the
+        reservoirs' set-points), a Schedule, so that the model stays compiled; kept while they do not change."""
+        from soroshapes.network import Schedule
+        if self._held is not None and np.array_equal(setpoints, self._held):
+            return
+        self.model.set_controller(Schedule([0.0, 1.0], np.vstack([setpoints, setpoints])))
+        self._held = np.array(setpoints, float)
 
     def _init_network(self, network, dt):
         from soroshapes.model import Model
@@ -238,44 +287,34 @@ class SimulatedPlant(Driver):
 
     def pressures(self):
         """Gauge pressures [Pa] of the channels now."""
-        return np.array([self.fluidic.pressure(x, self.volume) for x in self.x])
+        fl = self.fluidic                   # isothermal: p = m R T / V (Fluidic.pressure, every channel at once)
+        return self.x[self._mass] * (fl.R * fl.T / self.volume) - fl.p0
 
-    def _rhs(self, x, u):
-        """:meth:`soroshapes.Fluidic.rhs` of every channel at once (isothermal, regulated, constant volume):
-        columns (mass [kg], regulator integral [Pa s])."""
-        fl = self.fluidic
-        kp, ki, mx = fl.regulator
-        e = u - (x[:, 0] * (fl.R * fl.T / self.volume) - fl.p0)
-        nu = kp * e + ki * x[:, 1]
-        mdot = np.clip(nu, -mx, mx)
-        return np.column_stack([mdot, e + (mdot - nu) / kp])
+    @property
+    def q(self):
+        """The beam's coordinates now (None without a beam)."""
+        return None if self.beam is None else self.x[self._q].copy()
+
+    @property
+    def qd(self):
+        """The beam's coordinate rates now (None without a beam)."""
+        return None if self.beam is None else self.x[self._qd].copy()
 
     def apply(self, setpoints, t):
         u = np.asarray(setpoints, float)
         if t is None:               # vent: the regulators open to atmosphere
-            self.x = np.tile(self.fluidic.initial_state(self.volume), (self.channels, 1))
+            self.x[self._reservoirs] = self._vented
             return self.pressures(), self._sensors(), np.zeros(self.channels, bool)
         dt_total = self._advance(float(t))
-        steps = int(np.ceil(dt_total / self.substep - 1e-12))
-        if steps:
-            h = dt_total / steps
-            x = self.x
-            for _ in range(steps):   # classical RK4 on the reservoirs' (mass, integral) states
-                k1 = self._rhs(x, u)
-                k2 = self._rhs(x + 0.5 * h * k1, u)
-                k3 = self._rhs(x + 0.5 * h * k2, u)
-                k4 = self._rhs(x + h * k3, u)
-                x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-            self.x = x
-            if self.beam is not None:
-                traj = self.beam.simulate(dt_total, min(dt_total, 5e-3), q0=self.q, qd0=self.qd,
-                                          u=self.pressures())
-                self.q, self.qd = traj.q[-1].copy(), traj.qd[-1].copy()
+        self.t = float(t)           # a step that fails is not retried: the board vents on the error
+        if dt_total > 0.0:
+            self._hold(u)
+            traj = self.model.simulate(dt_total, min(dt_total, self.substep), x0=self.x, t0=self.plant_time,
+                                       record_every=_LAST_ONLY)
+            self.x, self.plant_time = traj.x[-1].copy(), float(traj.t[-1])
             if self.network is not None:
-                self.t = float(t)          # a step that fails is not retried: the board vents on the error
                 self._u = self.pressures()
                 self._step_network(dt_total)
-            self.t = float(t)
         return self.pressures(), self._sensors(), np.zeros(self.channels, bool)
 
     def _advance(self, t):
@@ -318,7 +357,12 @@ class SimulatedPlant(Driver):
             return self.network_sensors()
         if self.beam is None:
             return np.zeros(0)
-        return np.concatenate([self.beam.positions(self.q)[-1], self.q])
+        q = self.x[self._q]
+        return np.concatenate([self.beam.positions(q)[-1], q])
+
+
+#: ``record_every`` of the plant's Model.simulate calls: only the state at the end of the tick is kept
+_LAST_ONLY = 1 << 30
 
 
 DAC_FULL_SCALE = 4095      # MCP4725: 12-bit codes

@@ -1026,10 +1026,11 @@ class Model:
         return x
 
     def _scales(self, x0, t0=0.0):
-        s = np.ones(self._N)
+        s, w = np.ones(self._N), None
         for b in self._blocks.values():
             if b.kind == "fluidic":
-                w = self._assemble(t0, x0)
+                if w is None:                    # the volumes at (t0, x0): one assembly for every reservoir
+                    w = self._assemble(t0, x0)
                 b._V_init = w[b.wsl][1]
                 b._uscale = (b.system.p0 * 0.01 if b.system.regulator else
                              b.system.scales(b._V_init)[0] * 10.0)

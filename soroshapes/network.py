@@ -208,7 +208,13 @@ class Schedule:
         if isinstance(self.values, dict):
             return {k: np.array([np.interp(tt, self.times, v[:, j]) for j in range(v.shape[1])])
                     for k, v in self.values.items()}
-        return np.array([np.interp(tt, self.times, self.values[:, j]) for j in range(self.values.shape[1])])
+        times, v = self.times, self.values      # np.interp of every column at once
+        if not tt > times[0]:
+            return v[0].copy()
+        if not tt < times[-1]:
+            return v[-1].copy()
+        k = int(np.searchsorted(times, tt, side="right")) - 1
+        return (v[k + 1] - v[k]) / (times[k + 1] - times[k]) * (tt - times[k]) + v[k]
 
     def __call__(self, model):
         return self.at(model.t)

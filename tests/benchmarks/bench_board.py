@@ -9,6 +9,10 @@ period) for 10 s. Recorded: achieved rate, period jitter p50/p99/max, release la
 deadlines, round-trip time p50/p99, and the tracking of the last set-point (asserted: the loop really
 controlled the plant). Never a timed assertion.
 
+``test_bench_simulated_plant_cost_per_tick``: what the simulated plant (a compiled soroshapes Model of the
+channels' reservoirs, and of a beam) costs the board loop per tick, against the former RK4 plant kept in this
+file as the baseline, in one run.
+
 The safety figures (issue 16): the rate at which wrong secrets are checked with the per-address backoff
 against a server without it (same run), operator logins that succeed while a loop floods the board with
 connections that never log in, the time from SIGSTOP of an interactive (keepalive) client to the vent, and the
@@ -55,6 +59,85 @@ def test_bench_board_loop_500hz(record):
            round_trip_p50_us=round(float(np.median(rtt)) * 1e6, 1),
            round_trip_p99_us=round(float(np.percentile(rtt, 99)) * 1e6, 1),
            final_pressure_kPa=round(final / 1e3, 3))
+
+
+class _FormerPlant:
+    """The simulated plant before it was a Model (kept here as the baseline only): every channel's
+    :meth:`soroshapes.Fluidic.rhs` at once, integrated by classical RK4 sub-steps of at most ``substep``, then
+    the beam by ``Shapes.simulate`` over the tick with the pressures at its end."""
+
+    def __init__(self, plant, beam=None, substep=1e-3):
+        self.fl, self.V, self.substep, self.beam = plant.fluidic, plant.volume, substep, beam
+        self.x = np.tile(self.fl.initial_state(self.V), (plant.channels, 1))
+        self.t = 0.0
+        if beam is not None:
+            self.q, self.qd = plant.q, plant.qd
+
+    def pressures(self):
+        return self.x[:, 0] * (self.fl.R * self.fl.T / self.V) - self.fl.p0
+
+    def _rhs(self, x, u):
+        fl = self.fl
+        kp, ki, mx = fl.regulator
+        e = u - (x[:, 0] * (fl.R * fl.T / self.V) - fl.p0)
+        nu = kp * e + ki * x[:, 1]
+        mdot = np.clip(nu, -mx, mx)
+        return np.column_stack([mdot, e + (mdot - nu) / kp])
+
+    def apply(self, u, t):
+        dt = t - self.t
+        steps = int(np.ceil(dt / self.substep - 1e-12))
+        h, x = dt / steps, self.x
+        for _ in range(steps):
+            k1 = self._rhs(x, u)
+            k2 = self._rhs(x + 0.5 * h * k1, u)
+            k3 = self._rhs(x + 0.5 * h * k2, u)
+            k4 = self._rhs(x + h * k3, u)
+            x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        self.x, self.t = x, t
+        if self.beam is not None:
+            traj = self.beam.simulate(dt, min(dt, 5e-3), q0=self.q, qd0=self.qd, u=self.pressures())
+            self.q, self.qd = traj.q[-1].copy(), traj.qd[-1].copy()
+        return self.pressures()
+
+
+def test_bench_simulated_plant_cost_per_tick(record):
+    """What the board loop pays for its simulated plant per tick (400 Hz: 2.5 ms of plant time per
+    :meth:`SimulatedPlant.apply`): the plant as a compiled soroshapes Model (reservoirs, and the soro play test
+    finger coupled to its channel) against the former RK4 plant (above), in one run, on the same set-point
+    square wave (0 / 40 kPa, 0.2 s period) for 1 s of plant time. Wall time per tick (median and p99) and the
+    largest pressure difference between the two (trapezoidal vs RK4 at 1 ms steps: a few Pa of 40 kPa)."""
+    sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "soro"))
+    import play_finger_scene as fs
+
+    from sorocontrol.drivers import SimulatedPlant
+    tick, t_sim, figures = 2.5e-3, 1.0, {}
+    cases = [(f"{n}_channels", n, None) for n in (1, 5, 12)] + [("finger_beam", 1, fs.finger)]
+    for label, n, beam in cases:
+        plant = SimulatedPlant(n, beam=None if beam is None else beam())
+        former = _FormerPlant(plant, beam=None if beam is None else beam())
+        per = {}
+        for who, drv in (("model", plant), ("former_rk4", former)):
+            cost, p = [], []
+            for k in range(1, int(round(t_sim / tick)) + 1):
+                t = k * tick
+                u = np.full(n, 40e3 if (t % 0.2) < 0.1 else 0.0)
+                t0 = time.perf_counter()
+                out = drv.apply(u, t)
+                cost.append(time.perf_counter() - t0)
+                p.append(out[0] if isinstance(out, tuple) else out)
+            per[who] = (np.array(cost), np.array(p))
+        c_new, c_old = per["model"][0], per["former_rk4"][0]
+        figures[label] = {"evaluation_path": plant.model.evaluation_path,
+                          "model_us_p50": round(float(np.median(c_new)) * 1e6, 1),
+                          "model_us_p99": round(float(np.percentile(c_new, 99)) * 1e6, 1),
+                          "former_rk4_us_p50": round(float(np.median(c_old)) * 1e6, 1),
+                          "former_rk4_us_p99": round(float(np.percentile(c_old, 99)) * 1e6, 1),
+                          "cost_ratio_p50": round(float(np.median(c_new) / np.median(c_old)), 2),
+                          "max_pressure_difference_Pa": round(float(np.abs(per["model"][1] - per["former_rk4"][1]).max()), 3)}
+        assert plant.model.evaluation_path == "compiled"
+        assert figures[label]["max_pressure_difference_Pa"] < 1e-3 * 40e3     # the same plant
+    record(tick_s=tick, simulated_s=t_sim, **figures, load_average_1min=round(os.getloadavg()[0], 2))
 
 
 def _hammer(srv, seconds):

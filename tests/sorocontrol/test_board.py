@@ -671,6 +671,40 @@ def test_a_driver_failure_vents_and_refuses_commands():
             brd.set_pressure([20e3])
 
 
+def test_a_failing_plant_step_vents_every_channel_and_refuses_commands_until_the_next_login(monkeypatch):
+    """The simulated plant's model step fails (a ConvergenceError out of Model.simulate): apply raises, the
+    board vents every channel, refuses commands with the reason, the plant keeps its last converged state and
+    does not simulate that tick's time again; the next login commands again."""
+    from sorofem.errors import ConvergenceError
+    plant = SimulatedPlant(2)
+    ok = plant.model.simulate
+    state = {"fail": False, "plant_time": None}
+
+    def step(*a, **k):
+        if state["fail"]:
+            state["plant_time"] = plant.plant_time
+            raise ConvergenceError("Newton did not converge at t = 1 s (injected)")
+        return ok(*a, **k)
+    monkeypatch.setattr(plant.model, "simulate", step)
+    with BoardServer(plant, SECRET, port=0) as srv:
+        with Board.connect(url(srv), secret=SECRET) as brd:
+            brd.set_pressure([20e3, -20e3])
+            wait_until(lambda: abs(brd.read().measured[0]) > 5e3)
+            state["fail"] = True
+            wait_until(lambda: srv.fault is not None)
+            t_fault = plant.t
+            wait_until(lambda: plant.t > t_fault + 0.05)            # the board goes on ticking the plant
+            assert "ConvergenceError" in srv.fault and np.all(srv.applied == 0)
+            np.testing.assert_array_equal(plant.pressures(), 0.0)    # vented
+            assert plant.plant_time == state["plant_time"]          # no step since: its last converged state
+            with pytest.raises(ProtocolError, match="Newton did not converge"):
+                brd.set_pressure([20e3, -20e3])
+        state["fail"] = False
+        with Board.connect(url(srv), secret=SECRET) as brd:        # a new login clears the fault
+            brd.set_pressure([10e3, 0.0])
+            wait_until(lambda: brd.read().measured[0] > 5e3)
+
+
 def test_a_measured_pressure_outside_the_limits_vents_and_says_why(stepped):
     """The read-back is checked at every tick: a regulator that delivers 40 kPa more than asked at 80 kPa
     leaves the limits (80 kPa + tolerance 31 kPa); after 20 ms (2 ticks at 100 Hz) the board vents, names the
@@ -857,15 +891,6 @@ def test_simulated_board_reaches_the_setpoint():
     assert proc.poll() == 0, "closing a simulated board stops its process (it vents and exits by itself)"
 
 
-def test_simulated_plant_is_the_fluidic_model():
-    plant = SimulatedPlant(3, max_flow=1e-5)   # saturating for large errors
-    rng = np.random.default_rng(1)
-    x = plant.x + rng.normal(size=plant.x.shape) * [1e-7, 10.0]
-    u = np.array([50e3, -80e3, 1e3])
-    exact = np.array([plant.fluidic.rhs(x[i], u[i:i + 1], plant.volume) for i in range(3)])
-    np.testing.assert_allclose(plant._rhs(x, u), exact, rtol=1e-12, atol=1e-20)
-
-
 def test_a_lost_simulated_board_says_why():
     """A simulated board whose server dies: the client's error names the connection's end and the server's
     state and log, not only "Broken pipe"; later commands repeat the reason."""
@@ -888,7 +913,7 @@ def test_a_late_simulated_plant_skips_time_instead_of_stalling(caplog):
     with caplog.at_level("WARNING", logger="sorocontrol.drivers"):
         p_late = late.apply([20e3, -20e3], 2.01)[0]     # 2 s after the last step
     p_ref = ref.apply([20e3, -20e3], 0.035)[0]
-    np.testing.assert_allclose(p_late, p_ref, rtol=1e-12)    # the same 25 RK4 steps, up to rounding of h
+    np.testing.assert_allclose(p_late, p_ref, rtol=1e-12)    # the same 25 ms of the plant's model
     assert late.t == 2.01 and late.late == 1 and late.skipped == pytest.approx(1.975, abs=1e-12)
     assert "skipped the rest" in caplog.text and "2000 ms of board time passed" in caplog.text
     p_next = late.apply([20e3, -20e3], 2.02)[0]          # and goes on from there at the board's pace
