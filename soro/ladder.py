@@ -1041,7 +1041,7 @@ def ladder_figure(rows, measure, tolerance=None, pick=None, floor=None):
         ax.axhline(100 * ref, color="0.4", lw=1.0, ls="--", label="the reference's own error (Richardson)")
     if floor is not None:       # the cantilever: the elastica's distance from the FEM reference
         ax.axhline(100 * floor, color="tab:red", lw=1.0, ls="-.", label="the elastica vs the reference (beams' floor)")
-    ax.set_xlabel("time per static solve from rest [s] (median; the cantilever: CPU time)")
+    ax.set_xlabel("time per static solve from rest [s] (median; the cantilever, the 3D PneuNet: CPU time)")
     ax.set_ylabel(f"{measure} error on unseen loads [%]")
     ax.set_title(f"fidelity ladder: {measure} (reference: finest P2 mixed, its own error by Richardson)",
                  fontsize=9)
@@ -1357,7 +1357,7 @@ class PneuNet3DScene(_Levels):
     ``linear_start`` times the body's size (:meth:`sorofem.fem.Fem.solve`: the unloaded thin walls).
 
     ``ratio`` is sqrt 2, not 2: three 3D refinements that fit (h = 2.83, 2, 1.41 mm on two chambers: 15k, 24k
-    and ~50k P2 mixed unknowns); h = 1 mm (~130k) would take over an hour of CPU for the reference's three ramps
+    and 53k P2 mixed unknowns); h = 1 mm (~130k) would take over an hour of CPU for the reference's three ramps
     on this machine. The plane-strain
     rung (``size_2d`` [m], P2 mixed, the same section) is the 2D model of the same actuator: its error against
     the 3D reference is a model-form error (no refinement of the 2D model removes it); its cavity volume is the
