@@ -62,7 +62,7 @@ __all__ = ["Scene", "SCENES", "MEASURES", "FEM_FAMILIES", "BEAM_FAMILIES", "rich
            "ladder_figure", "error_budget", "select",
            "write_model", "load_model", "validate", "run_ladder", "parse_tolerance", "beam_within",
            "strain_floor", "selected", "PneuNet3DScene", "pneunet3d_fem_ladder", "pneunet3d_ladder",
-           "pneunet3d_budget", "pneunet3d_costs"]
+           "pneunet3d_budget", "pneunet3d_costs", "unreachable"]
 
 #: The error measures of the ladder (the selection takes one of them).
 MEASURES = ("tip", "shape", "volume")
@@ -1134,6 +1134,29 @@ def _best(rows, measure):
     return min((r for r in rows if np.isfinite(r.get(key, np.nan))), key=lambda r: (r[key], r["solve_time_s"]))
 
 
+def unreachable(rows, tolerance, measure="tip"):
+    """The message when :func:`select` finds nothing at ``tolerance``: the best reachable error and its model; when
+    the tolerance is below the reference's own estimated error, that error, and if a model lies closer to the
+    reference than the tolerance (which cannot be shown), the cheapest model within the reference's error (the
+    tightest tolerance that can be checked)."""
+    key, tol = f"{measure}_unseen", tolerance
+    best, ref_err = _best(rows, measure), _reference_error(rows, measure)
+    if tol < ref_err and best[key] <= tol:
+        ok = select(rows, ref_err, measure)
+        return (f"no model can be shown to reach {100 * tol:g} % on the unseen {measure} error: the reference itself "
+                f"is only known to {100 * ref_err:.4g} % (Richardson on its three meshes); {best['family']} "
+                f"{_label(best)} lies {100 * best[key]:.4g} % from it, below what it resolves; the tightest tolerance "
+                f"that can be checked is {100 * ref_err:.4g} %, met by {ok['family']} {_label(ok)} "
+                f"({100 * ok[key]:.4g} %): ask for at least that, or refine the reference")
+    text = (f"no model reaches {100 * tol:g} % on the unseen {measure} error: the best reachable is "
+            f"{100 * best[key]:.4g} % ({best['family']} {_label(best)}"
+            f"{', the reference: its Richardson estimate' if best.get('estimated') else ''}); ask for at least that")
+    if tol < ref_err:
+        text += (f"; and the reference itself is only known to {100 * ref_err:.4g} % (Richardson on its three "
+                 f"meshes): a smaller tolerance cannot be checked (refine the reference: the full scene)")
+    return text
+
+
 def write_model(row, scene, path, measure, tolerance):
     """Write the model of ``row`` to ``path`` (JSON): a beam with :func:`soroshapes.io.save_beam`, a FEM rung as
     ``{"format": "soro-fem-rung", "version": 1, "scene": ..., "degree", "mixed", "size" [m]}``."""
@@ -1312,17 +1335,8 @@ def run_ladder(scene_name="pneunet2d", tolerance=None, measure="tip", out=None, 
                                                            for r in rows],
               "richardson": info["richardson"], "budget": budget}
     if tol is not None:
-        ref_err = _reference_error(rows, measure)
         if pick is None:
-            best = _best(rows, measure)
-            verdict = (f"no model reaches {100 * tol:g} % on the unseen {measure} error: the best reachable is "
-                       f"{100 * best[f'{measure}_unseen']:.4g} % ({best['family']} {_label(best)}"
-                       f"{', the reference: its Richardson estimate' if best.get('estimated') else ''}); "
-                       f"ask for at least that")
-            if tol < ref_err:
-                verdict += (f"; and the reference itself is only known to {100 * ref_err:.4g} % (Richardson on its "
-                            f"three meshes): a smaller tolerance cannot be checked (refine the reference: the "
-                            f"full scene)")
+            verdict = unreachable(rows, tol, measure)
             status = 1
         else:
             path = write_model(pick, scene, out / "model.json", measure, tol)

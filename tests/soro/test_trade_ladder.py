@@ -395,3 +395,20 @@ def test_the_3d_selection_is_written_read_back_and_validated(tiny3d, tmp_path):
         row = next(r for r in rows if r["family"] == family)
         kind, fem, length = load_model(write_model(row, scene, tmp_path / f"{family}.json", "tip", 0.5))
         assert kind == "fem" and fem.mesh.dolfinx.geometry.dim == dim and length == pytest.approx(info["length"])
+
+
+def test_a_tolerance_below_the_references_error_names_the_tightest_checkable_one(tiny3d):
+    """This scene's reference (P1, not converging) is only known to ~1.6 % of L while a beam lies ~0.25 % from it:
+    at 1 % nothing is selected, and the message says why (the reference's error) and what can be asked for (that
+    error, with the cheapest model within it) instead of calling the beam's 0.25 % unreachable."""
+    from soro.ladder import select, unreachable
+
+    _, _, rows, _ = tiny3d
+    ref = next(r["tip_unseen"] for r in rows if r.get("estimated"))
+    best = min(r["tip_unseen"] for r in rows)
+    assert best < 0.01 < ref and select(rows, 0.01, "tip") is None
+    text = unreachable(rows, 0.01, "tip")
+    ok = select(rows, ref, "tip")
+    assert text.startswith(f"no model can be shown to reach 1 % on the unseen tip error: the reference itself is only "
+                           f"known to {100 * ref:.4g} %")
+    assert f"met by {ok['family']} " in text and ok["tip_unseen"] <= ref
