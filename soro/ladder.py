@@ -1371,8 +1371,13 @@ class PneuNet3DScene(_Levels):
     ``linear_start`` times the body's size (:meth:`sorofem.fem.Fem.solve`: the unloaded thin walls).
 
     ``ratio`` is sqrt 2, not 2: three 3D refinements that fit (h = 2.83, 2, 1.41 mm on two chambers: 15k, 24k
-    and 53k P2 mixed unknowns); h = 1 mm (~130k) would take over an hour of CPU for the reference's three ramps
-    on this machine. The plane-strain
+    and 53k P2 mixed unknowns). On these meshes the P2 mixed tip does not converge monotonically (y at the top
+    unseen load -1.837, -1.822, -1.958 mm): Richardson flags it and the reference's error is the last difference,
+    0.60 % of L. A fourth mesh, h = 1 mm (117k unknowns, 196 s CPU per ramp, 1.9 GB; measured once, outside the
+    ladder), gave -1.889 mm: on h = 2, 1.41, 1 mm the tip converges (oscillating) at an observed order 1.9 to
+    0.32 % of L, the shape at 2.5 to 0.09 %, while the cavity volume change still grows with each refinement
+    (1213, 1222, 1243, 1267 mm^3: the inflating walls, 2 mm thick, are not resolved). The scene at h = 2, 1.41,
+    1 mm needs about 20 min of CPU (the reference's three ramps at 1 mm). The plane-strain
     rung (``size_2d`` [m], P2 mixed, the same section) is the 2D model of the same actuator: its error against
     the 3D reference is a model-form error (no refinement of the 2D model removes it); its cavity volume is the
     section's area times the chambers' inner width. Solve times are CPU times (FEM and beams): on a loaded
