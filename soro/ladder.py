@@ -1407,7 +1407,7 @@ class PneuNet3DScene(_Levels):
         return f"h = {'/'.join(f'{1e3 * h:.2f}' for h in self.sizes())} mm (ratio {self.ratio:.3g})"
 
 
-SCENES["pneunet3d"] = {"full": PneuNet3DScene(repeats=15),
+SCENES["pneunet3d"] = {"full": PneuNet3DScene(size=2e-3, repeats=15),
                        "quick": PneuNet3DScene(size=4e-3, train_steps=6, test_steps=4, size_2d=1.2e-3,
                                                modes=(1, 2, 3, 4), fem_families=("fem-p1", "fem-p2mixed"), repeats=9)}
 _STYLE["plane-strain"] = "X"
