@@ -73,3 +73,41 @@ def test_bench_ladder_network_by_tolerance(record, tmp_path):
     print("\nnetwork by tolerance:", fl.meta["family"], fl.meta["modes"], "/", ft.meta["family"], ft.meta["modes"],
           "\npaths", paths, "\nwall s", times, "\ncpu s", cpu, "\n", speed)
     record(loose=fl.meta, tight=ft.meta, times_s=times, cpu_s=cpu, paths=paths, **speed)
+
+
+def test_bench_ladder_pneunet3d(record):
+    """The 3D PneuNet's ladder (`soro trade pneunet3d --tol 1%` and `--tol 0.1%`): 3D P1/P2/P2 mixed on h = 2.83,
+    2, 1.41 mm (ratio sqrt 2), the plane-strain rung, beams on the 3D reference's snapshots; the FEM part is cached
+    and resumable in out/ladder/pneunet3d (about 10 min of CPU the first time; the beams are re-measured on each
+    run). Recorded: the rows, Richardson, the budget (with the plane-strain model-form error), both verdicts, and
+    the ratio of the reference's CPU time per ramp to the selected model's. Asserted: consistency, never a time."""
+    from pathlib import Path
+
+    from soro.ladder import run_ladder
+
+    out = Path("out") / "ladder" / "pneunet3d"
+    status, verdicts = {}, {}
+    for tol in ("1%", "0.1%"):
+        status[tol] = run_ladder("pneunet3d", tolerance=tol, measure="tip", out=out)
+        verdicts[tol] = json.loads((out / "ladder.json").read_text())
+    print("\n" + (out / "ladder.txt").read_text())
+    rep = verdicts["1%"]
+    rows = rep["rows"]
+    ref = next(r for r in rows if r.get("estimated"))
+    assert status["1%"] == 0 and rep["validation_error"] <= 0.01 and len(rows) >= 10
+    sel = next(r for r in rows if (r["family"], r["modes"]) == (rep["selected"]["family"], rep["selected"]["modes"]))
+    record(**_finite(dict(status=status, richardson=rep["richardson"], budget=rep["budget"], verdict_1=rep["verdict"],
+                          verdict_0p1=verdicts["0.1%"]["verdict"],
+                          reference_over_selected=ref["solve_time_s"] / sel["solve_time_s"], rows=rows)))
+
+
+def _finite(obj):
+    """``obj`` (nested dicts/lists) with NaN and infinities as None: a Richardson order that is not defined (the
+    3D reference does not converge monotonically), the spread of a FEM rung timed once."""
+    import math
+
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    return None if isinstance(obj, float) and not math.isfinite(obj) else obj
