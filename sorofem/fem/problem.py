@@ -512,8 +512,8 @@ class Fem:
             for comp in support_dofs[region]:
                 dofs = np.unique(np.concatenate(support_dofs[region][comp]))
                 support_dofs[region][comp] = dofs[dofs < owned]
-        if self._split and (self._tendons or self._contacts):
-            raise ParameterError("tendons and contact act on the displacement formulation: build the Fem with "
+        if self._split and self._tendons:
+            raise ParameterError("tendons act on the displacement formulation: build the Fem with "
                                  "mixed=False and formulation 'plane_strain', 'axisymmetric' or '3d'")
         for tendon in self._tendons:
             tendon.setup(msh, W, owned, bcs)

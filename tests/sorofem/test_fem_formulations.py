@@ -207,9 +207,8 @@ def test_unsupported_combinations_are_refused_with_the_alternative():
     fem = Fem(msh, m, formulation="plane_stress").add_support("left")
     with pytest.raises(ParameterError, match="eigen"):
         fem.simulate(0.01, 0.001)
-    from sorofem import sdf
-    fem.add_contact(sdf.Line((0.0, -0.001), (0.0, 1.0)))
-    with pytest.raises(ParameterError, match="tendons and contact"):
+    fem.add_tendon([(-0.009, 0.0), (0.009, 0.0)], 1.0)
+    with pytest.raises(ParameterError, match="tendons act on the displacement formulation"):
         fem.solve(steps=1)
 
 
