@@ -323,3 +323,34 @@ def test_a_controller_on_a_polynomial_beam_keeps_the_python_path():
     shp.add_actuator(PolynomialForce(np.array([[2e-7, 5e-8], [1e-11, -2e-12]])), name="p")
     mdl = Model().add(shp, "poly").set_controller(gravity_compensation("poly"))
     assert mdl.evaluation_path.startswith("python") and "polynomial actuator" in mdl.evaluation_path
+
+
+# ------------------------------------------------------------------------------------------------ contact load
+def test_the_floor_carries_the_closed_form_reaction_in_the_elastica_the_beam_and_the_fem():
+    """Small deflection (P L^2/EI = 0.06: the free tip would sink 2 mm; the floor is 1 mm below): Euler-Bernoulli
+    gives the floor's reaction R = P - 3 EI delta / L^3 = P/2. The elastica on the floor is within its
+    geometric nonlinearity of it (1e-4 measured); a two-mode Chebyshev beam (exact for a linear moment) is the
+    elastica up to its penalty's penetration (1.3e-5 measured, bound 1e-4); a constant-curvature beam (one
+    mode) carries R = P/3 (virtual work: EI kappa L = (P - R) L^2/2, its tip sinks kappa L^2/2 = (P - R) L^3/(4 EI)
+    = delta = P L^3/(6 EI)). The
+    P2 mixed FEM (h = H/2) meets Timoshenko's R = P - delta / (L^3/(3E'I) + L/(kappa G A)) within its
+    discretization (1.3 % measured against the FEM's stiffer clamp; bound 3 %)."""
+    from soro.ladder import CantileverScene, _cantilever_contact_beam, _cantilever_contact_fem, _midline, \
+        elastica_on_floor
+    from soroshapes.basis import Basis
+
+    sc = CantileverScene(tip_load=0.06, floor_gap=1e-3)
+    _, P = sc.loads()
+    L, EI, sigma = sc.length, sc.EI(), _midline(sc, 21)
+    R_el, B = elastica_on_floor(L, EI, 0.0, P, sc.floor_gap, sigma)
+    assert R_el / P == pytest.approx(0.5, rel=1e-3) and B[-1, 1] == pytest.approx(-sc.floor_gap, rel=1e-6)
+
+    def beam(k):
+        bd = ([Basis.chebyshev(k).orthonormalize(L) if i == 2 else None for i in range(6)], (0, 0, k, 0, 0, 0))
+        return _cantilever_contact_beam(sc, bd, sigma)[1]
+    assert beam(2) == pytest.approx(R_el, rel=1e-4)
+    assert beam(1) / P == pytest.approx(1 / 3, rel=1e-3)
+    E, nu, H = sc.E, sc.nu, sc.height
+    compliance = L ** 3 / (3 * E / (1 - nu ** 2) * H ** 3 / 12) + L / (5 / 6 * E / (2 * (1 + nu)) * H)
+    _, R_fem, _ = _cantilever_contact_fem(sc, 2, True, H / 2, sigma)
+    assert R_fem == pytest.approx(P - sc.floor_gap / compliance, rel=0.03)
