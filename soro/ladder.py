@@ -38,7 +38,9 @@ Scenes: ``pneunet2d`` (:class:`Scene`, beams identified on FEM data) and ``canti
 (:class:`CantileverScene`: a soft strip under a dead tip load, plane strain; the closed-form elastica
 (:func:`elastica`) is a second reference beside the FEM one; its beams are physical, nothing identified; its
 solve times are CPU times; it also measures memory per rung and the wall time per simulated second,
-:func:`cost_table`, and its own error budget, :func:`cantilever_budget`).
+:func:`cost_table`, its own error budget, :func:`cantilever_budget`, and a contact load: the tip load pushes
+the strip onto a rigid floor; the tip and the floor's reaction of every rung against the FEM reference on the
+floor and the elastica on the floor, :func:`elastica_on_floor`, :func:`contact_table`, :func:`contact_figure`).
 """
 from __future__ import annotations
 

@@ -354,3 +354,27 @@ def test_the_floor_carries_the_closed_form_reaction_in_the_elastica_the_beam_and
     compliance = L ** 3 / (3 * E / (1 - nu ** 2) * H ** 3 / 12) + L / (5 / 6 * E / (2 * (1 + nu)) * H)
     _, R_fem, _ = _cantilever_contact_fem(sc, 2, True, H / 2, sigma)
     assert R_fem == pytest.approx(P - sc.floor_gap / compliance, rel=0.03)
+
+
+def test_the_cantilever_ladder_measures_the_contact_load_on_every_rung(cantilever):
+    """The tip load at level 1 pushes the strip onto the floor 20 mm below (it touches at about a third of the
+    load; the floor then carries ~0.69 P). The P2 mixed reference's reaction converges (observed order 1.85,
+    Richardson 0.074 % measured; bounds > 1 and 0.3 %). A converged Chebyshev beam is the elastica on the floor
+    (0.003 % measured); against the FEM it sits at the elastica's own distance from the reference (0.59 % of the
+    reaction, 0.13 % of L: the FEM touches with the corner of its end face, H/2 (1 - cos theta) ~ 0.1 mm above
+    a beam's tube, plus shear and thickness), which the table shows as the beams' floor. Locking P1 rungs are so
+    stiff that they never reach the floor (100 % reaction error)."""
+    scene, out, rows, info = cantilever
+    c = info["contact"]
+    assert 0.6 < c["reference_force"] / c["load"] < 0.75
+    assert c["force"]["converging"] and c["force"]["order"] > 1.0 and c["force"]["error"] / c["reference_force"] < 3e-3
+    assert c["tip"]["error"] / scene.length < 1e-3
+    gap = c["reference_vs_elastica"]
+    assert gap["force"] < 0.01 and gap["tip"] < 2e-3
+    cheb = next(r for r in rows if r["family"] == "chebyshev" and r["modes"] == 4)
+    assert cheb["force_contact_elastica"] < 1e-4
+    assert cheb["force_contact"] == pytest.approx(gap["force"], abs=2e-4)
+    assert all(r["force_contact"] == 1.0 for r in rows if r["family"] == "fem-p1")
+    assert all(np.isfinite(r["tip_contact"]) and r["contact_solve_s"] > 0 for r in rows)
+    from soro.ladder import contact_table
+    assert "~" in contact_table(rows, info)
