@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _dolfinx
+from ..errors import ParameterError
 
 log = logging.getLogger(__name__)
 
@@ -142,7 +143,8 @@ class NewtonSolver:
         for name, idx, fscale in fields:
             idx = np.asarray(idx, dtype=np.int64)
             if not (np.isfinite(fscale) and fscale > 0):
-                raise ValueError(f"the correction scale of field {name!r} must be positive, got {fscale}")
+                raise ParameterError(f"the correction scale of field {name!r} must be positive (in the field's "
+                                     f"unit), got {fscale}")
             self.fields.append((name, idx[idx < n_owned], float(fscale)))  # owned entries: each counted once
         self.A = dolfinx.fem.petsc.create_matrix(jacobian)
         if near_nullspace is not None:  # rigid-body modes help algebraic multigrid (GAMG) on elasticity
