@@ -677,7 +677,9 @@ def cantilever_fem_ladder(scene, out, progress=None):
     its build and solve (``rss_mb``: the process's peak RSS, VmHWM, reset before the rung, minus the RSS at
     its start; the JIT-compiled forms are loaded beforehand) and, for the coarsest
     mesh of each family, the wall time of ``t_dyn`` simulated seconds (``dyn_s``; generalized-alpha, step
-    ``dt_fem``) and the tip at its end (``dyn_tip``)."""
+    ``dt_fem``) and the tip at its end (``dyn_tip``); with the scene's ``contact``, the rung on the floor
+    (``contact_backbone``, ``contact_force`` [N per m of depth], ``contact_s`` CPU time) and the elastica on the
+    floor (``doc["elastica"]["contact"]``)."""
     from sorofem.io import atomic_path
 
     out = Path(out)
