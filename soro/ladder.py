@@ -38,10 +38,12 @@ Scenes: ``pneunet2d`` (:class:`Scene`, beams identified on FEM data) and ``canti
 (:class:`CantileverScene`: a soft strip under a dead tip load, plane strain; the closed-form elastica
 (:func:`elastica`) is a second reference beside the FEM one; its beams are physical, nothing identified; its
 solve times are CPU times; it also measures memory per rung and the wall time per simulated second,
-:func:`cost_table`, and its own error budget, :func:`cantilever_budget`) and ``pneunet3d``
-(:class:`PneuNet3DScene`: the 3D PneuNet of ``demos/pneunet_inflation.py``, its meshes refined by sqrt 2, a
-plane-strain rung whose error against 3D is a model-form error, beams trained on the 3D reference's snapshots,
-CPU times and memory per rung, :func:`pneunet3d_costs`, :func:`pneunet3d_budget`).
+:func:`cost_table`, its own error budget, :func:`cantilever_budget`, and a contact load: the tip load pushes
+the strip onto a rigid floor; the tip and the floor's reaction of every rung against the FEM reference on the
+floor and the elastica on the floor, :func:`elastica_on_floor`, :func:`contact_table`, :func:`contact_figure`) and
+``pneunet3d`` (:class:`PneuNet3DScene`: the 3D PneuNet of ``demos/pneunet_inflation.py``, its meshes refined by
+sqrt 2, a plane-strain rung whose error against 3D is a model-form error, beams trained on the 3D reference's
+snapshots, CPU times and memory per rung, :func:`pneunet3d_costs`, :func:`pneunet3d_budget`).
 """
 from __future__ import annotations
 
@@ -62,7 +64,8 @@ __all__ = ["Scene", "SCENES", "MEASURES", "FEM_FAMILIES", "BEAM_FAMILIES", "rich
            "ladder_figure", "error_budget", "select",
            "write_model", "load_model", "validate", "run_ladder", "parse_tolerance", "beam_within",
            "strain_floor", "selected", "PneuNet3DScene", "pneunet3d_fem_ladder", "pneunet3d_ladder",
-           "pneunet3d_budget", "pneunet3d_costs", "unreachable"]
+           "pneunet3d_budget", "pneunet3d_costs", "unreachable", "elastica_on_floor", "contact_table",
+           "contact_figure"]
 
 #: The error measures of the ladder (the selection takes one of them).
 MEASURES = ("tip", "shape", "volume")
@@ -521,9 +524,14 @@ class CantileverScene(_Levels):
     ``t_dyn`` [s]: the dynamics run that measures the time per simulated second (the body released from rest
     under its full load), beams with step ``dt_beam`` [s], the coarsest FEM rungs with ``dt_fem`` [s].
 
-    The modulus is soft (100 kPa): with E = 2 MPa and nu = 0.49 the P2 mixed model did not converge even at
-    zero load (Newton's increment test mixes the pressure field [Pa] with the displacement [m]; a sorofem
-    issue, reported)."""
+    The contact load (``contact``): the same tip load at ``contact_level`` pushes the strip onto a rigid,
+    frictionless floor ``floor_gap`` [m] below its bottom face (:meth:`floor`); it touches at about a third of the
+    load, then the floor carries the rest. Measured per rung: the tip and the floor's reaction (the FEM's
+    contact force; a beam's tube of radius H/2 on the plane), against the FEM reference and against the
+    elastica on the floor (:func:`elastica_on_floor`).
+
+    The modulus is soft (100 kPa, the value the ladder was first measured with); stiffer bodies converge too
+    since sorofem's Newton measures the mixed pressure [Pa] and the displacement [m] separately."""
 
     name: str = "cantilever"
     length: float = 0.1
@@ -540,6 +548,9 @@ class CantileverScene(_Levels):
     dt_beam: float = 2.5e-3
     dt_fem: float = 5e-3
     fem_dynamics: bool = True
+    contact: bool = True
+    floor_gap: float = 0.02
+    contact_level: float = 1.0
 
     def material(self):
         from sorofem import materials
@@ -555,6 +566,14 @@ class CantileverScene(_Levels):
     def EI(self):
         """Plane-strain bending stiffness per m of depth [N m]: E/(1 - nu^2) h^3/12."""
         return self.E / (1 - self.nu ** 2) * self.height ** 3 / 12
+
+    def floor(self, dim=2):
+        """The rigid floor of the contact load, ``floor_gap`` below the bottom face (y = -height/2): a
+        :class:`sorofem.sdf.Line` (``dim`` 2, the FEM) or :class:`sorofem.sdf.Plane` (3, the beams)."""
+        from sorofem import sdf
+
+        y = -self.height / 2 - self.floor_gap
+        return sdf.Line((0.0, y), (0.0, 1.0)) if dim == 2 else sdf.Plane((0.0, y, 0.0), (0.0, 1.0, 0.0))
 
 
 SCENES["cantilever"] = {"full": CantileverScene(repeats=15, fem_repeats=3),
@@ -592,6 +611,28 @@ def elastica(L, EI, w, P, sigma, tol=1e-10):
     return np.column_stack([Y[2], Y[3], np.zeros(len(sigma))])
 
 
+def elastica_on_floor(L, EI, w, P, deflection, sigma, rtol=1e-9):
+    r"""The elastica of :func:`elastica` whose tip rests on a frictionless floor: the tip may not go lower than
+    ``deflection`` [m] below the clamp's axis. If the free tip stays above it, the floor carries nothing;
+    otherwise the floor's reaction :math:`R` is vertical at the tip, so the rod is the elastica under the tip
+    load :math:`P - R` whose tip deflection is ``deflection``; :math:`R` is found by bracketing (Brent,
+    relative tolerance ``rtol`` of P). Returns (R [N, per m of depth like P], backbone (len(sigma), 3) [m]).
+    Its small-load limit is :math:`R = P - 3EI\delta/L^3` (no weight)."""
+    from scipy.optimize import brentq
+
+    free = elastica(L, EI, w, P, sigma)
+    if -free[-1, 1] <= deflection:
+        return 0.0, free
+    tip = float(np.asarray(sigma, dtype=float)[-1])
+    if not np.isclose(tip, L):
+        raise ParameterError(f"elastica_on_floor needs sigma to end at the tip (L = {L} m), got {tip}")
+
+    def gap(Pt):
+        return -elastica(L, EI, w, Pt, [L])[-1, 1] - deflection
+    Pt = brentq(gap, 0.0, P, xtol=rtol * P, rtol=1e-12)
+    return float(P - Pt), elastica(L, EI, w, Pt, sigma)
+
+
 def _peak_rss_reset():
     """Reset the process's peak resident set size (Linux: ``/proc/self/clear_refs`` ``5``); False if not
     possible (then the peak is the process's peak so far)."""
@@ -616,7 +657,7 @@ def _peak_rss_mb(key="VmHWM"):
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
-def _cantilever_fem(scene, degree, mixed, size):
+def _cantilever_fem(scene, degree, mixed, size, contact=False):
     from sorofem.fem import Fem
     from sorofem.mesh import Mesh
 
@@ -626,7 +667,20 @@ def _cantilever_fem(scene, degree, mixed, size):
     fem.add_support("left").add_traction("right", [0.0, -P / scene.height])
     if scene.gravity:
         fem.add_gravity()
+    if contact:
+        fem.add_contact(scene.floor(2))
     return fem
+
+
+def _cantilever_contact_fem(scene, degree, mixed, size, sigma):
+    """The FEM rung on the floor at ``contact_level``: (backbone (len(sigma), 3) [m], the floor's vertical
+    reaction [N per m of depth], CPU time of the solve [s])."""
+    fem = _cantilever_fem(scene, degree, mixed, size, contact=True)
+    c0 = time.process_time()
+    traj = fem.solve(load_level=scene.contact_level, steps=scene.test_steps,
+                     max_step=scene.contact_level / scene.test_steps, progress=False)
+    cpu = time.process_time() - c0
+    return _fem_backbone(scene, fem, sigma), float(traj.reactions["contact_0"][-1][1]), cpu
 
 
 def _midline(scene, samples=81):
@@ -646,7 +700,9 @@ def cantilever_fem_ladder(scene, out, progress=None):
     its build and solve (``rss_mb``: the process's peak RSS, VmHWM, reset before the rung, minus the RSS at
     its start; the JIT-compiled forms are loaded beforehand) and, for the coarsest
     mesh of each family, the wall time of ``t_dyn`` simulated seconds (``dyn_s``; generalized-alpha, step
-    ``dt_fem``) and the tip at its end (``dyn_tip``)."""
+    ``dt_fem``) and the tip at its end (``dyn_tip``); with the scene's ``contact``, the rung on the floor
+    (``contact_backbone``, ``contact_force`` [N per m of depth], ``contact_s`` CPU time) and the elastica on the
+    floor (``doc["elastica"]["contact"]``)."""
     from sorofem.io import atomic_path
 
     out = Path(out)
@@ -685,6 +741,9 @@ def cantilever_fem_ladder(scene, out, progress=None):
                 "unknowns": int(fem.num_dofs), "tip": P[-1].tolist(), "backbone": P.tolist(),
                 "volume": 0.0, "volume_rest": 0.0, "freq": freq, "build_s": builds, "solve_s": solves,
                 "solve_wall_s": walls, "rss_mb": float(np.median(rss)), "path": path.name}
+        if scene.contact:
+            Pc, force, cpu = _cantilever_contact_fem(scene, degree, mixed, h, sigma)
+            rung.update(contact_backbone=Pc.tolist(), contact_force=force, contact_s=cpu)
         if scene.fem_dynamics and i == 0 and not mixed:   # sorofem's dynamics: displacement formulation only
             dyn = _cantilever_fem(scene, degree, mixed, h)
             t0 = time.perf_counter()
@@ -714,6 +773,10 @@ def cantilever_fem_ladder(scene, out, progress=None):
                                            sigma).tolist(),
                         "validation": elastica(scene.length, scene.EI(), scene.validation_level * w,
                                                scene.validation_level * Pt, sigma).tolist()}}
+    if scene.contact:
+        force, Pe = elastica_on_floor(scene.length, scene.EI(), scene.contact_level * w, scene.contact_level * Pt,
+                                      scene.floor_gap, sigma)
+        doc["elastica"]["contact"] = {"force": force, "backbone": Pe.tolist()}
     with atomic_path(out / "fem.json") as tmp:
         Path(tmp).write_text(json.dumps(doc))
     return doc
@@ -722,21 +785,38 @@ def cantilever_fem_ladder(scene, out, progress=None):
 _CANTILEVER_DEPTH = 0.01    # [m] of the beam rungs' section (plane strain: any depth, the loads scale with it)
 
 
-def _cantilever_beam(scene, bases, dofs, level=1.0, segments=40):
+def _cantilever_beam(scene, bases, dofs, level=1.0, segments=40, contact=False):
     """The beam rung: bending-only Cosserat beam with the plane-strain modulus E/(1 - nu^2), a section of the
     height (along body y: in-plane bending about z) x 10 mm (any depth: the loads scale with it), gravity and
-    the tip load at ``level``."""
+    the tip load at ``level``; with ``contact`` the scene's floor (the tube's radius: half the height, the
+    distance from the axis to the bottom face; default penalty stiffness, which lets the tip sink ~1e-6 L)."""
     from sorofem import sdf
     from soroshapes import Shapes
 
     depth = _CANTILEVER_DEPTH
     w, P = scene.loads()
     shp = Shapes(bases, dofs, length=scene.length, section=sdf.Rectangle(scene.height, depth),   # (body y, z)
-                 material=scene.material(), E=scene.E / (1 - scene.nu ** 2), damping=0.0, segments=segments)
+                 material=scene.material(), E=scene.E / (1 - scene.nu ** 2), damping=0.0, segments=segments,
+                 contact_radius=scene.height / 2)
     if scene.gravity:
         shp.add_gravity((0.0, -9.80665 * level, 0.0))
     shp.add_point_load(force=(0.0, -level * P * depth, 0.0))
+    if contact:
+        shp.add_contact(scene.floor(3))
     return shp
+
+
+def _cantilever_contact_beam(scene, bd, sigma, repeats=1):
+    """The beam rung on the floor at ``contact_level``: (backbone [m], the floor's vertical reaction [N per m
+    of depth], CPU time of the solve [s], the median of ``repeats``)."""
+    shp = _cantilever_beam(scene, *bd, level=scene.contact_level, contact=True)
+    cpu = []
+    for _ in range(repeats):
+        c0 = time.process_time()
+        q = shp.statics(steps=2 * scene.test_steps)
+        cpu.append(time.process_time() - c0)
+    return (_positions_at(shp, q, sigma), float(shp.contact_forces(q)[:, 1].sum() / _CANTILEVER_DEPTH),
+            float(np.median(cpu)))
 
 
 def _cantilever_bases(fam, k, train):
@@ -811,11 +891,27 @@ def cantilever_beam_ladder(scene, doc, out):
                          "freq": None, "sim_s_per_s": t_dyn / scene.t_dyn, "rss_mb": _peak_rss_mb() - base,
                          "alloc_kb": alloc_kb,
                          "_shapes": shp, "_bd": bd, "_ident": None})
+            if scene.contact:
+                Pc, force, cpu = _cantilever_contact_beam(scene, bd, sigma, repeats=3)
+                rows[-1].update(_contact_errors(Pc, force, doc, L), contact_force=force, contact_solve_s=cpu)
             if doc["rungs"][-1].get("freq"):
                 f0 = doc["rungs"][-1]["freq"]
                 rows[-1]["freq"] = abs(float(_cantilever_beam(scene, *bd).natural_frequencies(1)[0]) - f0) / f0
     _time_statics(rows, scene.repeats)
     return rows
+
+
+def _contact_errors(P, force, doc, L):
+    """Errors of a rung on the floor (backbone ``P``, reaction ``force``) against the FEM reference's (the last
+    rung) and the elastica's: ``tip_contact``, ``force_contact`` (relative to the reference's reaction) and
+    the same against the elastica (``*_elastica``)."""
+    ref, el = doc["rungs"][-1], doc["elastica"]["contact"]
+    out = {}
+    for suffix, Pr, Fr in (("", ref["contact_backbone"], ref["contact_force"]),
+                           ("_elastica", el["backbone"], el["force"])):
+        out["tip_contact" + suffix] = float(np.linalg.norm(P[-1] - np.asarray(Pr)[-1]) / L)
+        out["force_contact" + suffix] = float(abs(force - Fr) / abs(Fr)) if Fr else float("nan")
+    return out
 
 
 def _time_statics(rows, repeats):
@@ -839,12 +935,29 @@ def _time_statics(rows, repeats):
 def cantilever_ladder(scene, out, progress=None):
     """The cantilever's ladder: (rows, info) as :func:`ladder`; every row also carries its errors against the
     elastica (``tip_elastica``, ``shape_elastica``), ``rss_mb`` and (beams; coarsest FEM rungs) the wall time
-    per simulated second ``sim_s_per_s``; ``info["elastica"]``: the FEM reference against the elastica."""
+    per simulated second ``sim_s_per_s``; ``info["elastica"]``: the FEM reference against the elastica.
+    With the scene's ``contact``, every row has the contact load's ``tip_contact`` (fraction of L) and
+    ``force_contact`` (fraction of the reference's floor reaction) against the FEM reference (its own row: the
+    Richardson estimates on its family's three meshes), the same against the elastica on the floor
+    (``*_elastica``), its reaction ``contact_force`` [N per m of depth] and ``contact_solve_s`` (CPU time);
+    ``info["contact"]``: the reference's Richardson estimates and reactions."""
     doc = cantilever_fem_ladder(scene, out, progress)
     fem_rows, rich = _fem_rows(doc)
     Pel = np.asarray(doc["elastica"]["unseen"])
+    contact = None
+    if scene.contact:     # the contact load: errors of every rung, the reference's by Richardson on its family
+        ref = doc["rungs"][-1]
+        fam = [r for r in doc["rungs"] if r["family"] == ref["family"]]
+        contact = {"tip": richardson([r["contact_backbone"][-1] for r in fam]),
+                   "force": richardson([r["contact_force"] for r in fam])}
     for row, r in zip(fem_rows, doc["rungs"]):
         row["tip_elastica"], row["shape_elastica"] = _errors(np.asarray(r["backbone"]), Pel, scene.length)
+        if contact is not None:
+            row.update(_contact_errors(np.asarray(r["contact_backbone"]), r["contact_force"], doc, scene.length),
+                       contact_force=r["contact_force"], contact_solve_s=r["contact_s"])
+            if row["estimated"]:
+                row["tip_contact"] = contact["tip"]["error"] / scene.length
+                row["force_contact"] = contact["force"]["error"] / abs(r["contact_force"])
         row["solve_wall_s"] = float(np.median(r["solve_wall_s"]))
         row["rss_mb"] = r.get("rss_mb")
         row["volume_unseen"] = np.nan
@@ -865,9 +978,17 @@ def cantilever_ladder(scene, out, progress=None):
     ref_el = _errors(np.asarray(doc["rungs"][-1]["backbone"]), Pel, scene.length)
     w, P = scene.loads()
     lin = scene.test_level * (w * scene.length ** 4 / 8 + P * scene.length ** 3 / 3) / scene.EI()
-    return rows, {"richardson": rich, "length": scene.length, "fem": doc, "time_integration": ti,
-                  "elastica": {"tip": ref_el[0], "shape": ref_el[1], "tip_deflection": float(-Pel[-1, 1]),
-                               "euler_bernoulli_linear": float(lin)}}
+    info = {"richardson": rich, "length": scene.length, "fem": doc, "time_integration": ti,
+            "elastica": {"tip": ref_el[0], "shape": ref_el[1], "tip_deflection": float(-Pel[-1, 1]),
+                         "euler_bernoulli_linear": float(lin)}}
+    if contact is not None:
+        ref_row = fem_rows[-1]
+        contact.update(reference_force=doc["rungs"][-1]["contact_force"], load=scene.contact_level * P,
+                       elastica_force=doc["elastica"]["contact"]["force"],
+                       reference_vs_elastica={"tip": ref_row["tip_contact_elastica"],
+                                              "force": ref_row["force_contact_elastica"]})
+        info["contact"] = contact
+    return rows, info
 
 
 def _scene_from(d):
@@ -957,6 +1078,50 @@ def cost_table(rows):
                  "simulated time (FEM: generalized-alpha on the coarsest displacement rungs; sorofem has no dynamics "
                  "for the mixed formulation)")
     return "\n".join(lines)
+
+
+def contact_table(rows, info):
+    """The contact load as text: per rung the floor's reaction [N per m of depth], the tip and reaction errors
+    against the FEM reference (~: its Richardson estimate) and against the elastica on the floor, and the
+    CPU time of the solve on the floor (FEM: one solve; beams: the median of 3); then what limits them."""
+    c = info["contact"]
+
+    def pct(v):
+        return f"{100 * v:.3f}" if v is not None and np.isfinite(v) else "-"
+    head = (f"{'family':<12} {'size':>11} {'R [N/m]':>9} {'tip %':>8} {'force %':>8} {'tip vs el %':>11} "
+            f"{'force vs el %':>13} {'solve ms':>9}")
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        if "tip_contact" not in r:
+            continue
+        est = "~" if r.get("estimated") else " "
+        lines.append(f"{r['family']:<12} {_label(r):>11} {r['contact_force']:>9.5f} {est}{pct(r['tip_contact']):>7} "
+                     f"{est}{pct(r['force_contact']):>7} {pct(r['tip_contact_elastica']):>11} "
+                     f"{pct(r['force_contact_elastica']):>13} {1e3 * r['contact_solve_s']:>9.1f}")
+    rt, rf = c["tip"], c["force"]
+    lines.append(f"tip load {c['load']:.5f} N/m; floor reaction: reference {c['reference_force']:.5f} N/m, elastica "
+                 f"{c['elastica_force']:.5f} N/m; reference discretization (Richardson): tip {100 * rt['error'] / info['length']:.4f} "
+                 f"% of L (order {rt['order']:.2f}), reaction {100 * rf['error'] / abs(c['reference_force']):.4f} % "
+                 f"(order {rf['order']:.2f}); reference vs the elastica on the floor: tip "
+                 f"{100 * c['reference_vs_elastica']['tip']:.4f} % of L, reaction "
+                 f"{100 * c['reference_vs_elastica']['force']:.4f} % (the FEM touches with the corner of its end face, "
+                 "H/2 (1 - cos theta) higher than a beam's tube; shear and thickness)")
+    return "\n".join(lines)
+
+
+def contact_figure(rows, measure="tip", floor=None):
+    """The contact load's ``measure`` (``tip`` or ``force``) error against the FEM reference vs the CPU time of
+    the solve on the floor, log-log, one line per family (:func:`ladder_figure` on the contact columns;
+    ``floor``: the elastica on the floor against the reference, dash-dotted)."""
+    key = f"{measure}_contact"
+    sub = [dict(r, tip_unseen=r[key], solve_time_s=r["contact_solve_s"]) for r in rows if key in r]
+    fig = ladder_figure(sub, "tip", floor=floor)
+    ax = fig.axes[0]
+    ax.set_ylabel(f"{measure} error on the floor [%] ({'of L' if measure == 'tip' else 'of the reaction'})")
+    ax.set_xlabel("CPU time of the static solve on the floor [s]")
+    ax.set_title(f"contact load: {measure} (reference: finest P2 mixed on the floor, its own error by Richardson)",
+                 fontsize=9)
+    return fig
 
 
 # ------------------------------------------------------------------------------------------------ Pareto
@@ -1323,6 +1488,12 @@ def run_ladder(scene_name="pneunet2d", tolerance=None, measure="tip", out=None, 
     text = table + "\n\nerror budget (tip)\n" + budget_text
     if cant:
         text += "\n\ncosts\n" + cost_table(rows)
+        if "contact" in info:
+            text += "\n\ncontact load (the tip load pushes the strip onto a rigid floor)\n" + contact_table(rows, info)
+            for m in ("tip", "force"):
+                with atomic_path(out / f"ladder_contact_{m}.png") as tmp:
+                    contact_figure(rows, m, info["contact"]["reference_vs_elastica"][m]).savefig(
+                        tmp, dpi=110, format="png")
     if three:
         text += "\n\ncosts\n" + pneunet3d_costs(rows)
     for m in (("tip", "shape") if cant else MEASURES):
@@ -1334,6 +1505,8 @@ def run_ladder(scene_name="pneunet2d", tolerance=None, measure="tip", out=None, 
     result = {"scene": scene_name, "quick": quick, "rows": [{k: v for k, v in r.items() if not k.startswith("_")}
                                                            for r in rows],
               "richardson": info["richardson"], "budget": budget}
+    if "contact" in info:
+        result["contact"] = info["contact"]
     if tol is not None:
         if pick is None:
             verdict = unreachable(rows, tol, measure)

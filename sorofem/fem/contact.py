@@ -19,8 +19,9 @@ it to 1 % of an element for a contact pressure of :math:`E`, far below it for so
 tangent of these forces (normal part, friction's dependence on normal force and slip) enters Newton's
 matrix, so convergence stays quadratic; the obstacle's curvature is left out of it.
 
-Use P1 elements (or 2D P2): in 3D, the corner functions of quadratic triangles integrate to zero over a
-face, so corner nodes would carry no contact area.
+Use P1 elements (or 2D P2, also mixed: the forces act on the displacement field of the state): in 3D, the
+corner functions of quadratic triangles integrate to zero over a face, so corner nodes would carry no contact
+area.
 """
 import numpy as np
 
@@ -56,13 +57,11 @@ class Contact:
         gdim, fdim = msh.geometry.dim, msh.topology.dim - 1
         if self.obstacle.dim != gdim:
             raise ParameterError(f"a {self.obstacle.dim}D obstacle cannot touch a {gdim}D body")
-        if fem.mixed_state:
-            raise ParameterError("contact is available for the displacement formulation (mixed=False, not plane "
-                                 "stress)")
         msh.topology.create_connectivity(fdim, msh.topology.dim)
         facets = dolfinx.mesh.exterior_facet_indices(msh.topology)
-        V0, to_w = W.sub(0).collapse()
-        maps = [np.asarray(to_w)] + [np.asarray(W.sub(c).collapse()[1]) for c in range(1, gdim)]
+        Wu = W.sub(0) if fem.mixed_state else W          # the displacement (the first field of a mixed state)
+        V0, _ = Wu.sub(0).collapse()
+        maps = [np.asarray(Wu.sub(c).collapse()[1]) for c in range(gdim)]
         nodes = dolfinx.fem.locate_dofs_topological(V0, fdim, facets)
         nodes = nodes[nodes < V0.dofmap.index_map.size_local]
         v = ufl.TestFunction(V0)

@@ -4,8 +4,13 @@ One Newton solve for :math:`R(u) = 0` with Dirichlet conditions: at each iterati
 :math:`b = R(u)` lifted so that the correction also enforces the prescribed values, assemble the tangent
 :math:`A = \\partial R/\\partial u`, solve :math:`A\\,\\delta = b` and update :math:`u \\leftarrow u - \\delta`.
 A step that turns elements inside out (non-finite residual) is halved, up to five times, before the
-iteration gives up. Converged when :math:`\\|\\delta\\| \\le \\text{rtol}_u \\max(\\|u\\|, \\text{scale})` or
-:math:`\\|b\\| \\le \\max(\\text{rtol}_r \\|b_0\\|, \\text{atol}_r)`. It stops early, without raising, on a non-finite
+iteration gives up. Converged when every field :math:`f` of the unknown (the displacement [m], and the pressure
+[Pa] of the mixed formulation or the thickness strain [-] of plane stress) has a small correction,
+:math:`\\|\\delta_f\\| \\le \\text{rtol}_u \\max(\\|u_f\\|, \\text{scale}_f)`, each measured in its own unit,
+or when :math:`\\|b\\| \\le \\max(\\text{rtol}_r \\|b_0\\|, \\text{atol}_r)`. (One norm over all fields would
+compare pascals with metres: at rest the pressure's round-off, about :math:`10^{-16}` of the bulk modulus, then
+exceeds a displacement tolerance and Newton never stops; under load the pressure's size loosens the test on the
+displacement.) It stops early, without raising, on a non-finite
 residual, a failed factorization or a residual that grew by ``divergence_factor``; the caller (the load
 stepper) restores the last state and cuts the step.
 
@@ -28,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _dolfinx
+from ..errors import ParameterError
 
 log = logging.getLogger(__name__)
 
@@ -37,7 +43,8 @@ __all__ = ["NewtonOutcome", "NewtonSolver", "VolumeConstraint"]
 @dataclass
 class NewtonOutcome:
     """What one Newton solve did: ``converged``, ``iterations``, final ``residual`` and ``correction``
-    norms, and ``reason`` (a short text when it failed)."""
+    norms (the correction of the first field: the displacement [m] of a FEM model), and ``reason`` (a short
+    text when it failed)."""
 
     converged: bool
     iterations: int
@@ -108,12 +115,17 @@ class NewtonSolver:
         Options for the linear solver (prefix-free keys, e.g. ``{"ksp_type": "gmres", "pc_type": "gamg"}``);
         default direct LU with MUMPS.
     scale : float
-        Displacement scale [m] for the correction test (e.g. the mesh size of the domain).
+        Displacement scale [m] for the correction test (e.g. the mesh size of the domain); the scale of the
+        single field when ``fields`` is not given.
+    fields : sequence of (name, indices, scale), optional
+        The fields of a mixed unknown for the correction test: their local indices into ``u.x.array`` and a
+        scale in the field's unit (e.g. ``("pressure", dofs, G)`` with a shear modulus [Pa]). Every unknown
+        should belong to one field. Default: one field of every unknown with scale ``scale``.
     """
 
     def __init__(self, residual, jacobian, u, bcs, petsc_options=None, scale=1.0, max_iterations=25,
                  rtol_u=1e-9, rtol_r=1e-9, atol_r=1e-12, divergence_factor=1e4, prefix="soro_newton_",
-                 constraints=(), point_forces=None, point_tangent=None, near_nullspace=None):
+                 constraints=(), point_forces=None, point_tangent=None, near_nullspace=None, fields=None):
         import dolfinx.fem.petsc
         from petsc4py import PETSc
 
@@ -124,6 +136,16 @@ class NewtonSolver:
         self.constraints = list(constraints)
         self.point_forces = point_forces  # callable(b_local_array, u_array): adds point loads to the residual
         self.point_tangent = point_tangent  # callable(A, u_array): adds their derivative before A.assemble()
+        n_owned = u.function_space.dofmap.index_map.size_local * u.function_space.dofmap.index_map_bs
+        if fields is None:
+            fields = [("state", np.arange(n_owned), self.scale)]
+        self.fields = []
+        for name, idx, fscale in fields:
+            idx = np.asarray(idx, dtype=np.int64)
+            if not (np.isfinite(fscale) and fscale > 0):
+                raise ParameterError(f"the correction scale of field {name!r} must be positive (in the field's "
+                                     f"unit), got {fscale}")
+            self.fields.append((name, idx[idx < n_owned], float(fscale)))  # owned entries: each counted once
         self.A = dolfinx.fem.petsc.create_matrix(jacobian)
         if near_nullspace is not None:  # rigid-body modes help algebraic multigrid (GAMG) on elasticity
             self.A.setNearNullSpace(near_nullspace)
@@ -174,10 +196,22 @@ class NewtonSolver:
             _dolfinx.set_bc(b, self.bcs, x, alpha=-1.0)
         return b
 
-    def _safeguard(self, cnorm, halvings=5):
+    def field_norms(self, vec):
+        """The 2-norm of each field of ``vec`` (a PETSc vector of the unknown's layout), over every rank."""
+        a = vec.getArray(readonly=True)
+        local = np.array([float(np.dot(a[idx], a[idx])) for _, idx, _ in self.fields])
+        return np.sqrt(self.u.function_space.mesh.comm.allreduce(local))
+
+    def _corrections_small(self, step):
+        """Whether the last step (``step`` times ``self.dx``) is small in every field, each against its own
+        size or scale."""
+        dx, x = step * self.field_norms(self.dx), self.field_norms(_dolfinx.petsc_vec(self.u))
+        return all(d <= self.rtol_u * max(xf, f[2]) for d, xf, f in zip(dx, x, self.fields))
+
+    def _safeguard(self, halvings=5):
         """After the update u <- u - dx: if the residual there is not finite (elements turned inside out),
         step back along dx by halves until it is (at most ``halvings`` times). Returns the residual norm at
-        the accepted point (the next iteration's, so it is not assembled twice) and the size of the step
+        the accepted point (the next iteration's, so it is not assembled twice) and the fraction of ``dx``
         taken."""
         from petsc4py import PETSc
 
@@ -193,7 +227,7 @@ class NewtonSolver:
             trial = self.assemble_residual().norm()
         if alpha < 1:
             log.debug("newton step damped to %.3g to keep every element orientable", alpha)
-        return trial, alpha * cnorm
+        return trial, alpha
 
     def _assemble_border_vector(self, form):
         """Assemble a vector form with zeros on the Dirichlet rows."""
@@ -294,10 +328,12 @@ class NewtonSolver:
                 return NewtonOutcome(False, it, rnorm, cnorm, "non-finite Newton correction (singular tangent?)")
             x.axpy(-1.0, self.dx)
             x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+            step = 1.0
             if not self.constraints:
-                trial, cnorm = self._safeguard(cnorm)
+                trial, step = self._safeguard()
+            cnorm = step * float(self.field_norms(self.dx)[0])
             log.debug("newton %d: |R| = %.3e, |du| = %.3e", it, rnorm, cnorm)
-            if cnorm <= self.rtol_u * max(x.norm(), self.scale) and self._constraint_error() <= 1e-9:
+            if self._corrections_small(step) and self._constraint_error() <= 1e-9:
                 return NewtonOutcome(True, it, rnorm, cnorm)
         return NewtonOutcome(False, self.max_iterations, rnorm, cnorm,
                              f"no convergence in {self.max_iterations} iterations")

@@ -512,8 +512,8 @@ class Fem:
             for comp in support_dofs[region]:
                 dofs = np.unique(np.concatenate(support_dofs[region][comp]))
                 support_dofs[region][comp] = dofs[dofs < owned]
-        if self._split and (self._tendons or self._contacts):
-            raise ParameterError("tendons and contact act on the displacement formulation: build the Fem with "
+        if self._split and self._tendons:
+            raise ParameterError("tendons act on the displacement formulation: build the Fem with "
                                  "mixed=False and formulation 'plane_strain', 'axisymmetric' or '3d'")
         for tendon in self._tendons:
             tendon.setup(msh, W, owned, bcs)
@@ -871,11 +871,22 @@ class Fem:
                 load.add_tangent(A, u_array, self._load_level)
 
         gamg = self.petsc_options.get("pc_type") == "gamg" and not self._split
-        return NewtonSolver(R, J, b.state, list(b.bcs), self.petsc_options, scale=self._size(),
+        return NewtonSolver(R, J, b.state, list(b.bcs), self.petsc_options, scale=self._size(), fields=self._fields(),
                             near_nullspace=NewtonSolver.rigid_body_modes(b.space) if gamg else None,
                             max_iterations=max_iterations, constraints=[c.constraint for c in b.volume_controls],
                             point_forces=point_forces if point_loads else None,
                             point_tangent=point_tangent if point_loads else None)
+
+    def _fields(self):
+        """The fields of the state for Newton's correction test, each with its scale in its own unit: the
+        displacement [m] (the bounding box's diagonal), the mixed formulation's pressure [Pa] (the largest
+        shear modulus) or plane stress's thickness strain [-] (1); None for a displacement-only state."""
+        if not self._split:
+            return None
+        W = self.forms.space
+        second = ("pressure", max(mat.G for _, mat in self._materials)) if self.mixed else ("thickness strain", 1.0)
+        return [("displacement", np.asarray(W.sub(0).collapse()[1]), self._size()),
+                (second[0], np.asarray(W.sub(1).collapse()[1]), second[1])]
 
     def _loads(self):
         """Every load of the model (to switch numbers between ramped and constant)."""

@@ -412,3 +412,58 @@ def test_a_tolerance_below_the_references_error_names_the_tightest_checkable_one
     assert text.startswith(f"no model can be shown to reach 1 % on the unseen tip error: the reference itself is only "
                            f"known to {100 * ref:.4g} %")
     assert f"met by {ok['family']} " in text and ok["tip_unseen"] <= ref
+
+
+# ------------------------------------------------------------------------------------------------ contact load
+def test_the_floor_carries_the_closed_form_reaction_in_the_elastica_the_beam_and_the_fem():
+    """Small deflection (P L^2/EI = 0.06: the free tip would sink 2 mm; the floor is 1 mm below): Euler-Bernoulli
+    gives the floor's reaction R = P - 3 EI delta / L^3 = P/2. The elastica on the floor is within its
+    geometric nonlinearity of it (1e-4 measured); a two-mode Chebyshev beam (exact for a linear moment) is the
+    elastica up to its penalty's penetration (1.3e-5 measured, bound 1e-4); a constant-curvature beam (one
+    mode) carries R = P/3 (virtual work: EI kappa L = (P - R) L^2/2, its tip sinks kappa L^2/2 = (P - R) L^3/(4 EI)
+    = delta = P L^3/(6 EI)). The
+    P2 mixed FEM (h = H/2) meets Timoshenko's R = P - delta / (L^3/(3E'I) + L/(kappa G A)) within its
+    discretization (1.3 % measured against the FEM's stiffer clamp; bound 3 %)."""
+    from soro.ladder import CantileverScene, _cantilever_contact_beam, _cantilever_contact_fem, _midline, \
+        elastica_on_floor
+    from soroshapes.basis import Basis
+
+    sc = CantileverScene(tip_load=0.06, floor_gap=1e-3)
+    _, P = sc.loads()
+    L, EI, sigma = sc.length, sc.EI(), _midline(sc, 21)
+    R_el, B = elastica_on_floor(L, EI, 0.0, P, sc.floor_gap, sigma)
+    assert R_el / P == pytest.approx(0.5, rel=1e-3) and B[-1, 1] == pytest.approx(-sc.floor_gap, rel=1e-6)
+
+    def beam(k):
+        bd = ([Basis.chebyshev(k).orthonormalize(L) if i == 2 else None for i in range(6)], (0, 0, k, 0, 0, 0))
+        return _cantilever_contact_beam(sc, bd, sigma)[1]
+    assert beam(2) == pytest.approx(R_el, rel=1e-4)
+    assert beam(1) / P == pytest.approx(1 / 3, rel=1e-3)
+    E, nu, H = sc.E, sc.nu, sc.height
+    compliance = L ** 3 / (3 * E / (1 - nu ** 2) * H ** 3 / 12) + L / (5 / 6 * E / (2 * (1 + nu)) * H)
+    _, R_fem, _ = _cantilever_contact_fem(sc, 2, True, H / 2, sigma)
+    assert R_fem == pytest.approx(P - sc.floor_gap / compliance, rel=0.03)
+
+
+def test_the_cantilever_ladder_measures_the_contact_load_on_every_rung(cantilever):
+    """The tip load at level 1 pushes the strip onto the floor 20 mm below (it touches at about a third of the
+    load; the floor then carries ~0.69 P). The P2 mixed reference's reaction converges (observed order 1.85,
+    Richardson 0.074 % measured; bounds > 1 and 0.3 %). A converged Chebyshev beam is the elastica on the floor
+    (0.003 % measured); against the FEM it sits at the elastica's own distance from the reference (0.59 % of the
+    reaction, 0.13 % of L: the FEM touches with the corner of its end face, H/2 (1 - cos theta) ~ 0.1 mm above
+    a beam's tube, plus shear and thickness), which the table shows as the beams' floor. Locking P1 rungs are so
+    stiff that they never reach the floor (100 % reaction error)."""
+    scene, out, rows, info = cantilever
+    c = info["contact"]
+    assert 0.6 < c["reference_force"] / c["load"] < 0.75
+    assert c["force"]["converging"] and c["force"]["order"] > 1.0 and c["force"]["error"] / c["reference_force"] < 3e-3
+    assert c["tip"]["error"] / scene.length < 1e-3
+    gap = c["reference_vs_elastica"]
+    assert gap["force"] < 0.01 and gap["tip"] < 2e-3
+    cheb = next(r for r in rows if r["family"] == "chebyshev" and r["modes"] == 4)
+    assert cheb["force_contact_elastica"] < 1e-4
+    assert cheb["force_contact"] == pytest.approx(gap["force"], abs=2e-4)
+    assert all(r["force_contact"] == 1.0 for r in rows if r["family"] == "fem-p1")
+    assert all(np.isfinite(r["tip_contact"]) and r["contact_solve_s"] > 0 for r in rows)
+    from soro.ladder import contact_table
+    assert "~" in contact_table(rows, info)

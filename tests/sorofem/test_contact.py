@@ -12,14 +12,15 @@ G = 9.80665
 FLOOR = sdf.Line((0.0, 0.0), (0.0, 1.0))  # solid below y = 0
 
 
-@pytest.mark.parametrize("dim", [2, 3])
-def test_a_block_resting_on_a_floor_carries_its_weight(dim):
+@pytest.mark.parametrize("dim, mixed", [(2, False), (3, False), (2, True)])
+def test_a_block_resting_on_a_floor_carries_its_weight(dim, mixed):
+    """Also in the mixed (Taylor-Hood) formulation, whose contact acts on the displacement field."""
     W, H = 20 * mm, 10 * mm
     mat = materials.NeoHookean(E=100 * kPa, nu=0.4, density=1000.0)
     if dim == 2:
         msh = Mesh.rectangle(W, H, size=H / 4, center=(0.0, H / 2))
         floor, weight = FLOOR, mat.density * G * W * H
-        fem = Fem(msh, mat).add_support("left", "x")
+        fem = Fem(msh, mat, degree=2 if mixed else 1, mixed=mixed).add_support("left", "x")
     else:
         msh = Mesh.box(W, W, H, size=H / 2, center=(0.0, 0.0, H / 2))
         floor, weight = sdf.Plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)), mat.density * G * W * W * H
