@@ -41,16 +41,20 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sorofem._lazy import moved_attributes
 from sorofem.errors import DataError, ParameterError
 
 from .numerics import FD_STEP
+from .trajectory import Trajectory
 
-__all__ = ["BeamModel", "BeamData", "StateRangeError", "BeamTrajectory", "IKResult", "Gravity", "PointLoad",
+__all__ = ["BeamModel", "BeamData", "StateRangeError", "IKResult", "Gravity", "PointLoad",
            "Chamber", "Tendon", "Actuator", "Contact", "UserForce", "check_state", "kinematics", "dynamics",
            "coriolis_jacobian", "inverse_dynamics", "forward_dynamics", "accelerations", "energy", "external_force",
            "input_map", "inputs_at", "motion_terms", "LoadPlan", "statics", "newton_load_stepping", "simulate",
            "explicit_step_limit", "inverse_kinematics", "damped_least_squares", "time_grid", "lower_contacts",
            "integrator_loads"]
+#: one trajectory type for beams, trees and networks (README.md, "Moved names")
+__getattr__ = moved_attributes(__name__, {"BeamTrajectory": "soroshapes.trajectory.Trajectory"})
 
 _NO_NODES, _NO_WRENCH, _NO_FLAGS = np.zeros(0, dtype=np.int64), np.zeros((0, 6)), np.zeros(0, dtype=np.bool_)
 
@@ -172,34 +176,6 @@ class BeamData:
         """Zero every array (what a failed evaluation does before it raises)."""
         for k in self.__slots__:
             getattr(self, k)[...] = 0.0
-
-
-@dataclass
-class BeamTrajectory:
-    """Result of :meth:`Shapes.simulate`: times ``t`` (m,) [s], coordinates ``q`` and rates ``qd`` (m, n),
-    energies (m,) [J] (``kinetic``, ``potential`` = elastic + gravity, ``total``), tip positions (m, 3) [m],
-    and the solver statistics (``newton_iterations`` per step, ``steps``, ``wall_time`` [s]).
-
-    With constraints (:mod:`soroshapes.constraints`), also per recorded step: ``drift_position`` (m,) [m] and
-    ``drift_rotation`` (m,) [rad], the largest constraint drift, and ``reactions`` (m, k, 6) [N m, N], the
-    reaction wrench of each of the k constraints (world frame, moment first; see
-    :meth:`soroshapes.constraints.ConstraintSet.reactions`); None without constraints."""
-
-    t: np.ndarray
-    q: np.ndarray
-    qd: np.ndarray
-    kinetic: np.ndarray
-    potential: np.ndarray
-    tip: np.ndarray
-    stats: dict = field(default_factory=dict)
-    drift_position: object = None
-    drift_rotation: object = None
-    reactions: object = None
-
-    @property
-    def total(self):
-        """Total mechanical energy [J] (kinetic + elastic + gravity)."""
-        return self.kinetic + self.potential
 
 
 @dataclass
@@ -793,8 +769,9 @@ def time_grid(t_end, dt, min_dt=None, record_every=1):
 def simulate(model, data, loads, t_end, dt, q0=None, qd0=None, u=None, *, tau=0.0, method="implicit", tol=1e-8,
              max_iterations=20, min_dt=None, record_every=1, owner=None):
     r"""Time integration of the beam's equations of motion (see :meth:`soroshapes.shapes.Shapes.simulate`);
-    ``tau`` [s]: Kelvin-Voigt damping :math:`D = \tau K`. Returns a :class:`BeamTrajectory`. (With
-    constraints, :meth:`soroshapes.constraints.Assembly.simulate` integrates the beam as a one-body assembly.)"""
+    ``tau`` [s]: Kelvin-Voigt damping :math:`D = \tau K`. Returns a :class:`~soroshapes.trajectory.Trajectory`
+    (``t``, ``q``, ``qd``, ``kinetic``, ``potential``, ``tip``, ``stats``). (With constraints,
+    :meth:`soroshapes.constraints.Assembly.simulate` integrates the beam as a one-body assembly.)"""
     import time
     if method not in ("implicit", "explicit"):
         raise ParameterError("method must be 'implicit' or 'explicit'")
@@ -813,9 +790,9 @@ def simulate(model, data, loads, t_end, dt, q0=None, qd0=None, u=None, *, tau=0.
     if start < nsteps:
         _simulate_python(q, qd, start, dt, nsteps, method, min_dt, owner, *args)
     wall = time.perf_counter() - t0
-    return BeamTrajectory(np.array(rec["t"]), np.array(rec["q"]), np.array(rec["qd"]), np.array(rec["kin"]),
-                          np.array(rec["pot"]), np.array(rec["tip"]),
-                          {"steps": nsteps, "dt": dt, "newton_iterations": np.array(its_all), "wall_time": wall,
+    return Trajectory(rec["t"], q=np.array(rec["q"]), qd=np.array(rec["qd"]), kinetic=np.array(rec["kin"]),
+                      potential=np.array(rec["pot"]), tip=np.array(rec["tip"]),
+                      stats={"steps": nsteps, "dt": dt, "newton_iterations": np.array(its_all), "wall_time": wall,
                            "method": method, "compiled_steps": start,
                            "matrix_refreshes": rec.get("refreshes", 0)})
 

@@ -763,13 +763,14 @@ class Assembly:
         [rad]. A step that fails is halved down to ``min_dt`` (default dt/1024), then a
         :class:`~sorofem.errors.ConvergenceError` names the time.
 
-        Returns a :class:`soroshapes.beam.BeamTrajectory` with q, qd stacked, ``tip`` the end point of the last
+        Returns a :class:`soroshapes.trajectory.Trajectory` with q, qd stacked, ``tip`` the end point of the last
         body (a beam's tip, a link's centre of mass), the energies summed over the bodies, and per record
         ``drift_position`` [m], ``drift_rotation`` [rad] and ``reactions`` (records, constraints, 6) [N m, N] (the
         multipliers of the step that ended there; at t = 0 those of the first step)."""
         import time
         from sorofem.errors import ConvergenceError
-        from .beam import BeamTrajectory, StateRangeError, time_grid
+        from .beam import StateRangeError, time_grid
+        from .trajectory import Trajectory
         t_end, dt, nsteps, min_dt, record_every = time_grid(t_end, dt, min_dt, record_every)
         q, qd = self._state(q0, "q0"), self._state(qd0, "qd0")
         self._inputs(u, 0.0)
@@ -824,13 +825,13 @@ class Assembly:
             t = t_next
             if (k + 1) % record_every == 0 or k + 1 == nsteps:
                 record(t, c, lam)
-        return BeamTrajectory(np.array(rec["t"]), np.array(rec["q"]), np.array(rec["qd"]), np.array(rec["kin"]),
-                              np.array(rec["pot"]), np.array(rec["tip"]),
-                              {"steps": nsteps, "dt": dt, "newton_iterations": np.array(its_all),
-                               "wall_time": time.perf_counter() - wall0, "method": "implicit",
-                               "compiled_steps": 0, "matrix_refreshes": 0, "constraints": cs._names()},
-                              drift_position=np.array(rec["dp"]), drift_rotation=np.array(rec["dr"]),
-                              reactions=np.array(rec["W"]))
+        return Trajectory(rec["t"], q=np.array(rec["q"]), qd=np.array(rec["qd"]), kinetic=np.array(rec["kin"]),
+                          potential=np.array(rec["pot"]), tip=np.array(rec["tip"]),
+                          stats={"steps": nsteps, "dt": dt, "newton_iterations": np.array(its_all),
+                                 "wall_time": time.perf_counter() - wall0, "method": "implicit",
+                                 "compiled_steps": 0, "matrix_refreshes": 0, "constraints": cs._names()},
+                          drift_position=np.array(rec["dp"]), drift_rotation=np.array(rec["dr"]),
+                          reactions=np.array(rec["W"]))
 
     def _project(self, cs, q, qd):
         r"""``qd`` projected on :math:`J_c(q)\dot q = 0` in the metric of M(q): the smallest kinetic-energy

@@ -93,15 +93,19 @@ from __future__ import annotations
 import logging
 import math
 import time as _time
-from dataclasses import dataclass, field
 
 import numpy as np
 
+from sorofem._lazy import moved_attributes
 from sorofem.errors import ConvergenceError, DataError, ParameterError, SoroError
 
 from .numerics import FD_STEP, fd_columns
+from .trajectory import Trajectory
 
-__all__ = ["StateSpace", "Fluidic", "Model", "ModelTrajectory", "SystemTrajectory"]
+__all__ = ["StateSpace", "Fluidic", "Model"]
+#: one trajectory type for beams, trees and networks (README.md, "Moved names")
+__getattr__ = moved_attributes(__name__, {name: "soroshapes.trajectory.Trajectory"
+                                          for name in ("ModelTrajectory", "SystemTrajectory")})
 
 log = logging.getLogger(__name__)
 _NO_POSITIONS = np.zeros(0, dtype=int)
@@ -497,43 +501,6 @@ def _block(name, system):
     if isinstance(system, Shapes):
         return _ShapesBlock(name, system)
     raise ParameterError(f"Model.add takes a StateSpace, Fluidic or Shapes, got {type(system).__name__}")
-
-
-# ------------------------------------------------------------------------------------------------------------
-# trajectories
-# ------------------------------------------------------------------------------------------------------------
-@dataclass
-class SystemTrajectory:
-    """One system's share of a :class:`ModelTrajectory`: ``t`` [s], states ``x`` (K, n), inputs ``u`` (K, m);
-    beams add ``q``, ``qd``; reservoirs add ``volume`` [m^3] and gauge ``pressure`` [Pa]."""
-    name: str
-    t: np.ndarray
-    x: np.ndarray
-    u: np.ndarray
-    extra: dict = field(default_factory=dict)
-
-    def __getattr__(self, key):
-        extra = self.__dict__.get("extra", {})
-        if key in extra:
-            return extra[key]
-        raise AttributeError(f"{key!r}: this system trajectory has t, x, u and {sorted(extra)}")
-
-
-@dataclass
-class ModelTrajectory:
-    """Result of :meth:`Model.simulate`: times ``t`` (K,) [s], stacked states ``x`` (K, n), all inputs ``u``
-    (K, m) (controller and couplings), ``stats`` (steps, rejected, newton_iterations, jacobians, wall_time);
-    ``traj["name"]`` is one system's :class:`SystemTrajectory`."""
-    t: np.ndarray
-    x: np.ndarray
-    u: np.ndarray
-    systems: dict
-    stats: dict
-
-    def __getitem__(self, name):
-        if name not in self.systems:
-            raise KeyError(f"no system {name!r}; systems: {', '.join(self.systems)}")
-        return self.systems[name]
 
 
 class _View:
@@ -1062,7 +1029,9 @@ class Model:
         (:mod:`soroshapes.network`, dense LU) when every part of it has a compiled form and on the
         Python path otherwise (:attr:`evaluation_path` says which and why); True requires the compiled kernel (a
         :class:`~sorofem.errors.ParameterError` names the part that has none); False forces the Python path.
-        Returns a :class:`ModelTrajectory`.
+        Returns a :class:`~soroshapes.trajectory.Trajectory`: ``t``, the stacked states ``x``, all inputs ``u``,
+        ``stats``; ``traj["name"]`` is one system's (``x``, ``u``, and ``q``, ``qd`` of a beam or ``volume``,
+        ``pressure`` of a reservoir).
         """
         if method not in ("trapezoidal", "midpoint", "bdf2"):
             raise ParameterError(f"method must be 'trapezoidal', 'midpoint' or 'bdf2', got {method!r}")
@@ -1354,5 +1323,6 @@ class Model:
                 fl = b.system             # gauge pressure, vectorized (Fluidic.pressure for each row)
                 p = x[:, 0] * fl.R * fl.T / V if fl.isothermal else x[:, 0]
                 extra = {"volume": V, "pressure": p - fl.p0}
-            systems[b.name] = SystemTrajectory(b.name, t, x, u, extra)
-        return ModelTrajectory(t, X, np.hstack(U) if U else np.zeros((len(t), 0)), systems, dict(self._stats))
+            systems[b.name] = Trajectory(t, x=x, u=u, name=b.name, **extra)
+        return Trajectory(t, x=X, u=np.hstack(U) if U else np.zeros((len(t), 0)), systems=systems,
+                          stats=self._stats)

@@ -31,13 +31,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sorofem._lazy import moved_attributes
 from sorofem.errors import ParameterError
 
 from . import beam as _bm
 from .basis import Basis
-from .beam import BeamModel, BeamTrajectory, IKResult
+from .beam import BeamModel, IKResult
 
-__all__ = ["Shapes", "BeamTrajectory", "IKResult", "STRAINS", "precompile"]
+__all__ = ["Shapes", "IKResult", "STRAINS", "precompile"]
+#: one trajectory type for beams, trees and networks (README.md, "Moved names")
+__getattr__ = moved_attributes(__name__, {"BeamTrajectory": "soroshapes.trajectory.Trajectory"})
 
 
 #: Names of the six strains, in the order of the ``dofs`` mask.
@@ -786,7 +789,8 @@ class Shapes:
         (stable only below about :meth:`explicit_step_limit`; a blow-up is reported, never returned).
 
         The step is ``t_end / ceil(t_end / dt)`` (at most ``dt``). ``u``: inputs, an array or a callable of
-        t [s]. Returns a :class:`BeamTrajectory` recorded every ``record_every`` steps (and at the end).
+        t [s]. Returns a :class:`~soroshapes.trajectory.Trajectory` (``t``, ``q``, ``qd``, ``kinetic``, ``potential``,
+        ``tip``, ``stats``) recorded every ``record_every`` steps (and at the end).
 
         ``constraints``: a list of :class:`soroshapes.constraints.Weld`, ``Pin`` or ``Align`` (frames held on
         world frames where they are at ``q0``, which must satisfy them: start from a constrained

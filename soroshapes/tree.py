@@ -82,10 +82,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sorofem._lazy import moved_attributes
 from sorofem.errors import DataError, ParameterError
 
-__all__ = ["Tree", "TreeData", "TreeTrajectory", "TreeEquilibrium", "spin", "kinematics", "dynamics",
+from .trajectory import Trajectory
+
+__all__ = ["Tree", "TreeData", "TreeEquilibrium", "spin", "kinematics", "dynamics",
            "inverse_dynamics", "accelerations"]
+#: one trajectory type for beams, trees and networks (README.md, "Moved names")
+__getattr__ = moved_attributes(__name__, {"TreeTrajectory": "soroshapes.trajectory.Trajectory"})
 
 _JOINTS = ("fixed", "revolute", "prismatic")
 _NO_NODES, _NO_WRENCH, _NO_FLAGS = np.zeros(0, dtype=np.int64), np.zeros((0, 6)), np.zeros(0, dtype=np.bool_)
@@ -775,7 +780,7 @@ class Tree:
         r"""Integrate the tree from (``q0``, ``qd0``) (default rest) over ``t_end`` [s] with steps ``dt`` [s] by
         the implicit ``method`` of :meth:`Model.simulate <soroshapes.model.Model.simulate>` ("midpoint",
         "trapezoidal", "bdf2"; Newton to ``rtol``, ``atol``). ``compiled``: as in :meth:`system`. Returns a
-        :class:`TreeTrajectory`."""
+        :class:`~soroshapes.trajectory.Trajectory` (``t``, ``q``, ``qd``, ``kinetic``, ``potential``, ``stats``)."""
         from .model import Model
         data = self._data(data)
         sysb = self.system(np.zeros(len(self.inputs)) if u is None else u, f_ext, "tree", q0, qd0, data=data,
@@ -789,7 +794,7 @@ class Tree:
             Q[k], QD[k] = self.state(t, x)
             e = self.energy(Q[k], QD[k], data=data)
             kin[k], pot[k] = e["kinetic"], e["elastic"] + e["gravity"]
-        return TreeTrajectory(ts, Q, QD, kin, pot, dict(traj.stats) if hasattr(traj, "stats") else {})
+        return Trajectory(ts, q=Q, qd=QD, kinetic=kin, potential=pot, stats=traj.stats)
 
 
 class _ControlledFrame:
@@ -832,24 +837,6 @@ class TreeEquilibrium:
     q: np.ndarray
     iterations: list
     residual: float
-
-
-@dataclass
-class TreeTrajectory:
-    """Result of :meth:`Tree.simulate`: times ``t`` (m,) [s], coordinates ``q`` and rates ``qd`` (m, n),
-    ``kinetic`` and ``potential`` (elastic + gravity) energies (m,) [J], and the integrator's statistics."""
-
-    t: np.ndarray
-    q: np.ndarray
-    qd: np.ndarray
-    kinetic: np.ndarray
-    potential: np.ndarray
-    stats: dict = field(default_factory=dict)
-
-    @property
-    def total(self):
-        """Total mechanical energy [J]."""
-        return self.kinetic + self.potential
 
 
 class TreeData:

@@ -34,6 +34,10 @@ MOVED = {
     **{("soroshapes.dvs", name): ("soro.trade", name) for name in TRADE},
     **{("sorofem.robots", name): ("soro.robots", name) for name in ROBOTS},
     ("soroshapes.network", "warm_up"): ("soroshapes.precompile", "warm_up"),
+    **{(module, name): ("soroshapes.trajectory", "Trajectory")
+       for module, name in (("soroshapes", "BeamTrajectory"), ("soroshapes.shapes", "BeamTrajectory"),
+                            ("soroshapes.beam", "BeamTrajectory"), ("soroshapes.tree", "TreeTrajectory"),
+                            ("soroshapes.model", "ModelTrajectory"), ("soroshapes.model", "SystemTrajectory"))},
 }
 
 

@@ -13,10 +13,12 @@ building the model plus solving (``statics``); a peer's is its stepping to rest 
   inextensible and unshearable; reference the Richardson extrapolation (order 2) of its two finest chains,
   checked against our converged Kirchhoff rod (bending only), which is what ours runs too.
 
-Dynamics at matched accuracy (MuJoCo): the rod released straight under gravity, undamped, 0.5 s; error the
-largest tip distance over the run from a reference (our converged rod at a small step) over L; for each
-tolerance the cheapest run of each code (chain length and step for MuJoCo at its stability bound; modes and
-step for ours) and the time ratio. PyElastica's real-time factor is reported as before.
+Dynamics at matched accuracy (PyElastica and MuJoCo): the rod released straight under gravity, undamped, 0.5 s;
+error the largest tip distance over the run from a reference (our converged rod at a small step: extensible and
+shearable against PyElastica, bending only against MuJoCo) over L; for each tolerance the cheapest run of each
+code (element count at PositionVerlet's stable step for PyElastica, chain length and step at its stability bound
+for MuJoCo; modes and step for ours) and the time ratio. PyElastica's real-time factor at 20 elements is reported
+as well.
 
 If MuJoCo is not installed, its test reports that and is skipped; a tolerance a code never reaches is
 reported as ``None``. Asserted: that the codes model the same rod (their converged tips agree), never a time.
@@ -169,31 +171,34 @@ def test_bench_statics_against_mujoco(record):
            met=all(r["speedup"] is None or r["speedup"] >= 10 for rows in table.values() for r in rows))
 
 
-def test_bench_dynamics_against_mujoco(record):
-    version = _mujoco()
-    from peers.mujoco_study import _omega_max, release_tip
-    t_end, every = 0.5, 0.01
-    L = ROD["length"]
-    ref_shp = _rod(8, False, segments=40, order=4).add_gravity((0.0, 0.0, -ROD["g"]))
-    ref = ref_shp.simulate(t_end, 1e-4, record_every=int(round(every / 1e-4))).tip[:, [0, 2]]
+#: our discretizations tried in dynamics: (modes, segments, Magnus order, dt [s])
+DYN_CANDIDATES = ((3, 10, 2, 1e-3), (4, 10, 2, 1e-3), (4, 10, 4, 1e-3), (4, 10, 4, 5e-4), (6, 10, 4, 5e-4),
+                  (6, 10, 4, 2.5e-4), (6, 20, 4, 2.5e-4))
+#: tolerances on the largest tip distance from the reference over the run, over L
+DYN_TOLERANCES = (0.1, 0.05, 0.02, 0.01)
 
+
+def _release_reference(extensible, t_end, every):
+    """Tip (x, z) [m] every ``every`` s of our converged rod (8 modes, 40 segments of order 4, dt 0.1 ms)
+    released straight under gravity, undamped."""
+    shp = _rod(8, extensible, segments=40, order=4).add_gravity((0.0, 0.0, -ROD["g"]))
+    return shp.simulate(t_end, 1e-4, record_every=int(round(every / 1e-4))).tip[:, [0, 2]]
+
+
+def _release_error(ref):
+    """The error of a tip history (x, z) against ``ref``: the largest distance over the common records, over L."""
     def err(tip):
+        tip = np.asarray(tip, dtype=float)
         m = min(len(tip), len(ref))
-        return float(np.max(np.linalg.norm(tip[:m] - ref[:m], axis=1)) / L)
+        return float(np.max(np.linalg.norm(tip[:m] - ref[:m], axis=1)) / ROD["length"])
+    return err
 
-    peer = []
-    for n in (5, 10, 20, 40):
-        for factor in (0.5, 0.25, 0.125):            # of 2 / omega_max: the largest step that stays bounded
-            dt = factor * 2.0 / _omega_max(n)
-            dt = every / int(np.ceil(every / dt))     # a whole number of steps per record
-            r = release_tip(n, dt, t_end, every)
-            if r["stable"]:
-                peer.append({"size": f"{n} links, dt {dt:.2g}", "wall_s": r["wall_s"], "rel_err": err(r["tip"])})
-                break
+
+def _ours_release(extensible, t_end, every, err):
+    """Each of :data:`DYN_CANDIDATES` released under gravity: its best wall time of 3 (after a warm-up) and error."""
     ours = []
-    for k, segments, order, dt in ((3, 10, 2, 1e-3), (4, 10, 2, 1e-3), (4, 10, 4, 1e-3), (4, 10, 4, 5e-4),
-                                   (6, 10, 4, 5e-4), (6, 10, 4, 2.5e-4), (6, 20, 4, 2.5e-4)):
-        shp = _rod(k, False, segments, order).add_gravity((0.0, 0.0, -ROD["g"]))
+    for k, segments, order, dt in DYN_CANDIDATES:
+        shp = _rod(k, extensible, segments, order).add_gravity((0.0, 0.0, -ROD["g"]))
         shp.simulate(0.01, dt)
         rec = int(round(every / dt))
         best = np.inf
@@ -203,15 +208,63 @@ def test_bench_dynamics_against_mujoco(record):
             best = min(best, time.perf_counter() - t0)
         ours.append({"modes": f"{k} modes, {segments}x{order}, dt {dt:g}", "total_s": best,
                      "rel_err": err(tr.tip[:, [0, 2]])})
-    for r in peer + ours:
-        print(r)
+    return ours
+
+
+def _dynamics_rows(name, peer, ours):
     rows = []
-    for tol in (0.1, 0.05, 0.02, 0.01):
+    for tol in DYN_TOLERANCES:
         p = _cheapest(peer, "rel_err", "wall_s", tol)
         o = _cheapest(ours, "rel_err", "total_s", tol)
-        rows.append({"tol": tol, "mujoco_size": p and p["size"], "mujoco_s": p and p["wall_s"],
+        rows.append({"tol": tol, f"{name}_size": p and p["size"], f"{name}_s": p and p["wall_s"],
                      "ours_modes": o and o["modes"], "ours_s": o and o["total_s"],
                      "speedup": (p["wall_s"] / o["total_s"]) if p and o else None})
+    return rows
+
+
+def test_bench_dynamics_against_pyelastica(record):
+    """The extensible, shearable rod released straight under gravity, undamped, 0.5 s: PyElastica (PositionVerlet
+    at the largest stable step of each element count, elastica_study.py) against ours at matched accuracy, the
+    error against our converged extensible rod; PyElastica's time is its stepping loop, ours the simulate call."""
+    from peers.elastica_study import elastica_run
+    t_end, every = 0.5, 0.01
+    err = _release_error(_release_reference(True, t_end, every))
+    peer = []
+    # PyElastica's tip converges at first order in 1/n (the error halves per doubling: 2 % needs 160 elements)
+    for n, dt in ((5, 2e-4), (10, 2e-4), (20, 2e-4), (40, 1.25e-4), (80, 6.25e-5), (160, 3.125e-5)):
+        r = elastica_run("realtime", n, dt=dt, final_time=t_end, record_every=int(round(every / dt)))
+        if r["stable"]:
+            peer.append({"size": f"{n} elements, dt {dt:.3g}", "wall_s": r["wall_s"],
+                         "rel_err": err(r["tip_history"])})
+    ours = _ours_release(True, t_end, every, err)
+    for r in peer + ours:
+        print(r)
+    rows = _dynamics_rows("pyelastica", peer, ours)
+    _print(f"PyElastica, dynamics over {t_end} s (largest tip error / L)", "pyelastica", rows)
+    # the codes model the same rod: the finest of each follows the reference closely
+    assert min(r["rel_err"] for r in ours) < 0.05 and min(r["rel_err"] for r in peer) < 0.05
+    record(simulated_s=t_end, table=rows, pyelastica_runs=peer, ours_runs=ours,
+           met=all(r["speedup"] is None or r["speedup"] >= 1 for r in rows))
+
+
+def test_bench_dynamics_against_mujoco(record):
+    version = _mujoco()
+    from peers.mujoco_study import _omega_max, release_tip
+    t_end, every = 0.5, 0.01
+    err = _release_error(_release_reference(False, t_end, every))
+    peer = []
+    for n in (5, 10, 20, 40):
+        for factor in (0.5, 0.25, 0.125):            # of 2 / omega_max: the largest step that stays bounded
+            dt = factor * 2.0 / _omega_max(n)
+            dt = every / int(np.ceil(every / dt))     # a whole number of steps per record
+            r = release_tip(n, dt, t_end, every)
+            if r["stable"]:
+                peer.append({"size": f"{n} links, dt {dt:.2g}", "wall_s": r["wall_s"], "rel_err": err(r["tip"])})
+                break
+    ours = _ours_release(False, t_end, every, err)
+    for r in peer + ours:
+        print(r)
+    rows = _dynamics_rows("mujoco", peer, ours)
     _print(f"MuJoCo {version}, dynamics over {t_end} s (largest tip error / L)", "mujoco", rows)
     # the codes model the same rod: the finest of each follows the reference closely
     assert min(r["rel_err"] for r in ours) < 0.05 and min(r["rel_err"] for r in peer) < 0.1
