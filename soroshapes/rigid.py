@@ -834,6 +834,11 @@ class TreeContact:
         self.model = self.block = self.body = self._distance = None
         self._key = self.last = None
 
+    @property
+    def sampled(self):
+        """(rows (k,) of the tree's stacked frames, offsets (k, 3) [m], pad radii (k,) [m]) of the points."""
+        return self._rows, self._off, self._rad
+
     def evaluate(self, q, qd, xb):
         """(f_tree (n,), wrench (6,), F (k, 3) [N], X (k, 3) [m]) at tree state (q, qd), body state ``xb``."""
         if self.model is None:
@@ -902,8 +907,7 @@ def couple_tree_contact(model, block, body, contact):
         return contact.at(mdl)[1]
     from ._contact import lower_tree_contact
     try:                               # the compiled form (soroshapes.network): the shape as an SDF program
-        par, program = lower_tree_contact(contact._rows, contact._off, contact._rad, model[body].system.shape,
-                                          *contact.args)
+        par, program = lower_tree_contact(*contact.sampled, model[body].system.shape, *contact.args)
         wrench.compiled = ("tree_contact", par, block, program)
     except NotImplementedError as why:
         wrench.compiled = None
