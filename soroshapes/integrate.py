@@ -25,9 +25,8 @@ components of the network (systems that read each other's states, closed over co
 :math:`\partial f_{in}/\partial x - [K\;\;D]` (the input force in closed form through the inputs' Jacobian, or
 differenced over the columns it reads where a coupling has no closed form; as in the
 beam's own iteration matrix :math:`2M/h + D + \tfrac h2 K`), or, once a fresh model matrix failed in a step, the
-differenced Jacobian :math:`M\,\partial\ddot q/\partial x` of :func:`soroshapes.network.jacobian` for the next
-``MODEL_RETRY_STEPS`` successful steps (kept across steps, refreshed when Newton contracts slowly or fails), after
-which a fresh model matrix is tried again (an impact's stiff contact has passed by then). The rows of the other systems are
+differenced Jacobian :math:`M\,\partial\ddot q/\partial x` of :func:`soroshapes.network.jacobian` for the rest of
+the run (kept across steps, refreshed when Newton contracts slowly or fails). The rows of the other systems are
 in closed form where they have one (reservoirs, linear systems) and differenced otherwise
 (:func:`soroshapes.network._cheap_rows`), and :math:`M` is formed from the per-piece operators of the
 first iterate's pass whenever the matrix is factored. The matrix is block diagonal over the components, and
@@ -183,20 +182,14 @@ TRAPEZOIDAL, MIDPOINT, BDF2 = 0, 1, 2
 #: iterations, and at most REFRESH_STEPS steps (the rule of the beam's own loop, soroshapes._beam; the rate here
 #: is looser: the network's corrections are measured against the tolerance, not against |v|).
 THETA_REFRESH = 0.1
-#: After a fresh model matrix failed in a step, the differenced Jacobian serves this many successful steps, then the
-#: beams' model rows are tried again (a fresh matrix); a failure of those switches back for as many steps. Staying
-#: on the differenced Jacobian for the rest of the run cost the Suzumori gripper 187 Jacobians and 7.4 Newton
-#: iterations per step after the first bolt strike.
-MODEL_RETRY_STEPS = 20
 
 
 @njit(cache=True)
 def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, x1):
     """One implicit step from (t, x0) into x1; True on success. ``ws``: work arrays; ``st``: statistics and the
     state of the iteration matrix (st[4] = 1 when the differenced Jacobian is valid; st[5] = 1 when the
-    quadratic BDF2 predictor may use ``ws[12]``, the state before ``xprev``; st[9] >= 1 once the model rows of the
-    beams failed, so that differenced Jacobians serve the next ``MODEL_RETRY_STEPS`` successful steps (st[9] - 1 of
-    them served); st[11] = 1 while the factored matrix
+    quadratic BDF2 predictor may use ``ws[12]``, the state before ``xprev``; st[9] = 1 once the model rows of the
+    beams failed, so that differenced Jacobians serve the rest of the run; st[11] = 1 while the factored matrix
     is valid, for c = st[12]; st[13] = 1 asks for a fresh one everywhere; st[15] counts the components' matrices
     factored). ``ws[15]`` (components, 3): per connected component, 1 when its last step asks for a fresh matrix,
     the steps its matrix served, and the largest contraction rate that matrix showed at a third correction (-1:
@@ -247,7 +240,7 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
     for attempt in range(3):
         # the beams' rows: their model Jacobian (M, K, D and the differenced input force), reused while Newton
         # contracts fast; once a fresh one failed, the differenced Jacobian (st[9] = 1)
-        differenced = st[9] >= 1.0
+        differenced = st[9] == 1.0
         if differenced and (st[4] == 0.0 or force):
             for i in range(N):                         # the Jacobian at the guess (first) or at the failed iterate
                 xp[i] = x1[i] if method != MIDPOINT else 0.5 * (x0[i] + x1[i])
@@ -354,14 +347,6 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
                 only[b] = not conv[block_comp[b]]
         if ok:
             _learn(method, x1, gam, net, rtol, atol, scale, ws, st)
-            if differenced:
-                # the differenced Jacobian served one more step; after MODEL_RETRY_STEPS of them the model rows
-                # are tried again (an impact's stiff contact has passed): a fresh matrix at the next step
-                st[9] += 1.0
-                if st[9] > MODEL_RETRY_STEPS:
-                    st[9] = 0.0
-                    st[4] = 0.0
-                    st[11] = 0.0
             for k in range(nc):
                 st[19 + min(cits[k], 6)] += 1          # corrections per component: a histogram, 1 ... 6 or more
                 cst[k, 1] += 1                         # the matrix served one more step; refresh it next step
@@ -381,8 +366,7 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
             if force:
                 break                                  # a fresh differenced Jacobian failed
         elif everything:
-            st[9] = 1.0                                # a fresh model matrix was not enough here: differenced
-                                                       # Jacobians for the next MODEL_RETRY_STEPS good steps
+            st[9] = 1.0                                # a fresh model matrix was not enough here
             st[10] += 1
         force = True
     st[4] = 0.0
@@ -420,8 +404,7 @@ def integrate(x, t0, h, nsteps, method, record_every, min_dt, net, scale, rtol, 
     0 trapezoidal, 1 midpoint, 2 BDF2 with a trapezoidal first step and after a split). Records (t, x, w) every
     ``record_every`` steps and at the end into out_t, out_x, out_w from row 1 (row 0: the caller's start).
     ``st``: steps, rejected, newton_iterations, jacobians, matrix valid, quadratic predictor valid, cut_steps,
-    failure time, system evaluations in Newton iterations, beam model rows given up (>= 1 while differenced Jacobians
-    serve, see :func:`_step`), steps where the
+    failure time, system evaluations in Newton iterations, beam model rows given up (1 once), steps where the
     beams' model rows failed, then the matrix reuse state (11-14, see :func:`_step`), matrices factored.
     Returns the number of recorded rows, or -1 when Newton failed down to ``min_dt`` (the time in st[7])."""
     N = x.shape[0]
