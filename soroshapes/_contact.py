@@ -15,6 +15,10 @@ zero for a fixed obstacle); where :math:`d_i < r`,
 on the beam the generalized force :math:`\sum_i J_{i,v}^T R_i^T F_i`, on the body the wrench
 :math:`\sum_i (P^b_i\times f^b_i, f^b_i)`, :math:`f^b_i = -R^TF_i`.
 
+Contact of points carried by the frames of a tree of bodies (:func:`soroshapes.rigid.tree_contact`, pads on a
+gripper's fingers) follows the same law per point, with the point's own pad radius and no node weight
+(:func:`tree_contact_force`; data by :func:`lower_tree_contact`).
+
 Data of one contact (:func:`lower_contact`): floats ``(k, c, mu, eps, r, stride, N+1, w_0 .. w_N)`` and the
 obstacle's :class:`~sorofem.sdf.program.Program`.
 
@@ -35,7 +39,8 @@ from sorofem.sdf.program import to_program
 
 from ._sdfeval import evaluate
 
-__all__ = ["lower_contact", "lower_contact_of", "contact_force", "contact_nodal", "CONTACT_HEAD"]
+__all__ = ["lower_contact", "lower_contact_of", "contact_force", "contact_nodal", "CONTACT_HEAD",
+           "lower_tree_contact", "tree_contact_force"]
 
 #: floats before the node weights
 CONTACT_HEAD = 7
@@ -175,4 +180,109 @@ def contact_force(par, ops, consts, depth_values, depth_points, G, J, eta, Rb, p
             fl = G[a, 0, j] * Fc[a, 0] + G[a, 1, j] * Fc[a, 1] + G[a, 2, j] * Fc[a, 2]
             for col in range(n):
                 f[col] += J[a, 3 + j, col] * fl
+    return True
+
+
+#: floats of a tree contact before its points, and per point (frame row, offset (3), radius)
+TREE_CONTACT_HEAD, TREE_CONTACT_POINT = 5, 5
+
+
+def lower_tree_contact(rows, offsets, radii, shape, stiffness, damping, friction, regularization):
+    """(floats, program) of a contact of points on a tree's frames (rows of the stacked frames, offsets (k, 3)
+    [m] in the frames' axes, pad radii (k,) [m]) with the 3D SDF ``shape``: ``(k, c, mu, eps, npoints)`` then
+    per point ``(row, offset, radius)``; ``NotImplementedError`` when the SDF has no program form."""
+    if getattr(shape, "dim", None) != 3:
+        raise ParameterError("a contact obstacle must be a 3D SDF of sorofem.sdf")
+    prog = to_program(shape)
+    rows = np.asarray(rows, dtype=float).reshape(-1)
+    pts = np.column_stack([rows, np.asarray(offsets, dtype=float).reshape(-1, 3),
+                           np.asarray(radii, dtype=float).reshape(-1)])
+    head = [stiffness, damping, friction, regularization, len(rows)]
+    return np.concatenate([np.asarray(head, dtype=float), pts.reshape(-1)]), prog
+
+
+@njit(cache=True)
+def tree_contact_force(par, ops, consts, depth_values, depth_points, G, J, eta, Rb, pb, etab, f, W):
+    r"""Add the contact's generalized force on the tree to ``f`` (n,) and its wrench on the body (body
+    coordinates, about the body origin) to ``W`` (6,), for the tree's stacked frames ``G``, body Jacobians ``J``
+    and body twists ``eta`` and the body's pose (Rb, pb) and twist etab. Point j on frame :math:`(R_a, P_a)` at
+    offset :math:`o_j`: :math:`X_j = P_a + R_a o_j`, velocity :math:`R_a(v_a + \omega_a\times o_j)`; where its
+    distance :math:`d_j < r_j`, the force of the module's law (no node weight) :math:`F_j` acts on the tree as
+    :math:`J_{a,v}^T f + J_{a,\omega}^T (o_j\times f)`, :math:`f = R_a^T F_j`, and :math:`-R_b^T F_j` on the body at
+    :math:`X^b_j`. False if a force is not finite."""
+    k, c, mu, eps = par[0], par[1], par[2], par[3]
+    npt = int(par[4])
+    n = f.shape[0]
+    Pb = np.empty((npt, 3))
+    for e in range(npt):
+        o = TREE_CONTACT_HEAD + TREE_CONTACT_POINT * e
+        a = int(par[o])
+        for j in range(3):
+            X = G[a, j, 3] + G[a, j, 0] * par[o + 1] + G[a, j, 1] * par[o + 2] + G[a, j, 2] * par[o + 3]
+            Pb[e, j] = X - pb[j]
+    for e in range(npt):                      # body coordinates: R^T (X - p)
+        x0, x1, x2 = Pb[e, 0], Pb[e, 1], Pb[e, 2]
+        for j in range(3):
+            Pb[e, j] = Rb[0, j] * x0 + Rb[1, j] * x1 + Rb[2, j] * x2
+    d = np.empty(npt)
+    gr = np.empty((npt, 3))
+    S, T = max(depth_values, 1), max(depth_points, 1)
+    evaluate(ops, consts, Pb, d, gr, np.empty(S), np.empty((S, 3)), np.empty((T, 3)), np.empty((T, 3, 3)),
+             np.empty(T))
+    ns = np.empty(3)
+    vrel = np.empty(3)
+    vt = np.empty(3)
+    F = np.empty(3)
+    fl = np.empty(3)
+    for e in range(npt):
+        o = TREE_CONTACT_HEAD + TREE_CONTACT_POINT * e
+        r = par[o + 4]
+        if not d[e] < r:
+            continue
+        a = int(par[o])
+        o0, o1, o2 = par[o + 1], par[o + 2], par[o + 3]
+        g0, g1, g2 = gr[e, 0], gr[e, 1], gr[e, 2]
+        gn = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+        g0, g1, g2 = g0 / gn, g1 / gn, g2 / gn
+        # the point's velocity in its frame's axes: v + omega x o; the body's at the point: v + omega x Pb
+        l0 = eta[a, 3] + eta[a, 1] * o2 - eta[a, 2] * o1
+        l1 = eta[a, 4] + eta[a, 2] * o0 - eta[a, 0] * o2
+        l2 = eta[a, 5] + eta[a, 0] * o1 - eta[a, 1] * o0
+        b0 = etab[3] + etab[1] * Pb[e, 2] - etab[2] * Pb[e, 1]
+        b1 = etab[4] + etab[2] * Pb[e, 0] - etab[0] * Pb[e, 2]
+        b2 = etab[5] + etab[0] * Pb[e, 1] - etab[1] * Pb[e, 0]
+        vn = 0.0
+        for j in range(3):
+            ns[j] = Rb[j, 0] * g0 + Rb[j, 1] * g1 + Rb[j, 2] * g2
+            vrel[j] = (G[a, j, 0] * l0 + G[a, j, 1] * l1 + G[a, j, 2] * l2) \
+                - (Rb[j, 0] * b0 + Rb[j, 1] * b1 + Rb[j, 2] * b2)
+        for j in range(3):
+            vn += vrel[j] * ns[j]
+        fn = max(0.0, k * (r - d[e]) - c * vn)
+        if fn == 0.0:
+            continue
+        for j in range(3):
+            vt[j] = vrel[j] - vn * ns[j]
+        slip = math.sqrt(vt[0] * vt[0] + vt[1] * vt[1] + vt[2] * vt[2] + eps * eps)
+        for j in range(3):
+            F[j] = fn * ns[j] - mu * (fn / slip) * vt[j]
+        if not (math.isfinite(F[0]) and math.isfinite(F[1]) and math.isfinite(F[2])):
+            return False
+        for j in range(3):                                   # the force in the frame's axes
+            fl[j] = G[a, 0, j] * F[0] + G[a, 1, j] * F[1] + G[a, 2, j] * F[2]
+        m0 = o1 * fl[2] - o2 * fl[1]                         # its moment about the frame's origin
+        m1 = o2 * fl[0] - o0 * fl[2]
+        m2 = o0 * fl[1] - o1 * fl[0]
+        for col in range(n):
+            f[col] += (J[a, 3, col] * fl[0] + J[a, 4, col] * fl[1] + J[a, 5, col] * fl[2]
+                       + J[a, 0, col] * m0 + J[a, 1, col] * m1 + J[a, 2, col] * m2)
+        fb0 = -(Rb[0, 0] * F[0] + Rb[1, 0] * F[1] + Rb[2, 0] * F[2])     # -R^T F on the body
+        fb1 = -(Rb[0, 1] * F[0] + Rb[1, 1] * F[1] + Rb[2, 1] * F[2])
+        fb2 = -(Rb[0, 2] * F[0] + Rb[1, 2] * F[1] + Rb[2, 2] * F[2])
+        W[0] += Pb[e, 1] * fb2 - Pb[e, 2] * fb1
+        W[1] += Pb[e, 2] * fb0 - Pb[e, 0] * fb2
+        W[2] += Pb[e, 0] * fb1 - Pb[e, 1] * fb0
+        W[3] += fb0
+        W[4] += fb1
+        W[5] += fb2
     return True

@@ -220,40 +220,61 @@ def tree_rhs(tint, tflt, twork, trows, w, Md, ag, K, D, Bu, free, G, J, Jd, eta,
 # ------------------------------------------------------------------------------------------------------------
 # the tree as a block of a compiled network (soroshapes.network: kind TREE, its arrays at the end of the tuple)
 # ------------------------------------------------------------------------------------------------------------
-def block_args(tree, u):
+def block_args(tree, u, force_inputs=False):
     """The arrays of a tree block in a compiled network: those of :func:`tree_rhs`, then the constant inputs
-    ``u`` (used when the block has no network inputs), zero prescribed accelerations and a zero external
-    force. Only a tree without prescribed joints (its state is then (q, qd))."""
+    ``u`` (used when the block has no network inputs for them), zero prescribed accelerations, a zero external
+    force and the block's input layout ``[reads u from the network, has n force inputs]``. Only a tree without
+    prescribed joints (its state is then (q, qd))."""
     low = lower(tree)
     n = tree.n
     ubar = np.zeros(len(tree.inputs)) if u is None else np.ascontiguousarray(u, dtype=float).reshape(-1)
-    return low.args + (ubar, np.zeros(n), np.zeros(n))
+    layout = np.array([int(u is None), int(bool(force_inputs))], np.int64)
+    return low.args + (ubar, np.zeros(n), np.zeros(n), layout)
 
 
 def empty_block_args():
     """Arrays of the same types as :func:`block_args` for a network without a tree (one kernel signature)."""
     z1, z2, z3, i1 = np.zeros(0), np.zeros((0, 0)), np.zeros((0, 0, 0)), np.zeros(0, np.int64)
     return (np.zeros((0, 13), np.int64), z1, z1, i1, z1, z2, np.zeros(3), z2, z2, z2, i1, z3, z3, z3, z2, z2, z2,
-            z2, z1, np.zeros((6, 6, 6)), np.zeros((8, 6)), z2, z2, i1, z1, z1, z1)
+            z2, z1, np.zeros((6, 6, 6)), np.zeros((8, 6)), z2, z2, i1, z1, z1, z1, np.zeros(2, np.int64))
 
 
 @njit(cache=True)
-def block_rhs(tb, x, xo, w, wo, m, out):
-    r"""The derivative :math:`(\dot q, \ddot q)` of the tree block whose state starts at ``x[xo]`` into ``out``
-    (its inputs ``w[wo:wo + m]``, or the constant ones when m = 0); False if the state overflowed or M is
-    singular."""
+def block_kinematics(tb, x, xo):
+    """Frames, tree Jacobians and body twists of every stacked frame of the tree block whose state starts at
+    ``x[xo]``, into the block's work arrays; returns (G, J, eta) (the arrays of :func:`soroshapes.tree.kinematics`,
+    row :meth:`Tree.row <soroshapes.tree.Tree.row>`). What a coupling that reads the tree's frames (contact) uses."""
     (tint, tflt, twork, trows, wq, Md, ag, K, D, Bu, free, G, J, Jd, eta, etad, M, C, fg, S, V, Y, LU, piv, ubar,
-     a0, fext) = tb
+     a0, fext, layout) = tb
     n = K.shape[0]
+    _tree_kinematics(tint, tflt, twork, trows, x[xo:xo + n], x[xo + n:xo + 2 * n], G, J, Jd, eta)
+    return G, J, eta
+
+
+@njit(cache=True)
+def block_rhs(tb, x, xo, w, wo, bext, out):
+    r"""The derivative :math:`(\dot q, \ddot q)` of the tree block whose state starts at ``x[xo]`` into ``out``:
+    its inputs ``w[wo:wo + nu]`` (or the constant ones), plus, with force inputs, the generalized force
+    ``w[wo + nu:wo + nu + n]`` (``nu`` = 0 with constant inputs), plus the force that the network's compiled
+    couplings put on it (``bext[xo:xo + n]``, contact). False if the state overflowed or M is singular."""
+    (tint, tflt, twork, trows, wq, Md, ag, K, D, Bu, free, G, J, Jd, eta, etad, M, C, fg, S, V, Y, LU, piv, ubar,
+     a0, fext, layout) = tb
+    n = K.shape[0]
+    nu = Bu.shape[1] if layout[0] == 1 else 0
     q = x[xo:xo + n]
     qd = x[xo + n:xo + 2 * n]
     acc = np.empty(n)
-    if m:
+    fe = np.empty(n)
+    for k in range(n):
+        fe[k] = fext[k] + bext[xo + k]
+        if layout[1] == 1:
+            fe[k] += w[wo + nu + k]
+    if nu:
         ok = tree_rhs(tint, tflt, twork, trows, wq, Md, ag, K, D, Bu, free, G, J, Jd, eta, etad, M, C, fg, S, V, Y,
-                      LU, piv, q, qd, a0, w[wo:wo + m], fext, acc)
+                      LU, piv, q, qd, a0, w[wo:wo + nu], fe, acc)
     else:
         ok = tree_rhs(tint, tflt, twork, trows, wq, Md, ag, K, D, Bu, free, G, J, Jd, eta, etad, M, C, fg, S, V, Y,
-                      LU, piv, q, qd, a0, ubar, fext, acc)
+                      LU, piv, q, qd, a0, ubar, fe, acc)
     for k in range(n):
         out[xo + k] = qd[k]
         out[xo + n + k] = acc[k]

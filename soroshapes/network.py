@@ -18,7 +18,9 @@ when every part of it has a compiled form:
   input or as a reservoir's volume; the wrenches on a free rigid body (a :class:`~soroshapes.rigid.WrenchSum`)
   of ground contact (:func:`~soroshapes.rigid.couple_ground`), of beam-body contact
   (:func:`~soroshapes.rigid.couple_contact`, also on a :class:`~soroshapes.rigid.SpinningBody`; the body's
-  shape as an SDF program evaluated by one interpreter, :mod:`soroshapes._contact`) and of a grasp
+  shape as an SDF program evaluated by one interpreter, :mod:`soroshapes._contact`), of the contact of points on
+  a tree's bodies (:func:`~soroshapes.rigid.couple_tree_contact`: its force on the tree is put on the tree block
+  by the same term, the tree's ``force<i>`` inputs stay zero) and of a grasp
   (:func:`~soroshapes.rigid.couple_grasp`, engaged always or by a one-column :class:`Schedule`; its force on
   the beam is added to the beam's inputs' force);
 * the controller: none, a :class:`Schedule` (a piecewise-linear table of the free inputs against time,
@@ -70,6 +72,7 @@ from ._beam import newton_euler as _ne
 from ._beam import newton_euler_planar as _ne_planar
 from ._beam import mass_coriolis_gravity as _mcg
 from ._contact import contact_force as _contact_force
+from ._contact import tree_contact_force as _tree_contact_force
 from . import _treeblock        # the tree block kind
 from .numerics import FD_STEP
 from .valves import orifice_flow
@@ -489,6 +492,9 @@ def lower(blocks, links, volumes, controller, free):
     """
     free_list, free_rows = free
     index = {b["name"]: i for i, b in enumerate(blocks)}
+    # a coupling whose force the network's wrench terms put on its target themselves (a tree's contact forces,
+    # soroshapes.rigid.couple_tree_contact): the kernel leaves its inputs at zero
+    links = [lk for lk in links if not getattr(lk[0], "network_term", False)]
     kind = np.zeros(len(blocks), np.int64)
     # kind, xoff, n, woff, nw, aux, costly and analytic rows (see _cheap_rows)
     table = np.zeros((len(blocks), 8), np.int64)
@@ -628,9 +634,10 @@ def lower(blocks, links, volumes, controller, free):
                     table[index[tname], 6] = 1          # its inputs need the beams' kinematics and SDFs
                 bb = -1
                 if beam is not None:
-                    if beam not in index or blocks[index[beam]]["kind"] != "shapes":
-                        raise ParameterError(f"a {tk} coupling on body {tname!r} names beam {beam!r}, which is not a "
-                                             "beam of the model")
+                    want = TREE if tk == "tree_contact" else BEAM
+                    if beam not in index or kind[index[beam]] != want:
+                        raise ParameterError(f"a {tk} coupling on body {tname!r} names {beam!r}, which is not a "
+                                             f"{'compiled tree' if want == TREE else 'beam'} of the model")
                     bb = index[beam]
                     extra_feeds.append((index[tname], bb))          # the body's wrench reads the beam,
                     extra_feeds.append((bb, index[tname]))          # the beam's force reads the body
@@ -770,7 +777,9 @@ def _term_cache(wterm, table, bint, nb):
     terms, what each block's beam workspace holds (nb; :func:`_kinematics_level`)]."""
     width = 6
     for row in wterm:
-        if row[3] >= 0:                         # its force on the beam (n), its SDF memo (4 per node, at most P+1)
+        if row[3] >= 0 and table[row[3], 0] == TREE:         # its force on the tree (n)
+            width = max(width, 6 + int(table[row[3], 2]) // 2)
+        elif row[3] >= 0:                       # its force on the beam (n), its SDF memo (4 per node, at most P+1)
             n, P = int(bint[table[row[3], 5]][0]), int(bint[table[row[3], 5]][2])
             width = max(width, 6 + n + 4 * (P + 1))
     return np.zeros((len(wterm), width)), np.zeros(1 + nb + len(wterm) + nb, np.int64)
@@ -1388,8 +1397,8 @@ def _linear_rhs(li, x, xo, w, wo, lint, lflt, out):
         out[xo + r] = s
 
 
-_GROUND, _GRASP, _CONTACT = 0, 1, 2
-_TERMS = {"ground": _GROUND, "grasp": _GRASP, "contact": _CONTACT}
+_GROUND, _GRASP, _CONTACT, _TREE_CONTACT = 0, 1, 2, 3
+_TERMS = {"ground": _GROUND, "grasp": _GRASP, "contact": _CONTACT, "tree_contact": _TREE_CONTACT}
 #: pose of a wrench sum's body: a free rigid body's state, a spinning body's angle, none (fixed obstacles)
 _FREE, _SPINNING, _FIXED = 0, 1, 2
 
@@ -1603,6 +1612,8 @@ def _wrench_sum(t, net, si, x, W):
             good = True
         elif wterm[tt, 0] == _CONTACT:
             good = _contact_term(net, tt, R, p, eta, x, Wt)
+        elif wterm[tt, 0] == _TREE_CONTACT:
+            good = _tree_contact_term(net, tt, R, p, eta, x, Wt)
         else:
             good = _grasp(t, net, wflt[o:o + m], bb, R, p, eta, x, Wt)
         fill = mode == _CACHE_FILL and good
@@ -1653,6 +1664,28 @@ def _contact_term(net, tt, R, p, eta, x, W):
 
 
 @njit(cache=True)
+def _tree_contact_term(net, tt, R, p, eta, x, W):
+    """Contact term tt (:func:`soroshapes._contact.tree_contact_force`) between the points on the tree block's
+    bodies, at its state in x, and the body at pose (R, p) with twist eta: the tree's generalized force into the
+    external-force buffer (read by :func:`soroshapes._treeblock.block_rhs`), the wrench into W. False if the
+    tree's state is out of range or a force is not finite."""
+    table, wterm, wflt, bext, sops, sconsts = net[0], net[24], net[25], net[28], net[29], net[30]
+    bb, o, m = wterm[tt, 3], wterm[tt, 1], wterm[tt, 2]
+    xo, n = table[bb, 1], table[bb, 2] // 2
+    G, J, eta_t = _treeblock.block_kinematics(net[33], x, xo)
+    f = np.zeros(n)
+    so, sn, co = wterm[tt, 4], wterm[tt, 5], wterm[tt, 6]
+    if not _tree_contact_force(wflt[o:o + m], sops[so:so + sn], sconsts[co:], wterm[tt, 7], wterm[tt, 8], G, J,
+                               eta_t, R, p, eta, f, W):
+        return False
+    for k in range(n):
+        if not math.isfinite(f[k]):
+            return False
+        bext[xo + k] += f[k]
+    return True
+
+
+@njit(cache=True)
 def _rigid_rhs(ri, x, xo, w, wo, rflt, out):
     """Newton-Euler derivative of free rigid body ri (:meth:`soroshapes.rigid.RigidBody.rhs`): state
     (p, R row by row, omega, v), input the body wrench (m, f) at w[wo:wo+6]."""
@@ -1692,7 +1725,7 @@ def _system_rhs_a(i, x, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, li
     out of range."""
     xo, nx, wo = table[i, 1], table[i, 2], table[i, 3]
     if table[i, 0] == TREE:                     # a tree of bodies (soroshapes._treeblock)
-        return _treeblock.block_rhs(tblk, x, xo, w, wo, table[i, 4], out)
+        return _treeblock.block_rhs(tblk, x, xo, w, wo, bext, out)
     if table[i, 0] == BEAM:
         return _beam_rhs(table[i, 5], x, xo, w, wo, bint, bflt, bwork, bintb, bext, out)
     if table[i, 0] == FLUIDIC:

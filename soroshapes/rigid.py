@@ -834,6 +834,11 @@ class TreeContact:
         self.model = self.block = self.body = self._distance = None
         self._key = self.last = None
 
+    @property
+    def sampled(self):
+        """(rows (k,) of the tree's stacked frames, offsets (k, 3) [m], pad radii (k,) [m]) of the points."""
+        return self._rows, self._off, self._rad
+
     def evaluate(self, q, qd, xb):
         """(f_tree (n,), wrench (6,), F (k, 3) [N], X (k, 3) [m]) at tree state (q, qd), body state ``xb``."""
         if self.model is None:
@@ -856,7 +861,10 @@ class TreeContact:
 
 class _TreeForceSum:
     """The sum of the generalized forces [N, N m per coordinate] that contacts put on one tree block (its
-    ``force<i>`` inputs)."""
+    ``force<i>`` inputs) on the Python path. The compiled network puts each contact's force on the tree itself,
+    with the body's wrench term (``network_term``), and leaves these inputs at zero."""
+
+    network_term = True
 
     def __init__(self, block):
         self.block, self.terms = block, []
@@ -897,7 +905,12 @@ def couple_tree_contact(model, block, body, contact):
 
     def wrench(mdl):
         return contact.at(mdl)[1]
-    wrench.compiled = None
-    wrench.python_reason = f"contact of tree {block!r} with body {body!r} (Python path)"
+    from ._contact import lower_tree_contact
+    try:                               # the compiled form (soroshapes.network): the shape as an SDF program
+        par, program = lower_tree_contact(*contact.sampled, model[body].system.shape, *contact.args)
+        wrench.compiled = ("tree_contact", par, block, program)
+    except NotImplementedError as why:
+        wrench.compiled = None
+        wrench.python_reason = f"contact of tree {block!r} with body {body!r}: {why}"
     _add_body_wrench(model, body, wrench)
     return model

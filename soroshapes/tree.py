@@ -712,8 +712,9 @@ class Tree:
         ``force_inputs``: append n inputs, a generalized force (n,) added to the equations (named ``"force<i>"``,
         i the coordinate), which a coupling of the network drives (contact with another block,
         :func:`soroshapes.rigid.couple_tree_contact`): unlike ``f_ext``, the network's Jacobian then sees how it
-        depends on the other blocks' states. Such a block runs on the Python path of the network (the compiled
-        tree block has no force inputs)."""
+        depends on the other blocks' states. The compiled tree block runs them too: the network's compiled contact
+        terms put their forces on the tree themselves (:func:`soroshapes.rigid.couple_tree_contact` with an SDF
+        that has a program form)."""
         from .model import StateSpace
         data = self._data(data)
         free = self._arrays()[7]
@@ -764,9 +765,9 @@ class Tree:
                 raise ParameterError("controlled=: a tree with prescribed joints has no controller face (its state "
                                      "holds the free coordinates only); drop the motion= or control it yourself")
             sysb.beam_view = _ControlledFrame(self, self.bodies[-1] if controlled is None else controlled)
-        if compiled and not k and not len(self.prescribed) and f_ext is None and not callable(u):
+        if compiled and not len(self.prescribed) and f_ext is None and not callable(u):
             from . import _treeblock            # the block runs inside a compiled network (soroshapes.network)
-            sysb.tree_block = _treeblock.block_args(self, None if m else u)
+            sysb.tree_block = _treeblock.block_args(self, None if m else u, force_inputs=bool(k))
         return sysb
 
     def state(self, t, x):

@@ -404,6 +404,31 @@ def test_tree_contact_needs_force_inputs_and_a_shape():
 
 
 
+def test_tree_contact_runs_in_the_compiled_network_as_on_the_python_path():
+    """couple_tree_contact compiled (the contact term puts its force on the tree block itself, the body gets the
+    opposite wrench; soroshapes.network): the finger swings down about its hub onto a floating ball (no gravity
+    on it) and pushes it. From a state in contact (30 ms, reached on the Python path) both paths take five steps
+    and agree to the Newton tolerance (rtol = 1e-8: 1e-9 of the largest state; measured 1.4e-13 relative). Over
+    the whole impact the two drift apart by far more (stiff pads, accelerations of 1e4 rad/s^2: round-off grows
+    through the impact), so the window is short; the right-hand sides agree exactly at that state."""
+    from soroshapes.rigid import TreeContact, couple_tree_contact
+    tree, pts = finger_tree()
+    # the finger lies along x from the hub; its face points (3 mm below its backbone, -z) hit a ball of 10 mm
+    # radius whose top is 2 mm below the face at x = 40 mm, so the falling finger meets it within ~20 ms
+    ball = RigidBody(0.02, 1e-6, pose0=lie.expSE3(np.array([0.0, 0.0, 0.0, 0.04, 0.0, -0.003 - 0.002 - 0.01])),
+                     gravity=(0.0, 0.0, 0.0), shape=sdf.Sphere(0.01), name="ball")
+    mdl = Model().add(tree.system(name="finger", q0=np.zeros(tree.n), force_inputs=True)).add(ball)
+    couple_tree_contact(mdl, "finger", "ball", TreeContact(tree, pts, 2000.0, damping=0.5, friction=0.5,
+                                                           regularization=1e-3))
+    x0 = mdl.simulate(0.03, 1e-3, "bdf2", rtol=1e-8, atol=1e-10, compiled=False).x[-1]
+    fast, slow = (mdl.simulate(0.005, 1e-3, "bdf2", x0=x0, t0=0.03, rtol=1e-8, atol=1e-10, compiled=c)
+                  for c in (True, False))
+    assert fast.stats["path"] == "compiled" and slow.stats["path"] == "python"
+    assert np.abs(fast.x - slow.x).max() < 1e-9 * np.abs(slow.x).max()
+    v = slow["ball"].x[:, 15:18]
+    assert np.linalg.norm(v[0]) > 1e-2 and np.linalg.norm(v[-1] - v[0]) > 1e-6      # pushed, and still in contact
+
+
 def test_tree_force_inputs_act_as_a_generalized_force():
     """Tree.system(force_inputs=True): n more inputs ``force<i>`` whose values enter as f_ext does."""
     tree, _ = finger_tree()
