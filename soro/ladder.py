@@ -1543,14 +1543,12 @@ class PneuNet3DScene(_Levels):
     and the validation load as :class:`Scene`; every ramp's first step is cut to a linear response of
     ``linear_start`` times the body's size (:meth:`sorofem.fem.Fem.solve`: the unloaded thin walls).
 
-    ``ratio`` is sqrt 2, not 2: three 3D refinements that fit (h = 2.83, 2, 1.41 mm on two chambers: 15k, 24k
-    and 53k P2 mixed unknowns). On these meshes the P2 mixed tip does not converge monotonically (y at the top
-    unseen load -1.837, -1.822, -1.958 mm): Richardson flags it and the reference's error is the last difference,
-    0.60 % of L. A fourth mesh, h = 1 mm (117k unknowns, 196 s CPU per ramp, 1.9 GB; measured once, outside the
-    ladder), gave -1.889 mm: on h = 2, 1.41, 1 mm the tip converges (oscillating) at an observed order 1.9 to
-    0.32 % of L, the shape at 2.5 to 0.09 %, while the cavity volume change still grows with each refinement
-    (1213, 1222, 1243, 1267 mm^3: the inflating walls, 2 mm thick, are not resolved). The scene at h = 2, 1.41,
-    1 mm needs about 20 min of CPU (the reference's three ramps at 1 mm). The plane-strain
+    ``ratio`` is sqrt 2, not 2: three 3D refinements that fit. The full scene runs h = 2, 1.41, 1 mm (P2 mixed
+    24k, 53k and 117k unknowns; 15, 49 and 179 s CPU per ramp; 1.9 GB at 1 mm; the whole scene about 25 min of
+    CPU): the P2 mixed tip converges at an observed order 2.0 (oscillating: y at the top unseen load -1.822,
+    -1.958, -1.889 mm), the reference's own error 0.29 % of L (tip), shape 0.08 %, while the cavity volume's
+    error stays at 2 % (the inflating walls, 2 mm thick, are not resolved on these meshes). The coarser h = 2.83,
+    2, 1.41 mm did not converge monotonically (0.60 % of L). The plane-strain
     rung (``size_2d`` [m], P2 mixed, the same section) is the 2D model of the same actuator: its error against
     the 3D reference is a model-form error (no refinement of the 2D model removes it); its cavity volume is the
     section's area times the chambers' inner width. Solve times are CPU times (FEM and beams): on a loaded
