@@ -648,6 +648,13 @@ class ModelBackend(Backend):
                     break
 
 
+#: The watchdog [s] of the simulated board behind the page: four times a real board's 0.5 s. This process serves
+#: the page, draws frames and talks to the board; on a loaded laptop it can be descheduled for more than half a
+#: second (measured in CI beside two CPU burners: 0.501 s), and a simulated board that vents then only
+#: interrupts the session. A real board (``--backend board``) keeps the watchdog its server was started with.
+SIM_WATCHDOG = 2.0
+
+
 class BoardBackend(Backend):
     """A simulated or real board behind the page (see the module docstring).
 
@@ -656,8 +663,9 @@ class BoardBackend(Backend):
     scene : soro.play.Scene
         Its channels (pressures only) are the board's channels, in order.
     board : sorocontrol.Board, optional
-        A connected board; default a simulated one (:meth:`sorocontrol.Board.simulated`) with the scene's beam
-        as plant when the scene is one Shapes whose inputs are all channels.
+        A connected board; default a simulated one (:meth:`sorocontrol.Board.simulated`, its watchdog
+        ``SIM_WATCHDOG``) with the scene's beam as plant when the scene is one Shapes whose inputs are all
+        channels.
     rate : float [Hz]
         Commands per second to the board.
     """
@@ -671,7 +679,7 @@ class BoardBackend(Backend):
             from sorocontrol import Board
             beam = scene.system if scene.kind == "shapes" and len(scene.inputs) == len(scene.channels) else None
             board = Board.simulated(channels=len(scene.channels), p_min=min(0.0, min(c.low for c in scene.channels)),
-                                    p_max=max(c.high for c in scene.channels), beam=beam)
+                                    p_max=max(c.high for c in scene.channels), beam=beam, watchdog=SIM_WATCHDOG)
             self.label = "simulated board"
         else:
             self.label = "board"

@@ -97,6 +97,8 @@ def _board_session(tmp_path):
     from sorocontrol.protocol import Flag
     srv = serve(load_scene(SCENE), "sim", port=0, out=tmp_path / "play")
     board = srv.backend.board
+    from soro.play.backends import SIM_WATCHDOG
+    assert board.watchdog == SIM_WATCHDOG       # the simulated board behind the page (a real one keeps its own)
     try:
         with browser_page(tmp_path / "chromium") as page:
             page.goto(srv.url)
