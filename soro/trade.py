@@ -92,17 +92,28 @@ def cheapest(rows, tolerance, keys=SELECTION_KEYS):
     """The selection rule of the trade (the one used by the table, the verdict and ``soro trade``).
 
     Among the rows :func:`within` the tolerance, the fastest by median time per solve; times within
-    :data:`TIME_BAND` of the fastest count as a tie, resolved by fewer modes, then the smaller worst error of
-    ``keys``, then the family order dvs, chebyshev, pcc. Returns None if no row qualifies."""
+    :data:`TIME_BAND` of the fastest, or within the two rows' measured spreads (``solve_iqr_s``, the IQR of
+    the repeats, where a row has one) of it, count as a tie, resolved by fewer modes, then the smaller worst
+    error of ``keys``, then the family order dvs, chebyshev, pcc. Returns None if no row qualifies. (Medians
+    of sub-millisecond solves wander by more than 10 % on a loaded machine: two one-mode beams whose medians
+    differed by more than the band in one run of CI and less in the next swapped places; their spreads
+    overlapped in both.)"""
     if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) or not tolerance > 0:
         raise ParameterError(f"the tolerance is a positive fraction of the length, got {tolerance!r}")
     ok = [r for r in rows if within(r, tolerance, keys)]
     if not ok:
         return None
-    fastest = min(r["solve_time_s"] for r in ok)
-    tied = [r for r in ok if r["solve_time_s"] <= (1.0 + TIME_BAND) * fastest]
+    first = min(ok, key=lambda r: r["solve_time_s"])
+    fastest, spread = first["solve_time_s"], _spread(first)
+    tied = [r for r in ok if r["solve_time_s"] - fastest <= max(TIME_BAND * fastest, spread + _spread(r))]
     return min(tied, key=lambda r: (r["modes"], max(r[k] for k in keys if k in r),
                                     _FAMILY_ORDER.get(r["family"], 9)))
+
+
+def _spread(row):
+    """A row's measured spread of its solve time [s] (0 where it has none: one run, or not measured)."""
+    v = row.get("solve_iqr_s")
+    return float(v) if v is not None and np.isfinite(v) else 0.0
 
 
 def _tolerance_text(tolerance):
