@@ -64,6 +64,21 @@ def lower_contact_of(model, radius, shape, stiffness, damping, friction, regular
 
 
 @njit(cache=True)
+def _react(Rb, Pb, i, F, W):
+    """Add to the body's wrench W (body frame, moment first) the reaction of the world force F at its point
+    Pb[i] (body frame): the force -R^T F and its moment about the body's origin."""
+    fb0 = -(Rb[0, 0] * F[0] + Rb[1, 0] * F[1] + Rb[2, 0] * F[2])
+    fb1 = -(Rb[0, 1] * F[0] + Rb[1, 1] * F[1] + Rb[2, 1] * F[2])
+    fb2 = -(Rb[0, 2] * F[0] + Rb[1, 2] * F[1] + Rb[2, 2] * F[2])
+    W[0] += Pb[i, 1] * fb2 - Pb[i, 2] * fb1
+    W[1] += Pb[i, 2] * fb0 - Pb[i, 0] * fb2
+    W[2] += Pb[i, 0] * fb1 - Pb[i, 1] * fb0
+    W[3] += fb0
+    W[4] += fb1
+    W[5] += fb2
+
+
+@njit(cache=True)
 def contact_nodal(par, ops, consts, depth_values, depth_points, G, eta, Rb, pb, etab, Fc, W, memo, Kc, Cc):
     """The contact's forces at the beam's nodes: add the spatial force on the tube at node i to ``Fc[i * stride]``
     (``Fc`` (P+1, 3), indexed by the beam's chain of points like ``G``) and the wrench on the body (body
@@ -146,15 +161,7 @@ def contact_nodal(par, ops, consts, depth_values, depth_points, G, eta, Rb, pb, 
                     nnt = ns[j] * ns[l]
                     Kc[a, j, l] += wi * k * nnt
                     Cc[a, j, l] += wi * c * nnt + ft * ((1.0 if j == l else 0.0) - nnt - vt[j] * vt[l] / (slip * slip))
-        fb0 = -(Rb[0, 0] * F[0] + Rb[1, 0] * F[1] + Rb[2, 0] * F[2])     # -R^T F on the body
-        fb1 = -(Rb[0, 1] * F[0] + Rb[1, 1] * F[1] + Rb[2, 1] * F[2])
-        fb2 = -(Rb[0, 2] * F[0] + Rb[1, 2] * F[1] + Rb[2, 2] * F[2])
-        W[0] += Pb[i, 1] * fb2 - Pb[i, 2] * fb1
-        W[1] += Pb[i, 2] * fb0 - Pb[i, 0] * fb2
-        W[2] += Pb[i, 0] * fb1 - Pb[i, 1] * fb0
-        W[3] += fb0
-        W[4] += fb1
-        W[5] += fb2
+        _react(Rb, Pb, i, F, W)
     return True
 
 
@@ -276,13 +283,5 @@ def tree_contact_force(par, ops, consts, depth_values, depth_points, G, J, eta, 
         for col in range(n):
             f[col] += (J[a, 3, col] * fl[0] + J[a, 4, col] * fl[1] + J[a, 5, col] * fl[2]
                        + J[a, 0, col] * m0 + J[a, 1, col] * m1 + J[a, 2, col] * m2)
-        fb0 = -(Rb[0, 0] * F[0] + Rb[1, 0] * F[1] + Rb[2, 0] * F[2])     # -R^T F on the body
-        fb1 = -(Rb[0, 1] * F[0] + Rb[1, 1] * F[1] + Rb[2, 1] * F[2])
-        fb2 = -(Rb[0, 2] * F[0] + Rb[1, 2] * F[1] + Rb[2, 2] * F[2])
-        W[0] += Pb[e, 1] * fb2 - Pb[e, 2] * fb1
-        W[1] += Pb[e, 2] * fb0 - Pb[e, 0] * fb2
-        W[2] += Pb[e, 0] * fb1 - Pb[e, 1] * fb0
-        W[3] += fb0
-        W[4] += fb1
-        W[5] += fb2
+        _react(Rb, Pb, e, F, W)
     return True

@@ -1634,6 +1634,18 @@ def _wrench_sum(t, net, si, x, W):
 
 
 @njit(cache=True)
+def _add_force(f, bext, xo):
+    """Add a contact term's generalized force f to the external-force buffer from xo; False (nothing added) if
+    any of it is not finite."""
+    for k in range(f.shape[0]):
+        if not math.isfinite(f[k]):
+            return False
+    for k in range(f.shape[0]):
+        bext[xo + k] += f[k]
+    return True
+
+
+@njit(cache=True)
 def _contact_term(net, tt, R, p, eta, x, W):
     """Contact term tt (:func:`soroshapes._contact.contact_force`) between its beam, at its state in x, and the
     body at pose (R, p) with twist eta: the beam's force into the external-force buffer, the wrench into W.
@@ -1656,11 +1668,7 @@ def _contact_term(net, tt, R, p, eta, x, W):
     if not _contact_force(wflt[o:o + m], sops[so:so + sn], sconsts[co:], wterm[tt, 7], wterm[tt, 8], G, J, eta_b,
                           R, p, eta, f, W, memo):
         return False
-    for k in range(n):
-        if not math.isfinite(f[k]):
-            return False
-        bext[xo + k] += f[k]
-    return True
+    return _add_force(f, bext, xo)
 
 
 @njit(cache=True)
@@ -1678,11 +1686,7 @@ def _tree_contact_term(net, tt, R, p, eta, x, W):
     if not _tree_contact_force(wflt[o:o + m], sops[so:so + sn], sconsts[co:], wterm[tt, 7], wterm[tt, 8], G, J,
                                eta_t, R, p, eta, f, W):
         return False
-    for k in range(n):
-        if not math.isfinite(f[k]):
-            return False
-        bext[xo + k] += f[k]
-    return True
+    return _add_force(f, bext, xo)
 
 
 @njit(cache=True)
