@@ -222,6 +222,18 @@ def _dynamics_rows(name, peer, ours):
     return rows
 
 
+def _dynamics_report(peer_name, title, peer, ours, peer_tol):
+    """Print the runs and the matched-accuracy table of a dynamics comparison and return its rows; the codes
+    model the same rod, so the finest run of each must follow the reference closely (ours within 5 %, the
+    peer within ``peer_tol``)."""
+    for r in peer + ours:
+        print(r)
+    rows = _dynamics_rows(peer_name, peer, ours)
+    _print(f"{title} (largest tip error / L)", peer_name, rows)
+    assert min(r["rel_err"] for r in ours) < 0.05 and min(r["rel_err"] for r in peer) < peer_tol
+    return rows
+
+
 def test_bench_dynamics_against_pyelastica(record):
     """The extensible, shearable rod released straight under gravity, undamped, 0.5 s: PyElastica (PositionVerlet
     at the largest stable step of each element count, elastica_study.py) against ours at matched accuracy, the
@@ -237,12 +249,7 @@ def test_bench_dynamics_against_pyelastica(record):
             peer.append({"size": f"{n} elements, dt {dt:.3g}", "wall_s": r["wall_s"],
                          "rel_err": err(r["tip_history"])})
     ours = _ours_release(True, t_end, every, err)
-    for r in peer + ours:
-        print(r)
-    rows = _dynamics_rows("pyelastica", peer, ours)
-    _print(f"PyElastica, dynamics over {t_end} s (largest tip error / L)", "pyelastica", rows)
-    # the codes model the same rod: the finest of each follows the reference closely
-    assert min(r["rel_err"] for r in ours) < 0.05 and min(r["rel_err"] for r in peer) < 0.05
+    rows = _dynamics_report("pyelastica", f"PyElastica, dynamics over {t_end} s", peer, ours, 0.05)
     record(simulated_s=t_end, table=rows, pyelastica_runs=peer, ours_runs=ours,
            met=all(r["speedup"] is None or r["speedup"] >= 1 for r in rows))
 
@@ -262,12 +269,7 @@ def test_bench_dynamics_against_mujoco(record):
                 peer.append({"size": f"{n} links, dt {dt:.2g}", "wall_s": r["wall_s"], "rel_err": err(r["tip"])})
                 break
     ours = _ours_release(False, t_end, every, err)
-    for r in peer + ours:
-        print(r)
-    rows = _dynamics_rows("mujoco", peer, ours)
-    _print(f"MuJoCo {version}, dynamics over {t_end} s (largest tip error / L)", "mujoco", rows)
-    # the codes model the same rod: the finest of each follows the reference closely
-    assert min(r["rel_err"] for r in ours) < 0.05 and min(r["rel_err"] for r in peer) < 0.1
+    rows = _dynamics_report("mujoco", f"MuJoCo {version}, dynamics over {t_end} s", peer, ours, 0.1)
     record(mujoco=version, simulated_s=t_end, table=rows,
            mujoco_runs=[{k: v for k, v in r.items()} for r in peer],
            ours_runs=ours, met=all(r["speedup"] is None or r["speedup"] >= 1 for r in rows))
