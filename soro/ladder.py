@@ -67,8 +67,38 @@ __all__ = ["Scene", "SCENES", "MEASURES", "FEM_FAMILIES", "BEAM_FAMILIES", "rich
            "pneunet3d_budget", "pneunet3d_costs", "unreachable", "elastica_on_floor", "contact_table",
            "contact_figure"]
 
-#: The error measures of the ladder (the selection takes one of them).
-MEASURES = ("tip", "shape", "volume")
+#: The error measures of the ladder (the selection takes one of them): on the unseen free loads ``tip``,
+#: ``shape``, ``volume``; ``blocked`` (the tip held: its reaction at the top unseen load, :func:`blocked_rows`);
+#: the contact load's ``tip_contact`` and ``force_contact`` (:func:`contact_table`). A scene measures some of
+#: them (:func:`measures_of`).
+MEASURES = ("tip", "shape", "volume", "blocked", "tip_contact", "force_contact")
+#: the letter of each measure in the table's Pareto column
+_TAGS = {"tip": "t", "shape": "s", "volume": "v", "blocked": "b", "tip_contact": "c", "force_contact": "f"}
+
+
+def column(measure):
+    """The rows' key of ``measure``'s error: ``<measure>_unseen``, or the contact load's own column
+    (``tip_contact``, ``force_contact``: one load). A ParameterError names the measures for an unknown one."""
+    if measure not in MEASURES:
+        raise ParameterError(f"unknown measure {measure!r}: use one of {', '.join(MEASURES)}")
+    return measure if measure.endswith("_contact") else f"{measure}_unseen"
+
+
+def scene_measures(scene):
+    """The measures the ladder of ``scene`` takes: the 2D PneuNet tip, shape, volume and (``scene.blocked``)
+    blocked; the cantilever tip, shape and (``scene.contact``) tip_contact, force_contact; the 3D PneuNet tip,
+    shape, volume."""
+    if isinstance(scene, CantileverScene):
+        return ("tip", "shape") + (("tip_contact", "force_contact") if scene.contact else ())
+    if isinstance(scene, PneuNet3DScene):
+        return ("tip", "shape", "volume")
+    return ("tip", "shape", "volume") + (("blocked",) if scene.blocked else ())
+
+
+def measures_of(rows):
+    """The measures some row of ``rows`` has a finite value of (what this scene's ladder measured)."""
+    return tuple(m for m in MEASURES if any(np.isfinite(r.get(column(m)) if r.get(column(m)) is not None
+                                                        else np.nan) for r in rows))
 #: FEM rungs: name -> (degree, mixed); the last one is the reference family.
 FEM_FAMILIES = {"fem-p1": (1, False), "fem-p2": (2, False), "fem-p2mixed": (2, True)}
 BEAM_FAMILIES = ("dvs", "chebyshev", "pcc")
@@ -100,6 +130,7 @@ class _Levels:
         d = asdict(self)
         for k in ("modes", "repeats"):
             d.pop(k)
+        d.pop("blocked", None)          # the blocked load is cached apart (blocked.json)
         d["fem_families"] = list(d["fem_families"])
         return d
 
@@ -117,6 +148,8 @@ class Scene(_Levels):
     p_max: float = 5e3
     train_steps: int = 10
     test_steps: int = 5
+    #: the blocked load (:func:`pneunet_blocked_fem`, :func:`blocked_rows`): the tip face held vertically
+    blocked: bool = False
 
 
 #: A FEM solve longer than this [s] is timed once (``fem_repeats`` apply to the faster ones): a minute-long
@@ -125,7 +158,8 @@ SLOW_FEM_S = 20.0
 
 #: The scenes ``soro trade SCENE`` knows, full and quick (``--quick``; what the tests run).
 SCENES = {
-    "pneunet2d": {"full": Scene(chambers=7, size=2.0e-3, p_max=6e3, train_steps=16, repeats=15, fem_repeats=3),
+    "pneunet2d": {"full": Scene(chambers=7, size=2.0e-3, p_max=6e3, train_steps=16, repeats=15, fem_repeats=3,
+                                blocked=True),
                   "quick": Scene(chambers=4, size=2.4e-3, p_max=5e3, train_steps=10, modes=(1, 2, 3, 4),
                                  fem_families=("fem-p1", "fem-p2mixed"), repeats=9, eigen=False)},
 }
@@ -508,7 +542,10 @@ def ladder(scene, out, progress=None):
     doc = fem_ladder(scene, out, progress)
     fem_rows, rich = _fem_rows(doc)
     rows = fem_rows + beam_ladder(scene, doc, out)
-    return rows, {"richardson": rich, "length": doc["length"], "fem": doc}
+    info = {"richardson": rich, "length": doc["length"], "fem": doc}
+    if scene.blocked:
+        info["blocked"] = blocked_rows(rows, scene, doc, pneunet_blocked_fem(scene, out, doc, progress))
+    return rows, info
 
 
 # ------------------------------------------------------------------------------------------------ cantilever
@@ -672,13 +709,18 @@ def _cantilever_fem(scene, degree, mixed, size, contact=False):
     return fem
 
 
-def _cantilever_contact_fem(scene, degree, mixed, size, sigma):
-    """The FEM rung on the floor at ``contact_level``: (backbone (len(sigma), 3) [m], the floor's vertical
-    reaction [N per m of depth], CPU time of the solve [s])."""
+def _cantilever_contact_fem(scene, degree, mixed, size, sigma, level=None):
+    """The FEM rung on the floor at ``level`` (default ``contact_level``): (backbone (len(sigma), 3) [m], the
+    floor's vertical reaction [N per m of depth], CPU time of the solve [s])."""
     fem = _cantilever_fem(scene, degree, mixed, size, contact=True)
+    level = scene.contact_level if level is None else level
+    return _on_floor(scene, fem, sigma, level)
+
+
+def _on_floor(scene, fem, sigma, level):
+    """Solve ``fem`` (with the floor) to ``level``: (backbone [m], the floor's vertical reaction [N/m], CPU s)."""
     c0 = time.process_time()
-    traj = fem.solve(load_level=scene.contact_level, steps=scene.test_steps,
-                     max_step=scene.contact_level / scene.test_steps, progress=False)
+    traj = fem.solve(load_level=level, steps=scene.test_steps, max_step=level / scene.test_steps, progress=False)
     cpu = time.process_time() - c0
     return _fem_backbone(scene, fem, sigma), float(traj.reactions["contact_0"][-1][1]), cpu
 
@@ -777,6 +819,9 @@ def cantilever_fem_ladder(scene, out, progress=None):
         force, Pe = elastica_on_floor(scene.length, scene.EI(), scene.contact_level * w, scene.contact_level * Pt,
                                       scene.floor_gap, sigma)
         doc["elastica"]["contact"] = {"force": force, "backbone": Pe.tolist()}
+        lv = scene.validation_level * scene.contact_level       # the contact measures' validation load
+        Pv, Fv, _ = _cantilever_contact_fem(scene, degree, mixed, ref["size"], sigma, lv)
+        doc["reference"]["validation_contact"] = {"level": lv, "backbone": Pv.tolist(), "force": Fv}
     with atomic_path(out / "fem.json") as tmp:
         Path(tmp).write_text(json.dumps(doc))
     return doc
@@ -1003,6 +1048,8 @@ def _validate_cantilever(path, scene, out, measure):
     if measure == "volume":
         raise ParameterError("the cantilever has no cavity: validate on 'tip' or 'shape'")
     doc = json.loads((Path(out) / "fem.json").read_text())
+    if measure.endswith("_contact"):
+        return _validate_cantilever_contact(path, scene, doc, measure)
     Pref = np.asarray(doc["reference"]["validation_backbone"])
     sigma = _midline(scene, len(Pref))
     kind, model, extra = load_model(path)
@@ -1019,6 +1066,33 @@ def _validate_cantilever(path, scene, out, measure):
         Pm = _fem_backbone(scene, model, sigma)
     tip, shape = _errors(Pm, Pref, scene.length)
     return tip if measure == "tip" else shape
+
+
+def _validate_cantilever_contact(path, scene, doc, measure):
+    """The contact measures' :func:`validate`: the model file read back, pushed onto the floor at
+    ``validation_level`` x ``contact_level`` (a load not used to choose it), against the reference there."""
+    ref = doc["reference"].get("validation_contact")
+    if ref is None:
+        raise ParameterError("this ladder's fem.json has no contact validation load: rerun the scene with its contact")
+    Pref = np.asarray(ref["backbone"])
+    sigma = _midline(scene, len(Pref))
+    kind, model, extra = load_model(path)
+    lv = ref["level"]
+    if kind == "beam":
+        w, P = scene.loads()
+        if scene.gravity:
+            model.add_gravity((0.0, -9.80665 * lv, 0.0))
+        model.add_point_load(force=(0.0, -lv * P * _CANTILEVER_DEPTH, 0.0))
+        model.contact_radius = scene.height / 2
+        model.add_contact(scene.floor(3))
+        q = model.statics(steps=2 * scene.test_steps)
+        Pm, force = _positions_at(model, q, sigma), float(model.contact_forces(q)[:, 1].sum() / _CANTILEVER_DEPTH)
+    else:
+        model.add_contact(scene.floor(2))
+        Pm, force, _ = _on_floor(scene, model, sigma, lv)
+    if measure == "tip_contact":
+        return float(np.linalg.norm(Pm[-1] - Pref[-1]) / scene.length)
+    return float(abs(force - ref["force"]) / abs(ref["force"]))
 
 
 def cantilever_budget(rows, info):
@@ -1124,11 +1198,153 @@ def contact_figure(rows, measure="tip", floor=None):
     return fig
 
 
+# ------------------------------------------------------------------------------------------------ blocked force
+def blocked_fem(fem, region, level, steps, axis=1):
+    r"""The blocked force of a FEM model: ``region`` (the tip face) held along ``axis`` (0 x, 1 y; a frictionless
+    wall normal to the tip's path) while the loads ramp to ``level`` in ``steps`` steps. The reaction is the
+    assembled residual at the held dofs (sorofem's support reactions: the force the wall exerts on the body).
+    Returns (reaction [N; N per m of depth in plane strain] along ``axis``, CPU time of the solve [s], the
+    trajectory)."""
+    fem.add_support(region, components=[axis])
+    c0 = time.process_time()
+    traj = fem.solve(load_level=level, steps=steps, max_step=level / steps, progress=False)
+    cpu = time.process_time() - c0
+    return float(traj.reactions[region][-1][axis]), cpu, traj
+
+
+def blocked_beam(shp, u=None, axis=1, steps=1):
+    r"""The blocked force of a beam: its tip held along world ``axis`` at its rest position
+    (:class:`soroshapes.constraints.Pin` with one axis) under inputs ``u``; the reaction is the constraint's
+    Lagrange multiplier. Returns (reaction [N] along ``axis``, CPU time [s], the
+    :class:`soroshapes.constraints.Equilibrium`)."""
+    from soroshapes.constraints import Pin
+
+    c0 = time.process_time()
+    eq = shp.statics(u=u, steps=steps, constraints=[Pin(axes=("x", "y", "z")[axis])])
+    cpu = time.process_time() - c0
+    return float(eq.reactions[0][3 + axis]), cpu, eq
+
+
+def _pneunet_blocked(scene, pn, degree, mixed, size, level):
+    """The 2D PneuNet's FEM model of ``degree``/``mixed`` on ``size`` with its end face (``right``: the base's end,
+    below the chambers) held vertically, ramped to ``level`` x p_max: (reaction [N per m of depth], CPU s)."""
+    fem, _ = pn.build(2, scene.chambers, size, scene.p_max, degree=degree, mixed=mixed)
+    R, cpu, _ = blocked_fem(fem, "right", level, scene.test_steps)
+    return R, cpu
+
+
+def pneunet_blocked_fem(scene, out, doc, progress=None):
+    """The blocked load of the 2D PneuNet's FEM rungs (``doc`` from :func:`fem_ladder`): the tip face held
+    vertically (:func:`blocked_fem`) at the top unseen load (``test_level``) on every rung, and on the reference
+    also at the top training load (1: what a beam's stiffness scale is fitted on, see :func:`blocked_rows`) and
+    at the validation load. Cached, rung by rung, in ``out/blocked.json`` (with the scene's settings; an
+    interrupted run resumes). Returns that document: ``rungs`` (``force`` [N/m], ``solve_s`` CPU [s]) in the
+    order of ``doc["rungs"]`` and ``reference`` (``train``, ``validation`` forces [N/m])."""
+    from sorofem.io import atomic_path
+
+    out = Path(out)
+    path = out / "blocked.json"
+    bdoc = json.loads(path.read_text()) if path.is_file() else {}
+    if bdoc.get("settings") != scene.fem_settings():
+        bdoc = {"settings": scene.fem_settings(), "rungs": {}, "reference": {}}
+    pn = _pneunet()
+    say = progress or (lambda msg: None)
+
+    def save():
+        with atomic_path(path) as tmp:
+            Path(tmp).write_text(json.dumps(bdoc))
+    for r in doc["rungs"]:
+        key = f"{r['family']}-h{r['level']}"
+        if key not in bdoc["rungs"]:
+            R, cpu = _pneunet_blocked(scene, pn, r["degree"], r["mixed"], r["size"], scene.test_level)
+            bdoc["rungs"][key] = {"force": R, "solve_s": cpu}
+            say(f"blocked {r['family']} h={1e3 * r['size']:.2f} mm: {R:.4f} N/m, {cpu:.2f} s CPU")
+            save()
+    ref = doc["rungs"][-1]
+    for name, level in (("train", 1.0), ("validation", scene.validation_level)):
+        if name not in bdoc["reference"]:
+            bdoc["reference"][name] = _pneunet_blocked(scene, pn, ref["degree"], ref["mixed"], ref["size"], level)[0]
+            save()
+    bdoc["order"] = [f"{r['family']}-h{r['level']}" for r in doc["rungs"]]
+    return bdoc
+
+
+def _beam_blocked(row, scene, level):
+    """A PneuNet beam row's blocked force at ``level`` x p_max [N per m of depth: the beam's section is
+    ``WIDTH`` deep] and its CPU time."""
+    R, cpu, _ = blocked_beam(row["_shapes"], u=[level * scene.p_max])
+    return R / _pneunet().WIDTH, cpu
+
+
+def blocked_rows(rows, scene, doc, bdoc, repeats=3):
+    r"""Add the blocked load's columns to the PneuNet's ladder ``rows`` (FEM rows first, in the order of
+    ``doc["rungs"]``, then beam rows): ``blocked_force`` [N per m of depth] at the top unseen load,
+    ``blocked_solve_s`` (CPU time; a beam's: median of ``repeats``), ``blocked_unseen`` (error relative to the
+    reference's force; the reference's own: its Richardson estimate on its family's three meshes).
+
+    A beam identified on free bending (:func:`soroshapes.dvs.identify`) fits only its actuation
+    :math:`\tau(u) = K q(u)` to the FEM's free shapes, with the stiffness K of an assumed section: scaling K
+    and :math:`\tau` by the same :math:`\alpha` leaves every free shape unchanged and scales the blocked force
+    by :math:`\alpha`. So a beam's raw blocked force (``blocked_raw``) measures its assumed stiffness, not the
+    model. Its ``blocked_unseen`` takes that one scalar from the training ramp's blocked load (level 1):
+    :math:`\alpha` = ``blocked_scale`` = :math:`R_{ref}(1)/R_{beam}(1)` (exact: the beams carry no weight), then
+    compares :math:`\alpha R_{beam}` at the unseen level. Returns the reference's Richardson dict."""
+    keys = bdoc["order"]
+    ref_force = bdoc["rungs"][keys[-1]]["force"]
+    fam = [k for k in keys if k.rsplit("-h", 1)[0] == keys[-1].rsplit("-h", 1)[0]]
+    rich = richardson([bdoc["rungs"][k]["force"] for k in fam], doc.get("ratio", 2.0))
+    fem_rows = [r for r in rows if "_shapes" not in r]
+    for row, k in zip(fem_rows, keys):
+        b = bdoc["rungs"][k]
+        row.update(blocked_force=b["force"], blocked_solve_s=b["solve_s"],
+                   blocked_unseen=rich["error"] / abs(ref_force) if row.get("estimated")
+                   else abs(b["force"] - ref_force) / abs(ref_force))
+    R1 = bdoc["reference"]["train"]
+    for row in rows:
+        if "_shapes" not in row:
+            continue
+        Rt, _ = _beam_blocked(row, scene, 1.0)
+        cpu = []
+        for _ in range(max(1, repeats)):
+            R, c = _beam_blocked(row, scene, scene.test_level)
+            cpu.append(c)
+        alpha = R1 / Rt
+        row.update(blocked_force=alpha * R, blocked_solve_s=float(np.median(cpu)), blocked_scale=alpha,
+                   blocked_raw=abs(R - ref_force) / abs(ref_force),
+                   blocked_unseen=abs(alpha * R - ref_force) / abs(ref_force))
+    return dict(rich, reference_force=ref_force, train_force=R1, validation_force=bdoc["reference"]["validation"])
+
+
+def blocked_table(rows, info):
+    """The blocked load as text: per rung the force [N per m of depth], its error (~: the reference's Richardson
+    estimate), a beam's raw error (its assumed section's stiffness) and fitted stiffness scale, the CPU time of
+    the blocked solve."""
+    b = info["blocked"]
+
+    def pct(v):
+        return f"{100 * v:.3f}" if v is not None and np.isfinite(v) else "-"
+    head = (f"{'family':<12} {'size':>11} {'R [N/m]':>9} {'error %':>8} {'raw %':>9} {'scale':>8} {'solve ms':>9}")
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        if "blocked_unseen" not in r:
+            continue
+        est = "~" if r.get("estimated") else " "
+        lines.append(f"{r['family']:<12} {_label(r):>11} {r['blocked_force']:>9.4f} {est}{pct(r['blocked_unseen']):>7} "
+                     f"{pct(r.get('blocked_raw')):>9} {_fmt(r, 'blocked_scale', '.4g'):>8} "
+                     f"{1e3 * r['blocked_solve_s']:>9.1f}")
+    lines.append(f"tip face held vertically at the top unseen load: reference force {b['reference_force']:.5f} N/m "
+                 f"(training load {b['train_force']:.5f}, validation {b['validation_force']:.5f}); reference "
+                 f"discretization (Richardson): {100 * b['error'] / abs(b['reference_force']):.4f} % (order "
+                 f"{b['order']:.2f}); beams: error after one stiffness scale fitted on the training load's blocked "
+                 "force (raw: the assumed section, which free-bending identification leaves undetermined)")
+    return "\n".join(lines)
+
+
 # ------------------------------------------------------------------------------------------------ Pareto
 def pareto_front(rows, measure):
     """Indices of the rows on the Pareto front of (median solve time, unseen ``measure`` error): no other row
     is at most as slow and at most as wrong, and better in one of them."""
-    key = f"{measure}_unseen"
+    key = column(measure)
     pts = [(r["solve_time_s"], r.get(key, np.nan)) for r in rows]
     front = []
     for i, (t, e) in enumerate(pts):
@@ -1148,7 +1364,7 @@ def _label(r):
 def ladder_table(rows, tolerance=None, measure="tip"):
     """The ladder as text: errors in %, build in s, solve median and IQR in ms; ``P:`` the measures whose
     Pareto front holds the row (t tip, s shape, v volume); with ``tolerance`` the selected row is marked."""
-    fronts = {m: set(pareto_front(rows, m)) for m in MEASURES}
+    fronts = {m: set(pareto_front(rows, m)) for m in measures_of(rows)}
     pick = select(rows, tolerance, measure) if tolerance is not None else None
 
     def pct(v):
@@ -1157,17 +1373,20 @@ def ladder_table(rows, tolerance=None, measure="tip"):
     def iqr(v):
         return f"{1e3 * v:.3f}" if np.isfinite(v) else "1 run"
     head = (f"{'family':<12} {'size':>11} {'tip train':>9} {'tip unseen':>10} {'shape unseen':>12} "
-            f"{'vol unseen':>10} {'freq':>8} {'build s':>8} {'solve ms':>10} {'IQR ms':>8} {'Pareto':>6}")
+            f"{'vol unseen':>10} {'freq':>8} {'blocked':>8} {'build s':>8} {'solve ms':>10} {'IQR ms':>8} "
+            f"{'Pareto':>6}")
     lines = [head, "-" * len(head)]
     for i, r in enumerate(rows):
-        tags = "".join(c for c, m in zip("tsv", MEASURES) if i in fronts[m]) or "-"
+        tags = "".join(_TAGS[m] for m in fronts if i in fronts[m]) or "-"
         est = "~" if r.get("estimated") else " "
         lines.append(f"{r['family']:<12} {_label(r):>11} {pct(r.get('tip_train')):>9} "
                      f"{est}{pct(r['tip_unseen']):>9} {pct(r['shape_unseen']):>12} {pct(r.get('volume_unseen')):>10} "
-                     f"{pct(r.get('freq')):>8} {r['build_s']:>8.2f} {1e3 * r['solve_time_s']:>10.3f} "
+                     f"{pct(r.get('freq')):>8} {pct(r.get('blocked_unseen')):>8} {r['build_s']:>8.2f} {1e3 * r['solve_time_s']:>10.3f} "
                      f"{iqr(r['solve_iqr_s']):>8} {tags:>6}" + ("  <- selected" if r is pick else ""))
     lines.append("errors in % (tip, shape: of the length; volume: of the reference's volume change; freq: "
-                 "relative); ~ the reference's Richardson estimate; solve: median of repeats, IQR its spread (a FEM "
+                 "relative; blocked: of the reference's blocked force, a beam's after its stiffness scale fitted on "
+                 "the training load's); Pareto: t tip, s shape, v volume, b blocked, c/f contact tip/force; "
+                 "~ the reference's Richardson estimate; solve: median of repeats, IQR its spread (a FEM "
                  "solve longer than SLOW_FEM_S is timed once); freq of a beam: its assumed section, not identified")
     return "\n".join(lines)
 
@@ -1183,7 +1402,7 @@ def ladder_figure(rows, measure, tolerance=None, pick=None, floor=None):
     ``Figure``."""
     from matplotlib.figure import Figure
 
-    key = f"{measure}_unseen"
+    key = column(measure)
     fig = Figure(figsize=(7, 4.5))
     ax = fig.add_subplot()
     for fam, style in _STYLE.items():
@@ -1278,7 +1497,7 @@ def parse_tolerance(text):
 
 def _reference_error(rows, measure):
     """The reference's own estimated error (its row's Richardson estimate; 0 without an estimated row)."""
-    return next((r[f"{measure}_unseen"] for r in rows if r.get("estimated")), 0.0)
+    return next((r[column(measure)] for r in rows if r.get("estimated") and column(measure) in r), 0.0)
 
 
 def select(rows, tolerance, measure="tip"):
@@ -1287,15 +1506,14 @@ def select(rows, tolerance, measure="tip"):
     errors of the other rows are measured against the reference: below its error they cannot be checked)."""
     from .trade import cheapest
 
-    if measure not in MEASURES:
-        raise ParameterError(f"unknown measure {measure!r}: use one of {', '.join(MEASURES)}")
-    ok = [r for r in rows if np.isfinite(r.get(f"{measure}_unseen", np.nan))]
-    pick = cheapest(ok, tolerance, keys=(f"{measure}_unseen",))
+    key = column(measure)
+    ok = [r for r in rows if np.isfinite(r.get(key, np.nan))]
+    pick = cheapest(ok, tolerance, keys=(key,))
     return None if pick is None or tolerance < _reference_error(rows, measure) else pick
 
 
 def _best(rows, measure):
-    key = f"{measure}_unseen"
+    key = column(measure)
     return min((r for r in rows if np.isfinite(r.get(key, np.nan))), key=lambda r: (r[key], r["solve_time_s"]))
 
 
@@ -1304,7 +1522,7 @@ def unreachable(rows, tolerance, measure="tip"):
     the tolerance is below the reference's own estimated error, that error, and if a model lies closer to the
     reference than the tolerance (which cannot be shown), the cheapest model within the reference's error (the
     tightest tolerance that can be checked)."""
-    key, tol = f"{measure}_unseen", tolerance
+    key, tol = column(measure), tolerance
     best, ref_err = _best(rows, measure), _reference_error(rows, measure)
     if tol < ref_err and best[key] <= tol:
         ok = select(rows, ref_err, measure)
@@ -1326,8 +1544,10 @@ def write_model(row, scene, path, measure, tolerance):
     """Write the model of ``row`` to ``path`` (JSON): a beam with :func:`soroshapes.io.save_beam`, a FEM rung as
     ``{"format": "soro-fem-rung", "version": 1, "scene": ..., "degree", "mixed", "size" [m]}``."""
     meta = {"scene": asdict(scene), "measure": measure, "tolerance": tolerance, "family": row["family"],
-            "modes": row["modes"], "unseen_error": row[f"{measure}_unseen"], "solve_time_s": row["solve_time_s"],
+            "modes": row["modes"], "unseen_error": row[column(measure)], "solve_time_s": row["solve_time_s"],
             "chosen_by": "soro.ladder.select"}
+    if "blocked_scale" in row:      # a beam's stiffness scale fitted on the blocked training load (blocked_rows)
+        meta["blocked_scale"] = row["blocked_scale"]
     if "_shapes" in row:
         from soroshapes.io import save_beam
 
@@ -1374,6 +1594,8 @@ def validate(path, scene, out, measure):
     if isinstance(scene, PneuNet3DScene):
         return _validate_pneunet3d(path, scene, out, measure)
     pn = _pneunet()
+    if measure == "blocked":
+        return _validate_blocked(path, scene, out)
     doc = json.loads((out / "fem.json").read_text())
     L = doc["length"]
     ref = doc["rungs"][-1]
@@ -1399,6 +1621,20 @@ def validate(path, scene, out, measure):
     return float(err[measure])
 
 
+def _validate_blocked(path, scene, out):
+    """The blocked force of the model file ``path`` at the validation load against the reference's (relative); a
+    beam's force times the stiffness scale its file records (``meta["blocked_scale"]``, :func:`blocked_rows`)."""
+    bdoc = json.loads((Path(out) / "blocked.json").read_text())
+    R_ref = bdoc["reference"]["validation"]
+    kind, model, extra = load_model(path)
+    lv = scene.validation_level
+    if kind == "beam":
+        R = blocked_beam(model, u=[lv * scene.p_max])[0] / _pneunet().WIDTH * extra.meta.get("blocked_scale", 1.0)
+    else:
+        R = blocked_fem(model, "right", lv, scene.test_steps)[0]
+    return float(abs(R - R_ref) / abs(R_ref))
+
+
 _LADDERS = {}
 
 
@@ -1422,7 +1658,7 @@ def beam_within(scene_name, tolerance, measure="tip", out=None, quick=False):
     if pick is None or "_shapes" not in pick:
         best = _best(beams, measure)
         raise ParameterError(f"no beam of {scene_name} reaches {100 * tol:g} % on the unseen {measure} error; the "
-                             f"best is {100 * best[f'{measure}_unseen']:.4g} % ({best['family']} {_label(best)}): "
+                             f"best is {100 * best[column(measure)]:.4g} % ({best['family']} {_label(best)}): "
                              f"ask for at least that, or model this body by FEM")
     from soroshapes.io import load_beam
 
@@ -1462,16 +1698,18 @@ def run_ladder(scene_name="pneunet2d", tolerance=None, measure="tip", out=None, 
     if scene_name not in SCENES:
         print(f"soro trade: unknown scene {scene_name!r}; scenes: {', '.join(SCENES)}", file=sys.stderr)
         return 2
+    scene = SCENES[scene_name]["quick" if quick else "full"]
     try:
         tol = None if tolerance is None else parse_tolerance(tolerance)
-        if measure not in MEASURES:
-            raise ParameterError(f"unknown measure {measure!r}: use one of {', '.join(MEASURES)}")
+        column(measure)
+        if measure not in scene_measures(scene):
+            why = {"volume": "it has no cavity", "blocked": "its blocked load is not built (the quick 2D PneuNet "
+                   "skips it: run the full scene)", "tip_contact": "it has no contact load",
+                   "force_contact": "it has no contact load"}.get(measure, "")
+            raise ParameterError(f"{scene_name}{' --quick' if quick else ''} does not measure {measure!r}: {why}; "
+                                 f"use one of {', '.join(scene_measures(scene))}")
     except ParameterError as e:
         print(f"soro trade: {e}", file=sys.stderr)
-        return 2
-    scene = SCENES[scene_name]["quick" if quick else "full"]
-    if isinstance(scene, CantileverScene) and measure == "volume":
-        print("soro trade: the cantilever has no cavity: use --measure tip or shape", file=sys.stderr)
         return 2
     out = Path(out or Path("out") / "ladder" / scene_name)
     try:
@@ -1496,17 +1734,20 @@ def run_ladder(scene_name="pneunet2d", tolerance=None, measure="tip", out=None, 
                         tmp, dpi=110, format="png")
     if three:
         text += "\n\ncosts\n" + pneunet3d_costs(rows)
-    for m in (("tip", "shape") if cant else MEASURES):
+    if "blocked" in info:
+        text += "\n\nblocked load (the tip face held vertically, the reaction)\n" + blocked_table(rows, info)
+    for m in (m for m in scene_measures(scene) if not m.endswith("_contact")):
         fig = ladder_figure(rows, m, tol if m == measure else None, pick if m == measure else None,
-                            floor=info["elastica"][m] if cant else None)
+                            floor=info["elastica"][m] if cant and m in ("tip", "shape") else None)
         with atomic_path(out / f"ladder_{m}.png") as tmp:
             fig.savefig(tmp, dpi=110, format="png")
     status = 0
     result = {"scene": scene_name, "quick": quick, "rows": [{k: v for k, v in r.items() if not k.startswith("_")}
                                                            for r in rows],
               "richardson": info["richardson"], "budget": budget}
-    if "contact" in info:
-        result["contact"] = info["contact"]
+    for k in ("contact", "blocked"):
+        if k in info:
+            result[k] = info[k]
     if tol is not None:
         if pick is None:
             verdict = unreachable(rows, tol, measure)
@@ -1514,11 +1755,11 @@ def run_ladder(scene_name="pneunet2d", tolerance=None, measure="tip", out=None, 
         else:
             path = write_model(pick, scene, out / "model.json", measure, tol)
             if pick.get("estimated"):   # the reference itself: its error is the Richardson estimate, not 0
-                val = pick[f"{measure}_unseen"]
+                val = pick[column(measure)]
             else:
                 val = validate(path, scene, out, measure)
-            verdict = (f"selected: {pick['family']} {_label(pick)} ({100 * pick[f'{measure}_unseen']:.4g} % "
-                       f"on the unseen loads, {1e3 * pick['solve_time_s']:.3f} ms per solve, median); model file "
+            verdict = (f"selected: {pick['family']} {_label(pick)} ({100 * pick[column(measure)]:.4g} % "
+                       f"on the {'contact load' if measure.endswith('_contact') else 'unseen loads'}, {1e3 * pick['solve_time_s']:.3f} ms per solve, median); model file "
                        f"{path}; validation load {scene.validation_level:g} x the top load: {100 * val:.4g} % "
                        f"{'(the reference itself: its Richardson estimate) ' if pick.get('estimated') else ''}"
                        f"({'within' if val <= tol else 'NOT within'} {100 * tol:g} %)")
@@ -1744,7 +1985,7 @@ def pneunet3d_budget(rows, info):
     reference (tip, shape, volume), which no refinement of either model removes."""
     text, budget = error_budget(rows, info)
     ps = next(r for r in rows if r["family"] == "plane-strain")
-    budget["model_form_plane_strain"] = {m: ps[f"{m}_unseen"] for m in MEASURES}
+    budget["model_form_plane_strain"] = {m: ps[f"{m}_unseen"] for m in ("tip", "shape", "volume")}
     ratio = info["fem"]["ratio"]
     for m, r in info["richardson"].items():
         if r["converging"] and r["order_used"] < r["order"]:
