@@ -92,7 +92,8 @@ def scene_measures(scene):
         return ("tip", "shape") + (("tip_contact", "force_contact") if scene.contact else ())
     if isinstance(scene, PneuNet3DScene):
         return ("tip", "shape", "volume")
-    return ("tip", "shape", "volume") + (("blocked",) if scene.blocked else ())
+    return (("tip", "shape", "volume") + (("blocked",) if scene.blocked else ())
+            + (("tip_contact", "force_contact") if scene.cylinder else ()))
 
 
 def measures_of(rows):
@@ -130,7 +131,8 @@ class _Levels:
         d = asdict(self)
         for k in ("modes", "repeats"):
             d.pop(k)
-        d.pop("blocked", None)          # the blocked load is cached apart (blocked.json)
+        for k in ("blocked", "cylinder"):          # cached apart (blocked.json, contact.json)
+            d.pop(k, None)
         d["fem_families"] = list(d["fem_families"])
         return d
 
@@ -150,6 +152,8 @@ class Scene(_Levels):
     test_steps: int = 5
     #: the blocked load (:func:`pneunet_blocked_fem`, :func:`blocked_rows`): the tip face held vertically
     blocked: bool = False
+    #: the contact load (:func:`pneunet_contact_fem`, :func:`pneunet_contact_rows`): curling onto a cylinder
+    cylinder: bool = False
 
 
 #: A FEM solve longer than this [s] is timed once (``fem_repeats`` apply to the faster ones): a minute-long
@@ -159,7 +163,7 @@ SLOW_FEM_S = 20.0
 #: The scenes ``soro trade SCENE`` knows, full and quick (``--quick``; what the tests run).
 SCENES = {
     "pneunet2d": {"full": Scene(chambers=7, size=2.0e-3, p_max=6e3, train_steps=16, repeats=15, fem_repeats=3,
-                                blocked=True),
+                                blocked=True, cylinder=True),
                   "quick": Scene(chambers=4, size=2.4e-3, p_max=5e3, train_steps=10, modes=(1, 2, 3, 4),
                                  fem_families=("fem-p1", "fem-p2mixed"), repeats=9, eigen=False)},
 }
@@ -545,6 +549,8 @@ def ladder(scene, out, progress=None):
     info = {"richardson": rich, "length": doc["length"], "fem": doc}
     if scene.blocked:
         info["blocked"] = blocked_rows(rows, scene, doc, pneunet_blocked_fem(scene, out, doc, progress))
+    if scene.cylinder:
+        info["cylinder"] = pneunet_contact_rows(rows, scene, doc, pneunet_contact_fem(scene, out, doc, progress))
     return rows, info
 
 
@@ -1191,9 +1197,9 @@ def contact_figure(rows, measure="tip", floor=None):
     sub = [dict(r, tip_unseen=r[key], solve_time_s=r["contact_solve_s"]) for r in rows if key in r]
     fig = ladder_figure(sub, "tip", floor=floor)
     ax = fig.axes[0]
-    ax.set_ylabel(f"{measure} error on the floor [%] ({'of L' if measure == 'tip' else 'of the reaction'})")
-    ax.set_xlabel("CPU time of the static solve on the floor [s]")
-    ax.set_title(f"contact load: {measure} (reference: finest P2 mixed on the floor, its own error by Richardson)",
+    ax.set_ylabel(f"{measure} error in contact [%] ({'of L' if measure == 'tip' else 'of the reaction'})")
+    ax.set_xlabel("CPU time of the static solve with the obstacle [s]")
+    ax.set_title(f"contact load: {measure} (reference: finest P2 mixed with the obstacle, its own error by Richardson)",
                  fontsize=9)
     return fig
 
@@ -1337,6 +1343,170 @@ def blocked_table(rows, info):
                  f"discretization (Richardson): {100 * b['error'] / abs(b['reference_force']):.4f} % (order "
                  f"{b['order']:.2f}); beams: error after one stiffness scale fitted on the training load's blocked "
                  "force (raw: the assumed section, which free-bending identification leaves undetermined)")
+    return "\n".join(lines)
+
+
+# ------------------------------------------------------------------------------------------------ PneuNet contact
+def _pneunet_cylinder(length):
+    """(radius [m], centre (x, y) [m]) of the cylinder the 2D PneuNet curls onto (``demos/dvs_pneunet.py``'s)."""
+    return _demo_module("dvs_pneunet").cylinder(length)
+
+
+def _pneunet_on_cylinder(scene, pn, degree, mixed, size, level):
+    """The 2D PneuNet's FEM model of ``degree``/``mixed`` on ``size`` ramped to ``level`` x p_max with the rigid
+    cylinder as a contact: (tip [m] (3,), the cylinder's force on the body [N per m of depth] (2,), CPU s)."""
+    fem, length = pn.build(2, scene.chambers, size, scene.p_max, degree=degree, mixed=mixed)
+    return _fem_on_cylinder(scene, pn, fem, length, level)
+
+
+def _fem_on_cylinder(scene, pn, fem, length, level):
+    from sorofem import sdf
+
+    r, c = _pneunet_cylinder(length)
+    fem.add_contact(sdf.Circle(r, center=c))
+    c0 = time.process_time()
+    traj = fem.solve(load_level=level, steps=scene.train_steps, max_step=level / scene.train_steps, progress=False)
+    cpu = time.process_time() - c0
+    X = np.array([[length * (1 - 1e-12), pn.LAYER / 2]])
+    tip = X[0] + fem.evaluate(X)[0, :2]
+    return [float(tip[0]), float(tip[1]), 0.0], [float(v) for v in traj.reactions["contact_0"][-1]], cpu
+
+
+def pneunet_contact_fem(scene, out, doc, progress=None):
+    """The contact load of the 2D PneuNet's FEM rungs (``doc`` from :func:`fem_ladder`): the actuator curls onto
+    the rigid cylinder of ``demos/dvs_pneunet.py`` (radius 0.26 L, 1 mm below the bottom face at 0.55 L;
+    frictionless penalty contact, sorofem's default stiffness) at the top training pressure on every rung, and on
+    the reference also at the validation load. Cached rung by rung in ``out/contact.json`` (as
+    :func:`pneunet_blocked_fem`). Returns it: ``rungs`` (``tip`` [m], ``force`` [N/m] (2,), ``solve_s`` CPU) and
+    ``reference`` (``validation``: tip and force)."""
+    from sorofem.io import atomic_path
+
+    out = Path(out)
+    path = out / "contact.json"
+    cdoc = json.loads(path.read_text()) if path.is_file() else {}
+    if cdoc.get("settings") != scene.fem_settings():
+        cdoc = {"settings": scene.fem_settings(), "rungs": {}, "reference": {}}
+    pn = _pneunet()
+    say = progress or (lambda msg: None)
+
+    def save():
+        with atomic_path(path) as tmp:
+            Path(tmp).write_text(json.dumps(cdoc))
+    for r in doc["rungs"]:
+        key = f"{r['family']}-h{r['level']}"
+        if key not in cdoc["rungs"]:
+            tip, F, cpu = _pneunet_on_cylinder(scene, pn, r["degree"], r["mixed"], r["size"], 1.0)
+            cdoc["rungs"][key] = {"tip": tip, "force": F, "solve_s": cpu}
+            say(f"contact {r['family']} h={1e3 * r['size']:.2f} mm: |F| {np.hypot(*F):.4f} N/m, {cpu:.2f} s CPU")
+            save()
+    if "validation" not in cdoc["reference"]:
+        ref = doc["rungs"][-1]
+        tip, F, _ = _pneunet_on_cylinder(scene, pn, ref["degree"], ref["mixed"], ref["size"], scene.validation_level)
+        cdoc["reference"]["validation"] = {"tip": tip, "force": F}
+        save()
+    cdoc["order"] = [f"{r['family']}-h{r['level']}" for r in doc["rungs"]]
+    return cdoc
+
+
+def _beam_on_cylinder(shp, scene, length, level, repeats=1):
+    """A copy of the PneuNet beam ``shp`` with the cylinder (its tube's radius LAYER/2: the backbone's height
+    above the bottom face) at ``level`` x p_max: (tip [m], the cylinder's force [N] (3,), median CPU s)."""
+    import copy
+
+    from sorofem import sdf
+
+    pn = _pneunet()
+    r, c = _pneunet_cylinder(length)
+    beam = copy.deepcopy(shp)
+    beam.contact_radius = pn.LAYER / 2
+    beam.add_contact(sdf.Cylinder(r, 1.0, center=(c[0], c[1], 0.0)))
+    cpu = []
+    for _ in range(max(1, repeats)):
+        c0 = time.process_time()
+        q = beam.statics(u=[level * scene.p_max], steps=scene.train_steps)
+        cpu.append(time.process_time() - c0)
+    return beam.positions(q)[-1], beam.contact_forces(q).sum(axis=0), float(np.median(cpu))
+
+
+def pneunet_contact_rows(rows, scene, doc, cdoc, repeats=3):
+    r"""Add the contact load's columns to the 2D PneuNet's ladder ``rows`` (FEM rows in the order of
+    ``doc["rungs"]``, then beams): ``tip_contact`` (tip distance / L from the reference's), ``force_contact``
+    (distance of the cylinder's force vector from the reference's / its magnitude), ``contact_force`` [N per m
+    of depth] (magnitude), ``contact_solve_s`` (CPU; a beam's median of ``repeats``); the reference's own row:
+    Richardson on its family's three meshes. A beam's force [N, its section ``WIDTH`` deep] is scaled by its
+    blocked stiffness scale (``blocked_scale``, :func:`blocked_rows`: identification on free bending leaves the
+    stiffness undetermined; with a rigid obstacle the contact force scales with it) when the row has one.
+    Returns the reference's Richardson estimates and forces."""
+    keys = cdoc["order"]
+    L = doc["length"]
+    ref = cdoc["rungs"][keys[-1]]
+    Tr, Fr = np.asarray(ref["tip"]), np.asarray(ref["force"])
+    fam = [k for k in keys if k.rsplit("-h", 1)[0] == keys[-1].rsplit("-h", 1)[0]]
+    rich = {"tip": richardson([cdoc["rungs"][k]["tip"] for k in fam], doc.get("ratio", 2.0)),
+            "force": richardson([cdoc["rungs"][k]["force"] for k in fam], doc.get("ratio", 2.0))}
+    nF = float(np.linalg.norm(Fr))
+    for row, k in zip([r for r in rows if "_shapes" not in r], keys):
+        c = cdoc["rungs"][k]
+        if row.get("estimated"):
+            tip, force = rich["tip"]["error"] / L, rich["force"]["error"] / nF
+        else:
+            tip = float(np.linalg.norm(np.asarray(c["tip"]) - Tr) / L)
+            force = float(np.linalg.norm(np.asarray(c["force"]) - Fr) / nF)
+        row.update(tip_contact=tip, force_contact=force, contact_force=float(np.linalg.norm(c["force"])),
+                   contact_solve_s=c["solve_s"])
+    width = _pneunet().WIDTH
+    for row in rows:
+        if "_shapes" not in row:
+            continue
+        tip, F, cpu = _beam_on_cylinder(row["_shapes"], scene, L, 1.0, repeats)
+        F = row.get("blocked_scale", 1.0) * F[:2] / width
+        row.update(tip_contact=float(np.linalg.norm(tip - Tr) / L), force_contact=float(np.linalg.norm(F - Fr) / nF),
+                   contact_force=float(np.linalg.norm(F)), contact_solve_s=cpu)
+    return {"tip": rich["tip"], "force": rich["force"], "reference_force": nF, "length": L,
+            "validation": cdoc["reference"]["validation"]}
+
+
+def _validate_cylinder(path, scene, out, measure):
+    """The contact measures' :func:`validate` on the 2D PneuNet: the model file read back, curled onto the
+    cylinder at the validation load (``validation_level`` x p_max, not used to choose it), against the
+    reference's tip (fraction of L) or force (relative); a beam's force times its file's blocked stiffness
+    scale."""
+    cdoc = json.loads((Path(out) / "contact.json").read_text())
+    L = json.loads((Path(out) / "fem.json").read_text())["length"]
+    ref = cdoc["reference"]["validation"]
+    kind, model, extra = load_model(path)
+    lv = scene.validation_level
+    if kind == "beam":
+        tip, F, _ = _beam_on_cylinder(model, scene, L, lv)
+        F = extra.meta.get("blocked_scale", 1.0) * F[:2] / _pneunet().WIDTH
+    else:
+        tip, F, _ = _fem_on_cylinder(scene, _pneunet(), model, L, lv)
+    if measure == "tip_contact":
+        return float(np.linalg.norm(np.asarray(tip) - ref["tip"]) / L)
+    return float(np.linalg.norm(np.asarray(F) - ref["force"]) / np.linalg.norm(ref["force"]))
+
+
+def pneunet_contact_table(rows, info):
+    """The 2D PneuNet's contact load as text: per rung the cylinder's force [N per m of depth], the tip and force
+    errors (~: the reference's Richardson estimates), the CPU time of the solve on the cylinder."""
+    c = info["cylinder"]
+
+    def pct(v):
+        return f"{100 * v:.3f}" if v is not None and np.isfinite(v) else "-"
+    head = f"{'family':<12} {'size':>11} {'|F| [N/m]':>9} {'tip %':>8} {'force %':>8} {'solve ms':>9}"
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        if "tip_contact" not in r:
+            continue
+        est = "~" if r.get("estimated") else " "
+        lines.append(f"{r['family']:<12} {_label(r):>11} {r['contact_force']:>9.4f} {est}{pct(r['tip_contact']):>7} "
+                     f"{est}{pct(r['force_contact']):>7} {1e3 * r['contact_solve_s']:>9.1f}")
+    rt, rf = c["tip"], c["force"]
+    lines.append(f"the actuator curls onto the cylinder at the top training pressure: reference force "
+                 f"{c['reference_force']:.5f} N/m; reference discretization (Richardson): tip "
+                 f"{100 * rt['error'] / c['length']:.4f} % of L (order {rt['order']:.2f}), force "
+                 f"{100 * rf['error'] / c['reference_force']:.4f} % (order {rf['order']:.2f}); a beam's force is "
+                 "scaled by its blocked stiffness scale")
     return "\n".join(lines)
 
 
@@ -1596,6 +1766,8 @@ def validate(path, scene, out, measure):
     pn = _pneunet()
     if measure == "blocked":
         return _validate_blocked(path, scene, out)
+    if measure.endswith("_contact"):
+        return _validate_cylinder(path, scene, out, measure)
     doc = json.loads((out / "fem.json").read_text())
     L = doc["length"]
     ref = doc["rungs"][-1]
@@ -1736,6 +1908,11 @@ def run_ladder(scene_name="pneunet2d", tolerance=None, measure="tip", out=None, 
         text += "\n\ncosts\n" + pneunet3d_costs(rows)
     if "blocked" in info:
         text += "\n\nblocked load (the tip face held vertically, the reaction)\n" + blocked_table(rows, info)
+    if "cylinder" in info:
+        text += "\n\ncontact load (the actuator curls onto a cylinder)\n" + pneunet_contact_table(rows, info)
+        for m in ("tip", "force"):
+            with atomic_path(out / f"ladder_contact_{m}.png") as tmp:
+                contact_figure(rows, m).savefig(tmp, dpi=110, format="png")
     for m in (m for m in scene_measures(scene) if not m.endswith("_contact")):
         fig = ladder_figure(rows, m, tol if m == measure else None, pick if m == measure else None,
                             floor=info["elastica"][m] if cant and m in ("tip", "shape") else None)
@@ -1745,7 +1922,7 @@ def run_ladder(scene_name="pneunet2d", tolerance=None, measure="tip", out=None, 
     result = {"scene": scene_name, "quick": quick, "rows": [{k: v for k, v in r.items() if not k.startswith("_")}
                                                            for r in rows],
               "richardson": info["richardson"], "budget": budget}
-    for k in ("contact", "blocked"):
+    for k in ("contact", "blocked", "cylinder"):
         if k in info:
             result[k] = info[k]
     if tol is not None:

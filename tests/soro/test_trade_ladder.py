@@ -514,14 +514,14 @@ def test_the_blocked_force_of_a_propped_cantilever_is_the_closed_form():
 
 @pytest.fixture(scope="module")
 def blocked2d(tmp_path_factory):
-    """The blocked measure's plumbing on a tiny 2D PneuNet (about 4 s of CPU: 2 chambers, P1 rungs only on
-    h = 2.4, 1.2, 0.6 mm, the finest P1 its reference; beams with 1-2 modes). Its numbers are not the scene's
-    (`soro trade pneunet2d --measure blocked` is)."""
+    """The plumbing of the blocked and the cylinder contact measures on a tiny 2D PneuNet (about 5 s of CPU: 2
+    chambers, P1 rungs only on h = 2.4, 1.2, 0.6 mm, the finest P1 its reference; beams with 1-2 modes). Its
+    numbers are not the scene's (`soro trade pneunet2d --measure blocked` is)."""
     from soro.ladder import Scene, ladder
 
     out = tmp_path_factory.mktemp("blocked2d")
     scene = Scene(chambers=2, size=2.4e-3, fem_families=("fem-p1",), modes=(1, 2), train_steps=6, test_steps=3,
-                  repeats=3, eigen=False, blocked=True)
+                  repeats=3, eigen=False, blocked=True, cylinder=True)
     rows, info = ladder(scene, out)
     return scene, out, rows, info
 
@@ -571,3 +571,21 @@ def test_the_cantilever_contact_measures_select_and_validate(cantilever, tmp_pat
         assert pick is not None and pick[measure] <= 0.01
         path = write_model(pick, scene, tmp_path / f"{measure}.json", measure, 0.01)
         assert validate(path, scene, out, measure) <= 0.01, (measure, pick["family"], pick["modes"])
+
+
+def test_the_pneunet_curls_onto_the_cylinder_on_every_rung(blocked2d, tmp_path):
+    """The contact load: every rung has its tip and force on the cylinder. The coarse P1 rungs lock and never
+    reach it (force error 100 %); the beams wrap it with their tip within 0.2 % of L of the reference's (0.11 %
+    measured: the obstacle sets the shape), their force (times the blocked stiffness scale) within 15-35 %
+    (measured). --measure tip_contact --tol 5 % picks a beam, validated on the cylinder at 0.65 p_max."""
+    from soro.ladder import pneunet_contact_table, select, validate, write_model
+
+    scene, out, rows, info = blocked2d
+    assert all(np.isfinite(r["tip_contact"]) and r["contact_solve_s"] > 0 for r in rows)
+    assert next(r for r in rows if r["family"] == "fem-p1")["force_contact"] == 1.0
+    beams = [r for r in rows if "_shapes" in r]
+    assert all(r["tip_contact"] < 2e-3 and 0.05 < r["force_contact"] < 0.5 for r in beams)
+    assert "~" in pneunet_contact_table(rows, info)
+    pick = select(rows, 0.05, "tip_contact")
+    path = write_model(pick, scene, tmp_path / "model.json", "tip_contact", 0.05)
+    assert "_shapes" in pick and validate(path, scene, out, "tip_contact") <= 0.05
