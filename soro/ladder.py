@@ -17,7 +17,12 @@ Measures (errors, fractions): ``tip`` (distance of the backbone's tip / L), ``sh
 backbone points / L), ``volume`` (error of the total cavity volume change from rest / the reference's change: the
 rest volume of a meshed cavity depends on the mesh; a beam's volume is its identified quadratic model of q,
 fitted on the reference's snapshots), ``freq`` (first natural frequency about the rest state,
-relative). Load sets: ``train`` (the training ramp: beams only), ``unseen`` (the levels of a separate ramp to
+relative), ``blocked`` (the 2D PneuNet with its tip face held vertically, a frictionless wall normal to the tip's
+path: the reaction at the top unseen load, relative to the reference's, :func:`blocked_fem`, :func:`blocked_beam`,
+:func:`blocked_rows`; a beam identified on free bending needs one stiffness scale, fitted on the training load's
+blocked force), and a contact load's ``tip_contact`` and ``force_contact`` (the cantilever pushed onto a floor; the
+2D PneuNet curling onto the cylinder of ``demos/dvs_pneunet.py``, :func:`pneunet_contact_rows`). ``--measure``
+selects any of them (:data:`MEASURES`, :func:`column`) that the scene measures (:func:`scene_measures`). Load sets: ``train`` (the training ramp: beams only), ``unseen`` (the levels of a separate ramp to
 ``test_level``; FEM rungs are compared at its final level, the largest deflection, since their adaptive steps
 land on other intermediate levels) and ``validation`` (one more load, ``validation_level``, used only to
 check a selected model). Costs: ``build_s`` (mesh + forms for FEM; for a beam the reference's training ramp
@@ -65,7 +70,9 @@ __all__ = ["Scene", "SCENES", "MEASURES", "FEM_FAMILIES", "BEAM_FAMILIES", "rich
            "write_model", "load_model", "validate", "run_ladder", "parse_tolerance", "beam_within",
            "strain_floor", "selected", "PneuNet3DScene", "pneunet3d_fem_ladder", "pneunet3d_ladder",
            "pneunet3d_budget", "pneunet3d_costs", "unreachable", "elastica_on_floor", "contact_table",
-           "contact_figure"]
+           "contact_figure", "column", "scene_measures", "measures_of", "blocked_fem", "blocked_beam",
+           "pneunet_blocked_fem", "blocked_rows", "blocked_table", "pneunet_contact_fem", "pneunet_contact_rows",
+           "pneunet_contact_table"]
 
 #: The error measures of the ladder (the selection takes one of them): on the unseen free loads ``tip``,
 #: ``shape``, ``volume``; ``blocked`` (the tip held: its reaction at the top unseen load, :func:`blocked_rows`);
