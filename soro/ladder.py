@@ -1303,9 +1303,10 @@ def blocked_rows(rows, scene, doc, bdoc, repeats=3):
     :math:`\alpha` = ``blocked_scale`` = :math:`R_{ref}(1)/R_{beam}(1)` (exact: the beams carry no weight), then
     compares :math:`\alpha R_{beam}` at the unseen level. What remains is the pressure dependence: measured on the
     full 2D PneuNet, every beam is 3.6-4.3 % off at 0.85 p_max and DVS 1 7.3 % at 0.65 p_max, because the FEM's
-    blocked force grows more slowly than linearly with pressure (R(0.65)/R(1) = 0.715) while the free-bending
-    actuation :math:`\tau(u)` grows faster: an actuation that depends on u alone cannot hold both states (the
-    chambers inflate differently when the actuator is held straight). Returns the reference's Richardson dict."""
+    blocked force grows more slowly than linearly with pressure (R(0.65)/R(1) = 0.715, R(0.85)/R(1) = 0.878)
+    while the beam's, from the free-bending actuation :math:`\tau(u)`, is nearly linear (DVS 1: 0.662 and 0.846):
+    an actuation that depends on u alone cannot hold both states (the chambers inflate differently when the
+    actuator is held straight). Returns the reference's Richardson dict."""
     keys = bdoc["order"]
     ref_force = bdoc["rungs"][keys[-1]]["force"]
     fam = [k for k in keys if k.rsplit("-h", 1)[0] == keys[-1].rsplit("-h", 1)[0]]
