@@ -19,7 +19,7 @@ turns their errors (:class:`sorofem.errors.SoroError`) into exit codes; library 
     rule (:func:`soro.trade.cheapest`: the smallest median time per solve among the rows within the
     tolerance on the test and contact tip errors) that also marks the table's selected row. Without files
     it runs the PneuNet of ``demos/dvs_pneunet.py`` (``--quick`` for a short run).
-``soro trade SCENE [--tol T] [--measure tip|shape|volume] [--quick] [--out DIR]``
+``soro trade SCENE [--tol T] [--measure tip|shape|volume|blocked|tip_contact|force_contact] [--quick] [--out DIR]``
     The fidelity ladder of a scene (:mod:`soro.ladder`; scenes: ``pneunet2d``, ``cantilever``, ``pneunet3d``):
     FEM rungs (P1, P2, P2 mixed on three meshes, h, h/2, h/4, or h, h/sqrt2, h/2 in 3D; the finest P2 mixed is the
     reference, its own error estimated by Richardson; the 3D scene adds the plane-strain section) and
@@ -139,7 +139,9 @@ def main(argv=None):
     p.add_argument("--quick", action="store_true", help="short PneuNet run (without files) or quick ladder")
     p.add_argument("--tol", default=None, help="ladder: select the cheapest model within this error, e.g. 1%% or "
                                                "0.01, and write it to OUT/model.json")
-    p.add_argument("--measure", default="tip", help="ladder: the error measure of --tol: tip, shape or volume")
+    p.add_argument("--measure", default="tip", help="ladder: the error measure of --tol: tip, shape, volume, blocked "
+                   "(the tip held: its reaction; the full 2D PneuNet), tip_contact or force_contact (the cantilever "
+                   "pushed onto a floor)")
     p = sub.add_parser("sweep", help="run a batch of FEM cases from a TOML configuration (resumable, MPI)")
     p.add_argument("config", help="sweep configuration (TOML; format in soro.sweep)")
     p.add_argument("--out", default=None, help="output directory (default: out/sweeps/<config name>)")

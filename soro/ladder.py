@@ -17,7 +17,12 @@ Measures (errors, fractions): ``tip`` (distance of the backbone's tip / L), ``sh
 backbone points / L), ``volume`` (error of the total cavity volume change from rest / the reference's change: the
 rest volume of a meshed cavity depends on the mesh; a beam's volume is its identified quadratic model of q,
 fitted on the reference's snapshots), ``freq`` (first natural frequency about the rest state,
-relative). Load sets: ``train`` (the training ramp: beams only), ``unseen`` (the levels of a separate ramp to
+relative), ``blocked`` (the 2D PneuNet with its tip face held vertically, a frictionless wall normal to the tip's
+path: the reaction at the top unseen load, relative to the reference's, :func:`blocked_fem`, :func:`blocked_beam`,
+:func:`blocked_rows`; a beam identified on free bending needs one stiffness scale, fitted on the training load's
+blocked force), and a contact load's ``tip_contact`` and ``force_contact`` (the cantilever pushed onto a floor; the
+2D PneuNet curling onto the cylinder of ``demos/dvs_pneunet.py``, :func:`pneunet_contact_rows`). ``--measure``
+selects any of them (:data:`MEASURES`, :func:`column`) that the scene measures (:func:`scene_measures`). Load sets: ``train`` (the training ramp: beams only), ``unseen`` (the levels of a separate ramp to
 ``test_level``; FEM rungs are compared at its final level, the largest deflection, since their adaptive steps
 land on other intermediate levels) and ``validation`` (one more load, ``validation_level``, used only to
 check a selected model). Costs: ``build_s`` (mesh + forms for FEM; for a beam the reference's training ramp
@@ -65,10 +70,43 @@ __all__ = ["Scene", "SCENES", "MEASURES", "FEM_FAMILIES", "BEAM_FAMILIES", "rich
            "write_model", "load_model", "validate", "run_ladder", "parse_tolerance", "beam_within",
            "strain_floor", "selected", "PneuNet3DScene", "pneunet3d_fem_ladder", "pneunet3d_ladder",
            "pneunet3d_budget", "pneunet3d_costs", "unreachable", "elastica_on_floor", "contact_table",
-           "contact_figure"]
+           "contact_figure", "column", "scene_measures", "measures_of", "blocked_fem", "blocked_beam",
+           "pneunet_blocked_fem", "blocked_rows", "blocked_table", "pneunet_contact_fem", "pneunet_contact_rows",
+           "pneunet_contact_table"]
 
-#: The error measures of the ladder (the selection takes one of them).
-MEASURES = ("tip", "shape", "volume")
+#: The error measures of the ladder (the selection takes one of them): on the unseen free loads ``tip``,
+#: ``shape``, ``volume``; ``blocked`` (the tip held: its reaction at the top unseen load, :func:`blocked_rows`);
+#: the contact load's ``tip_contact`` and ``force_contact`` (:func:`contact_table`). A scene measures some of
+#: them (:func:`measures_of`).
+MEASURES = ("tip", "shape", "volume", "blocked", "tip_contact", "force_contact")
+#: the letter of each measure in the table's Pareto column
+_TAGS = {"tip": "t", "shape": "s", "volume": "v", "blocked": "b", "tip_contact": "c", "force_contact": "f"}
+
+
+def column(measure):
+    """The rows' key of ``measure``'s error: ``<measure>_unseen``, or the contact load's own column
+    (``tip_contact``, ``force_contact``: one load). A ParameterError names the measures for an unknown one."""
+    if measure not in MEASURES:
+        raise ParameterError(f"unknown measure {measure!r}: use one of {', '.join(MEASURES)}")
+    return measure if measure.endswith("_contact") else f"{measure}_unseen"
+
+
+def scene_measures(scene):
+    """The measures the ladder of ``scene`` takes: the 2D PneuNet tip, shape, volume and (``scene.blocked``)
+    blocked; the cantilever tip, shape and (``scene.contact``) tip_contact, force_contact; the 3D PneuNet tip,
+    shape, volume."""
+    if isinstance(scene, CantileverScene):
+        return ("tip", "shape") + (("tip_contact", "force_contact") if scene.contact else ())
+    if isinstance(scene, PneuNet3DScene):
+        return ("tip", "shape", "volume")
+    return (("tip", "shape", "volume") + (("blocked",) if scene.blocked else ())
+            + (("tip_contact", "force_contact") if scene.cylinder else ()))
+
+
+def measures_of(rows):
+    """The measures some row of ``rows`` has a finite value of (what this scene's ladder measured)."""
+    return tuple(m for m in MEASURES if any(np.isfinite(r.get(column(m)) if r.get(column(m)) is not None
+                                                        else np.nan) for r in rows))
 #: FEM rungs: name -> (degree, mixed); the last one is the reference family.
 FEM_FAMILIES = {"fem-p1": (1, False), "fem-p2": (2, False), "fem-p2mixed": (2, True)}
 BEAM_FAMILIES = ("dvs", "chebyshev", "pcc")
@@ -100,6 +138,8 @@ class _Levels:
         d = asdict(self)
         for k in ("modes", "repeats"):
             d.pop(k)
+        for k in ("blocked", "cylinder"):          # cached apart (blocked.json, contact.json)
+            d.pop(k, None)
         d["fem_families"] = list(d["fem_families"])
         return d
 
@@ -117,6 +157,10 @@ class Scene(_Levels):
     p_max: float = 5e3
     train_steps: int = 10
     test_steps: int = 5
+    #: the blocked load (:func:`pneunet_blocked_fem`, :func:`blocked_rows`): the tip face held vertically
+    blocked: bool = False
+    #: the contact load (:func:`pneunet_contact_fem`, :func:`pneunet_contact_rows`): curling onto a cylinder
+    cylinder: bool = False
 
 
 #: A FEM solve longer than this [s] is timed once (``fem_repeats`` apply to the faster ones): a minute-long
@@ -125,7 +169,8 @@ SLOW_FEM_S = 20.0
 
 #: The scenes ``soro trade SCENE`` knows, full and quick (``--quick``; what the tests run).
 SCENES = {
-    "pneunet2d": {"full": Scene(chambers=7, size=2.0e-3, p_max=6e3, train_steps=16, repeats=15, fem_repeats=3),
+    "pneunet2d": {"full": Scene(chambers=7, size=2.0e-3, p_max=6e3, train_steps=16, repeats=15, fem_repeats=3,
+                                blocked=True, cylinder=True),
                   "quick": Scene(chambers=4, size=2.4e-3, p_max=5e3, train_steps=10, modes=(1, 2, 3, 4),
                                  fem_families=("fem-p1", "fem-p2mixed"), repeats=9, eigen=False)},
 }
@@ -508,7 +553,12 @@ def ladder(scene, out, progress=None):
     doc = fem_ladder(scene, out, progress)
     fem_rows, rich = _fem_rows(doc)
     rows = fem_rows + beam_ladder(scene, doc, out)
-    return rows, {"richardson": rich, "length": doc["length"], "fem": doc}
+    info = {"richardson": rich, "length": doc["length"], "fem": doc}
+    if scene.blocked:
+        info["blocked"] = blocked_rows(rows, scene, doc, pneunet_blocked_fem(scene, out, doc, progress))
+    if scene.cylinder:
+        info["cylinder"] = pneunet_contact_rows(rows, scene, doc, pneunet_contact_fem(scene, out, doc, progress))
+    return rows, info
 
 
 # ------------------------------------------------------------------------------------------------ cantilever
@@ -672,13 +722,18 @@ def _cantilever_fem(scene, degree, mixed, size, contact=False):
     return fem
 
 
-def _cantilever_contact_fem(scene, degree, mixed, size, sigma):
-    """The FEM rung on the floor at ``contact_level``: (backbone (len(sigma), 3) [m], the floor's vertical
-    reaction [N per m of depth], CPU time of the solve [s])."""
+def _cantilever_contact_fem(scene, degree, mixed, size, sigma, level=None):
+    """The FEM rung on the floor at ``level`` (default ``contact_level``): (backbone (len(sigma), 3) [m], the
+    floor's vertical reaction [N per m of depth], CPU time of the solve [s])."""
     fem = _cantilever_fem(scene, degree, mixed, size, contact=True)
+    level = scene.contact_level if level is None else level
+    return _on_floor(scene, fem, sigma, level)
+
+
+def _on_floor(scene, fem, sigma, level):
+    """Solve ``fem`` (with the floor) to ``level``: (backbone [m], the floor's vertical reaction [N/m], CPU s)."""
     c0 = time.process_time()
-    traj = fem.solve(load_level=scene.contact_level, steps=scene.test_steps,
-                     max_step=scene.contact_level / scene.test_steps, progress=False)
+    traj = fem.solve(load_level=level, steps=scene.test_steps, max_step=level / scene.test_steps, progress=False)
     cpu = time.process_time() - c0
     return _fem_backbone(scene, fem, sigma), float(traj.reactions["contact_0"][-1][1]), cpu
 
@@ -777,6 +832,9 @@ def cantilever_fem_ladder(scene, out, progress=None):
         force, Pe = elastica_on_floor(scene.length, scene.EI(), scene.contact_level * w, scene.contact_level * Pt,
                                       scene.floor_gap, sigma)
         doc["elastica"]["contact"] = {"force": force, "backbone": Pe.tolist()}
+        lv = scene.validation_level * scene.contact_level       # the contact measures' validation load
+        Pv, Fv, _ = _cantilever_contact_fem(scene, degree, mixed, ref["size"], sigma, lv)
+        doc["reference"]["validation_contact"] = {"level": lv, "backbone": Pv.tolist(), "force": Fv}
     with atomic_path(out / "fem.json") as tmp:
         Path(tmp).write_text(json.dumps(doc))
     return doc
@@ -1003,6 +1061,8 @@ def _validate_cantilever(path, scene, out, measure):
     if measure == "volume":
         raise ParameterError("the cantilever has no cavity: validate on 'tip' or 'shape'")
     doc = json.loads((Path(out) / "fem.json").read_text())
+    if measure.endswith("_contact"):
+        return _validate_cantilever_contact(path, scene, doc, measure)
     Pref = np.asarray(doc["reference"]["validation_backbone"])
     sigma = _midline(scene, len(Pref))
     kind, model, extra = load_model(path)
@@ -1019,6 +1079,33 @@ def _validate_cantilever(path, scene, out, measure):
         Pm = _fem_backbone(scene, model, sigma)
     tip, shape = _errors(Pm, Pref, scene.length)
     return tip if measure == "tip" else shape
+
+
+def _validate_cantilever_contact(path, scene, doc, measure):
+    """The contact measures' :func:`validate`: the model file read back, pushed onto the floor at
+    ``validation_level`` x ``contact_level`` (a load not used to choose it), against the reference there."""
+    ref = doc["reference"].get("validation_contact")
+    if ref is None:
+        raise ParameterError("this ladder's fem.json has no contact validation load: rerun the scene with its contact")
+    Pref = np.asarray(ref["backbone"])
+    sigma = _midline(scene, len(Pref))
+    kind, model, extra = load_model(path)
+    lv = ref["level"]
+    if kind == "beam":
+        w, P = scene.loads()
+        if scene.gravity:
+            model.add_gravity((0.0, -9.80665 * lv, 0.0))
+        model.add_point_load(force=(0.0, -lv * P * _CANTILEVER_DEPTH, 0.0))
+        model.contact_radius = scene.height / 2
+        model.add_contact(scene.floor(3))
+        q = model.statics(steps=2 * scene.test_steps)
+        Pm, force = _positions_at(model, q, sigma), float(model.contact_forces(q)[:, 1].sum() / _CANTILEVER_DEPTH)
+    else:
+        model.add_contact(scene.floor(2))
+        Pm, force, _ = _on_floor(scene, model, sigma, lv)
+    if measure == "tip_contact":
+        return float(np.linalg.norm(Pm[-1] - Pref[-1]) / scene.length)
+    return float(abs(force - ref["force"]) / abs(ref["force"]))
 
 
 def cantilever_budget(rows, info):
@@ -1117,18 +1204,329 @@ def contact_figure(rows, measure="tip", floor=None):
     sub = [dict(r, tip_unseen=r[key], solve_time_s=r["contact_solve_s"]) for r in rows if key in r]
     fig = ladder_figure(sub, "tip", floor=floor)
     ax = fig.axes[0]
-    ax.set_ylabel(f"{measure} error on the floor [%] ({'of L' if measure == 'tip' else 'of the reaction'})")
-    ax.set_xlabel("CPU time of the static solve on the floor [s]")
-    ax.set_title(f"contact load: {measure} (reference: finest P2 mixed on the floor, its own error by Richardson)",
+    ax.set_ylabel(f"{measure} error in contact [%] ({'of L' if measure == 'tip' else 'of the reaction'})")
+    ax.set_xlabel("CPU time of the static solve with the obstacle [s]")
+    ax.set_title(f"contact load: {measure} (reference: finest P2 mixed with the obstacle, its own error by Richardson)",
                  fontsize=9)
     return fig
+
+
+# ------------------------------------------------------------------------------------------------ blocked force
+def blocked_fem(fem, region, level, steps, axis=1):
+    r"""The blocked force of a FEM model: ``region`` (the tip face) held along ``axis`` (0 x, 1 y; a frictionless
+    wall normal to the tip's path) while the loads ramp to ``level`` in ``steps`` steps. The reaction is the
+    assembled residual at the held dofs (sorofem's support reactions: the force the wall exerts on the body).
+    Returns (reaction [N; N per m of depth in plane strain] along ``axis``, CPU time of the solve [s], the
+    trajectory)."""
+    fem.add_support(region, components=[axis])
+    c0 = time.process_time()
+    traj = fem.solve(load_level=level, steps=steps, max_step=level / steps, progress=False)
+    cpu = time.process_time() - c0
+    return float(traj.reactions[region][-1][axis]), cpu, traj
+
+
+def blocked_beam(shp, u=None, axis=1, steps=1):
+    r"""The blocked force of a beam: its tip held along world ``axis`` at its rest position
+    (:class:`soroshapes.constraints.Pin` with one axis) under inputs ``u``; the reaction is the constraint's
+    Lagrange multiplier. Returns (reaction [N] along ``axis``, CPU time [s], the
+    :class:`soroshapes.constraints.Equilibrium`)."""
+    from soroshapes.constraints import Pin
+
+    c0 = time.process_time()
+    eq = shp.statics(u=u, steps=steps, constraints=[Pin(axes=("x", "y", "z")[axis])])
+    cpu = time.process_time() - c0
+    return float(eq.reactions[0][3 + axis]), cpu, eq
+
+
+def _pneunet_blocked(scene, pn, degree, mixed, size, level):
+    """The 2D PneuNet's FEM model of ``degree``/``mixed`` on ``size`` with its end face (``right``: the base's end,
+    below the chambers) held vertically, ramped to ``level`` x p_max: (reaction [N per m of depth], CPU s)."""
+    fem, _ = pn.build(2, scene.chambers, size, scene.p_max, degree=degree, mixed=mixed)
+    R, cpu, _ = blocked_fem(fem, "right", level, scene.test_steps)
+    return R, cpu
+
+
+def pneunet_blocked_fem(scene, out, doc, progress=None):
+    """The blocked load of the 2D PneuNet's FEM rungs (``doc`` from :func:`fem_ladder`): the tip face held
+    vertically (:func:`blocked_fem`) at the top unseen load (``test_level``) on every rung, and on the reference
+    also at the top training load (1: what a beam's stiffness scale is fitted on, see :func:`blocked_rows`) and
+    at the validation load. Cached, rung by rung, in ``out/blocked.json`` (with the scene's settings; an
+    interrupted run resumes). Returns that document: ``rungs`` (``force`` [N/m], ``solve_s`` CPU [s]) in the
+    order of ``doc["rungs"]`` and ``reference`` (``train``, ``validation`` forces [N/m])."""
+    from sorofem.io import atomic_path
+
+    out = Path(out)
+    path = out / "blocked.json"
+    bdoc = json.loads(path.read_text()) if path.is_file() else {}
+    if bdoc.get("settings") != scene.fem_settings():
+        bdoc = {"settings": scene.fem_settings(), "rungs": {}, "reference": {}}
+    pn = _pneunet()
+    say = progress or (lambda msg: None)
+
+    def save():
+        with atomic_path(path) as tmp:
+            Path(tmp).write_text(json.dumps(bdoc))
+    for r in doc["rungs"]:
+        key = f"{r['family']}-h{r['level']}"
+        if key not in bdoc["rungs"]:
+            R, cpu = _pneunet_blocked(scene, pn, r["degree"], r["mixed"], r["size"], scene.test_level)
+            bdoc["rungs"][key] = {"force": R, "solve_s": cpu}
+            say(f"blocked {r['family']} h={1e3 * r['size']:.2f} mm: {R:.4f} N/m, {cpu:.2f} s CPU")
+            save()
+    ref = doc["rungs"][-1]
+    for name, level in (("train", 1.0), ("validation", scene.validation_level)):
+        if name not in bdoc["reference"]:
+            bdoc["reference"][name] = _pneunet_blocked(scene, pn, ref["degree"], ref["mixed"], ref["size"], level)[0]
+            save()
+    bdoc["order"] = [f"{r['family']}-h{r['level']}" for r in doc["rungs"]]
+    return bdoc
+
+
+def _beam_blocked(row, scene, level):
+    """A PneuNet beam row's blocked force at ``level`` x p_max [N per m of depth: the beam's section is
+    ``WIDTH`` deep] and its CPU time."""
+    R, cpu, _ = blocked_beam(row["_shapes"], u=[level * scene.p_max])
+    return R / _pneunet().WIDTH, cpu
+
+
+def blocked_rows(rows, scene, doc, bdoc, repeats=3):
+    r"""Add the blocked load's columns to the PneuNet's ladder ``rows`` (FEM rows first, in the order of
+    ``doc["rungs"]``, then beam rows): ``blocked_force`` [N per m of depth] at the top unseen load,
+    ``blocked_solve_s`` (CPU time; a beam's: median of ``repeats``), ``blocked_unseen`` (error relative to the
+    reference's force; the reference's own: its Richardson estimate on its family's three meshes).
+
+    A beam identified on free bending (:func:`soroshapes.dvs.identify`) fits only its actuation
+    :math:`\tau(u) = K q(u)` to the FEM's free shapes, with the stiffness K of an assumed section: scaling K
+    and :math:`\tau` by the same :math:`\alpha` leaves every free shape unchanged and scales the blocked force
+    by :math:`\alpha`. So a beam's raw blocked force (``blocked_raw``) measures its assumed stiffness, not the
+    model. Its ``blocked_unseen`` takes that one scalar from the training ramp's blocked load (level 1):
+    :math:`\alpha` = ``blocked_scale`` = :math:`R_{ref}(1)/R_{beam}(1)` (exact: the beams carry no weight), then
+    compares :math:`\alpha R_{beam}` at the unseen level. What remains is the pressure dependence: measured on the
+    full 2D PneuNet, every beam is 3.6-4.3 % off at 0.85 p_max and DVS 1 7.3 % at 0.65 p_max, because the FEM's
+    blocked force grows more slowly than linearly with pressure (R(0.65)/R(1) = 0.715, R(0.85)/R(1) = 0.878)
+    while the beam's, from the free-bending actuation :math:`\tau(u)`, is nearly linear (DVS 1: 0.662 and 0.846):
+    an actuation that depends on u alone cannot hold both states (the chambers inflate differently when the
+    actuator is held straight). Returns the reference's Richardson dict."""
+    keys = bdoc["order"]
+    ref_force = bdoc["rungs"][keys[-1]]["force"]
+    fam = [k for k in keys if k.rsplit("-h", 1)[0] == keys[-1].rsplit("-h", 1)[0]]
+    rich = richardson([bdoc["rungs"][k]["force"] for k in fam], doc.get("ratio", 2.0))
+    fem_rows = [r for r in rows if "_shapes" not in r]
+    for row, k in zip(fem_rows, keys):
+        b = bdoc["rungs"][k]
+        row.update(blocked_force=b["force"], blocked_solve_s=b["solve_s"],
+                   blocked_unseen=rich["error"] / abs(ref_force) if row.get("estimated")
+                   else abs(b["force"] - ref_force) / abs(ref_force))
+    R1 = bdoc["reference"]["train"]
+    for row in rows:
+        if "_shapes" not in row:
+            continue
+        Rt, _ = _beam_blocked(row, scene, 1.0)
+        cpu = []
+        for _ in range(max(1, repeats)):
+            R, c = _beam_blocked(row, scene, scene.test_level)
+            cpu.append(c)
+        alpha = R1 / Rt
+        row.update(blocked_force=alpha * R, blocked_solve_s=float(np.median(cpu)), blocked_scale=alpha,
+                   blocked_raw=abs(R - ref_force) / abs(ref_force),
+                   blocked_unseen=abs(alpha * R - ref_force) / abs(ref_force))
+    return dict(rich, reference_force=ref_force, train_force=R1, validation_force=bdoc["reference"]["validation"])
+
+
+def blocked_table(rows, info):
+    """The blocked load as text: per rung the force [N per m of depth], its error (~: the reference's Richardson
+    estimate), a beam's raw error (its assumed section's stiffness) and fitted stiffness scale, the CPU time of
+    the blocked solve."""
+    b = info["blocked"]
+
+    def pct(v):
+        return f"{100 * v:.3f}" if v is not None and np.isfinite(v) else "-"
+    head = (f"{'family':<12} {'size':>11} {'R [N/m]':>9} {'error %':>8} {'raw %':>9} {'scale':>8} {'solve ms':>9}")
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        if "blocked_unseen" not in r:
+            continue
+        est = "~" if r.get("estimated") else " "
+        lines.append(f"{r['family']:<12} {_label(r):>11} {r['blocked_force']:>9.4f} {est}{pct(r['blocked_unseen']):>7} "
+                     f"{pct(r.get('blocked_raw')):>9} {_fmt(r, 'blocked_scale', '.4g'):>8} "
+                     f"{1e3 * r['blocked_solve_s']:>9.1f}")
+    lines.append(f"tip face held vertically at the top unseen load: reference force {b['reference_force']:.5f} N/m "
+                 f"(training load {b['train_force']:.5f}, validation {b['validation_force']:.5f}); reference "
+                 f"discretization (Richardson): {100 * b['error'] / abs(b['reference_force']):.4f} % (order "
+                 f"{b['order']:.2f}); beams: error after one stiffness scale fitted on the training load's blocked "
+                 "force (raw: the assumed section, which free-bending identification leaves undetermined)")
+    return "\n".join(lines)
+
+
+# ------------------------------------------------------------------------------------------------ PneuNet contact
+def _pneunet_cylinder(length):
+    """(radius [m], centre (x, y) [m]) of the cylinder the 2D PneuNet curls onto (``demos/dvs_pneunet.py``'s)."""
+    return _demo_module("dvs_pneunet").cylinder(length)
+
+
+def _pneunet_on_cylinder(scene, pn, degree, mixed, size, level):
+    """The 2D PneuNet's FEM model of ``degree``/``mixed`` on ``size`` ramped to ``level`` x p_max with the rigid
+    cylinder as a contact: (tip [m] (3,), the cylinder's force on the body [N per m of depth] (2,), CPU s)."""
+    fem, length = pn.build(2, scene.chambers, size, scene.p_max, degree=degree, mixed=mixed)
+    return _fem_on_cylinder(scene, pn, fem, length, level)
+
+
+def _fem_on_cylinder(scene, pn, fem, length, level):
+    from sorofem import sdf
+
+    r, c = _pneunet_cylinder(length)
+    fem.add_contact(sdf.Circle(r, center=c))
+    c0 = time.process_time()
+    traj = fem.solve(load_level=level, steps=scene.train_steps, max_step=level / scene.train_steps, progress=False)
+    cpu = time.process_time() - c0
+    X = np.array([[length * (1 - 1e-12), pn.LAYER / 2]])
+    tip = X[0] + fem.evaluate(X)[0, :2]
+    return [float(tip[0]), float(tip[1]), 0.0], [float(v) for v in traj.reactions["contact_0"][-1]], cpu
+
+
+def pneunet_contact_fem(scene, out, doc, progress=None):
+    """The contact load of the 2D PneuNet's FEM rungs (``doc`` from :func:`fem_ladder`): the actuator curls onto
+    the rigid cylinder of ``demos/dvs_pneunet.py`` (radius 0.26 L, 1 mm below the bottom face at 0.55 L;
+    frictionless penalty contact, sorofem's default stiffness) at the top training pressure on every rung, and on
+    the reference also at the validation load. Cached rung by rung in ``out/contact.json`` (as
+    :func:`pneunet_blocked_fem`). Returns it: ``rungs`` (``tip`` [m], ``force`` [N/m] (2,), ``solve_s`` CPU) and
+    ``reference`` (``validation``: tip and force)."""
+    from sorofem.io import atomic_path
+
+    out = Path(out)
+    path = out / "contact.json"
+    cdoc = json.loads(path.read_text()) if path.is_file() else {}
+    if cdoc.get("settings") != scene.fem_settings():
+        cdoc = {"settings": scene.fem_settings(), "rungs": {}, "reference": {}}
+    pn = _pneunet()
+    say = progress or (lambda msg: None)
+
+    def save():
+        with atomic_path(path) as tmp:
+            Path(tmp).write_text(json.dumps(cdoc))
+    for r in doc["rungs"]:
+        key = f"{r['family']}-h{r['level']}"
+        if key not in cdoc["rungs"]:
+            tip, F, cpu = _pneunet_on_cylinder(scene, pn, r["degree"], r["mixed"], r["size"], 1.0)
+            cdoc["rungs"][key] = {"tip": tip, "force": F, "solve_s": cpu}
+            say(f"contact {r['family']} h={1e3 * r['size']:.2f} mm: |F| {np.hypot(*F):.4f} N/m, {cpu:.2f} s CPU")
+            save()
+    if "validation" not in cdoc["reference"]:
+        ref = doc["rungs"][-1]
+        tip, F, _ = _pneunet_on_cylinder(scene, pn, ref["degree"], ref["mixed"], ref["size"], scene.validation_level)
+        cdoc["reference"]["validation"] = {"tip": tip, "force": F}
+        save()
+    cdoc["order"] = [f"{r['family']}-h{r['level']}" for r in doc["rungs"]]
+    return cdoc
+
+
+def _beam_on_cylinder(shp, scene, length, level, repeats=1):
+    """A copy of the PneuNet beam ``shp`` with the cylinder (its tube's radius LAYER/2: the backbone's height
+    above the bottom face) at ``level`` x p_max: (tip [m], the cylinder's force [N] (3,), median CPU s)."""
+    import copy
+
+    from sorofem import sdf
+
+    pn = _pneunet()
+    r, c = _pneunet_cylinder(length)
+    beam = copy.deepcopy(shp)
+    beam.contact_radius = pn.LAYER / 2
+    beam.add_contact(sdf.Cylinder(r, 1.0, center=(c[0], c[1], 0.0)))
+    cpu = []
+    for _ in range(max(1, repeats)):
+        c0 = time.process_time()
+        q = beam.statics(u=[level * scene.p_max], steps=scene.train_steps)
+        cpu.append(time.process_time() - c0)
+    return beam.positions(q)[-1], beam.contact_forces(q).sum(axis=0), float(np.median(cpu))
+
+
+def pneunet_contact_rows(rows, scene, doc, cdoc, repeats=3):
+    r"""Add the contact load's columns to the 2D PneuNet's ladder ``rows`` (FEM rows in the order of
+    ``doc["rungs"]``, then beams): ``tip_contact`` (tip distance / L from the reference's), ``force_contact``
+    (distance of the cylinder's force vector from the reference's / its magnitude), ``contact_force`` [N per m
+    of depth] (magnitude), ``contact_solve_s`` (CPU; a beam's median of ``repeats``); the reference's own row:
+    Richardson on its family's three meshes. A beam's force [N, its section ``WIDTH`` deep] is scaled by its
+    blocked stiffness scale (``blocked_scale``, :func:`blocked_rows`: identification on free bending leaves the
+    stiffness undetermined; with a rigid obstacle the contact force scales with it) when the row has one.
+    Returns the reference's Richardson estimates and forces."""
+    keys = cdoc["order"]
+    L = doc["length"]
+    ref = cdoc["rungs"][keys[-1]]
+    Tr, Fr = np.asarray(ref["tip"]), np.asarray(ref["force"])
+    fam = [k for k in keys if k.rsplit("-h", 1)[0] == keys[-1].rsplit("-h", 1)[0]]
+    rich = {"tip": richardson([cdoc["rungs"][k]["tip"] for k in fam], doc.get("ratio", 2.0)),
+            "force": richardson([cdoc["rungs"][k]["force"] for k in fam], doc.get("ratio", 2.0))}
+    nF = float(np.linalg.norm(Fr))
+    for row, k in zip([r for r in rows if "_shapes" not in r], keys):
+        c = cdoc["rungs"][k]
+        if row.get("estimated"):
+            tip, force = rich["tip"]["error"] / L, rich["force"]["error"] / nF
+        else:
+            tip = float(np.linalg.norm(np.asarray(c["tip"]) - Tr) / L)
+            force = float(np.linalg.norm(np.asarray(c["force"]) - Fr) / nF)
+        row.update(tip_contact=tip, force_contact=force, contact_force=float(np.linalg.norm(c["force"])),
+                   contact_solve_s=c["solve_s"])
+    width = _pneunet().WIDTH
+    for row in rows:
+        if "_shapes" not in row:
+            continue
+        tip, F, cpu = _beam_on_cylinder(row["_shapes"], scene, L, 1.0, repeats)
+        F = row.get("blocked_scale", 1.0) * F[:2] / width
+        row.update(tip_contact=float(np.linalg.norm(tip - Tr) / L), force_contact=float(np.linalg.norm(F - Fr) / nF),
+                   contact_force=float(np.linalg.norm(F)), contact_solve_s=cpu)
+    return {"tip": rich["tip"], "force": rich["force"], "reference_force": nF, "length": L,
+            "validation": cdoc["reference"]["validation"]}
+
+
+def _validate_cylinder(path, scene, out, measure):
+    """The contact measures' :func:`validate` on the 2D PneuNet: the model file read back, curled onto the
+    cylinder at the validation load (``validation_level`` x p_max, not used to choose it), against the
+    reference's tip (fraction of L) or force (relative); a beam's force times its file's blocked stiffness
+    scale."""
+    cdoc = json.loads((Path(out) / "contact.json").read_text())
+    L = json.loads((Path(out) / "fem.json").read_text())["length"]
+    ref = cdoc["reference"]["validation"]
+    kind, model, extra = load_model(path)
+    lv = scene.validation_level
+    if kind == "beam":
+        tip, F, _ = _beam_on_cylinder(model, scene, L, lv)
+        F = extra.meta.get("blocked_scale", 1.0) * F[:2] / _pneunet().WIDTH
+    else:
+        tip, F, _ = _fem_on_cylinder(scene, _pneunet(), model, L, lv)
+    if measure == "tip_contact":
+        return float(np.linalg.norm(np.asarray(tip) - ref["tip"]) / L)
+    return float(np.linalg.norm(np.asarray(F) - ref["force"]) / np.linalg.norm(ref["force"]))
+
+
+def pneunet_contact_table(rows, info):
+    """The 2D PneuNet's contact load as text: per rung the cylinder's force [N per m of depth], the tip and force
+    errors (~: the reference's Richardson estimates), the CPU time of the solve on the cylinder."""
+    c = info["cylinder"]
+
+    def pct(v):
+        return f"{100 * v:.3f}" if v is not None and np.isfinite(v) else "-"
+    head = f"{'family':<12} {'size':>11} {'|F| [N/m]':>9} {'tip %':>8} {'force %':>8} {'solve ms':>9}"
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        if "tip_contact" not in r:
+            continue
+        est = "~" if r.get("estimated") else " "
+        lines.append(f"{r['family']:<12} {_label(r):>11} {r['contact_force']:>9.4f} {est}{pct(r['tip_contact']):>7} "
+                     f"{est}{pct(r['force_contact']):>7} {1e3 * r['contact_solve_s']:>9.1f}")
+    rt, rf = c["tip"], c["force"]
+    lines.append(f"the actuator curls onto the cylinder at the top training pressure: reference force "
+                 f"{c['reference_force']:.5f} N/m; reference discretization (Richardson): tip "
+                 f"{100 * rt['error'] / c['length']:.4f} % of L (order {rt['order']:.2f}), force "
+                 f"{100 * rf['error'] / c['reference_force']:.4f} % (order {rf['order']:.2f}); a beam's force is "
+                 "scaled by its blocked stiffness scale")
+    return "\n".join(lines)
 
 
 # ------------------------------------------------------------------------------------------------ Pareto
 def pareto_front(rows, measure):
     """Indices of the rows on the Pareto front of (median solve time, unseen ``measure`` error): no other row
     is at most as slow and at most as wrong, and better in one of them."""
-    key = f"{measure}_unseen"
+    key = column(measure)
     pts = [(r["solve_time_s"], r.get(key, np.nan)) for r in rows]
     front = []
     for i, (t, e) in enumerate(pts):
@@ -1148,7 +1546,7 @@ def _label(r):
 def ladder_table(rows, tolerance=None, measure="tip"):
     """The ladder as text: errors in %, build in s, solve median and IQR in ms; ``P:`` the measures whose
     Pareto front holds the row (t tip, s shape, v volume); with ``tolerance`` the selected row is marked."""
-    fronts = {m: set(pareto_front(rows, m)) for m in MEASURES}
+    fronts = {m: set(pareto_front(rows, m)) for m in measures_of(rows)}
     pick = select(rows, tolerance, measure) if tolerance is not None else None
 
     def pct(v):
@@ -1157,17 +1555,20 @@ def ladder_table(rows, tolerance=None, measure="tip"):
     def iqr(v):
         return f"{1e3 * v:.3f}" if np.isfinite(v) else "1 run"
     head = (f"{'family':<12} {'size':>11} {'tip train':>9} {'tip unseen':>10} {'shape unseen':>12} "
-            f"{'vol unseen':>10} {'freq':>8} {'build s':>8} {'solve ms':>10} {'IQR ms':>8} {'Pareto':>6}")
+            f"{'vol unseen':>10} {'freq':>8} {'blocked':>8} {'build s':>8} {'solve ms':>10} {'IQR ms':>8} "
+            f"{'Pareto':>6}")
     lines = [head, "-" * len(head)]
     for i, r in enumerate(rows):
-        tags = "".join(c for c, m in zip("tsv", MEASURES) if i in fronts[m]) or "-"
+        tags = "".join(_TAGS[m] for m in fronts if i in fronts[m]) or "-"
         est = "~" if r.get("estimated") else " "
         lines.append(f"{r['family']:<12} {_label(r):>11} {pct(r.get('tip_train')):>9} "
                      f"{est}{pct(r['tip_unseen']):>9} {pct(r['shape_unseen']):>12} {pct(r.get('volume_unseen')):>10} "
-                     f"{pct(r.get('freq')):>8} {r['build_s']:>8.2f} {1e3 * r['solve_time_s']:>10.3f} "
+                     f"{pct(r.get('freq')):>8} {pct(r.get('blocked_unseen')):>8} {r['build_s']:>8.2f} {1e3 * r['solve_time_s']:>10.3f} "
                      f"{iqr(r['solve_iqr_s']):>8} {tags:>6}" + ("  <- selected" if r is pick else ""))
     lines.append("errors in % (tip, shape: of the length; volume: of the reference's volume change; freq: "
-                 "relative); ~ the reference's Richardson estimate; solve: median of repeats, IQR its spread (a FEM "
+                 "relative; blocked: of the reference's blocked force, a beam's after its stiffness scale fitted on "
+                 "the training load's); Pareto: t tip, s shape, v volume, b blocked, c/f contact tip/force; "
+                 "~ the reference's Richardson estimate; solve: median of repeats, IQR its spread (a FEM "
                  "solve longer than SLOW_FEM_S is timed once); freq of a beam: its assumed section, not identified")
     return "\n".join(lines)
 
@@ -1183,7 +1584,7 @@ def ladder_figure(rows, measure, tolerance=None, pick=None, floor=None):
     ``Figure``."""
     from matplotlib.figure import Figure
 
-    key = f"{measure}_unseen"
+    key = column(measure)
     fig = Figure(figsize=(7, 4.5))
     ax = fig.add_subplot()
     for fam, style in _STYLE.items():
@@ -1278,7 +1679,7 @@ def parse_tolerance(text):
 
 def _reference_error(rows, measure):
     """The reference's own estimated error (its row's Richardson estimate; 0 without an estimated row)."""
-    return next((r[f"{measure}_unseen"] for r in rows if r.get("estimated")), 0.0)
+    return next((r[column(measure)] for r in rows if r.get("estimated") and column(measure) in r), 0.0)
 
 
 def select(rows, tolerance, measure="tip"):
@@ -1287,15 +1688,14 @@ def select(rows, tolerance, measure="tip"):
     errors of the other rows are measured against the reference: below its error they cannot be checked)."""
     from .trade import cheapest
 
-    if measure not in MEASURES:
-        raise ParameterError(f"unknown measure {measure!r}: use one of {', '.join(MEASURES)}")
-    ok = [r for r in rows if np.isfinite(r.get(f"{measure}_unseen", np.nan))]
-    pick = cheapest(ok, tolerance, keys=(f"{measure}_unseen",))
+    key = column(measure)
+    ok = [r for r in rows if np.isfinite(r.get(key, np.nan))]
+    pick = cheapest(ok, tolerance, keys=(key,))
     return None if pick is None or tolerance < _reference_error(rows, measure) else pick
 
 
 def _best(rows, measure):
-    key = f"{measure}_unseen"
+    key = column(measure)
     return min((r for r in rows if np.isfinite(r.get(key, np.nan))), key=lambda r: (r[key], r["solve_time_s"]))
 
 
@@ -1304,7 +1704,7 @@ def unreachable(rows, tolerance, measure="tip"):
     the tolerance is below the reference's own estimated error, that error, and if a model lies closer to the
     reference than the tolerance (which cannot be shown), the cheapest model within the reference's error (the
     tightest tolerance that can be checked)."""
-    key, tol = f"{measure}_unseen", tolerance
+    key, tol = column(measure), tolerance
     best, ref_err = _best(rows, measure), _reference_error(rows, measure)
     if tol < ref_err and best[key] <= tol:
         ok = select(rows, ref_err, measure)
@@ -1326,8 +1726,10 @@ def write_model(row, scene, path, measure, tolerance):
     """Write the model of ``row`` to ``path`` (JSON): a beam with :func:`soroshapes.io.save_beam`, a FEM rung as
     ``{"format": "soro-fem-rung", "version": 1, "scene": ..., "degree", "mixed", "size" [m]}``."""
     meta = {"scene": asdict(scene), "measure": measure, "tolerance": tolerance, "family": row["family"],
-            "modes": row["modes"], "unseen_error": row[f"{measure}_unseen"], "solve_time_s": row["solve_time_s"],
+            "modes": row["modes"], "unseen_error": row[column(measure)], "solve_time_s": row["solve_time_s"],
             "chosen_by": "soro.ladder.select"}
+    if "blocked_scale" in row:      # a beam's stiffness scale fitted on the blocked training load (blocked_rows)
+        meta["blocked_scale"] = row["blocked_scale"]
     if "_shapes" in row:
         from soroshapes.io import save_beam
 
@@ -1374,6 +1776,10 @@ def validate(path, scene, out, measure):
     if isinstance(scene, PneuNet3DScene):
         return _validate_pneunet3d(path, scene, out, measure)
     pn = _pneunet()
+    if measure == "blocked":
+        return _validate_blocked(path, scene, out)
+    if measure.endswith("_contact"):
+        return _validate_cylinder(path, scene, out, measure)
     doc = json.loads((out / "fem.json").read_text())
     L = doc["length"]
     ref = doc["rungs"][-1]
@@ -1399,6 +1805,20 @@ def validate(path, scene, out, measure):
     return float(err[measure])
 
 
+def _validate_blocked(path, scene, out):
+    """The blocked force of the model file ``path`` at the validation load against the reference's (relative); a
+    beam's force times the stiffness scale its file records (``meta["blocked_scale"]``, :func:`blocked_rows`)."""
+    bdoc = json.loads((Path(out) / "blocked.json").read_text())
+    R_ref = bdoc["reference"]["validation"]
+    kind, model, extra = load_model(path)
+    lv = scene.validation_level
+    if kind == "beam":
+        R = blocked_beam(model, u=[lv * scene.p_max])[0] / _pneunet().WIDTH * extra.meta.get("blocked_scale", 1.0)
+    else:
+        R = blocked_fem(model, "right", lv, scene.test_steps)[0]
+    return float(abs(R - R_ref) / abs(R_ref))
+
+
 _LADDERS = {}
 
 
@@ -1422,7 +1842,7 @@ def beam_within(scene_name, tolerance, measure="tip", out=None, quick=False):
     if pick is None or "_shapes" not in pick:
         best = _best(beams, measure)
         raise ParameterError(f"no beam of {scene_name} reaches {100 * tol:g} % on the unseen {measure} error; the "
-                             f"best is {100 * best[f'{measure}_unseen']:.4g} % ({best['family']} {_label(best)}): "
+                             f"best is {100 * best[column(measure)]:.4g} % ({best['family']} {_label(best)}): "
                              f"ask for at least that, or model this body by FEM")
     from soroshapes.io import load_beam
 
@@ -1462,16 +1882,18 @@ def run_ladder(scene_name="pneunet2d", tolerance=None, measure="tip", out=None, 
     if scene_name not in SCENES:
         print(f"soro trade: unknown scene {scene_name!r}; scenes: {', '.join(SCENES)}", file=sys.stderr)
         return 2
+    scene = SCENES[scene_name]["quick" if quick else "full"]
     try:
         tol = None if tolerance is None else parse_tolerance(tolerance)
-        if measure not in MEASURES:
-            raise ParameterError(f"unknown measure {measure!r}: use one of {', '.join(MEASURES)}")
+        column(measure)
+        if measure not in scene_measures(scene):
+            why = {"volume": "it has no cavity", "blocked": "its blocked load is not built (the quick 2D PneuNet "
+                   "skips it: run the full scene)", "tip_contact": "it has no contact load",
+                   "force_contact": "it has no contact load"}.get(measure, "")
+            raise ParameterError(f"{scene_name}{' --quick' if quick else ''} does not measure {measure!r}: {why}; "
+                                 f"use one of {', '.join(scene_measures(scene))}")
     except ParameterError as e:
         print(f"soro trade: {e}", file=sys.stderr)
-        return 2
-    scene = SCENES[scene_name]["quick" if quick else "full"]
-    if isinstance(scene, CantileverScene) and measure == "volume":
-        print("soro trade: the cantilever has no cavity: use --measure tip or shape", file=sys.stderr)
         return 2
     out = Path(out or Path("out") / "ladder" / scene_name)
     try:
@@ -1496,17 +1918,25 @@ def run_ladder(scene_name="pneunet2d", tolerance=None, measure="tip", out=None, 
                         tmp, dpi=110, format="png")
     if three:
         text += "\n\ncosts\n" + pneunet3d_costs(rows)
-    for m in (("tip", "shape") if cant else MEASURES):
+    if "blocked" in info:
+        text += "\n\nblocked load (the tip face held vertically, the reaction)\n" + blocked_table(rows, info)
+    if "cylinder" in info:
+        text += "\n\ncontact load (the actuator curls onto a cylinder)\n" + pneunet_contact_table(rows, info)
+        for m in ("tip", "force"):
+            with atomic_path(out / f"ladder_contact_{m}.png") as tmp:
+                contact_figure(rows, m).savefig(tmp, dpi=110, format="png")
+    for m in (m for m in scene_measures(scene) if not m.endswith("_contact")):
         fig = ladder_figure(rows, m, tol if m == measure else None, pick if m == measure else None,
-                            floor=info["elastica"][m] if cant else None)
+                            floor=info["elastica"][m] if cant and m in ("tip", "shape") else None)
         with atomic_path(out / f"ladder_{m}.png") as tmp:
             fig.savefig(tmp, dpi=110, format="png")
     status = 0
     result = {"scene": scene_name, "quick": quick, "rows": [{k: v for k, v in r.items() if not k.startswith("_")}
                                                            for r in rows],
               "richardson": info["richardson"], "budget": budget}
-    if "contact" in info:
-        result["contact"] = info["contact"]
+    for k in ("contact", "blocked", "cylinder"):
+        if k in info:
+            result[k] = info[k]
     if tol is not None:
         if pick is None:
             verdict = unreachable(rows, tol, measure)
@@ -1514,11 +1944,11 @@ def run_ladder(scene_name="pneunet2d", tolerance=None, measure="tip", out=None, 
         else:
             path = write_model(pick, scene, out / "model.json", measure, tol)
             if pick.get("estimated"):   # the reference itself: its error is the Richardson estimate, not 0
-                val = pick[f"{measure}_unseen"]
+                val = pick[column(measure)]
             else:
                 val = validate(path, scene, out, measure)
-            verdict = (f"selected: {pick['family']} {_label(pick)} ({100 * pick[f'{measure}_unseen']:.4g} % "
-                       f"on the unseen loads, {1e3 * pick['solve_time_s']:.3f} ms per solve, median); model file "
+            verdict = (f"selected: {pick['family']} {_label(pick)} ({100 * pick[column(measure)]:.4g} % "
+                       f"on the {'contact load' if measure.endswith('_contact') else 'unseen loads'}, {1e3 * pick['solve_time_s']:.3f} ms per solve, median); model file "
                        f"{path}; validation load {scene.validation_level:g} x the top load: {100 * val:.4g} % "
                        f"{'(the reference itself: its Richardson estimate) ' if pick.get('estimated') else ''}"
                        f"({'within' if val <= tol else 'NOT within'} {100 * tol:g} %)")
@@ -1744,7 +2174,7 @@ def pneunet3d_budget(rows, info):
     reference (tip, shape, volume), which no refinement of either model removes."""
     text, budget = error_budget(rows, info)
     ps = next(r for r in rows if r["family"] == "plane-strain")
-    budget["model_form_plane_strain"] = {m: ps[f"{m}_unseen"] for m in MEASURES}
+    budget["model_form_plane_strain"] = {m: ps[f"{m}_unseen"] for m in ("tip", "shape", "volume")}
     ratio = info["fem"]["ratio"]
     for m, r in info["richardson"].items():
         if r["converging"] and r["order_used"] < r["order"]:

@@ -622,7 +622,9 @@ def newton_load_stepping(aug, x, n, stiffness_force, kmax, length, *, cap=1.0, s
     range). The tangent is the forward difference (:func:`soroshapes.numerics.fd_columns`) over the n + m
     columns; a backtracking line search on the merit :math:`|r_q| + (k_{max}/L^2)|c|` (``kmax`` the largest
     diagonal stiffness, ``length`` L [m]). An increment converges when :math:`|r_q| \le` ``tol``
-    :math:`|Kq|` (``stiffness_force(q)`` = :math:`Kq`), :math:`|c| \le` ``tol`` L and the last correction
+    :math:`(|Kq| + |J_c^T\lambda|)` (``stiffness_force(q)`` = :math:`Kq`; the constraint forces from the
+    tangent's multiplier columns: a constraint holding q at rest has Kq = 0 while its reaction balances the
+    loads), :math:`|c| \le` ``tol`` L and the last correction
     of q is below 1e-8 relative; a failed increment is halved down to ``min_step``, then a
     :class:`~sorofem.errors.ConvergenceError`; increments double (up to ``cap``) after quick convergence.
     Returns (x, Newton iterations per accepted increment, the tangent at the solution (n + m, n + m) when
@@ -655,7 +657,10 @@ def newton_load_stepping(aug, x, n, stiffness_force, kmax, length, *, cap=1.0, s
                 return None, it
             x, r = xn, rn
             q = x[:n]
-            scale_ref = np.linalg.norm(stiffness_force(q)) + 1e-12 * kmax
+            # elastic + applied forces: Kq and the constraints' generalized forces J_c^T lambda (= -Kt[:n, n:]
+            # lambda; a constraint that holds q at rest balances the applied forces with Kq = 0)
+            scale_ref = (np.linalg.norm(stiffness_force(q)) + np.linalg.norm(Kt[:n, n:] @ x[n:])
+                         + 1e-12 * kmax)
             if (np.linalg.norm(r[:n]) <= tol * scale_ref and np.linalg.norm(r[n:]) <= c_tol
                     and np.linalg.norm(step * dx[:n]) <= 1e-8 * (1 + np.linalg.norm(q))):
                 return x, it

@@ -213,6 +213,24 @@ def test_soro_trade_files_with_a_tolerance(tmp_path, capsys):
     assert "--tolerance is a fraction of the length" in capsys.readouterr().err
 
 
+def test_soro_trade_measure_names_what_the_scene_measures(tmp_path, capsys):
+    """--measure takes tip, shape, volume, blocked, tip_contact, force_contact; a measure the scene does not take
+    (the quick 2D PneuNet skips the blocked load; the cantilever has no cavity, the PneuNets no contact load) is
+    refused before any solve with the scene's measures, exit status 2."""
+    from soro.ladder import MEASURES, SCENES, scene_measures
+
+    assert set(MEASURES) == {"tip", "shape", "volume", "blocked", "tip_contact", "force_contact"}
+    assert "blocked" in scene_measures(SCENES["pneunet2d"]["full"])
+    cases = [(["pneunet2d", "--quick", "--measure", "blocked"], "run the full scene"),
+             (["cantilever", "--quick", "--measure", "volume"], "no cavity"),
+             (["pneunet2d", "--quick", "--measure", "force_contact"], "no contact load"),
+             (["cantilever", "--measure", "force"], "use one of tip, shape, volume, blocked")]
+    for args, why in cases:
+        assert cli.main(["trade", *args, "--tol", "1%", "--out", str(tmp_path / "x")]) == 2, args
+        assert why in capsys.readouterr().err, args
+    assert not (tmp_path / "x").exists()
+
+
 @pytest.mark.slow
 def test_soro_trade_quick_selects_as_its_table_says(tmp_path, subprocess_env):
     """`soro trade --quick` (the PneuNet demo, with contact) at its default tolerance and with `--tolerance 0.01`:
