@@ -177,8 +177,8 @@ class SimulatedPlant(Driver):
     A step that does not converge raises :class:`~sorofem.errors.ConvergenceError` out of :meth:`apply`: the
     board server vents every channel and reports the driver error (as for any driver failure) and refuses
     commands until the next login; the plant keeps its state and time from before the failed tick and does
-    not simulate that tick's time again. The models are built and their kernels compiled (or loaded from the cache) in the
-    constructor, not in the board loop.
+    not simulate that tick's time again. The models are built and their kernels compiled (or loaded from the
+    cache) in the constructor, not in the board loop.
 
     Attributes
     ----------
