@@ -120,7 +120,8 @@ def test_plant_ticks_equal_one_simulate_of_its_model():
     trapezoidal steps per 2.5 ms tick) under held set-points equal one Model.simulate of the same model over the
     same span with the same steps. Not to round-off: a tick's step is its elapsed board time / 3, which differs
     from TICK/3 in the last bits at some ticks, and a new step size refactors the Newton matrix; the difference is
-    then Newton's tolerance (1e-3 of rtol = 1e-6 relative per step), far below 1e-6 of the pressures."""
+    then Newton's tolerance (1e-3 of rtol = 1e-6 relative per step), far below 1e-6 of the pressures (measured:
+    3e-10 Pa, with 66 component matrices factored by the ticks against 9 by the one run)."""
     u = np.array([50e3, -80e3, 1e3])
     plant = SimulatedPlant(3, max_flow=1e-4)
     ticks = np.arange(1, 41) * TICK
