@@ -132,7 +132,7 @@ def main(out: Path, quick: bool = False) -> dict:
         "energy_max_increase_J": float(max(0.0, np.diff(tr.total).max())),
         "real_time_factor": float(t_end / tr.stats["wall_time"]),
         "simulation_wall_time_s": float(tr.stats["wall_time"]),
-        "newton_iterations_mean": float(np.mean(tr.stats["newton_iterations"])),
+        "newton_iterations_mean": float(tr.stats["newton_iterations_per_step"]),
         "steps": int(tr.stats["steps"]),
     }
     return summary

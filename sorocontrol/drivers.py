@@ -120,12 +120,14 @@ class SimulatedPlant(Driver):
 
     Each channel is a :class:`soroshapes.Fluidic` reservoir of the plant's :attr:`model` (systems
     ``channel0``, ``channel1``, ...); with ``beam`` the model also holds the beam (system ``beam``), each
-    channel's gauge pressure coupled to the beam's input of the same index. Each call of :meth:`apply` holds
-    the set-points over the elapsed board time (a constant :class:`soroshapes.network.Schedule` as the
-    model's controller) and continues the model from its state with ``Model.simulate(dt_total, substep,
-    x0=, t0=)`` (trapezoidal steps, compiled: :attr:`Model.evaluation_path
-    <soroshapes.model.Model.evaluation_path>` is ``"compiled"`` unless the beam has a load without a
-    compiled form, which then runs on the Model's slower Python path and says so in the log).
+    channel's gauge pressure coupled to the beam's input of the same index. The model runs in a
+    :class:`soroshapes.model.Stepper` (:attr:`stepper`, made once: the lowered network, the factored Newton
+    matrix and the integrator's memory are kept between ticks). Each call of :meth:`apply` holds the
+    set-points over the elapsed board time (``stepper.hold``: a constant :class:`soroshapes.network.Schedule`
+    written in place) and advances the stepper by it (trapezoidal steps of at most ``substep``, compiled:
+    :attr:`Model.evaluation_path <soroshapes.model.Model.evaluation_path>` is ``"compiled"`` unless the beam
+    has a load without a compiled form, which then runs on the Model's slower Python path and says so in the
+    log).
 
     Parameters
     ----------
@@ -174,17 +176,19 @@ class SimulatedPlant(Driver):
 
     A step that does not converge raises :class:`~sorofem.errors.ConvergenceError` out of :meth:`apply`: the
     board server vents every channel and reports the driver error (as for any driver failure) and refuses
-    commands until the next login; the plant keeps its last converged state and does not simulate the failed
-    tick's time again. The models are built and their kernels compiled (or loaded from the cache) in the
-    constructor, not in the board loop.
+    commands until the next login; the plant keeps its state and time from before the failed tick and does
+    not simulate that tick's time again. The models are built and their kernels compiled (or loaded from the
+    cache) in the constructor, not in the board loop.
 
     Attributes
     ----------
     model : soroshapes.Model
         The reservoirs (and the beam).
+    stepper : soroshapes.model.Stepper
+        The model's run, continued tick after tick.
     x : ndarray
-        The state of :attr:`model` (the channels' (mass [kg], regulator integral [Pa s]) in order, then the
-        beam's (q, qd)).
+        The state of :attr:`model` now, a copy (the channels' (mass [kg], regulator integral [Pa s]) in order,
+        then the beam's (q, qd)).
     plant_time : float [s]
         Time of :attr:`model` (behind the board's time by :attr:`skipped`).
     t : float [s]
@@ -232,27 +236,27 @@ class SimulatedPlant(Driver):
             self._q = slice(self.channels * nf, self.channels * nf + beam.n)
             self._qd = slice(self._q.stop, self._q.stop + beam.n)
             self.sensor_names = ("tip_x", "tip_y", "tip_z") + tuple(f"q{i}" for i in range(beam.n))
-        self._held = None
-        self._hold(np.zeros(self.channels))
-        self.x = self.model.initial_state()
-        self._vented = self.x[self._reservoirs].copy()          # every channel at 0 Pa gauge, integrators empty
-        self.plant_time = 0.0
-        path = self.model.evaluation_path
-        if path != "compiled":
-            log.info("simulated plant: its model runs on the Python path (%s), slower than the compiled one", path)
-        self.model.simulate(1e-4, 1e-4, x0=self.x, record_every=_LAST_ONLY)   # compile now, not in the loop
+        x0 = self.model.initial_state()
+        self._vented = x0[self._reservoirs].copy()          # every channel at 0 Pa gauge, integrators empty
+        self.stepper = self.model.stepper(self.substep, x0=x0).hold(np.zeros(self.channels))
+        if self.stepper.path != "compiled":
+            log.info("simulated plant: its model runs on the Python path (%s), slower than the compiled one",
+                     self.stepper.path)
+        self.stepper.advance(steps=1)                       # compile now (or load the kernels), not in the loop
+        self.stepper.set_state(x0, 0.0)
         self.network = None
         if network is not None:
             self._init_network(network, float(network_dt))
 
-    def _hold(self, setpoints):
-        """Make the constant ``setpoints`` [Pa] (channels,) the model's controller (its free inputs: the
-        reservoirs' set-points), a Schedule, so that the model stays compiled; kept while they do not change."""
-        from soroshapes.network import Schedule
-        if self._held is not None and np.array_equal(setpoints, self._held):
-            return
-        self.model.set_controller(Schedule([0.0, 1.0], np.vstack([setpoints, setpoints])))
-        self._held = np.array(setpoints, float)
+    @property
+    def x(self):
+        """The state of :attr:`model` now (a copy)."""
+        return self.stepper.x
+
+    @property
+    def plant_time(self):
+        """Time [s] of :attr:`model` (behind the board's time by :attr:`skipped`)."""
+        return self.stepper.t
 
     def _init_network(self, network, dt):
         from soroshapes.model import Model
@@ -288,7 +292,7 @@ class SimulatedPlant(Driver):
     def pressures(self):
         """Gauge pressures [Pa] of the channels now."""
         fl = self.fluidic                   # isothermal: p = m R T / V (Fluidic.pressure, every channel at once)
-        return self.x[self._mass] * (fl.R * fl.T / self.volume) - fl.p0
+        return self.stepper.x[self._mass] * (fl.R * fl.T / self.volume) - fl.p0
 
     @property
     def q(self):
@@ -303,15 +307,15 @@ class SimulatedPlant(Driver):
     def apply(self, setpoints, t):
         u = np.asarray(setpoints, float)
         if t is None:               # vent: the regulators open to atmosphere
-            self.x[self._reservoirs] = self._vented
+            x = self.stepper.x
+            x[self._reservoirs] = self._vented
+            self.stepper.set_state(x)
             return self.pressures(), self._sensors(), np.zeros(self.channels, bool)
         dt_total = self._advance(float(t))
         self.t = float(t)           # a step that fails is not retried: the board vents on the error
         if dt_total > 0.0:
-            self._hold(u)
-            traj = self.model.simulate(dt_total, min(dt_total, self.substep), x0=self.x, t0=self.plant_time,
-                                       record_every=_LAST_ONLY)
-            self.x, self.plant_time = traj.x[-1].copy(), float(traj.t[-1])
+            self.stepper.hold(u)
+            self.stepper.advance(self.stepper.t + dt_total)
             if self.network is not None:
                 self._u = self.pressures()
                 self._step_network(dt_total)
@@ -357,12 +361,8 @@ class SimulatedPlant(Driver):
             return self.network_sensors()
         if self.beam is None:
             return np.zeros(0)
-        q = self.x[self._q]
+        q = self.stepper.x[self._q]
         return np.concatenate([self.beam.positions(q)[-1], q])
-
-
-#: ``record_every`` of the plant's Model.simulate calls: only the state at the end of the tick is kept
-_LAST_ONLY = 1 << 30
 
 
 DAC_FULL_SCALE = 4095      # MCP4725: 12-bit codes

@@ -45,7 +45,7 @@ from sorofem._lazy import moved_attributes
 from sorofem.errors import DataError, ParameterError
 
 from .numerics import FD_STEP
-from .trajectory import Trajectory
+from .trajectory import Trajectory, run_stats
 
 __all__ = ["BeamModel", "BeamData", "StateRangeError", "IKResult", "Gravity", "PointLoad",
            "Chamber", "Tendon", "Actuator", "Contact", "UserForce", "check_state", "kinematics", "dynamics",
@@ -795,11 +795,13 @@ def simulate(model, data, loads, t_end, dt, q0=None, qd0=None, u=None, *, tau=0.
     if start < nsteps:
         _simulate_python(q, qd, start, dt, nsteps, method, min_dt, owner, *args)
     wall = time.perf_counter() - t0
+    path = "compiled" if start == nsteps else "python" if start == 0 else "compiled, then python"
+    stats = run_stats(steps=nsteps, newton_iterations=int(np.sum(its_all)), matrices=rec.get("refreshes", 0),
+                      jacobians=rec.get("jacobians", 0), cut_steps=rec.get("cut_steps", 0), rejected=0, dt=dt,
+                      method=method, path=path, adaptive=False, wall_time=wall,
+                      newton_iterations_by_step=np.array(its_all, dtype=int), compiled_steps=start)
     return Trajectory(rec["t"], q=np.array(rec["q"]), qd=np.array(rec["qd"]), kinetic=np.array(rec["kin"]),
-                      potential=np.array(rec["pot"]), tip=np.array(rec["tip"]),
-                      stats={"steps": nsteps, "dt": dt, "newton_iterations": np.array(its_all), "wall_time": wall,
-                           "method": method, "compiled_steps": start,
-                           "matrix_refreshes": rec.get("refreshes", 0)})
+                      potential=np.array(rec["pot"]), tip=np.array(rec["tip"]), stats=stats)
 
 
 def _simulate_compiled(q, qd, dt, nsteps, contacts, model, data, loads, u, tau, tol, max_iterations, record_every,
@@ -840,6 +842,7 @@ def _simulate_compiled(q, qd, dt, nsteps, contacts, model, data, loads, u, tau, 
     rec["tip"] += list(out_tip[:m])
     its_all += list(its[:done])
     rec["refreshes"] = rec.get("refreshes", 0) + int(np.count_nonzero(jacs[:done]))
+    rec["jacobians"] = rec.get("jacobians", 0) + int(np.count_nonzero(jacs[:done] == 2))
     return done, q, qd
 
 
@@ -865,6 +868,7 @@ def _simulate_python(q, qd, start, dt, nsteps, method, min_dt, owner, model, dat
         record(t)
     while k < nsteps:
         h, t_next = dt, (k + 1) * dt
+        cut = False
         while t < t_next - 1e-12 * dt:          # sub-steps when a step must be cut
             hh = min(h, t_next - t)
             try:
@@ -872,6 +876,7 @@ def _simulate_python(q, qd, start, dt, nsteps, method, min_dt, owner, model, dat
             except StateRangeError:              # an iterate left the finite range: a failed step, cut it
                 step = None
             if step is None:
+                cut = True
                 h *= 0.5
                 if h < min_dt and method == "explicit":
                     limit = explicit_step_limit(model, data)
@@ -884,9 +889,13 @@ def _simulate_python(q, qd, start, dt, nsteps, method, min_dt, owner, model, dat
                                            f"{min_dt:.3g} s ({method}); use a smaller dt, the implicit method, "
                                            "or check the loads")
                 continue
-            q[:], qd[:], its = step
+            q[:], qd[:], its, nfd = step
             its_all.append(its)
+            if method == "implicit":
+                rec["refreshes"] = rec.get("refreshes", 0) + 1 + nfd     # S at the start, then FD replacements
+                rec["jacobians"] = rec.get("jacobians", 0) + nfd
             t += hh
+        rec["cut_steps"] = rec.get("cut_steps", 0) + cut
         t, k = t_next, k + 1
         if k % record_every == 0 or k == nsteps:
             record(min(t, t_end))
@@ -917,20 +926,21 @@ def _midpoint_step(model, data, loads, q, qd, t, h, u, tau, tol, max_iterations,
     vm = qd.copy()
     R, M, qm = residual(vm)
     S = 2.0 * M / h + coriolis_jacobian(model, data, qm, vm) + tau * K + 0.5 * h * K
-    prev = np.inf
+    prev, nfd = np.inf, 0
     for it in range(1, max_iterations + 1):
         if not np.all(np.isfinite(R)):
             return None
         nr = np.linalg.norm(R)
         if it > 3 and nr > 0.25 * prev:
             S = fd_columns(lambda v: residual(v)[0], vm, R, np.ones(model.n))
+            nfd += 1
         prev = nr
         dv = np.linalg.solve(S, -R)
         vm = vm + dv
         R, M, qm = residual(vm)
         ref = np.linalg.norm(K @ qm) + np.linalg.norm(M @ vm) / h
         if np.linalg.norm(dv) <= tol * np.linalg.norm(vm) + 1e-12 or np.linalg.norm(R) <= 1e-3 * tol * ref:
-            return q + h * vm, 2.0 * vm - qd, it
+            return q + h * vm, 2.0 * vm - qd, it, nfd
     return None
 
 
@@ -947,7 +957,7 @@ def _rk4_step(model, data, loads, q, qd, t, h, u, tau, tol, max_iterations, owne
     if not (np.all(np.isfinite(qn)) and np.all(np.isfinite(vn))) or np.linalg.norm(qn) > 1e6 * (
             1 + np.linalg.norm(q)):
         return None
-    return qn, vn, 0
+    return qn, vn, 0, 0
 
 
 # ------------------------------------------------------------------------------------------------------------

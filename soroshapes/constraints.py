@@ -770,7 +770,7 @@ class Assembly:
         import time
         from sorofem.errors import ConvergenceError
         from .beam import StateRangeError, time_grid
-        from .trajectory import Trajectory
+        from .trajectory import Trajectory, run_stats
         t_end, dt, nsteps, min_dt, record_every = time_grid(t_end, dt, min_dt, record_every)
         q, qd = self._state(q0, "q0"), self._state(qd0, "qd0")
         self._inputs(u, 0.0)
@@ -801,9 +801,10 @@ class Assembly:
             rec["W"].append(cs.reactions(lam))
         record(0.0, c0, lam)
         its_all = []
-        t, last = 0.0, ""
+        t, last, cuts = 0.0, "", 0
         for k in range(nsteps):
             h, t_next = dt, (k + 1) * dt
+            cut = False
             while t < t_next - 1e-12 * dt:
                 hh = min(h, t_next - t)
                 try:
@@ -811,6 +812,7 @@ class Assembly:
                 except StateRangeError as e:
                     step, last = None, f" (the last trial: {e})"
                 if step is None:
+                    cut = True
                     h *= 0.5
                     if h < min_dt:
                         raise ConvergenceError(f"simulate: the constrained step at t = {t:.6g} s did not converge "
@@ -822,14 +824,18 @@ class Assembly:
                     rec["W"][0] = cs.reactions(lam)          # the start's row: the first step's reactions
                 its_all.append(its)
                 t += hh
+            cuts += cut
             t = t_next
             if (k + 1) % record_every == 0 or k + 1 == nsteps:
                 record(t, c, lam)
         return Trajectory(rec["t"], q=np.array(rec["q"]), qd=np.array(rec["qd"]), kinetic=np.array(rec["kin"]),
                           potential=np.array(rec["pot"]), tip=np.array(rec["tip"]),
-                          stats={"steps": nsteps, "dt": dt, "newton_iterations": np.array(its_all),
-                                 "wall_time": time.perf_counter() - wall0, "method": "implicit",
-                                 "compiled_steps": 0, "matrix_refreshes": 0, "constraints": cs._names()},
+                          stats=run_stats(steps=nsteps, newton_iterations=int(np.sum(its_all)),
+                                          matrices=len(its_all), jacobians=0, cut_steps=cuts, rejected=0, dt=dt,
+                                          method="implicit", path="python", adaptive=False,
+                                          wall_time=time.perf_counter() - wall0,
+                                          newton_iterations_by_step=np.array(its_all, dtype=int),
+                                          compiled_steps=0, constraints=cs._names()),
                           drift_position=np.array(rec["dp"]), drift_rotation=np.array(rec["dr"]),
                           reactions=np.array(rec["W"]))
 

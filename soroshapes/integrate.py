@@ -92,8 +92,8 @@ from ._beam import REFRESH_ITS, REFRESH_STEPS, _lu_solve
 from .network import (BEAM, _beam_mass, _beam_mass_matrix, _cheap_rows_of, _iteration_matrix_of, assemble, jacobian,
                       residual, rhs)
 
-__all__ = ["TRAPEZOIDAL", "MIDPOINT", "BDF2", "integrate", "integrate_adaptive", "local_error", "step_factor",
-           "lagrange3", "dense_output"]
+__all__ = ["TRAPEZOIDAL", "MIDPOINT", "BDF2", "integrate", "integrate_adaptive", "workspace", "local_error",
+           "step_factor", "lagrange3", "dense_output"]
 
 
 @njit(cache=True)
@@ -442,20 +442,23 @@ def _split(method, t, x, h, hh, min_dt, net, scale, rtol, atol, maxit, ntol, ws,
 
 @njit(cache=True)
 def integrate(x, t0, h, nsteps, method, record_every, min_dt, net, scale, rtol, atol, maxit, ntol, out_t, out_x, out_w,
-              st):
+              st, ws, prev):
     """Fixed-step integration of the network from (t0, x) with ``nsteps`` steps of ``h`` [s] (``method`` a code:
     0 trapezoidal, 1 midpoint, 2 BDF2 with a trapezoidal first step and after a split). Records (t, x, w) every
     ``record_every`` steps and at the end into out_t, out_x, out_w from row 1 (row 0: the caller's start).
     ``st``: steps, rejected, newton_iterations, jacobians, matrix valid, quadratic predictor valid, cut_steps,
     failure time, system evaluations in Newton iterations, beam model rows given up (1 once), steps where the
     beams' model rows failed, then the matrix reuse state (11-14, see :func:`_step`), matrices factored.
+    ``ws``: the work arrays (:func:`workspace`); ``prev``: the state before x, the BDF2 history, valid when
+    st[31] = 1 (set on return). A run continued by a later call with the same ``st``, ``ws`` and ``prev`` (and
+    the same h) takes the steps one call would have taken (the iteration matrix, the predictors' memory and the
+    BDF2 history carry over; :class:`soroshapes.model.Stepper`); fresh ones (st zeros) start a run.
     Returns the number of recorded rows, or -1 when Newton failed down to ``min_dt`` (the time in st[7])."""
     N = x.shape[0]
-    ws = _workspace(N, out_w.shape[1], net)
     hp = np.array([h, h])
-    xn, prev, tmp = np.zeros(N), x.copy(), np.zeros(N)
+    xn, tmp = np.zeros(N), np.zeros(N)
     net[34][0] = np.nan                 # the schedule's cached row (network._assemble): the table may have changed
-    have_prev = False
+    have_prev = st[31] == 1.0
     rec = 1
     for k in range(nsteps):
         t = t0 + k * h
@@ -496,8 +499,15 @@ def integrate(x, t0, h, nsteps, method, record_every, min_dt, net, scale, rtol, 
                 out_x[rec, i] = x[i]
             assemble(tt, x, net, out_w[rec])
             rec += 1
+    st[31] = 1.0 if have_prev else 0.0
     return rec
 
+
+
+def workspace(N, NW, net):
+    """The work arrays of :func:`integrate` for N states and NW inputs (the lowered network ``net``): a caller
+    that continues a run passes the same ones again."""
+    return _workspace(N, NW, net)
 
 
 @njit(cache=True)

@@ -102,7 +102,7 @@ from sorofem.errors import ConvergenceError, DataError, ParameterError, SoroErro
 from .numerics import FD_STEP, fd_columns
 from .trajectory import Trajectory
 
-__all__ = ["StateSpace", "Fluidic", "Model"]
+__all__ = ["StateSpace", "Fluidic", "Model", "Stepper"]
 #: one trajectory type for beams, trees and networks (README.md, "Moved names")
 __getattr__ = moved_attributes(__name__, {name: "soroshapes.trajectory.Trajectory"
                                           for name in ("ModelTrajectory", "SystemTrajectory")})
@@ -1006,6 +1006,24 @@ class Model:
         return s
 
     # -- integration -----------------------------------------------------------------------------------
+    def stepper(self, dt, method="trapezoidal", x0=None, t0=0.0, rtol=1e-6, atol=1e-9, *, max_iterations=12,
+                min_dt=None, compiled=None):
+        """A :class:`Stepper` that continues the network from ``(t0, x0)`` call after call (``advance(t_end)``
+        or ``advance(steps=k)``, fixed steps of at most ``dt`` [s], ``hold(u)`` for constant free inputs), keeping
+        the lowered network and the integrator's memory between calls: what a real-time loop calls once per
+        tick instead of :meth:`simulate`. The arguments mean what they mean in :meth:`simulate`.
+
+        Examples
+        --------
+        >>> mdl = Model().add(StateSpace.linear([[-10.0]], [[10.0]]), "lag")
+        >>> stp = mdl.stepper(1e-3).hold([1.0])
+        >>> for k in range(1, 101):
+        ...     x = stp.advance(k * 2.5e-3)                 # 100 ticks of 2.5 ms, 3 steps each
+        >>> round(float(x[0]), 4), stp.stats["steps"]       # 1 - exp(-2.5)
+        (0.9179, 300)
+        """
+        return Stepper(self, dt, method, x0, t0, rtol, atol, max_iterations, min_dt, compiled)
+
     def simulate(self, t_end, dt, method="trapezoidal", x0=None, rtol=1e-6, atol=1e-9, adaptive=False, *,
                  max_iterations=12, record_every=1, min_dt=None, max_dt=None, t0=0.0, linear_solver="auto",
                  compiled=None):
@@ -1055,7 +1073,7 @@ class Model:
         self._rhs(t0, x)                                         # validates sizes, controller and couplings
         self._last_error = None
         self._J, self._lu_key, self._stats = None, None, {"steps": 0, "rejected": 0, "newton_iterations": 0,
-                                                         "jacobians": 0, "cut_steps": 0}
+                                                         "jacobians": 0, "cut_steps": 0, "matrices": 0}
         rec_t, rec_x, rec_w = [t0], [x.copy()], [self._assemble(t0, x).copy()]
         if compiled or compiled is None:
             net = self._lowered()
@@ -1102,10 +1120,8 @@ class Model:
                     rec_t.append(tt)
                     rec_x.append(x.copy())
                     rec_w.append(self._assemble(tt, x).copy())
-        self._stats["wall_time"] = _time.perf_counter() - wall
-        self._stats["method"] = method
-        self._stats["path"] = "python"
-        self._stats["adaptive"] = bool(adaptive)
+        self._finish_stats(method, "python", adaptive, t_end / int(np.ceil(t_end / dt - 1e-9)),
+                           _time.perf_counter() - wall)
         return self._trajectory(np.array(rec_t), np.array(rec_x), np.array(rec_w), net)
 
     def _simulate_compiled(self, net, x, t0, t_end, dt, method, record_every, min_dt, w0, adaptive=False,
@@ -1129,19 +1145,19 @@ class Model:
                                          np.inf if max_dt is None else float(max_dt), code, min_dt, net.arrays,
                                          self._scale, self._rtol, self._atol, self._maxit, 1e-3, out_t, out_x, out_w,
                                          st)
-            self._stats.update(rejected=int(st[1]), min_step=float(st[28]), max_step=float(st[29]))
+            self._stats.update(min_step=float(st[28]), max_step=float(st[29]))
         else:
             min_dt = h / 1024 if min_dt is None else float(min_dt)
             got = itg.integrate(x.copy(), t0, h, nsteps, code, record_every, min_dt, net.arrays, self._scale,
-                                self._rtol, self._atol, self._maxit, 1e-3, out_t, out_x, out_w, st)
-        self._stats.update(steps=int(st[0]), newton_iterations=int(st[2]), jacobians=int(st[3]),
-                           cut_steps=int(st[6]), system_evaluations=int(st[8]), model_matrix_failures=int(st[10]),
-                           matrices=int(st[15]), linearized_predictions=int(st[18]),
-                           component_corrections=st[20:26].astype(int).tolist(),
+                                self._rtol, self._atol, self._maxit, 1e-3, out_t, out_x, out_w, st,
+                                itg.workspace(self._N, self._NW, net.arrays), x.copy())
+        self._stats.update(steps=int(st[0]), rejected=int(st[1]), newton_iterations=int(st[2]),
+                           jacobians=int(st[3]), cut_steps=int(st[6]), matrices=int(st[15]),
+                           system_evaluations=int(st[8]), model_matrix_failures=int(st[10]),
+                           linearized_predictions=int(st[18]), component_corrections=st[20:26].astype(int).tolist(),
                            first_corrections_within_tolerance=int(st[26]),
-                           first_corrections_fresh_matrix=int(st[27]),
-                           wall_time=_time.perf_counter() - wall, method=method, path="compiled",
-                           adaptive=bool(adaptive))
+                           first_corrections_fresh_matrix=int(st[27]))
+        self._finish_stats(method, "compiled", adaptive, h, _time.perf_counter() - wall)
         if got < 0:
             raise ConvergenceError(f"Model.simulate: Newton failed at t = {st[7]:.6g} s down to dt = {min_dt:.3g} s "
                                    f"({method}, compiled network: Newton did not converge, or an evaluation failed "
@@ -1151,6 +1167,16 @@ class Model:
                                    "message)")
         out_t[-1] = t0 + t_end
         return self._trajectory(out_t[:got], out_x[:got], out_w[:got], net)
+
+    def _finish_stats(self, method, path, adaptive, h, wall):
+        """The run's counters in ``self._stats`` as the one ``stats`` schema (:func:`soroshapes.trajectory.run_stats`),
+        the path's own counters after it."""
+        from .trajectory import STATS_KEYS, run_stats
+        c = self._stats
+        extra = {k: v for k, v in c.items() if k not in STATS_KEYS}
+        self._stats = run_stats(steps=c["steps"], newton_iterations=c["newton_iterations"], matrices=c["matrices"],
+                                jacobians=c["jacobians"], cut_steps=c["cut_steps"], rejected=c["rejected"], dt=h,
+                                method=method, path=path, adaptive=adaptive, wall_time=wall, **extra)
 
     def _split(self, method, t, x, h, hh, min_dt):
         """Cover [t, t+h] with steps of hh (halved on failure) after a failed step."""
@@ -1223,6 +1249,7 @@ class Model:
                 else:
                     self._lu = lu_factor(np.eye(N) - c * self._J)
                 self._lu_key = c
+                self._stats["matrices"] += 1
             x1 = guess.copy()
             prev_norm, ok = np.inf, False
             for it in range(self._maxit):
@@ -1326,3 +1353,193 @@ class Model:
             systems[b.name] = Trajectory(t, x=x, u=u, name=b.name, **extra)
         return Trajectory(t, x=X, u=np.hstack(U) if U else np.zeros((len(t), 0)), systems=systems,
                           stats=self._stats)
+
+
+# ------------------------------------------------------------------------------------------------------------
+# continuing a run call after call
+# ------------------------------------------------------------------------------------------------------------
+#: the controller's table (K, m) in :func:`soroshapes.network.lower`'s argument tuple, and its kind (1: Schedule)
+_NET_CONTROLLER_KIND, _NET_SCHEDULE_VALUES = 10, 12
+
+
+class Stepper:
+    r"""A :class:`Model` run continued call after call (:meth:`Model.stepper`): what a real-time loop calls
+    once per tick.
+
+    It lowers the network once and keeps, between calls of :meth:`advance`, the state, the time, the lowered
+    network, the integrator's work arrays (the factored iteration matrix, the predictors' memory, the BDF2
+    history) and its statistics, so that N calls of ``advance(steps=k)`` take the steps of one
+    ``Model.simulate`` over the same span (to round-off in the step times), at the cost of the steps alone.
+    The steps are :func:`soroshapes.integrate.integrate`'s, the one fixed-step loop of the compiled path; a
+    network without a compiled form (:attr:`Model.evaluation_path`) is continued by :meth:`Model.simulate` on
+    the Python path at each call (correct, without the kept matrix).
+
+    Attributes
+    ----------
+    t : float [s]
+        The time of the state.
+    dt : float [s]
+        The largest step.
+    path : str
+        ``"compiled"`` or ``"python: ..."`` (why).
+    """
+
+    def __init__(self, model, dt, method="trapezoidal", x0=None, t0=0.0, rtol=1e-6, atol=1e-9, max_iterations=12,
+                 min_dt=None, compiled=None):
+        from . import integrate as itg
+        if method not in ("trapezoidal", "midpoint", "bdf2"):
+            raise ParameterError(f"method must be 'trapezoidal', 'midpoint' or 'bdf2', got {method!r}")
+        dt, t0 = float(dt), float(t0)
+        if not (dt > 0 and math.isfinite(dt)):
+            raise ParameterError(f"the stepper's dt must be a positive step [s], got {dt!r}")
+        if not math.isfinite(t0):
+            raise ParameterError(f"t0 must be a finite time [s], got {t0!r}")
+        if not (rtol > 0 and atol > 0):
+            raise ParameterError("rtol and atol must be positive")
+        if min_dt is not None and not (float(min_dt) > 0):
+            raise ParameterError(f"min_dt must be a positive step [s] or None (dt/1024), got {min_dt!r}")
+        self.model, self.dt, self.method, self.t = model, dt, method, t0
+        self._code = {"trapezoidal": itg.TRAPEZOIDAL, "midpoint": itg.MIDPOINT, "bdf2": itg.BDF2}[method]
+        self._rtol, self._atol, self._maxit = float(rtol), float(atol), int(max_iterations)
+        self._min_dt = None if min_dt is None else float(min_dt)
+        self._compiled = compiled
+        self._held = None
+        self._counts = dict(steps=0, newton_iterations=0, matrices=0, jacobians=0, cut_steps=0, wall_time=0.0)
+        model._prepare_layout()
+        x = model.initial_state(x0, t0)
+        self._x = x.copy()
+        self._lower()
+
+    def _lower(self):
+        """(Re)lower the network and start the integrator's memory afresh (a new network, new work arrays)."""
+        from . import integrate as itg
+        mdl = self.model
+        mdl._prepare_layout()
+        self._scale = mdl._scales(self._x, self.t)
+        mdl._rhs(self.t, self._x)                         # validates sizes, controller and couplings once
+        net = mdl._lowered() if self._compiled or self._compiled is None else "compiled=False"
+        if self._compiled and isinstance(net, str):
+            raise ParameterError(f"stepper(compiled=True): the network has no compiled form: {net}")
+        self._net = None if isinstance(net, str) else net
+        self.path = Model._path(net)
+        if self._net is not None:
+            N, NW = mdl._N, mdl._NW
+            self._ws = itg.workspace(N, NW, self._net.arrays)
+            self._st = np.zeros(32)
+            self._prev = self._x.copy()
+            self._out = (np.zeros(2), np.zeros((2, N)), np.zeros((2, NW)))
+            self._h = None
+
+    @property
+    def x(self):
+        """The stacked state now (a copy)."""
+        return self._x.copy()
+
+    def set_state(self, x, t=None):
+        """Replace the state (and the time ``t`` [s] if given), e.g. to vent reservoirs: the next step starts from
+        it without history (BDF2 restarts with a trapezoidal step; the iteration matrix is kept and refreshed by
+        the Newton rule if it no longer fits). Returns self."""
+        x = _vec(x, "x")
+        if x.shape != self._x.shape:
+            raise ParameterError(f"the state must have {self._x.size} entries, got {x.shape}")
+        if not _finite(x):
+            raise DataError("set_state: the state contains NaN or inf")
+        self._x[:] = x
+        if t is not None:
+            if not math.isfinite(float(t)):
+                raise ParameterError(f"t must be a finite time [s], got {t!r}")
+            self.t = float(t)
+        if self._net is not None:
+            self._st[31] = 0.0                  # no BDF2 history
+            self._st[16] = self._st[19] = 0.0   # the linearized predictor's memory is of another state
+            self._st[5] = 0.0
+        return self
+
+    def hold(self, u):
+        """Hold the free inputs (:attr:`Model.inputs` order) at the constant ``u`` from now on. The first call
+        makes a constant :class:`~soroshapes.network.Schedule` the model's controller (and lowers the network
+        again); later calls write ``u`` into its table in place, in the lowered network too. Returns self."""
+        from .network import Schedule
+        mdl = self.model
+        u = _vec(u, "u")
+        m = len(mdl._free)
+        if u.shape != (m,):
+            raise ParameterError(f"hold: the model has {m} free inputs {mdl.inputs}, got {u.size} values")
+        if not _finite(u):
+            raise DataError("hold: the inputs must be finite")
+        if self._held is None or mdl._controller is not self._held:
+            self._held = Schedule([0.0, 1.0], np.vstack([u, u]))
+            mdl.set_controller(self._held)
+            self._lower()
+            return self
+        self._held.values[:] = u                       # the Python path reads the Schedule
+        if self._net is not None:
+            arrays = self._net.arrays
+            if not (arrays[_NET_CONTROLLER_KIND] == 1 and arrays[_NET_SCHEDULE_VALUES].shape == (2, m)):
+                raise SoroError("hold: the lowered network's controller is not the held Schedule (report this)")
+            arrays[_NET_SCHEDULE_VALUES][:] = u
+        return self
+
+    def advance(self, t_end=None, *, steps=None):
+        """Continue to the time ``t_end`` [s] (steps of ``(t_end - t)/ceil((t_end - t)/dt)``) or by ``steps``
+        steps of ``dt``; returns the state there (a copy). A step that fails down to ``min_dt`` raises
+        :class:`~sorofem.errors.ConvergenceError` and leaves the stepper at the state and time of the call."""
+        from . import integrate as itg
+        if (t_end is None) == (steps is None):
+            raise ParameterError("advance takes the time t_end [s] or a number of steps, one of them")
+        if steps is not None:
+            n = int(steps)
+            if n < 1:
+                raise ParameterError(f"advance: steps must be >= 1, got {steps!r}")
+            h = self.dt
+            t_next = self.t + n * h
+        else:
+            t_next = float(t_end)
+            span = t_next - self.t
+            if not (span > 0 and math.isfinite(span)):
+                raise ParameterError(f"advance: t_end = {t_end!r} s must be a finite time after t = {self.t:.6g} s")
+            n = int(math.ceil(span / self.dt - 1e-9))
+            h = span / n
+        min_dt = h / 1024 if self._min_dt is None else self._min_dt
+        wall = _time.perf_counter()
+        if self._net is None:
+            tr = self.model.simulate(n * h, h, self.method, x0=self._x, t0=self.t, rtol=self._rtol, atol=self._atol,
+                                     max_iterations=self._maxit, record_every=n + 1, min_dt=min_dt, compiled=False)
+            st = tr.stats
+            for k in ("steps", "newton_iterations", "matrices", "jacobians", "cut_steps"):
+                self._counts[k] += int(st[k])
+            self._x[:] = tr.x[-1]
+        else:
+            if h != self._h:
+                self._st[31] = 0.0                     # the BDF2 history was at another step
+                self._h = h
+            x_start, st = self._x.copy(), self._st
+            before = st[[0, 2, 3, 6, 15]].copy()
+            out_t, out_x, out_w = self._out
+            got = itg.integrate(self._x, self.t, h, n, self._code, n, min_dt, self._net.arrays, self._scale,
+                                self._rtol, self._atol, self._maxit, 1e-3, out_t, out_x, out_w, st, self._ws,
+                                self._prev)
+            d = st[[0, 2, 3, 6, 15]] - before
+            for k, v in zip(("steps", "newton_iterations", "jacobians", "cut_steps", "matrices"), d):
+                self._counts[k] += int(v)
+            if got < 0:
+                self._x[:] = x_start
+                st[31] = st[16] = st[19] = st[5] = 0.0
+                self._counts["wall_time"] += _time.perf_counter() - wall
+                raise ConvergenceError(f"Model stepper: Newton failed at t = {st[7]:.6g} s down to dt = {min_dt:.3g} "
+                                       f"s ({self.method}, compiled network); the stepper stays at t = {self.t:.6g} "
+                                       "s; use a smaller dt, check the couplings and schedule for discontinuities, "
+                                       "or loosen rtol")
+        self.t = t_next
+        self._counts["wall_time"] += _time.perf_counter() - wall
+        return self._x.copy()
+
+    @property
+    def stats(self):
+        """The statistics of every step taken so far, in the schema of :mod:`soroshapes.trajectory`."""
+        from .trajectory import run_stats
+        c = self._counts
+        return run_stats(steps=c["steps"], newton_iterations=c["newton_iterations"], matrices=c["matrices"],
+                         jacobians=c["jacobians"], cut_steps=c["cut_steps"], rejected=0, dt=self.dt,
+                         method=self.method, path="compiled" if self._net is not None else "python", adaptive=False,
+                         wall_time=c["wall_time"])

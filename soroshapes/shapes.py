@@ -783,7 +783,8 @@ class Shapes:
         with the contact forces at the nodes between them, the linearized step as predictor, the matrix
         :math:`2M/h + D + \tfrac h2 K` plus the contacts' normal stiffness, damping and friction slope
         refreshed when convergence slows and the complete, differenced :math:`\partial R/\partial
-        v_m` for a step that fails with it; ``stats["matrix_refreshes"]`` counts the factorizations). A step that does
+        v_m` for a step that fails with it; ``stats["matrices"]`` counts the factorizations, ``stats`` has the keys
+        of :mod:`soroshapes.trajectory`). A step that does
         not converge in ``max_iterations`` is halved, down to ``min_dt`` (default dt/1024), then a
         :class:`~sorofem.errors.ConvergenceError` reports the time. ``method="explicit"``: classical RK4
         (stable only below about :meth:`explicit_step_limit`; a blow-up is reported, never returned).

@@ -22,8 +22,30 @@ field               shape        meaning
 ``pressure``        (m,)         a reservoir's gauge pressure [Pa] (one system of a network)
 ==================  ===========  ======================================================================
 
-``stats`` holds the integrator's statistics (``steps``, ``wall_time`` [s], ``newton_iterations``, ...; the keys
-are the integrator's). A network's trajectory names its systems in ``systems``; ``traj["name"]`` is that
+``stats`` holds the integrator's statistics, one schema for every integrator (:func:`run_stats` makes it):
+
+================================  ==========================================================================
+key                               meaning
+================================  ==========================================================================
+``steps``                         accepted time steps (int)
+``newton_iterations``             Newton iterations (corrections solved) over the whole run, a total (int)
+``newton_iterations_per_step``    ``newton_iterations / steps`` (float; 0 without steps)
+``matrices``                      iteration matrices factored (a network counts each connected component's
+                                  block; a beam each refresh of its Newton matrix) (int)
+``jacobians``                     finite-difference Jacobians of the whole system formed (int)
+``cut_steps``                     steps whose Newton failed and that were covered by smaller steps (int)
+``rejected``                      steps repeated by the error test of adaptive stepping (0 in fixed steps)
+``dt``                            the step [s] of a fixed-step run, the first step of an adaptive one
+``method``                        the integrator (str)
+``path``                          ``"compiled"``, ``"python"`` or ``"compiled, then python"`` (a beam whose
+                                  compiled loop handed over)
+``adaptive``                      error-controlled steps (bool)
+``wall_time``                     wall-clock time of the run [s]
+================================  ==========================================================================
+
+An integrator adds its own keys after these (a beam's ``newton_iterations_by_step`` (steps,) and
+``compiled_steps``; a network's ``evaluation_path(s)``, ``system_evaluations``, ``min_step``/``max_step``
+with adaptive steps, ...). A network's trajectory names its systems in ``systems``; ``traj["name"]`` is that
 system's share, a :class:`Trajectory` of its own (``t``, its states ``x`` and inputs ``u``, and ``q``/``qd``
 for a beam or ``volume``/``pressure`` for a reservoir). Asking for a field the run does not have raises an
 :class:`AttributeError` that names the fields it has.
@@ -41,11 +63,37 @@ import numpy as np
 
 from sorofem.errors import ParameterError
 
-__all__ = ["Trajectory", "FIELDS"]
+__all__ = ["Trajectory", "FIELDS", "STATS_KEYS", "run_stats"]
 
 #: The fields a trajectory may carry, in the order they are listed.
 FIELDS = ("x", "u", "q", "qd", "kinetic", "potential", "tip", "drift_position", "drift_rotation", "reactions",
           "volume", "pressure")
+
+#: The keys every integrator's ``stats`` holds, with the same meaning (module docstring).
+STATS_KEYS = ("steps", "newton_iterations", "newton_iterations_per_step", "matrices", "jacobians", "cut_steps",
+              "rejected", "dt", "method", "path", "adaptive", "wall_time")
+
+
+def run_stats(*, steps, newton_iterations, matrices, jacobians, cut_steps, rejected, dt, method, path, adaptive,
+              wall_time, **extra):
+    """The ``stats`` dict of one run in the one schema (the module docstring's table), then the integrator's
+    ``extra`` keys. Counts are totals over the run; ``newton_iterations_per_step`` is derived here.
+
+    >>> st = run_stats(steps=4, newton_iterations=10, matrices=1, jacobians=0, cut_steps=0, rejected=0, dt=1e-3,
+    ...                method="trapezoidal", path="compiled", adaptive=False, wall_time=0.01)
+    >>> st["newton_iterations_per_step"], tuple(st) == STATS_KEYS
+    (2.5, True)
+    """
+    steps, its = int(steps), int(newton_iterations)
+    out = {"steps": steps, "newton_iterations": its, "newton_iterations_per_step": its / steps if steps else 0.0,
+           "matrices": int(matrices), "jacobians": int(jacobians), "cut_steps": int(cut_steps),
+           "rejected": int(rejected), "dt": float(dt), "method": str(method), "path": str(path),
+           "adaptive": bool(adaptive), "wall_time": float(wall_time)}
+    clash = set(extra) & set(out)
+    if clash:
+        raise ParameterError(f"run_stats: {sorted(clash)} are schema keys, not extra ones")
+    out.update(extra)
+    return out
 
 
 class Trajectory:

@@ -10,8 +10,8 @@ deadlines, round-trip time p50/p99, and the tracking of the last set-point (asse
 controlled the plant). Never a timed assertion.
 
 ``test_bench_simulated_plant_cost_per_tick``: what the simulated plant (a compiled soroshapes Model of the
-channels' reservoirs, and of a beam) costs the board loop per tick, against the former RK4 plant kept in this
-file as the baseline, in one run.
+channels' reservoirs, and of a beam, continued tick after tick by its ``Model.stepper``) costs the board loop per
+tick, against the former RK4 plant kept in this file as the baseline, in one run.
 
 The safety figures (issue 16): the rate at which wrong secrets are checked with the per-address backoff
 against a server without it (same run), operator logins that succeed while a loop floods the board with
@@ -104,9 +104,10 @@ class _FormerPlant:
 def test_bench_simulated_plant_cost_per_tick(record):
     """What the board loop pays for its simulated plant per tick (400 Hz: 2.5 ms of plant time per
     :meth:`SimulatedPlant.apply`): the plant as a compiled soroshapes Model (reservoirs, and the soro play test
-    finger coupled to its channel) against the former RK4 plant (above), in one run, on the same set-point
-    square wave (0 / 40 kPa, 0.2 s period) for 1 s of plant time. Wall time per tick (median and p99) and the
-    largest pressure difference between the two (trapezoidal vs RK4 at 1 ms steps: a few Pa of 40 kPa)."""
+    finger coupled to its channel) in its stepper against the former RK4 plant (above), in one run, on the same
+    set-point square wave (0 / 40 kPa, 0.2 s period) for 1 s of plant time. Wall time per tick (median and p99),
+    the stepper's Newton iterations and factored matrices per step, and the largest pressure difference between
+    the two (trapezoidal vs RK4 at 1 ms steps: a few Pa of 40 kPa)."""
     sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "soro"))
     import play_finger_scene as fs
 
@@ -134,6 +135,8 @@ def test_bench_simulated_plant_cost_per_tick(record):
                           "former_rk4_us_p50": round(float(np.median(c_old)) * 1e6, 1),
                           "former_rk4_us_p99": round(float(np.percentile(c_old, 99)) * 1e6, 1),
                           "cost_ratio_p50": round(float(np.median(c_new) / np.median(c_old)), 2),
+                          "newton_iterations_per_step": round(plant.stepper.stats["newton_iterations_per_step"], 2),
+                          "matrices_per_step": round(plant.stepper.stats["matrices"] / plant.stepper.stats["steps"], 3),
                           "max_pressure_difference_Pa": round(float(np.abs(per["model"][1] - per["former_rk4"][1]).max()), 3)}
         assert plant.model.evaluation_path == "compiled"
         assert figures[label]["max_pressure_difference_Pa"] < 1e-3 * 40e3     # the same plant

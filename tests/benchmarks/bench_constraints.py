@@ -69,7 +69,7 @@ def test_bench_parallel_robot(record):
         for (cls, name), fn in orig.items():
             setattr(cls, name, fn)
     steps = int(tr.stats["steps"])
-    its = tr.stats["newton_iterations"]
+    its = tr.stats["newton_iterations_by_step"]
     assert len(its) == steps, "a step was cut"
     assert tr.drift_position.max() < 1e-6 and tr.drift_rotation.max() < 1e-6
     # the projection calls mass_matrix and jacobian inside: its share includes those rows

@@ -336,7 +336,7 @@ def test_bench_soft_hand_newton_tolerance(record):
             st = np.zeros(32)
             c0 = time.process_time()
             got = itg.integrate(x0.copy(), 0.0, 2e-3, 1000, itg.BDF2, 1, 2e-3 / 1024, net.arrays, scale, 1e-4, 1e-6,
-                                12, ntol, out_t, out_x, out_w, st)
+                                12, ntol, out_t, out_x, out_w, st, itg.workspace(N, net.NW, net.arrays), x0.copy())
             cpu = min(cpu, time.process_time() - c0)
         assert got == 1001
         a = np.array([H.tip_angle(f, out_x[:, c]) for f, c in zip(fingers, cols)])

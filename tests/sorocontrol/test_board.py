@@ -672,12 +672,12 @@ def test_a_driver_failure_vents_and_refuses_commands():
 
 
 def test_a_failing_plant_step_vents_every_channel_and_refuses_commands_until_the_next_login(monkeypatch):
-    """The simulated plant's model step fails (a ConvergenceError out of Model.simulate): apply raises, the
-    board vents every channel, refuses commands with the reason, the plant keeps its last converged state and
-    does not simulate that tick's time again; the next login commands again."""
+    """The simulated plant's model step fails (a ConvergenceError out of its Model stepper's advance): apply
+    raises, the board vents every channel, refuses commands with the reason, the plant keeps its last converged
+    state and does not simulate that tick's time again; the next login commands again."""
     from sorofem.errors import ConvergenceError
     plant = SimulatedPlant(2)
-    ok = plant.model.simulate
+    ok = plant.stepper.advance
     state = {"fail": False, "plant_time": None}
 
     def step(*a, **k):
@@ -685,7 +685,7 @@ def test_a_failing_plant_step_vents_every_channel_and_refuses_commands_until_the
             state["plant_time"] = plant.plant_time
             raise ConvergenceError("Newton did not converge at t = 1 s (injected)")
         return ok(*a, **k)
-    monkeypatch.setattr(plant.model, "simulate", step)
+    monkeypatch.setattr(plant.stepper, "advance", step)
     with BoardServer(plant, SECRET, port=0) as srv:
         with Board.connect(url(srv), secret=SECRET) as brd:
             brd.set_pressure([20e3, -20e3])

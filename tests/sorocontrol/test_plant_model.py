@@ -113,3 +113,24 @@ def test_beam_plant_tip_matches_the_beam_driven_by_the_reported_pressures():
     # differences: the pressure's linear interpolation between ticks (dt^2/8 |p''| ~ 2e-4 of p) and two second
     # order integrators at 1 ms and 0.5 ms
     assert np.abs(tips - ref_tips).max() < 2e-3 * deflection, np.abs(tips - ref_tips).max() / deflection
+
+
+def test_plant_ticks_equal_one_simulate_of_its_model():
+    """The plant's ticks (its model's stepper: the lowered network and Newton matrix kept from tick to tick, 3
+    trapezoidal steps per 2.5 ms tick) under held set-points equal one Model.simulate of the same model over the
+    same span with the same steps. Not to round-off: a tick's step is its elapsed board time / 3, which differs
+    from TICK/3 in the last bits at some ticks, and a new step size refactors the Newton matrix; the difference is
+    then Newton's tolerance (1e-3 of rtol = 1e-6 relative per step), far below 1e-6 of the pressures (measured:
+    3e-10 Pa, with 66 component matrices factored by the ticks against 9 by the one run)."""
+    u = np.array([50e3, -80e3, 1e3])
+    plant = SimulatedPlant(3, max_flow=1e-4)
+    ticks = np.arange(1, 41) * TICK
+    p = np.array([plant.apply(u, t)[0] for t in ticks])
+    ref = SimulatedPlant(3, max_flow=1e-4)
+    ref.stepper.hold(u)                                     # the model's controller: the held set-points
+    tr = ref.model.simulate(40 * TICK, TICK / 3, record_every=3, compiled=True)
+    P = np.column_stack([tr[f"channel{i}"].pressure[1:] for i in range(3)])
+    np.testing.assert_allclose(tr.t[1:], ticks, rtol=0, atol=1e-12)
+    assert np.abs(p - P).max() < 1e-6 * 80e3, np.abs(p - P).max()
+    assert np.abs(p[-1, 0]) > 10e3                          # it moved
+    assert plant.stepper.stats["steps"] == 3 * 40 + 1       # and one step at construction (the warm-up)

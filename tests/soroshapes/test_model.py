@@ -469,3 +469,90 @@ def test_a_controller_may_name_a_system_without_free_inputs():
     tr = Model().add(a).add(b).set_controller(lambda mdl: {"a": [1.0], "b": []}).simulate(0.1, 0.001)
     assert tr["a"].x[-1, 0] == pytest.approx(1 - np.exp(-0.1), rel=1e-5)   # trapezoidal, h = 1 ms: ~1e-7
     assert tr["b"].x[-1, 0] == 0.0
+
+
+# --------------------------------------------------------------------------------------------------------
+# the stepper: a run continued call after call
+# --------------------------------------------------------------------------------------------------------
+def regulated_pair():
+    """Two regulated reservoirs (one rides its valve's saturation, a kink in F) and a lag that sets the second's
+    volume (a StateMap): a compiled network with three components' worth of coupling."""
+    from soroshapes.network import Schedule, StateMap
+    reg = dict(kp=1e-9, ki=1e-8, max_flow=2e-5)
+    return (Model().add(Fluidic(1e-6, regulator=reg), "a").add(Fluidic(None, V0=1e-6, regulator=reg), "b")
+            .add(StateSpace.linear([[-20.0]], [[20.0]]), "lag")
+            .connect(StateMap("lag", [2e-7], index=0, offset=1e-6), "b", port="volume")
+            .set_controller(Schedule([0.0, 0.05, 0.1], {"a": [[0.0], [60e3], [60e3]], "b": [[0.0], [20e3], [-5e3]],
+                                                        "lag": [[0.0], [1.0], [1.0]]})))
+
+
+@pytest.mark.parametrize("method", ["trapezoidal", "bdf2", "midpoint"])
+def test_a_stepper_advanced_tick_by_tick_takes_the_steps_of_one_simulate(method):
+    """N calls of advance(steps=k) equal one simulate over the same span with records every k steps: the
+    kept iteration matrix, predictors and BDF2 history make the same steps (to round-off in the step times),
+    with the same Newton iterations and factorizations."""
+    one = regulated_pair().simulate(0.12, 1e-3, method, rtol=1e-6, record_every=4, compiled=True)
+    stp = regulated_pair().stepper(1e-3, method, rtol=1e-6, compiled=True)
+    assert stp.path == "compiled"
+    xs = np.array([stp.advance(steps=4) for _ in range(30)])
+    scale = np.abs(one.x).max(axis=0)
+    assert np.max(np.abs(xs - one.x[1:]) / scale) < 1e-12
+    assert stp.t == pytest.approx(0.12, abs=1e-15)
+    for key in ("steps", "newton_iterations", "matrices", "jacobians", "cut_steps"):
+        assert stp.stats[key] == one.stats[key], key
+    assert one["a"].pressure.max() > 30e3                     # it moved (through the valve's saturation)
+
+
+def test_a_stepper_holds_inputs_in_place_and_continues_to_a_time():
+    """hold(u) makes a constant Schedule the controller once and then writes u in place; advance(t_end) takes
+    steps of at most dt. Against simulate chained with t0 under the same constant set-points (each call a fresh
+    matrix: the two agree within the Newton tolerance, not to round-off)."""
+    from soroshapes.network import Schedule
+
+    def plain():
+        reg = dict(kp=1e-9, ki=1e-8, max_flow=2e-5)
+        return Model().add(Fluidic(1e-6, regulator=reg), "a").add(Fluidic(2e-6, regulator=reg), "b")
+    stp = plain().stepper(1e-3)
+    ref, x, t = plain(), None, 0.0
+    for t_end, u in ((0.0125, [10e3, -5e3]), (0.03, [40e3, 5e3]), (0.0301, [40e3, 5e3]), (0.05, [0.0, 0.0])):
+        stp.hold(u)
+        got = stp.advance(t_end)
+        tr = ref.set_controller(Schedule([0.0, 1.0], np.array([u, u], float))).simulate(
+            t_end - t, 1e-3, x0=x, t0=t, record_every=1 << 20)
+        x, t = tr.x[-1], t_end
+        assert stp.t == t_end and np.all(np.abs(got - x) <= 1e-7 * np.abs(x) + [1e-12, 1e-3, 1e-12, 1e-3])
+    assert stp.path == "compiled" and stp.stats["steps"] == 13 + 18 + 1 + 20
+    with pytest.raises(ParameterError, match="2 free inputs"):
+        stp.hold([1.0])
+    with pytest.raises(ParameterError, match="after t = 0.05"):
+        stp.advance(0.05)
+
+
+def test_a_stepper_on_the_python_path_continues_by_simulate():
+    """A network with a Python controller steps on the Python path (said by ``path``) and agrees with one
+    simulate within its Newton tolerance."""
+    ctrl = lambda mdl: {"vdp": [np.sin(3 * mdl.t)]}  # noqa: E731
+    one = Model().add(vanderpol(), "vdp").set_controller(ctrl).simulate(0.5, 0.01, rtol=1e-10)
+    stp = Model().add(vanderpol(), "vdp").set_controller(ctrl).stepper(0.01, rtol=1e-10)
+    assert stp.path.startswith("python")
+    for k in range(1, 11):
+        x = stp.advance(0.05 * k)
+    assert np.max(np.abs(x - one.x[-1])) < 1e-8 and stp.stats["steps"] == one.stats["steps"] == 50
+
+
+def test_a_failed_stepper_advance_keeps_the_state_and_time_of_the_call():
+    """A volume map that reaches zero fails the step down to min_dt: ConvergenceError, and the stepper is where
+    the call found it (a board plant vents and does not simulate that tick again)."""
+    from soroshapes.network import Schedule, StateMap
+    mdl = (Model().add(Fluidic(None, V0=1e-6), "a").add(StateSpace.linear([[-20.0]], [[20.0]]), "lag")
+           .connect(StateMap("lag", [-1e-6], index=0, offset=1e-6), "a", port="volume")
+           .set_controller(Schedule([0.0, 1.0], {"a": [[0.0], [0.0]], "lag": [[2.0], [2.0]]})))
+    stp = mdl.stepper(1e-3, compiled=True)
+    x = stp.advance(0.01)                                    # lag 0.36: the volume is 0.64 of V0
+    t = stp.t
+    with pytest.raises(ConvergenceError, match=r"stays at t = 0\.03 s"):   # V = 0 at ln 2/20 = 0.0347 s
+        for k in range(2, 20):
+            x, t = stp.advance(0.01 * k), stp.t
+    assert stp.t == t and np.array_equal(stp.x, x)
+    with pytest.raises(DataError, match="NaN"):
+        stp.set_state([np.nan, 0.0])

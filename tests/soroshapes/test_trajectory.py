@@ -64,3 +64,34 @@ def test_every_simulator_returns_the_one_type():
     np.testing.assert_array_equal(run["osc"].x, run.x[:, 2:])
     with pytest.raises(KeyError, match="systems: arm, osc"):
         run["nope"]
+
+
+def test_every_simulator_reports_the_one_stats_schema():
+    """Shapes.simulate (compiled loop and Python steps), a constrained Assembly, a Tree and Model.simulate (both
+    paths, fixed and adaptive steps) give ``stats`` with the keys of soroshapes.trajectory.STATS_KEYS first and
+    the same meaning: totals over the run, and the per-step mean of the Newton iterations."""
+    from soroshapes.constraints import Pin
+    from soroshapes.trajectory import STATS_KEYS
+
+    rod = _rod()
+    runs = {"beam compiled": rod.simulate(4e-3, 1e-3), "beam python": _rod().add_force(
+        lambda shp, q, qd, t: np.zeros(1)).simulate(4e-3, 1e-3),
+        "assembly": rod.simulate(4e-3, 1e-3, constraints=[Pin(axes=("z",))]),
+        "tree": Tree(gravity=(0, 0, -9.81)).add_beam("arm", Shapes(
+            Basis.chebyshev(1), dofs=(0, 1, 0, 0, 0, 0), length=0.1, section=sdf.Circle(2e-3),
+            material=materials.NeoHookean(E=1e5, nu=0.45, density=1000.0), segments=4)).simulate(4e-3, 1e-3)}
+    osc = lambda: Model().add(StateSpace(lambda x, u, t: [x[1], -x[0]], 2, 0, x0=[1.0, 0.0]), "osc")  # noqa: E731
+    for compiled in (None, False):
+        for adaptive in (False, True):
+            runs[f"model {compiled} {adaptive}"] = osc().simulate(4e-3, 1e-3, compiled=compiled, adaptive=adaptive)
+    for name, tr in runs.items():
+        st = tr.stats
+        assert tuple(st)[:len(STATS_KEYS)] == STATS_KEYS, name
+        assert st["steps"] >= 4 and isinstance(st["newton_iterations"], int), name
+        assert st["newton_iterations_per_step"] == pytest.approx(st["newton_iterations"] / st["steps"]), name
+        assert st["newton_iterations"] >= st["steps"] and st["matrices"] >= 1, name
+        assert st["dt"] == pytest.approx(1e-3) and st["wall_time"] > 0, name
+    for name in ("beam compiled", "beam python", "assembly"):
+        assert runs[name].stats["newton_iterations"] == runs[name].stats["newton_iterations_by_step"].sum()
+    assert runs["beam compiled"].stats["path"] == "compiled" and runs["beam python"].stats["path"] == "python"
+    assert runs["model False True"].stats["adaptive"] and runs["model False True"].stats["path"] == "python"
