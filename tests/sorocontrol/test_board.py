@@ -331,7 +331,7 @@ def test_injected_frames_are_refused_and_vent(patient, attack):
     assert ("MAC" in text) if attack in ("bad_mac", "unsealed") else ("sequence number" in text)
     wait_until(lambda: server.client is None and server.driver.value[0] == 0.0)
     assert np.all(server.requested == 0) and not any(w[0] == 80e3 for _, w in server.driver.writes)
-    assert any(f"protocol error" in e for _, e in server.events) and any("vented" in e for _, e in server.events)
+    assert any("protocol error" in e for _, e in server.events) and any("vented" in e for _, e in server.events)
     with pytest.raises((ConnectionError, OSError, ProtocolError)):
         P.send_frame(sock, frames[1])
         sealed_answer(sock, session)

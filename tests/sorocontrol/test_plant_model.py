@@ -41,7 +41,7 @@ def _rk4_reference(plant, ticks, h=2.5e-4):
     """RK4 of Fluidic.rhs per channel, the set-points held per tick as the board holds them."""
     fl, V = plant.fluidic, plant.volume
     x = [fl.initial_state(V) for _ in range(3)]
-    out, t = [], 0.0
+    out = []
     for tk in ticks:
         u = _setpoints(tk - TICK)
         n = int(round(TICK / h))
@@ -53,7 +53,6 @@ def _rk4_reference(plant, ticks, h=2.5e-4):
                 k3 = f(x[i] + 0.5 * h * k2)
                 k4 = f(x[i] + h * k3)
                 x[i] = x[i] + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        t = tk
         out.append([fl.pressure(xi, V) for xi in x])
     return np.array(out)
 
