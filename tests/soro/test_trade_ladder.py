@@ -59,15 +59,17 @@ def quick(tmp_path_factory):
 
 
 def test_the_ladder_has_fem_and_beam_rungs_and_a_converging_reference(quick):
-    """Every FEM family on three meshes, every beam family; the reference's tip converges under refinement
-    (observed Richardson order > 0.5: P2 on a smooth bending field gives about 2, corners of the chambers
-    lower it) and its estimated error is below 1 % of the length."""
+    """Every FEM family on three meshes, every beam family; the reference's estimated tip error is below 1 % of
+    the length, and it is never smaller than the last refinement's change (e2): on the quick meshes (h = 2.4,
+    1.2, 0.6 mm) the tip is not yet monotone (the chambers' corners and the layer's top converge at order
+    0.3-1, see Scene), and Richardson then falls back to e2 itself."""
     scene, out, rows, info = quick
     fams = {r["family"] for r in rows}
     assert set(scene.fem_families) <= fams and {"dvs", "chebyshev", "pcc"} <= fams
     assert sum(r["family"] == scene.fem_families[0] for r in rows) == 3
     rt = info["richardson"]["tip"]
-    assert rt["converging"] and rt["order"] > 0.5
+    assert rt["error"] >= (rt["e2"] if not rt["converging"] else rt["e2"] / 3)       # order <= 2: 2^2 - 1
+    assert rt["converging"] or rt["error"] == rt["e2"]
     assert rt["error"] / info["length"] < 0.01
     # every beam is much faster than every FEM rung (the premise of the ladder; a ratio in one run)
     fem_t = min(r["solve_time_s"] for r in rows if r["family"].startswith("fem"))
@@ -86,7 +88,7 @@ def test_the_tip_error_of_a_fem_family_shrinks_with_the_mesh(quick):
 def test_the_selected_model_file_loads_and_holds_the_tolerance_on_a_new_load(quick, tol, tmp_path):
     """Select at 1 % and 3 % (tip), write the model, read it back and check it on the validation load (a
     pressure used neither for training nor for the selection): within the tolerance. (0.1 % is below the
-    quick reference's own Richardson estimate, about 0.2 %: see the next test.)"""
+    quick reference's own Richardson estimate, about 0.6 %: see the next test.)"""
     from soro.ladder import load_model, select, validate, write_model
 
     scene, out, rows, _ = quick
@@ -152,24 +154,26 @@ def test_the_cli_writes_the_model_and_validates_it(quick, capsys):
 
 
 def test_bodies_asking_for_different_tolerances_get_different_models(quick):
-    """Two bodies of a network ask for 1 % and 0.3 % of the length (tip, unseen loads): different beams, each
-    within its tolerance, fewer coordinates for the looser one; both run in one Model."""
+    """Two bodies of a network ask for 1 % and 0.25 % of the length on the backbone's shape (unseen loads):
+    different beams, each within its tolerance, fewer coordinates for the looser one; both run in one Model.
+    (The shape, not the tip: the quick reference's tip is known to 0.6 % of L, about the beams' own tip errors,
+    0.2-0.6 %, so no two tip tolerances that can be checked separate them; its shape is known to 0.12 %.)"""
     from soroshapes import Model
     from soroshapes.network import Schedule
     from soro.ladder import beam_within
 
     _, out, _, _ = quick
-    loose, f_loose = beam_within("pneunet2d", "1%", out=out, quick=True)
-    tight, f_tight = beam_within("pneunet2d", "0.3%", out=out, quick=True)
+    loose, f_loose = beam_within("pneunet2d", "1%", "shape", out=out, quick=True)
+    tight, f_tight = beam_within("pneunet2d", "0.25%", "shape", out=out, quick=True)
     assert (f_loose.meta["family"], f_loose.meta["modes"]) != (f_tight.meta["family"], f_tight.meta["modes"])
-    assert f_loose.meta["unseen_error"] <= 0.01 and f_tight.meta["unseen_error"] <= 0.003
+    assert f_loose.meta["unseen_error"] <= 0.01 and f_tight.meta["unseen_error"] <= 0.0025
     assert loose.n < tight.n
     mdl = Model().add(loose, "loose").add(tight, "tight")
     mdl.set_controller(Schedule([0.0, 0.01], {"loose": [[0.0], [2e3]], "tight": [[0.0], [2e3]]}))
     tr = mdl.simulate(0.01, 1e-3)
     assert np.all(np.isfinite(tr.x[-1]))
     with pytest.raises(ParameterError, match="no beam of pneunet2d reaches 0.01 %"):
-        beam_within("pneunet2d", "0.01%", out=out, quick=True)
+        beam_within("pneunet2d", "0.01%", "shape", out=out, quick=True)
 
 
 def test_a_fem_rung_is_written_loaded_and_validated_too(quick, tmp_path):
@@ -467,3 +471,16 @@ def test_the_cantilever_ladder_measures_the_contact_load_on_every_rung(cantileve
     assert all(np.isfinite(r["tip_contact"]) and r["contact_solve_s"] > 0 for r in rows)
     from soro.ladder import contact_table
     assert "~" in contact_table(rows, info)
+
+
+@pytest.mark.parametrize("size", [2.4e-3, 1.2e-3, 0.6e-3])
+def test_the_pneunet_layer_is_one_geometry_on_every_rung(size):
+    """The rungs share one geometry: the mesh follows the strain-limiting layer's top, so the Dragon Skin layer
+    is LAYER x L at every size (to round-off). Selected by cell midpoints on a mesh blind to it, its area varied
+    by 2.5 % between h = 0.3 and 0.15 mm, and the reference's tip jumped 0.26 mm with it (issue 24)."""
+    from soro.ladder import SCENES, _pneunet
+
+    pn = _pneunet()
+    scene = SCENES["pneunet2d"]["quick"]
+    fem, length = pn.build(2, scene.chambers, size, scene.p_max, degree=1)
+    assert fem.mesh.measure("layer") == pytest.approx(pn.LAYER * length, rel=1e-10)
