@@ -154,19 +154,20 @@ def test_the_cli_writes_the_model_and_validates_it(quick, capsys):
 
 
 def test_bodies_asking_for_different_tolerances_get_different_models(quick):
-    """Two bodies of a network ask for 1 % and 0.25 % of the length on the backbone's shape (unseen loads):
+    """Two bodies of a network ask for 1 % and 0.3 % of the length on the backbone's shape (unseen loads):
     different beams, each within its tolerance, fewer coordinates for the looser one; both run in one Model.
     (The shape, not the tip: the quick reference's tip is known to 0.6 % of L, about the beams' own tip errors,
-    0.2-0.6 %, so no two tip tolerances that can be checked separate them; its shape is known to 0.12 %.)"""
+    0.2-0.64 %, so no two tip tolerances that can be checked separate them; its shape is known to 0.28 %, the
+    one-mode beams' shape errors are 0.34-0.39 %, two modes 0.22-0.30 %.)"""
     from soroshapes import Model
     from soroshapes.network import Schedule
     from soro.ladder import beam_within
 
     _, out, _, _ = quick
     loose, f_loose = beam_within("pneunet2d", "1%", "shape", out=out, quick=True)
-    tight, f_tight = beam_within("pneunet2d", "0.25%", "shape", out=out, quick=True)
+    tight, f_tight = beam_within("pneunet2d", "0.3%", "shape", out=out, quick=True)
     assert (f_loose.meta["family"], f_loose.meta["modes"]) != (f_tight.meta["family"], f_tight.meta["modes"])
-    assert f_loose.meta["unseen_error"] <= 0.01 and f_tight.meta["unseen_error"] <= 0.0025
+    assert f_loose.meta["unseen_error"] <= 0.01 and f_tight.meta["unseen_error"] <= 0.003
     assert loose.n < tight.n
     mdl = Model().add(loose, "loose").add(tight, "tight")
     mdl.set_controller(Schedule([0.0, 0.01], {"loose": [[0.0], [2e3]], "tight": [[0.0], [2e3]]}))
@@ -402,19 +403,20 @@ def test_the_3d_selection_is_written_read_back_and_validated(tiny3d, tmp_path):
 
 
 def test_a_tolerance_below_the_references_error_names_the_tightest_checkable_one(tiny3d):
-    """This scene's reference (P1, not converging) is only known to ~1.6 % of L while a beam lies ~0.25 % from it:
-    at 1 % nothing is selected, and the message says why (the reference's error) and what can be asked for (that
-    error, with the cheapest model within it) instead of calling the beam's 0.25 % unreachable."""
+    """This scene's reference (P1, not converging) is only known to ~0.7 % of L (1.6 % before the mesh followed the
+    layer's top) while a beam lies closer to it: at 0.5 % nothing is selected, and the message says why (the
+    reference's error) and what can be asked for (that error, with the cheapest model within it) instead of
+    calling the beam's error unreachable."""
     from soro.ladder import select, unreachable
 
     _, _, rows, _ = tiny3d
     ref = next(r["tip_unseen"] for r in rows if r.get("estimated"))
     best = min(r["tip_unseen"] for r in rows)
-    assert best < 0.01 < ref and select(rows, 0.01, "tip") is None
-    text = unreachable(rows, 0.01, "tip")
+    assert best < 0.005 < ref and select(rows, 0.005, "tip") is None
+    text = unreachable(rows, 0.005, "tip")
     ok = select(rows, ref, "tip")
-    assert text.startswith(f"no model can be shown to reach 1 % on the unseen tip error: the reference itself is only "
-                           f"known to {100 * ref:.4g} %")
+    assert text.startswith(f"no model can be shown to reach 0.5 % on the unseen tip error: the reference itself is "
+                           f"only known to {100 * ref:.4g} %")
     assert f"met by {ok['family']} " in text and ok["tip_unseen"] <= ref
 
 
