@@ -180,7 +180,9 @@ def fem_snapshots(out, pn, prm):
             r, c = obstacle(prm["chambers"] * pn.PITCH, case)
             fem.add_contact(sdf.Circle(r, center=c))
         files[case] = out / f"{case}.h5"
-        fem.solve(steps=prm["steps"], max_step=1.0 / prm["steps"]).save(files[case])
+        # the first step cut to a linear response of 1 % of the body (pneunet_inflation's ramp): with the mesh
+        # following the layer's top, the pressed case's full first step no longer converged
+        fem.solve(steps=prm["steps"], max_step=1.0 / prm["steps"], linear_start=pn.LINEAR_START).save(files[case])
     return files
 
 

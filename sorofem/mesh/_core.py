@@ -211,10 +211,22 @@ def _inside(where, p):
     return bool(np.all(p[0] >= lo) and np.all(p[0] <= hi))
 
 
-def _occ_build(gmsh, shape, dim):
-    """Translate ``shape`` into OCC; returns the entities or raises NotTranslatable/GeometryError."""
+def _occ_build(gmsh, shape, dim, interfaces=()):
+    """Translate ``shape`` into OCC; returns the entities or raises NotTranslatable/GeometryError.
+
+    ``interfaces``: shapes whose boundaries split the domain (OCC ``fragment``): the pieces of the domain are
+    kept, glued along the shared curves/surfaces, and the parts of the interface shapes outside it removed."""
     try:
         ents = _gmsh.csg_to_occ(gmsh, shape, dim)
+        if interfaces:
+            occ = gmsh.model.occ
+            tools = [t for s in interfaces for t in _gmsh.csg_to_occ(gmsh, s, dim)]
+            out, pieces = occ.fragment(ents, tools)
+            keep = {t for m in pieces[:len(ents)] for t in m if t[0] == dim}
+            drop = [t for t in out if t[0] == dim and t not in keep]
+            if drop:
+                occ.remove(drop, recursive=True)
+            ents = sorted(keep)
         gmsh.model.occ.synchronize()
     except _gmsh.NotTranslatable:
         raise
@@ -581,7 +593,7 @@ class Mesh:
 
     @classmethod
     def from_sdf(cls, shape, size, order=1, cell="simplex", method="auto", refine=None, boundary_size=None,
-                 boundary_width=None, comm=None, side_tol=None, max_cells=None):
+                 boundary_width=None, comm=None, side_tol=None, max_cells=None, interfaces=None):
         """Mesh the inside (negative part) of a signed distance function.
 
         Parameters
@@ -612,6 +624,12 @@ class Mesh:
             Largest number of cells to generate, checked against :func:`estimate_cells` before gmsh runs
             (a mistyped size would otherwise mesh for minutes). Default: the enclosing :func:`cell_limit`
             (a sweep's ``[sweep] max_cells``), else :data:`MAX_CELLS` (2e6).
+        interfaces : list of shapes, optional
+            Shapes whose boundaries inside the domain the mesh follows: cell edges (3D: faces) lie on them, so
+            a second material's region, :meth:`add_region` ``(name, that shape, kind="cells")``, is exactly that
+            shape at every size. Without it the region is the cells whose midpoints fall inside, a boundary
+            recovered only to ~size (a 2 mm layer's area varied by 2.5 % between sizes 0.3 and 0.15 mm). Needs
+            the CSG path (primitives, sharp booleans, rigid transforms) for ``shape`` and each interface.
 
         Raises
         ------
@@ -628,6 +646,14 @@ class Mesh:
         kind = _check_cell(cell, dim)
         if method not in ("auto", "csg", "levelset"):
             raise MeshError(f"method must be 'auto', 'csg' or 'levelset', got {method!r}")
+        interfaces = tuple(interfaces or ())
+        if interfaces and method == "levelset":
+            raise MeshError("interfaces= needs the CSG path (method='auto' or 'csg'): a level-set mesh cannot "
+                            "follow inner boundaries; drop interfaces or build the shape from CSG primitives")
+        for s in interfaces:
+            if getattr(s, "dim", None) != dim or not callable(s):
+                raise GeometryError(f"each interface must be a {dim}D signed distance shape like the domain, got "
+                                    f"{type(s).__name__} of dimension {getattr(s, 'dim', None)}")
         h_base, h_bnd, h_fn = _size_function(size, refine, shape, boundary_size, boundary_width, dim)
         if kind == "quad" and dim == 3 and getattr(shape, "op", "") != "box":
             raise MeshError("hexahedra are only generated for a plain box (Mesh.box or sdf.Box); use tetrahedra")
@@ -639,15 +665,19 @@ class Mesh:
                 used = None
                 p = shape.params if hasattr(shape, "params") else {}
                 if kind == "quad" and method != "levelset" and getattr(shape, "op", "") in ("rectangle", "box") \
-                        and not p.get("radius"):
+                        and not p.get("radius") and not interfaces:
                     lo, hi = (np.asarray(b, dtype=float) for b in shape.bounds)
                     _structured(gmsh, lo, hi, h_base, dim)
                     used = "transfinite"
                 elif method in ("auto", "csg"):
                     try:
-                        _occ_build(gmsh, shape, dim)
+                        _occ_build(gmsh, shape, dim, interfaces)
                         used = "csg"
                     except _gmsh.NotTranslatable as e:
+                        if interfaces:
+                            raise GeometryError(f"the shape or an interface cannot be rebuilt exactly in "
+                                                f"OpenCASCADE ({e}), which interfaces= needs: build both from "
+                                                "CSG primitives, sharp booleans and rigid transforms") from None
                         if method == "csg":
                             raise GeometryError(f"the shape cannot be rebuilt exactly in OpenCASCADE ({e}); use "
                                                 "method='levelset'") from None

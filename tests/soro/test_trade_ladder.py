@@ -59,15 +59,17 @@ def quick(tmp_path_factory):
 
 
 def test_the_ladder_has_fem_and_beam_rungs_and_a_converging_reference(quick):
-    """Every FEM family on three meshes, every beam family; the reference's tip converges under refinement
-    (observed Richardson order > 0.5: P2 on a smooth bending field gives about 2, corners of the chambers
-    lower it) and its estimated error is below 1 % of the length."""
+    """Every FEM family on three meshes, every beam family; the reference's estimated tip error is below 1 % of
+    the length, and it is never smaller than the last refinement's change (e2): on the quick meshes (h = 2.4,
+    1.2, 0.6 mm) the tip is not yet monotone (the chambers' corners and the layer's top converge at order
+    0.3-1, see Scene), and Richardson then falls back to e2 itself."""
     scene, out, rows, info = quick
     fams = {r["family"] for r in rows}
     assert set(scene.fem_families) <= fams and {"dvs", "chebyshev", "pcc"} <= fams
     assert sum(r["family"] == scene.fem_families[0] for r in rows) == 3
     rt = info["richardson"]["tip"]
-    assert rt["converging"] and rt["order"] > 0.5
+    assert rt["error"] >= (rt["e2"] if not rt["converging"] else rt["e2"] / 3)       # order <= 2: 2^2 - 1
+    assert rt["converging"] or rt["error"] == rt["e2"]
     assert rt["error"] / info["length"] < 0.01
     # every beam is much faster than every FEM rung (the premise of the ladder; a ratio in one run)
     fem_t = min(r["solve_time_s"] for r in rows if r["family"].startswith("fem"))
@@ -86,7 +88,7 @@ def test_the_tip_error_of_a_fem_family_shrinks_with_the_mesh(quick):
 def test_the_selected_model_file_loads_and_holds_the_tolerance_on_a_new_load(quick, tol, tmp_path):
     """Select at 1 % and 3 % (tip), write the model, read it back and check it on the validation load (a
     pressure used neither for training nor for the selection): within the tolerance. (0.1 % is below the
-    quick reference's own Richardson estimate, about 0.2 %: see the next test.)"""
+    quick reference's own Richardson estimate, about 0.6 %: see the next test.)"""
     from soro.ladder import load_model, select, validate, write_model
 
     scene, out, rows, _ = quick
@@ -152,15 +154,18 @@ def test_the_cli_writes_the_model_and_validates_it(quick, capsys):
 
 
 def test_bodies_asking_for_different_tolerances_get_different_models(quick):
-    """Two bodies of a network ask for 1 % and 0.3 % of the length (tip, unseen loads): different beams, each
-    within its tolerance, fewer coordinates for the looser one; both run in one Model."""
+    """Two bodies of a network ask for 1 % and 0.3 % of the length on the backbone's shape (unseen loads):
+    different beams, each within its tolerance, fewer coordinates for the looser one; both run in one Model.
+    (The shape, not the tip: the quick reference's tip is known to 0.6 % of L, about the beams' own tip errors,
+    0.2-0.64 %, so no two tip tolerances that can be checked separate them; its shape is known to 0.28 %, the
+    one-mode beams' shape errors are 0.34-0.39 %, two modes 0.22-0.30 %.)"""
     from soroshapes import Model
     from soroshapes.network import Schedule
     from soro.ladder import beam_within
 
     _, out, _, _ = quick
-    loose, f_loose = beam_within("pneunet2d", "1%", out=out, quick=True)
-    tight, f_tight = beam_within("pneunet2d", "0.3%", out=out, quick=True)
+    loose, f_loose = beam_within("pneunet2d", "1%", "shape", out=out, quick=True)
+    tight, f_tight = beam_within("pneunet2d", "0.3%", "shape", out=out, quick=True)
     assert (f_loose.meta["family"], f_loose.meta["modes"]) != (f_tight.meta["family"], f_tight.meta["modes"])
     assert f_loose.meta["unseen_error"] <= 0.01 and f_tight.meta["unseen_error"] <= 0.003
     assert loose.n < tight.n
@@ -169,7 +174,7 @@ def test_bodies_asking_for_different_tolerances_get_different_models(quick):
     tr = mdl.simulate(0.01, 1e-3)
     assert np.all(np.isfinite(tr.x[-1]))
     with pytest.raises(ParameterError, match="no beam of pneunet2d reaches 0.01 %"):
-        beam_within("pneunet2d", "0.01%", out=out, quick=True)
+        beam_within("pneunet2d", "0.01%", "shape", out=out, quick=True)
 
 
 def test_a_fem_rung_is_written_loaded_and_validated_too(quick, tmp_path):
@@ -398,19 +403,20 @@ def test_the_3d_selection_is_written_read_back_and_validated(tiny3d, tmp_path):
 
 
 def test_a_tolerance_below_the_references_error_names_the_tightest_checkable_one(tiny3d):
-    """This scene's reference (P1, not converging) is only known to ~1.6 % of L while a beam lies ~0.25 % from it:
-    at 1 % nothing is selected, and the message says why (the reference's error) and what can be asked for (that
-    error, with the cheapest model within it) instead of calling the beam's 0.25 % unreachable."""
+    """This scene's reference (P1, not converging) is only known to ~0.7 % of L (1.6 % before the mesh followed the
+    layer's top) while a beam lies closer to it: at 0.5 % nothing is selected, and the message says why (the
+    reference's error) and what can be asked for (that error, with the cheapest model within it) instead of
+    calling the beam's error unreachable."""
     from soro.ladder import select, unreachable
 
     _, _, rows, _ = tiny3d
     ref = next(r["tip_unseen"] for r in rows if r.get("estimated"))
     best = min(r["tip_unseen"] for r in rows)
-    assert best < 0.01 < ref and select(rows, 0.01, "tip") is None
-    text = unreachable(rows, 0.01, "tip")
+    assert best < 0.005 < ref and select(rows, 0.005, "tip") is None
+    text = unreachable(rows, 0.005, "tip")
     ok = select(rows, ref, "tip")
-    assert text.startswith(f"no model can be shown to reach 1 % on the unseen tip error: the reference itself is only "
-                           f"known to {100 * ref:.4g} %")
+    assert text.startswith(f"no model can be shown to reach 0.5 % on the unseen tip error: the reference itself is "
+                           f"only known to {100 * ref:.4g} %")
     assert f"met by {ok['family']} " in text and ok["tip_unseen"] <= ref
 
 
@@ -589,3 +595,16 @@ def test_the_pneunet_curls_onto_the_cylinder_on_every_rung(blocked2d, tmp_path):
     pick = select(rows, 0.05, "tip_contact")
     path = write_model(pick, scene, tmp_path / "model.json", "tip_contact", 0.05)
     assert "_shapes" in pick and validate(path, scene, out, "tip_contact") <= 0.05
+
+
+@pytest.mark.parametrize("size", [2.4e-3, 1.2e-3, 0.6e-3])
+def test_the_pneunet_layer_is_one_geometry_on_every_rung(size):
+    """The rungs share one geometry: the mesh follows the strain-limiting layer's top, so the Dragon Skin layer
+    is LAYER x L at every size (to round-off). Selected by cell midpoints on a mesh blind to it, its area varied
+    by 2.5 % between h = 0.3 and 0.15 mm, and the reference's tip jumped 0.26 mm with it (issue 24)."""
+    from soro.ladder import SCENES, _pneunet
+
+    pn = _pneunet()
+    scene = SCENES["pneunet2d"]["quick"]
+    fem, length = pn.build(2, scene.chambers, size, scene.p_max, degree=1)
+    assert fem.mesh.measure("layer") == pytest.approx(pn.LAYER * length, rel=1e-10)

@@ -458,3 +458,30 @@ def test_stability_monitor_tracks_the_lowest_eigenvalue_through_euler_buckling()
     k = np.flatnonzero(lam < 0)[0]
     t_cr = np.interp(0.0, [lam[k], lam[k - 1]], [traj.times[k], traj.times[k - 1]])
     assert 1.5 * eps_cr * t_cr == pytest.approx(eps_cr, rel=5e-2)
+
+
+@pytest.mark.parametrize("mixed", [False, True])
+def test_the_cavity_volume_of_a_p2_field_is_exact_on_a_3d_box_cavity(mixed):
+    """The measure behind ``cavity_volumes`` (issue 24: the 3D PneuNet's volume did not converge): on a box cavity
+    (straight facets: the rest geometry is exact), the quadratic displacement u = (a x^2, b y z, c x y), which P2
+    holds exactly, encloses int_cavity det F dX in closed form, det F = (1 + 2 a x)(1 + b z - b c x y); the
+    boundary integral -1/3 oint x . cof(F) N dA is of degree 4 on a facet, which the quadrature degree (4 for
+    P2) integrates exactly (degree 2 misses by 1e-4): the measure agrees to round-off, so a volume that does not
+    converge with the mesh is the displacement field's error, not the measure's."""
+    import dolfinx.fem
+    from sorofem import sdf
+
+    lo, hi = np.array([-4e-3, -3e-3, -2e-3]), np.array([5e-3, 2e-3, 3e-3])          # the cavity [m]
+    body = sdf.Box((20e-3, 14e-3, 12e-3)) - sdf.Box(tuple(hi - lo), center=tuple((hi + lo) / 2))
+    fem = Fem(Mesh.from_sdf(body, size=4e-3), materials.NeoHookean(mu=100 * kPa, nu=0.45), degree=2, mixed=mixed)
+    a, b, c = 30.0, 40.0, 50.0                                                        # [1/m]
+    u = fem.forms.state.sub(0) if mixed else fem.forms.state
+    u.interpolate(lambda x: np.vstack([a * x[0] ** 2, b * x[1] * x[2], c * x[0] * x[1]]))
+    (x0, y0, z0), (x1, y1, z1) = lo, hi
+    ix0 = (x1 - x0) + a * (x1**2 - x0**2)                                  # int (1 + 2 a x) dx
+    ix1 = (x1**2 - x0**2) / 2 + 2 * a * (x1**3 - x0**3) / 3                # int (1 + 2 a x) x dx
+    exact = ix0 * (y1 - y0) * ((z1 - z0) + b * (z1**2 - z0**2) / 2) - b * c * ix1 * (y1**2 - y0**2) / 2 * (z1 - z0)
+    v0 = np.prod(hi - lo)
+    got = dolfinx.fem.assemble_scalar(fem.forms.volumes["cavity_0"])
+    assert abs(exact - v0) > 0.05 * v0                                                # a change the test can see
+    assert got == pytest.approx(exact, rel=1e-10)

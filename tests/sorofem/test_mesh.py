@@ -372,3 +372,23 @@ def test_plot_draws_in_the_unit_asked_for(holes_p2):
     assert ax_m.get_xlim()[0] < lo[0] and ax_m.get_xlim()[1] > hi[0]
     with pytest.raises(MeshError, match="'mm' or 'm'"):
         holes_p2.plot(ax=ax_m, unit="cm")
+
+
+@pytest.mark.parametrize("size", [1.3 * mm, 0.7 * mm])
+def test_a_mesh_with_interfaces_follows_the_second_materials_edge_at_every_size(size):
+    """``interfaces=``: the layer's top (y = -H/2 + 1.7 mm, on no row of a uniform mesh) is a line of cell
+    edges, so the layer selected by cell midpoints is exactly W x 1.7 mm (round-off) at any size, the body's
+    area and its cavities unchanged; without it the layer is right only to a row of cells (the test above)."""
+    layer = sdf.Rectangle(W + 2 * mm, 1.7 * mm, center=(0, -H / 2 + 0.85 * mm))
+    msh = Mesh.from_sdf(two_holes(), size=size, interfaces=[layer]).add_region("layer", layer, kind="cells")
+    assert msh.measure("layer") == pytest.approx(W * 1.7 * mm, rel=1e-10)
+    assert msh.area == pytest.approx(W * H - 2 * math.pi * R**2, rel=(size / R) ** 2 / 6)   # chords of the holes
+    assert msh.cavities == ["cavity_0", "cavity_1"] and msh.measure("left") == pytest.approx(H, rel=1e-10)
+
+
+def test_interfaces_need_the_csg_path_and_shapes_of_the_domains_dimension():
+    layer = sdf.Rectangle(W, 2 * mm, center=(0, -H / 2 + 1 * mm))
+    with pytest.raises(MeshError, match="CSG path"):
+        Mesh.from_sdf(two_holes(), size=2 * mm, method="levelset", interfaces=[layer])
+    with pytest.raises(GeometryError, match="2D signed distance"):
+        Mesh.from_sdf(two_holes(), size=2 * mm, interfaces=[sdf.Sphere(1 * mm)])
