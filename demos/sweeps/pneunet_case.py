@@ -41,9 +41,10 @@ def build(params, comm):
     from sorofem.mesh import Mesh
 
     demo = _demo()
-    shape, _ = demo.pneunet(int(params["chambers"]), dim=2)
-    msh = Mesh.from_sdf(shape, size=float(params["size"]), comm=comm)
-    msh.add_region("layer", ([-1.0, -1.0], [1.0, demo.LAYER]), kind="cells")
+    shape, length = demo.pneunet(int(params["chambers"]), dim=2)
+    layer = demo.layer_shape(length, 2)          # the mesh follows the layer's top: exactly LAYER thick at any size
+    msh = Mesh.from_sdf(shape, size=float(params["size"]), comm=comm, interfaces=[layer])
+    msh.add_region("layer", layer, kind="cells")
     fem = Fem(msh, material=materials.PRESETS[params["material"]](), degree=2)
     fem.add_material("layer", materials.DragonSkin30())
     fem.add_support("left")
