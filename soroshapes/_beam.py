@@ -938,40 +938,48 @@ def _strain2(Bv, rows, x0, q, out):
 
 
 @njit(cache=True)
-def _tpoly2(Om, c1, c2, c3, c4, u, X, out):
-    """out = T(Om) u on 3-twists (the series of :func:`_tpoly` with the planar ad)."""
+def _planar_coeffs(theta, out):
+    r"""The coefficients of T on se(2) into out: :math:`(\beta, \gamma, c_3, c_4)`. On 3-twists
+    :math:`\mathrm{ad}_\Omega^3 = -\theta^2\mathrm{ad}_\Omega` (:math:`\theta = \Omega_0`), so the series
+    :math:`T = I - c_1\mathrm{ad} + c_2\mathrm{ad}^2 - c_3\mathrm{ad}^3 + c_4\mathrm{ad}^4` of
+    :func:`soroshapes.lie._tse3_coeffs` is :math:`T = I - \beta\,\mathrm{ad} + \gamma\,\mathrm{ad}^2` with
+    :math:`\beta = c_1 - c_3\theta^2 = (1 - \cos\theta)/\theta^2`, :math:`\gamma = c_2 - c_4\theta^2 =
+    (\theta - \sin\theta)/\theta^3`, whose derivatives are :math:`\beta' = -2c_3\theta`, :math:`\gamma' =
+    -2c_4\theta` (from :math:`c_1' = \theta^2 c_3'`, :math:`c_2' = \theta^2 c_4'`)."""
+    c1, c2, c3, c4 = _tse3_coeffs(abs(theta))
+    t2 = theta * theta
+    out[0], out[1], out[2], out[3] = c1 - c3 * t2, c2 - c4 * t2, c3, c4
+
+
+@njit(cache=True)
+def _tpoly2(Om, cf, u, X, out):
+    r"""out = T(Om) u on 3-twists, :math:`u - \beta\,\mathrm{ad}u + \gamma\,\mathrm{ad}^2u` (``cf`` of
+    :func:`_planar_coeffs`); leaves ad u and ad^2 u in X[0], X[1] for :func:`_dtpoly2`."""
     _adv2(Om, u, X[0])
     _adv2(Om, X[0], X[1])
-    _adv2(Om, X[1], X[2])
-    _adv2(Om, X[2], X[3])
     for r in range(3):
-        out[r] = u[r] - c1 * X[0, r] + c2 * X[1, r] - c3 * X[2, r] + c4 * X[3, r]
+        out[r] = u[r] - cf[0] * X[0, r] + cf[1] * X[1, r]
 
 
 @njit(cache=True)
-def _tpoly2_t(Om, c1, c2, c3, c4, y, X, out):
-    """out = T(Om)^T y on planar wrenches (:func:`_tpoly_t` restricted)."""
+def _tpoly2_t(Om, cf, y, X, out):
+    """out = T(Om)^T y on planar wrenches (:func:`_tpoly2` transposed)."""
     _adtv2(Om, y, X[0])
     _adtv2(Om, X[0], X[1])
-    _adtv2(Om, X[1], X[2])
-    _adtv2(Om, X[2], X[3])
     for r in range(3):
-        out[r] = y[r] - c1 * X[0, r] + c2 * X[1, r] - c3 * X[2, r] + c4 * X[3, r]
+        out[r] = y[r] - cf[0] * X[0, r] + cf[1] * X[1, r]
 
 
 @njit(cache=True)
-def _dtpoly2(Om, u, X, Y, c, d, out):
-    """out = dT(Om)[u] u on 3-twists, after :func:`_tpoly2` (:func:`_dtpoly` restricted)."""
-    t = Om[0] * u[0]
+def _dtpoly2(Om, u, X, Y, cf, out):
+    r"""out = dT(Om)[u] u on 3-twists after :func:`_tpoly2` (X[0] = ad u, X[1] = ad^2 u): from
+    :math:`T = I - \beta\,\mathrm{ad}_\Omega + \gamma\,\mathrm{ad}_\Omega^2` and
+    :math:`\mathrm{ad}_u u = 0`, :math:`dT[u]u = \theta u_0(2c_3\,\mathrm{ad}u - 2c_4\,\mathrm{ad}^2u) +
+    \gamma\,\mathrm{ad}_u\mathrm{ad}\,u` (see :func:`_planar_coeffs`)."""
+    t = 2.0 * Om[0] * u[0]
     _adv2(u, X[0], Y[0])
-    _adv2(u, X[1], Y[1])
-    _adv2(u, X[2], Y[2])
-    _adv2(Om, Y[0], Y[3])
-    _adv2(Om, Y[1], Y[4])
-    _adv2(Om, Y[3], Y[5])
     for r in range(3):
-        out[r] = (t * (-d[0] * X[0, r] + d[1] * X[1, r] - d[2] * X[2, r] + d[3] * X[3, r])
-                  + c[1] * Y[0, r] - c[2] * (Y[1, r] + Y[3, r]) + c[3] * (Y[2, r] + Y[4, r] + Y[5, r]))
+        out[r] = t * (cf[2] * X[0, r] - cf[3] * X[1, r]) + cf[1] * Y[0, r]
 
 
 @njit(cache=True)
@@ -1026,14 +1034,15 @@ def newton_euler_planar(q, qd, a, order, h, B, rows, xi0, g0, w, Md, ag, pl_node
     out-of-plane part of the wrench, gravity's included, never reaches the coordinates), so the result equals
     the general pass to round-off at about a quarter of its cost. Same arguments and outputs: ``G``, ``eta``
     (zero out of the plane) and ``out``; the per-piece operators are planar (``SA[s, :3, :3]`` the Ad of the
-    inverse, ``SX[s, 0:3, :3]`` the strains and :math:`\Omega`, ``SX[s, 3, :4]`` the coefficients of T) for
+    inverse, ``SX[s, 0:3, :3]`` the strains and :math:`\Omega`, ``SX[s, 3, :4]`` the coefficients of T,
+    :func:`_planar_coeffs`) for
     :func:`mass_matrix_planar`; ``acc`` holds the 3-twists in its first three columns."""
     n = q.shape[0]
     P = h.shape[0]
     xd1, xd2, xa1, xa2, Omd, Oa, psi, tmp, lam, y, z1, z2, F, dTv = (
         V[0, :3], V[1, :3], V[2, :3], V[3, :3], V[4, :3], V[5, :3], V[6, :3], V[7, :3], V[8, :3], V[9, :3],
         V[10, :3], V[11, :3], V[12, :3], V[13, :3])
-    X, Y, cc, dc = V[15:19, :3], V[19:25, :3], V[25], V[26]
+    X, Y = V[15:19, :3], V[19:25, :3]
     zero = V[14]
     for r in range(6):
         zero[r] = 0.0
@@ -1077,13 +1086,9 @@ def newton_euler_planar(q, qd, a, order, h, B, rows, xi0, g0, w, Md, ag, pl_node
                 Oa[r] += 2.0 * c * tmp[r]
         Ai = SA[s]
         _segment2(s, Om, G, Ai)
-        th = abs(Om[0])
-        cc[0], cc[1], cc[2], cc[3] = _tse3_coeffs(th)
-        dc[0], dc[1], dc[2], dc[3] = _tse3_dcoeffs(th)
-        for r in range(4):
-            cf[r] = cc[r]
-        _tpoly2(Om, cc[0], cc[1], cc[2], cc[3], Omd, X, psi)
-        _dtpoly2(Om, Omd, X, Y, cc, dc, dTv)
+        _planar_coeffs(Om[0], cf)
+        _tpoly2(Om, cf, Omd, X, psi)
+        _dtpoly2(Om, Omd, X, Y, cf, dTv)
         e = eta[s + 1]
         tmp[0], tmp[1], tmp[2] = e0, e1, e2
         _bvec2(Ai, tmp, y)
@@ -1092,7 +1097,7 @@ def newton_euler_planar(q, qd, a, order, h, B, rows, xi0, g0, w, Md, ag, pl_node
         _bvec2(Ai, acc[s, :3], acc[s + 1, :3])
         tmp[0], tmp[1], tmp[2] = e0, e1, e2
         _adv2(psi, tmp, z1)
-        _tpoly2(Om, cc[0], cc[1], cc[2], cc[3], Oa, X, y)
+        _tpoly2(Om, cf, Oa, X, y)
         for r in range(3):
             acc[s + 1, r] += dTv[r] - z1[r] + y[r]
     for k in range(n):
@@ -1126,7 +1131,7 @@ def newton_euler_planar(q, qd, a, order, h, B, rows, xi0, g0, w, Md, ag, pl_node
         s = i - 1
         hs = h[s]
         cf = SX[s, 3]
-        _tpoly2_t(SX[s, 2, :3], cf[0], cf[1], cf[2], cf[3], lam, X, y)
+        _tpoly2_t(SX[s, 2, :3], cf, lam, X, y)
         if order == 2:
             for k in range(n):
                 out[k] += hs * B[s, 0, k] * y[(rows[k] - 1) // 2]
@@ -1167,7 +1172,7 @@ def mass_matrix_planar(order, h, B, rows, w, Md, SA, SX, T, J, Y, Op, M):
             for r in range(3):
                 e[r] = 0.0
             e[j] = 1.0
-            _tpoly2(Om, cf[0], cf[1], cf[2], cf[3], e, X, col)
+            _tpoly2(Om, cf, e, X, col)
             for r in range(3):
                 T[r, j] = col[r]
         for k in range(n):

@@ -863,8 +863,9 @@ def _assemble(t, x, net, w, only):
         w[j] = 0.0
     for j in range(bext.shape[0]):
         bext[j] = 0.0
-    for b in range(table.shape[0]):
-        _kinematics_done(net, b, 0)
+    tflag = net[32]                 # no beam workspace holds kinematics at x yet (_kinematics_done, inline)
+    for b in range(tflag.shape[0] - table.shape[0], tflag.shape[0]):
+        tflag[b] = 0
     ok = True
     if ckind == 2:                  # first: the contacts of its beam then reuse its kinematics at x
         if only[cint[0]] and not _impedance(t, x, net, w):
@@ -1116,6 +1117,10 @@ def _beam_rhs(bi, x, xo, w, wo, bint, bflt, bwork, bintb, bext, out):
     return True
 
 
+#: no point loads in a beam's residual (constants: no allocation per evaluation)
+_NO_NODES, _NO_LOADS, _NO_FLAGS = np.zeros(0, np.int64), np.zeros((0, 6)), np.zeros(0, np.bool_)
+
+
 @njit(cache=True)
 def _beam_residual(bi, xe, x1, xhat, gam, xo, w, wo, bint, bflt, bwork, bintb, bext, out):
     r"""The rows of beam bi in the residual of an implicit step (see :func:`residual`), second order: the
@@ -1132,14 +1137,12 @@ def _beam_residual(bi, xe, x1, xhat, gam, xo, w, wo, bint, bflt, bwork, bintb, b
     qd = xe[xo + n:xo + 2 * n]
     for k in range(n):
         a[k] = (x1[xo + n + k] - xhat[xo + n + k]) / gam
-    nodes = np.zeros(0, np.int64)
-    pW = np.zeros((0, 6))
-    spatial = np.zeros(0, np.bool_)
     if bint[bi, 9]:
-        _ne_planar(q, qd, a, order, h, B, rows, X0, base, wts, Md, ag, nodes, pW, spatial, G, eta, acc, SA, SX, E, NV,
-                   R)
+        _ne_planar(q, qd, a, order, h, B, rows, X0, base, wts, Md, ag, _NO_NODES, _NO_LOADS, _NO_FLAGS, G, eta, acc,
+                   SA, SX, E, NV, R)
     else:
-        _ne(q, qd, a, order, h, B, rows, X0, base, wts, Md, ag, nodes, pW, spatial, G, eta, acc, SA, SX, E, NV, R)
+        _ne(q, qd, a, order, h, B, rows, X0, base, wts, Md, ag, _NO_NODES, _NO_LOADS, _NO_FLAGS, G, eta, acc, SA, SX,
+            E, NV, R)
     s = 0.0
     for k in range(n):
         r = R[k] - f_in[k]
@@ -1816,7 +1819,10 @@ def residual(t, xe, x1, xhat, gam, net, w, out, only):
                                   out):
                 return False
             continue
-        _system_rhs_a(i, xe, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt, net[33], out)
+        if table[i, 0] == FLUIDIC:
+            _fluidic_rhs(table[i, 5], xe, xo, nx, w, table[i, 3], fpar, out)
+        else:
+            _system_rhs_a(i, xe, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt, net[33], out)
         for j in range(xo, xo + nx):
             out[j] = x1[j] - xhat[j] - gam * out[j]
     return _finite_rows(table, only, out)
@@ -2182,11 +2188,14 @@ def _iteration_matrix_of(c, gam, net, JF, LUc, pivc, sel):
         while s < comps.shape[1] and comps[k, s] >= 0:
             s += 1
         A = LUc[k, :s, :s]
+        M = np.zeros((0, 0))
+        mb = -1                                         # the beam block whose mass matrix M is
         for a in range(s):
             i = comps[k, a]
             bl = col_block[i]
             f = c
             rate = -1                                   # the row's rate index in its beam, if a force row
+            n = 0
             if table[bl, 0] == BEAM:
                 n = table[bl, 2] // 2
                 if i >= table[bl, 1] + n:
@@ -2197,7 +2206,9 @@ def _iteration_matrix_of(c, gam, net, JF, LUc, pivc, sel):
             if rate < 0:
                 A[a, a] += 1.0
             else:
-                M = _beam_mass(table[bl, 5], net)
+                if mb != bl:                            # the views once per beam, not once per row
+                    M = _beam_ne_arrays(table[bl, 5], net[1], net[3])[8]
+                    mb = bl
                 first = a - rate                      # the beam's rate columns are contiguous in the component
                 for l in range(n):
                     A[a, first + l] += M[rate, l] / gam
