@@ -57,8 +57,13 @@ mm; the cylinder is released 15 mm above the table (the bent manipulator at (30,
 and lands upright. Without friction (mu = 0) the fingers press 0.316 N each and slide off: lift 0.0 mm.
 Real-time factor 0.064 / 0.041 (Python path; load 4-10 on 2 cores). Compiled network (session 10,
 ``bench_tree.py -k manipulator_pick``, load 2.2): quick run 0.343x real time (wall and CPU), lift 60.37 mm;
-the closing phase (0.6 s) 0.27x compiled vs 0.19x on the Python path. Most of the time is the differenced Newton
-matrix of the tree and the cylinder (986 matrices and 216 Jacobians of 34 columns in 2100 steps).
+the closing phase (0.6 s) 0.27x compiled vs 0.19x on the Python path; most of the time was the differenced Newton
+matrix of the tree and the cylinder (34 columns, each a whole evaluation of the tree's dynamics). Session 11: the
+tree's rows of the Newton matrix are its model rows (mass matrix, K, D, and the contact terms' force differenced,
+not the tree's dynamics; :func:`soroshapes._treeblock.block_model_rows`), and the tree's kinematics are computed
+once per state: quick run 1.93 s CPU (2.17x real time by CPU; 2.97 s wall, 1.41x, load 5.2) against 27.1 s CPU
+(0.155x) for the former code run back to back; lift 60.420 mm (60.365 before); per step 4.1 Newton sweeps, 1.2
+model-row refreshes and 0.14 differenced Jacobians (2100 steps, 36 split).
 """
 import time
 from pathlib import Path

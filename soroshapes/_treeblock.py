@@ -176,8 +176,16 @@ def tree_rhs(tint, tflt, twork, trows, w, Md, ag, K, D, Bu, free, G, J, Jd, eta,
     copied, the free ones solved from :math:`M_{ff}\ddot q_f = (f_g + Bu + f_{ext} - C\dot q - D\dot q - Kq -
     M_{fp}\ddot q_p)_f` (``a`` holds zeros at the free coordinates). Returns False if the state overflowed or
     :math:`M_{ff}` is singular (``out`` is then undefined)."""
-    n = q.shape[0]
     _tree_kinematics(tint, tflt, twork, trows, q, qd, G, J, Jd, eta)
+    return _tree_accelerations(w, Md, ag, K, D, Bu, free, G, J, Jd, eta, etad, M, C, fg, S, V, Y, LU, piv, q, qd,
+                               a, u, fext, out)
+
+
+@njit(cache=True)
+def _tree_accelerations(w, Md, ag, K, D, Bu, free, G, J, Jd, eta, etad, M, C, fg, S, V, Y, LU, piv, q, qd, a, u,
+                        fext, out):
+    """:func:`tree_rhs` after the kinematics (the frames, Jacobians, rates and twists already in G, J, Jd, eta)."""
+    n = q.shape[0]
     for i in range(G.shape[0]):
         for r in range(6):
             s = 0.0
@@ -223,32 +231,115 @@ def tree_rhs(tint, tflt, twork, trows, w, Md, ag, K, D, Bu, free, G, J, Jd, eta,
 def block_args(tree, u, force_inputs=False):
     """The arrays of a tree block in a compiled network: those of :func:`tree_rhs`, then the constant inputs
     ``u`` (used when the block has no network inputs for them), zero prescribed accelerations, a zero external
-    force and the block's input layout ``[reads u from the network, has n force inputs]``. Only a tree without
-    prescribed joints (its state is then (q, qd))."""
+    force, the block's input layout ``[reads u from the network, has n force inputs]`` and the stamp of its
+    kinematics (the state (q, qd) whose frames the work arrays hold, NaN: none; :func:`_kinematics_at`). Only a
+    tree without prescribed joints (its state is then (q, qd))."""
     low = lower(tree)
     n = tree.n
     ubar = np.zeros(len(tree.inputs)) if u is None else np.ascontiguousarray(u, dtype=float).reshape(-1)
     layout = np.array([int(u is None), int(bool(force_inputs))], np.int64)
-    return low.args + (ubar, np.zeros(n), np.zeros(n), layout)
+    return low.args + (ubar, np.zeros(n), np.zeros(n), layout, np.full(2 * n, np.nan))
 
 
 def empty_block_args():
     """Arrays of the same types as :func:`block_args` for a network without a tree (one kernel signature)."""
     z1, z2, z3, i1 = np.zeros(0), np.zeros((0, 0)), np.zeros((0, 0, 0)), np.zeros(0, np.int64)
     return (np.zeros((0, 13), np.int64), z1, z1, i1, z1, z2, np.zeros(3), z2, z2, z2, i1, z3, z3, z3, z2, z2, z2,
-            z2, z1, np.zeros((6, 6, 6)), np.zeros((8, 6)), z2, z2, i1, z1, z1, z1, np.zeros(2, np.int64))
+            z2, z1, np.zeros((6, 6, 6)), np.zeros((8, 6)), z2, z2, i1, z1, z1, z1, np.zeros(2, np.int64), z1)
+
+
+@njit(cache=True)
+def _kinematics_at(tb, x, xo):
+    """Make the block's work arrays hold the kinematics (frames, Jacobians, their rates, twists) of the tree state
+    ``x[xo:xo + 2n]``: computed unless the stamp says they already do (the contact term and the tree's own
+    derivative read them at the same state; a Newton-matrix column that perturbs only the body in contact
+    leaves the tree's state, and so its kinematics, as they were)."""
+    (tint, tflt, twork, trows, wq, Md, ag, K, D, Bu, free, G, J, Jd, eta, etad, M, C, fg, S, V, Y, LU, piv, ubar,
+     a0, fext, layout, stamp) = tb
+    n = K.shape[0]
+    same = True
+    for k in range(2 * n):
+        if not stamp[k] == x[xo + k]:               # NaN (no kinematics yet) is never equal
+            same = False
+            break
+    if same:
+        return
+    _tree_kinematics(tint, tflt, twork, trows, x[xo:xo + n], x[xo + n:xo + 2 * n], G, J, Jd, eta)
+    for k in range(2 * n):
+        stamp[k] = x[xo + k]
 
 
 @njit(cache=True)
 def block_kinematics(tb, x, xo):
     """Frames, tree Jacobians and body twists of every stacked frame of the tree block whose state starts at
-    ``x[xo]``, into the block's work arrays; returns (G, J, eta) (the arrays of :func:`soroshapes.tree.kinematics`,
-    row :meth:`Tree.row <soroshapes.tree.Tree.row>`). What a coupling that reads the tree's frames (contact) uses."""
+    ``x[xo]``, in the block's work arrays (computed once per state, :func:`_kinematics_at`); returns (G, J, eta)
+    (the arrays of :func:`soroshapes.tree.kinematics`, row :meth:`Tree.row <soroshapes.tree.Tree.row>`). What a
+    coupling that reads the tree's frames (contact) uses."""
+    _kinematics_at(tb, x, xo)
+    return tb[11], tb[12], tb[14]
+
+
+@njit(cache=True)
+def block_input_force(tb, w, wo, bext, xo, f):
+    r"""The generalized force on the tree block whose state starts at ``x[xo]`` from outside the tree, into ``f``
+    (n,): its inputs :math:`B u` (``w[wo:wo + nu]`` or the constant ones), the force inputs
+    ``w[wo + nu:wo + nu + n]`` and the force of the network's compiled couplings ``bext[xo:xo + n]``: the part
+    of its equations that reads other systems (differenced for its Newton rows, :func:`block_model_rows`)."""
     (tint, tflt, twork, trows, wq, Md, ag, K, D, Bu, free, G, J, Jd, eta, etad, M, C, fg, S, V, Y, LU, piv, ubar,
-     a0, fext, layout) = tb
+     a0, fext, layout, stamp) = tb
     n = K.shape[0]
-    _tree_kinematics(tint, tflt, twork, trows, x[xo:xo + n], x[xo + n:xo + 2 * n], G, J, Jd, eta)
-    return G, J, eta
+    nu = Bu.shape[1] if layout[0] == 1 else 0
+    for k in range(n):
+        s = fext[k] + bext[xo + k]
+        if layout[1] == 1:
+            s += w[wo + nu + k]
+        for j in range(Bu.shape[1]):
+            s += Bu[k, j] * (w[wo + j] if nu else ubar[j])
+        f[k] = s
+    return True
+
+
+@njit(cache=True)
+def block_model_rows(tb, x, xo, JF):
+    r"""The tree block's rows of the network Jacobian ``JF`` (N, N) for the Newton matrix, whose force rows
+    :math:`\partial f_{in}/\partial x` (:func:`block_input_force`, differenced by the caller over the columns it
+    reads) the caller put in the acceleration rows: the *model rows* :math:`[0\;\; I]` (coordinates) and
+    :math:`M^{-1}(\partial f_{in}/\partial x - [K\;\; D])` (accelerations), with the mass matrix :math:`M` at the
+    state x. As in the beams' model rows (:func:`soroshapes.network._cheap_rows_of`), the configuration and
+    velocity derivatives of the inertial and gravity forces are left out: in :math:`I - cJ` they weigh about
+    :math:`c^2 g/L` and :math:`c\,|\dot q|` against 1 (1e-4 and 1e-3 at c = 1.3 ms, L = 0.2 m, 1 rad/s), while
+    the couplings' stiffness and damping (a contact's penalty and its regularized friction, which dominate the
+    matrix at contact) are kept whole. False if M is singular or a row is not finite."""
+    (tint, tflt, twork, trows, wq, Md, ag, K, D, Bu, free, G, J, Jd, eta, etad, M, C, fg, S, V, Y, LU, piv, ubar,
+     a0, fext, layout, stamp) = tb
+    n = K.shape[0]
+    N = JF.shape[1]
+    _kinematics_at(tb, x, xo)
+    mass_coriolis_gravity(J, Jd, eta, G, wq, Md, ag, M, C, fg, False, S, V, Y)
+    for r in range(n):
+        for c in range(n):
+            LU[r, c] = M[r, c] if r <= c else M[c, r]       # mass_coriolis_gravity fills the upper triangle
+    if not _lu(LU, piv):
+        return False
+    col = np.empty(n)
+    total = 0.0
+    for j in range(N):
+        nz = False
+        for r in range(n):
+            v = JF[xo + n + r, j]
+            if xo <= j < xo + n:
+                v -= K[r, j - xo]
+            elif xo + n <= j < xo + 2 * n:
+                v -= D[r, j - xo - n]
+            col[r] = v
+            nz = nz or v != 0.0
+        if nz:
+            _lu_solve(LU, piv, col)
+        for r in range(n):
+            JF[xo + n + r, j] = col[r]
+            JF[xo + r, j] = 1.0 if j == xo + n + r else 0.0
+            total += col[r]
+    return math.isfinite(total)
 
 
 @njit(cache=True)
@@ -258,7 +349,7 @@ def block_rhs(tb, x, xo, w, wo, bext, out):
     ``w[wo + nu:wo + nu + n]`` (``nu`` = 0 with constant inputs), plus the force that the network's compiled
     couplings put on it (``bext[xo:xo + n]``, contact). False if the state overflowed or M is singular."""
     (tint, tflt, twork, trows, wq, Md, ag, K, D, Bu, free, G, J, Jd, eta, etad, M, C, fg, S, V, Y, LU, piv, ubar,
-     a0, fext, layout) = tb
+     a0, fext, layout, stamp) = tb
     n = K.shape[0]
     nu = Bu.shape[1] if layout[0] == 1 else 0
     q = x[xo:xo + n]
@@ -269,12 +360,13 @@ def block_rhs(tb, x, xo, w, wo, bext, out):
         fe[k] = fext[k] + bext[xo + k]
         if layout[1] == 1:
             fe[k] += w[wo + nu + k]
+    _kinematics_at(tb, x, xo)
     if nu:
-        ok = tree_rhs(tint, tflt, twork, trows, wq, Md, ag, K, D, Bu, free, G, J, Jd, eta, etad, M, C, fg, S, V, Y,
-                      LU, piv, q, qd, a0, w[wo:wo + nu], fe, acc)
+        ok = _tree_accelerations(wq, Md, ag, K, D, Bu, free, G, J, Jd, eta, etad, M, C, fg, S, V, Y, LU, piv, q, qd,
+                                 a0, w[wo:wo + nu], fe, acc)
     else:
-        ok = tree_rhs(tint, tflt, twork, trows, wq, Md, ag, K, D, Bu, free, G, J, Jd, eta, etad, M, C, fg, S, V, Y,
-                      LU, piv, q, qd, a0, ubar, fe, acc)
+        ok = _tree_accelerations(wq, Md, ag, K, D, Bu, free, G, J, Jd, eta, etad, M, C, fg, S, V, Y, LU, piv, q, qd,
+                                 a0, ubar, fe, acc)
     for k in range(n):
         out[xo + k] = qd[k]
         out[xo + n + k] = acc[k]

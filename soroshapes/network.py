@@ -45,7 +45,9 @@ controller's free inputs, then the couplings in declaration order, then every sy
 implicit step's residual (:func:`residual`) takes a beam second order, its equations of motion in force units
 by one pass of the O(N) recursions. The
 rows of the Newton matrix of reservoirs, linear systems and beam input forces are in closed form
-(:func:`_analytic_rows`: the inputs' Jacobian through StateMaps and output couplings); the rest, and the full
+(:func:`_analytic_rows`: the inputs' Jacobian through StateMaps and output couplings); a tree block's are its
+model rows (:func:`soroshapes._treeblock.block_model_rows`: its mass matrix and K, D, and the differenced force
+of its inputs and contact terms, not its dynamics); the rest, and the full
 Jacobian :math:`J = \partial F/\partial x` (:func:`jacobian`) when a beam's model matrix fails, are taken by
 forward differences of :math:`F` whose columns are grouped (Curtis-Powell-Reid) over the block dependency pattern
 (a column of system :math:`j` changes only the derivatives of the systems that read :math:`j`). The implicit steps, Newton and the step splitting are
@@ -630,8 +632,8 @@ def lower(blocks, links, volumes, controller, free):
             for tk, par, beam, *program in terms:
                 if tk not in _TERMS:
                     raise NotImplementedError(f"a {tk} wrench on body {tname!r}")
-                if tk == "contact":
-                    table[index[tname], 6] = 1          # its inputs need the beams' kinematics and SDFs
+                if tk in ("contact", "tree_contact"):
+                    table[index[tname], 6] = 1          # its inputs need the beams' (tree's) kinematics and SDFs
                 bb = -1
                 if beam is not None:
                     want = TREE if tk == "tree_contact" else BEAM
@@ -1775,9 +1777,9 @@ _SKIP, _DERIVATIVE, _INPUT_FORCE = 0, 1, 2
 
 @njit(cache=True)
 def _evaluate(t, x, net, w, out, mode):
-    """Per system, by ``mode[i]``: nothing, its derivative (as :func:`rhs`), or for a beam the generalized force of
-    its inputs and couplings :math:`f_{in}(t, x)` in its rate rows (0 in its coordinate rows): the part of a
-    beam's equations that reads other systems, differenced by :func:`_fd_rows`. False as :func:`rhs`."""
+    """Per system, by ``mode[i]``: nothing, its derivative (as :func:`rhs`), or for a beam or a tree the generalized
+    force of its inputs and couplings :math:`f_{in}(t, x)` in its rate rows (0 in its coordinate rows): the part
+    of its equations that reads other systems, differenced by :func:`_fd_rows`. False as :func:`rhs`."""
     table, bint, bflt, bwork, bintb, fpar, bext = net[0], net[1], net[2], net[3], net[4], net[5], net[28]
     rflt, lint, lflt = net[22], net[20], net[21]
     if not _assemble(t, x, net, w, mode):
@@ -1786,6 +1788,11 @@ def _evaluate(t, x, net, w, out, mode):
         if mode[i] == _DERIVATIVE:
             if not _system_rhs_a(i, x, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt, net[33], out):
                 return False
+        elif mode[i] == _INPUT_FORCE and table[i, 0] == TREE:     # the tree's force from outside it
+            xo, n = table[i, 1], table[i, 2] // 2
+            _treeblock.block_input_force(net[33], w, table[i, 3], bext, xo, out[xo + n:xo + 2 * n])
+            for k in range(n):
+                out[xo + k] = 0.0
         elif mode[i] == _INPUT_FORCE:
             bi, xo, wo = table[i, 5], table[i, 1], table[i, 3]
             n, m = bint[bi, 0], bint[bi, 1]
@@ -1832,16 +1839,26 @@ def residual(t, xe, x1, xhat, gam, net, w, out, only):
 def jacobian(t, x, net, scale, w, f0, fp, xp, Jac, JF):
     """:math:`\\partial F/\\partial x` by grouped forward differences (steps ``FD_STEP max(|x_j|, scale_j)``)
     into Jac, and into JF the same with the acceleration rows of every beam multiplied by its mass matrix at x
-    (the force Jacobian, which changes slowly with the configuration; see :func:`_iteration_matrix`). False if
-    an evaluation fails."""
+    (the force Jacobian, which changes slowly with the configuration; see :func:`_iteration_matrix`). A tree's
+    rows are its model rows (:func:`soroshapes._treeblock.block_model_rows`, the differenced force of its
+    inputs and contact terms): differencing its dynamics costs a whole evaluation of the tree per column, and
+    its model rows leave out only the inertial and gravity derivatives, which change the Newton contraction by
+    ~1e-4 (tests/soroshapes/test_rigid.py), so they serve this mode as well. False if an evaluation fails."""
     table = net[0]
     nb = table.shape[0]
     N = x.shape[0]
     alls = np.full(nb, _DERIVATIVE, np.int64)
+    tree = -1
+    for b in range(nb):
+        if table[b, 0] == TREE:
+            alls[b] = _INPUT_FORCE
+            tree = b
     for i in range(N):
         for j in range(N):
             Jac[i, j] = 0.0
     if not _fd_rows(t, x, net, scale, w, f0, fp, xp, alls, Jac):
+        return False
+    if tree >= 0 and not _treeblock.block_model_rows(net[33], x, table[tree, 1], Jac):
         return False
     if not _evaluate(t, x, net, w, f0, alls):         # the workspaces at x again (their mass matrices)
         return False
@@ -1932,7 +1949,13 @@ def _cheap_rows_of(t, x, net, scale, w, f0, fp, xp, JF, beams, analytic, sel):
     non-smooth where a valve saturates, so a stale row makes Newton contract slowly), and with ``beams`` the force
     rows of every beam as its model Jacobian :math:`\partial f_{in}/\partial x - [K\;\; D]` (the inputs' force,
     elasticity and damping; the configuration and velocity derivatives of the inertial forces left out, as in the
-    beam's own iteration matrix :math:`2M/h + D + \tfrac h2 K`) and their coordinate rows :math:`[0\;\; I]`.
+    beam's own iteration matrix :math:`2M/h + D + \tfrac h2 K`) and their coordinate rows :math:`[0\;\; I]`, and
+    the tree's rows as its model rows :math:`M^{-1}(\partial f_{in}/\partial x - [K\;\; D])`
+    (:func:`soroshapes._treeblock.block_model_rows`; first-order rows, so :math:`M^{-1}` times a beam's): a column
+    evaluates the tree's contact terms and its inputs (:func:`soroshapes._treeblock.block_input_force`), not its
+    dynamics, and a column of the body in contact not even the tree's kinematics. Without ``beams`` (the
+    differenced mode) the rows of the beams, the tree and the bodies in contact with them are left as the
+    differenced Jacobian (:func:`jacobian`) gave them.
     With ``analytic`` the systems marked at lowering (``table[i, 7]``) get their rows in closed form
     (:func:`_analytic_rows`, no evaluation of the network) and only the others are differenced by
     :func:`_fd_rows`; without it all are differenced. Only the systems with ``sel[i]`` True (the others' rows of
@@ -1943,24 +1966,33 @@ def _cheap_rows_of(t, x, net, scale, w, f0, fp, xp, JF, beams, analytic, sel):
     nb = table.shape[0]
     mode = np.zeros(nb, np.int64)
     closed = np.zeros(nb, np.bool_)
+    model = np.zeros(nb, np.bool_)        # the systems that get model rows (beams, the tree) with ``beams``
     any_fd = False
     for b in range(nb):
-        if (table[b, 0] == BEAM and not beams) or not sel[b]:
+        if ((table[b, 0] == BEAM or table[b, 0] == TREE) and not beams) or not sel[b]:
             continue
+        model[b] = table[b, 0] == BEAM or table[b, 0] == TREE
         if analytic and table[b, 7] == 1:
             closed[b] = True
-        elif table[b, 0] == BEAM:
+        elif model[b]:
             mode[b] = _INPUT_FORCE
             any_fd = True
-        elif table[b, 6] == 0:   # a body whose inputs are beam-SDF contacts (table[b, 6]) is not cheap: each of
-            mode[b] = _DERIVATIVE   # its columns evaluates every contact's beam kinematics
+        elif table[b, 6] == 0 or beams:
+            # a body whose inputs are contacts with beams or a tree (table[b, 6]): each of its columns evaluates
+            # the contacts' kinematics, which the model rows of those beams and that tree (same component, so
+            # refreshed here) evaluate anyway (left out, its rows stayed I: Newton solved the body's equations by
+            # fixed-point iteration); in the differenced mode its rows come from the differenced Jacobian, as theirs
+            mode[b] = _DERIVATIVE
             any_fd = True
-        if table[b, 0] == BEAM:
+        if model[b]:
             for i in range(table[b, 1], table[b, 1] + table[b, 2]):
                 for j in range(N):
                     JF[i, j] = 0.0
     if any_fd and not _fd_rows(t, x, net, scale, w, f0, fp, xp, mode, JF):
         return False
+    for b in range(nb):
+        if model[b] and table[b, 0] == TREE and not _treeblock.block_model_rows(net[33], x, table[b, 1], JF):
+            return False
     for b in range(nb):
         if closed[b]:
             if not _analytic_rows(t, x, net, w, closed, JF):

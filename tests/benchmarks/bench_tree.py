@@ -147,17 +147,22 @@ def test_bench_manipulator_pick_scene(record):
     short = [_timed(*_manipulator_scene(0.6), c) for c in (True, False)]
     (wc, cc, tc), (wp, cp, tp) = short
     assert tp.stats["path"] == "python"
-    # the two paths stop Newton by different rules; at the demo's rtol = 1e-2 the fingers' stick-slip makes their
-    # trajectories part (recorded, not asserted: test_rigid's tree-contact test holds them to 1e-9 at rtol 1e-8)
+    # the two paths stop Newton by different rules; at the demo's rtol = 1e-2 the fingers' stick-slip can make their
+    # trajectories part (recorded, not asserted: test_rigid's tree-contact test holds them to 1e-9 at rtol 1e-8;
+    # session 10: 0.09 in a finger coordinate over 0.6 s; session 11, with the tree's model rows: 2.6e-5)
     n = tc["robot"].x.shape[1] // 2
     diff_q = float(np.abs(tc["robot"].x[:, :n] - tp["robot"].x[:, :n]).max())
     diff_cyl = float(np.abs(tc["cylinder"].x[:, :3] - tp["cylinder"].x[:, :3]).max())
     diff = float(np.abs(tc.x - tp.x).max() / np.abs(tp.x).max())
     st = tr.stats
+    # evaluations per step by kind: Newton sweeps (the whole network), model-row refreshes of the tree and the
+    # cylinder (each differences the contact and ground terms over the component's 34 columns, not the tree's
+    # dynamics: _treeblock.block_model_rows) and differenced Jacobians (each 35 evaluations of the whole network)
     record(simulated_s=T, dt=dt, wall_s=round(wall, 3), cpu_s=round(cpu, 3),
            realtime_factor=round(T / wall, 3), realtime_factor_cpu=round(T / cpu, 3), path=st["path"],
            newton_iterations_per_step=round(st["newton_iterations"] / st["steps"], 2), jacobians=st["jacobians"],
-           matrices=st["matrices"], cut_steps=st["cut_steps"], model_matrix_failures=st["model_matrix_failures"],
+           matrices=st["matrices"], matrices_per_step=round(st["matrices"] / st["steps"], 3),
+           jacobians_per_step=round(st["jacobians"] / st["steps"], 3), steps=st["steps"], cut_steps=st["cut_steps"], model_matrix_failures=st["model_matrix_failures"],
            lift_mm=round(lift * 1e3, 2), closing_simulated_s=0.6,
            closing_realtime_factor_compiled=round(0.6 / wc, 3), closing_realtime_factor_cpu_compiled=round(0.6 / cc, 3),
            closing_realtime_factor_python=round(0.6 / wp, 3), closing_realtime_factor_cpu_python=round(0.6 / cp, 3),
