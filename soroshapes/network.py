@@ -500,7 +500,7 @@ def lower(blocks, links, volumes, controller, free):
     kind = np.zeros(len(blocks), np.int64)
     # kind, xoff, n, woff, nw, aux, costly and analytic rows (see _cheap_rows)
     table = np.zeros((len(blocks), 8), np.int64)
-    bint, bflt, bwork, bintb = [], [], [], []
+    bint, bflt, bintb = [], [], []
     fpar = []
     maps, mapint = [], []
     lint, lflt = [], []
