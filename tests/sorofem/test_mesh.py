@@ -354,8 +354,12 @@ def test_ctrl_c_still_raises_keyboard_interrupt_after_meshing(tmp_path, subproce
             "Mesh.from_sdf(sdf.Circle(1e-3), size=0.5e-3)\n"
             "try:\n    os.kill(os.getpid(), signal.SIGINT)\n    time.sleep(5)\n"
             "except KeyboardInterrupt:\n    print('KeyboardInterrupt')\n")
+    import signal
+
+    # the child starts with Ctrl-C at its default, as from a terminal (a shell's background job inherits SIGINT
+    # ignored, and Python then installs no KeyboardInterrupt handler at all)
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=subprocess_env,
-                         cwd=tmp_path, timeout=300)
+                         cwd=tmp_path, timeout=300, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     assert res.returncode == 0 and res.stdout.strip().endswith("KeyboardInterrupt"), (res.returncode, res.stderr)
 
 
