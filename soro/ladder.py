@@ -1262,6 +1262,22 @@ def _pneunet_blocked(scene, pn, degree, mixed, size, level):
     return R, cpu
 
 
+def _rung_cache(path, scene):
+    """A load case's FEM results cached rung by rung in the JSON file ``path`` with the scene's settings (an
+    interrupted run resumes; other settings start afresh): returns the document (``settings``, ``rungs``,
+    ``reference``) and a function that saves it atomically."""
+    from sorofem.io import atomic_path
+
+    doc = json.loads(path.read_text()) if path.is_file() else {}
+    if doc.get("settings") != scene.fem_settings():
+        doc = {"settings": scene.fem_settings(), "rungs": {}, "reference": {}}
+
+    def save():
+        with atomic_path(path) as tmp:
+            Path(tmp).write_text(json.dumps(doc))
+    return doc, save
+
+
 def pneunet_blocked_fem(scene, out, doc, progress=None):
     """The blocked load of the 2D PneuNet's FEM rungs (``doc`` from :func:`fem_ladder`): the tip face held
     vertically (:func:`blocked_fem`) at the top unseen load (``test_level``) on every rung, and on the reference
@@ -1269,19 +1285,9 @@ def pneunet_blocked_fem(scene, out, doc, progress=None):
     at the validation load. Cached, rung by rung, in ``out/blocked.json`` (with the scene's settings; an
     interrupted run resumes). Returns that document: ``rungs`` (``force`` [N/m], ``solve_s`` CPU [s]) in the
     order of ``doc["rungs"]`` and ``reference`` (``train``, ``validation`` forces [N/m])."""
-    from sorofem.io import atomic_path
-
-    out = Path(out)
-    path = out / "blocked.json"
-    bdoc = json.loads(path.read_text()) if path.is_file() else {}
-    if bdoc.get("settings") != scene.fem_settings():
-        bdoc = {"settings": scene.fem_settings(), "rungs": {}, "reference": {}}
+    bdoc, save = _rung_cache(Path(out) / "blocked.json", scene)
     pn = _pneunet()
     say = progress or (lambda msg: None)
-
-    def save():
-        with atomic_path(path) as tmp:
-            Path(tmp).write_text(json.dumps(bdoc))
     for r in doc["rungs"]:
         key = f"{r['family']}-h{r['level']}"
         if key not in bdoc["rungs"]:
@@ -1407,19 +1413,9 @@ def pneunet_contact_fem(scene, out, doc, progress=None):
     the reference also at the validation load. Cached rung by rung in ``out/contact.json`` (as
     :func:`pneunet_blocked_fem`). Returns it: ``rungs`` (``tip`` [m], ``force`` [N/m] (2,), ``solve_s`` CPU) and
     ``reference`` (``validation``: tip and force)."""
-    from sorofem.io import atomic_path
-
-    out = Path(out)
-    path = out / "contact.json"
-    cdoc = json.loads(path.read_text()) if path.is_file() else {}
-    if cdoc.get("settings") != scene.fem_settings():
-        cdoc = {"settings": scene.fem_settings(), "rungs": {}, "reference": {}}
+    cdoc, save = _rung_cache(Path(out) / "contact.json", scene)
     pn = _pneunet()
     say = progress or (lambda msg: None)
-
-    def save():
-        with atomic_path(path) as tmp:
-            Path(tmp).write_text(json.dumps(cdoc))
     for r in doc["rungs"]:
         key = f"{r['family']}-h{r['level']}"
         if key not in cdoc["rungs"]:
