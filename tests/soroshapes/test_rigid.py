@@ -404,6 +404,21 @@ def test_tree_contact_needs_force_inputs_and_a_shape():
 
 
 
+def _finger_ball_model():
+    """The finger tree (force inputs, compiled) swinging about its hub onto a floating ball (no gravity on it),
+    coupled by tree contact; returns (model, tree). The finger lies along x from the hub; its face points (3 mm
+    below its backbone, -z) hit a ball of 10 mm radius whose top is 2 mm below the face at x = 40 mm, so the
+    falling finger meets it within ~20 ms."""
+    from soroshapes.rigid import TreeContact, couple_tree_contact
+    tree, pts = finger_tree()
+    ball = RigidBody(0.02, 1e-6, pose0=lie.expSE3(np.array([0.0, 0.0, 0.0, 0.04, 0.0, -0.003 - 0.002 - 0.01])),
+                     gravity=(0.0, 0.0, 0.0), shape=sdf.Sphere(0.01), name="ball")
+    mdl = Model().add(tree.system(name="finger", q0=np.zeros(tree.n), force_inputs=True)).add(ball)
+    couple_tree_contact(mdl, "finger", "ball", TreeContact(tree, pts, 2000.0, damping=0.5, friction=0.5,
+                                                           regularization=1e-3))
+    return mdl, tree
+
+
 def test_tree_contact_runs_in_the_compiled_network_as_on_the_python_path():
     """couple_tree_contact compiled (the contact term puts its force on the tree block itself, the body gets the
     opposite wrench; soroshapes.network): the finger swings down about its hub onto a floating ball (no gravity
@@ -411,15 +426,7 @@ def test_tree_contact_runs_in_the_compiled_network_as_on_the_python_path():
     and agree to the Newton tolerance (rtol = 1e-8: 1e-9 of the largest state; measured 1.4e-13 relative). Over
     the whole impact the two drift apart by far more (stiff pads, accelerations of 1e4 rad/s^2: round-off grows
     through the impact), so the window is short; the right-hand sides agree exactly at that state."""
-    from soroshapes.rigid import TreeContact, couple_tree_contact
-    tree, pts = finger_tree()
-    # the finger lies along x from the hub; its face points (3 mm below its backbone, -z) hit a ball of 10 mm
-    # radius whose top is 2 mm below the face at x = 40 mm, so the falling finger meets it within ~20 ms
-    ball = RigidBody(0.02, 1e-6, pose0=lie.expSE3(np.array([0.0, 0.0, 0.0, 0.04, 0.0, -0.003 - 0.002 - 0.01])),
-                     gravity=(0.0, 0.0, 0.0), shape=sdf.Sphere(0.01), name="ball")
-    mdl = Model().add(tree.system(name="finger", q0=np.zeros(tree.n), force_inputs=True)).add(ball)
-    couple_tree_contact(mdl, "finger", "ball", TreeContact(tree, pts, 2000.0, damping=0.5, friction=0.5,
-                                                           regularization=1e-3))
+    mdl, tree = _finger_ball_model()
     x0 = mdl.simulate(0.03, 1e-3, "bdf2", rtol=1e-8, atol=1e-10, compiled=False).x[-1]
     fast, slow = (mdl.simulate(0.005, 1e-3, "bdf2", x0=x0, t0=0.03, rtol=1e-8, atol=1e-10, compiled=c)
                   for c in (True, False))
@@ -444,13 +451,7 @@ def test_tree_force_inputs_act_as_a_generalized_force():
 def _finger_on_ball():
     """The scene of the test above and its trajectory over the first bounces of the finger on the ball (in contact
     at about 16, 34-36 and 46 ms)."""
-    from soroshapes.rigid import TreeContact, couple_tree_contact
-    tree, pts = finger_tree()
-    ball = RigidBody(0.02, 1e-6, pose0=lie.expSE3(np.array([0.0, 0.0, 0.0, 0.04, 0.0, -0.003 - 0.002 - 0.01])),
-                     gravity=(0.0, 0.0, 0.0), shape=sdf.Sphere(0.01), name="ball")
-    mdl = Model().add(tree.system(name="finger", q0=np.zeros(tree.n), force_inputs=True)).add(ball)
-    couple_tree_contact(mdl, "finger", "ball", TreeContact(tree, pts, 2000.0, damping=0.5, friction=0.5,
-                                                           regularization=1e-3))
+    mdl, tree = _finger_ball_model()
     return mdl, tree, mdl.simulate(0.05, 1e-3, "bdf2", rtol=1e-8, atol=1e-10)
 
 
