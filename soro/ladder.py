@@ -1183,14 +1183,17 @@ def cost_table(rows):
     return "\n".join(lines)
 
 
+def _pct(v):
+    """A fraction as a percentage with three decimals for the tables, ``-`` when missing or not finite."""
+    return f"{100 * v:.3f}" if v is not None and np.isfinite(v) else "-"
+
+
 def contact_table(rows, info):
     """The contact load as text: per rung the floor's reaction [N per m of depth], the tip and reaction errors
     against the FEM reference (~: its Richardson estimate) and against the elastica on the floor, and the
     CPU time of the solve on the floor (FEM: one solve; beams: the median of 3); then what limits them."""
     c = info["contact"]
 
-    def pct(v):
-        return f"{100 * v:.3f}" if v is not None and np.isfinite(v) else "-"
     head = (f"{'family':<12} {'size':>11} {'R [N/m]':>9} {'tip %':>8} {'force %':>8} {'tip vs el %':>11} "
             f"{'force vs el %':>13} {'solve ms':>9}")
     lines = [head, "-" * len(head)]
@@ -1198,9 +1201,9 @@ def contact_table(rows, info):
         if "tip_contact" not in r:
             continue
         est = "~" if r.get("estimated") else " "
-        lines.append(f"{r['family']:<12} {_label(r):>11} {r['contact_force']:>9.5f} {est}{pct(r['tip_contact']):>7} "
-                     f"{est}{pct(r['force_contact']):>7} {pct(r['tip_contact_elastica']):>11} "
-                     f"{pct(r['force_contact_elastica']):>13} {1e3 * r['contact_solve_s']:>9.1f}")
+        lines.append(f"{r['family']:<12} {_label(r):>11} {r['contact_force']:>9.5f} {est}{_pct(r['tip_contact']):>7} "
+                     f"{est}{_pct(r['force_contact']):>7} {_pct(r['tip_contact_elastica']):>11} "
+                     f"{_pct(r['force_contact_elastica']):>13} {1e3 * r['contact_solve_s']:>9.1f}")
     rt, rf = c["tip"], c["force"]
     lines.append(f"tip load {c['load']:.5f} N/m; floor reaction: reference {c['reference_force']:.5f} N/m, elastica "
                  f"{c['elastica_force']:.5f} N/m; reference discretization (Richardson): tip {100 * rt['error'] / info['length']:.4f} "
@@ -1361,16 +1364,14 @@ def blocked_table(rows, info):
     the blocked solve."""
     b = info["blocked"]
 
-    def pct(v):
-        return f"{100 * v:.3f}" if v is not None and np.isfinite(v) else "-"
     head = (f"{'family':<12} {'size':>11} {'R [N/m]':>9} {'error %':>8} {'raw %':>9} {'scale':>8} {'solve ms':>9}")
     lines = [head, "-" * len(head)]
     for r in rows:
         if "blocked_unseen" not in r:
             continue
         est = "~" if r.get("estimated") else " "
-        lines.append(f"{r['family']:<12} {_label(r):>11} {r['blocked_force']:>9.4f} {est}{pct(r['blocked_unseen']):>7} "
-                     f"{pct(r.get('blocked_raw')):>9} {_fmt(r, 'blocked_scale', '.4g'):>8} "
+        lines.append(f"{r['family']:<12} {_label(r):>11} {r['blocked_force']:>9.4f} {est}{_pct(r['blocked_unseen']):>7} "
+                     f"{_pct(r.get('blocked_raw')):>9} {_fmt(r, 'blocked_scale', '.4g'):>8} "
                      f"{1e3 * r['blocked_solve_s']:>9.1f}")
     lines.append(f"tip face held vertically at the top unseen load: reference force {b['reference_force']:.5f} N/m "
                  f"(training load {b['train_force']:.5f}, validation {b['validation_force']:.5f}); reference "
@@ -1515,16 +1516,14 @@ def pneunet_contact_table(rows, info):
     errors (~: the reference's Richardson estimates), the CPU time of the solve on the cylinder."""
     c = info["cylinder"]
 
-    def pct(v):
-        return f"{100 * v:.3f}" if v is not None and np.isfinite(v) else "-"
     head = f"{'family':<12} {'size':>11} {'|F| [N/m]':>9} {'tip %':>8} {'force %':>8} {'solve ms':>9}"
     lines = [head, "-" * len(head)]
     for r in rows:
         if "tip_contact" not in r:
             continue
         est = "~" if r.get("estimated") else " "
-        lines.append(f"{r['family']:<12} {_label(r):>11} {r['contact_force']:>9.4f} {est}{pct(r['tip_contact']):>7} "
-                     f"{est}{pct(r['force_contact']):>7} {1e3 * r['contact_solve_s']:>9.1f}")
+        lines.append(f"{r['family']:<12} {_label(r):>11} {r['contact_force']:>9.4f} {est}{_pct(r['tip_contact']):>7} "
+                     f"{est}{_pct(r['force_contact']):>7} {1e3 * r['contact_solve_s']:>9.1f}")
     rt, rf = c["tip"], c["force"]
     lines.append(f"the actuator curls onto the cylinder at the top training pressure: reference force "
                  f"{c['reference_force']:.5f} N/m; reference discretization (Richardson): tip "
@@ -1561,8 +1560,6 @@ def ladder_table(rows, tolerance=None, measure="tip"):
     fronts = {m: set(pareto_front(rows, m)) for m in measures_of(rows)}
     pick = select(rows, tolerance, measure) if tolerance is not None else None
 
-    def pct(v):
-        return f"{100 * v:.3f}" if v is not None and np.isfinite(v) else "-"
 
     def iqr(v):
         return f"{1e3 * v:.3f}" if np.isfinite(v) else "1 run"
@@ -1573,9 +1570,9 @@ def ladder_table(rows, tolerance=None, measure="tip"):
     for i, r in enumerate(rows):
         tags = "".join(_TAGS[m] for m in fronts if i in fronts[m]) or "-"
         est = "~" if r.get("estimated") else " "
-        lines.append(f"{r['family']:<12} {_label(r):>11} {pct(r.get('tip_train')):>9} "
-                     f"{est}{pct(r['tip_unseen']):>9} {pct(r['shape_unseen']):>12} {pct(r.get('volume_unseen')):>10} "
-                     f"{pct(r.get('freq')):>8} {pct(r.get('blocked_unseen')):>8} {r['build_s']:>8.2f} {1e3 * r['solve_time_s']:>10.3f} "
+        lines.append(f"{r['family']:<12} {_label(r):>11} {_pct(r.get('tip_train')):>9} "
+                     f"{est}{_pct(r['tip_unseen']):>9} {_pct(r['shape_unseen']):>12} {_pct(r.get('volume_unseen')):>10} "
+                     f"{_pct(r.get('freq')):>8} {_pct(r.get('blocked_unseen')):>8} {r['build_s']:>8.2f} {1e3 * r['solve_time_s']:>10.3f} "
                      f"{iqr(r['solve_iqr_s']):>8} {tags:>6}" + ("  <- selected" if r is pick else ""))
     lines.append("errors in % (tip, shape: of the length; volume: of the reference's volume change; freq: "
                  "relative; blocked: of the reference's blocked force, a beam's after its stiffness scale fitted on "
