@@ -532,6 +532,21 @@ class _View:
 # ------------------------------------------------------------------------------------------------------------
 # the model
 # ------------------------------------------------------------------------------------------------------------
+def _check_run(method, rtol, atol, t0):
+    """Check the arguments a run shares (:meth:`Model.simulate`, :class:`Stepper`) and return ``method``'s code
+    in :mod:`soroshapes.integrate` and ``t0`` [s] as a float."""
+    from . import integrate as itg
+    codes = {"trapezoidal": itg.TRAPEZOIDAL, "midpoint": itg.MIDPOINT, "bdf2": itg.BDF2}
+    if method not in codes:
+        raise ParameterError(f"method must be 'trapezoidal', 'midpoint' or 'bdf2', got {method!r}")
+    if not (rtol > 0 and atol > 0):
+        raise ParameterError("rtol and atol must be positive")
+    t0 = float(t0)
+    if not np.isfinite(t0):
+        raise ParameterError(f"t0 must be a finite time [s], got {t0!r}")
+    return codes[method], t0
+
+
 class Model:
     r"""A network of dynamic systems solved as one implicit ODE (see the module docstring).
 
@@ -1051,20 +1066,14 @@ class Model:
         ``stats``; ``traj["name"]`` is one system's (``x``, ``u``, and ``q``, ``qd`` of a beam or ``volume``,
         ``pressure`` of a reservoir).
         """
-        if method not in ("trapezoidal", "midpoint", "bdf2"):
-            raise ParameterError(f"method must be 'trapezoidal', 'midpoint' or 'bdf2', got {method!r}")
+        _, t0 = _check_run(method, rtol, atol, t0)
         t_end, dt = float(t_end), float(dt)
         if not (t_end > 0 and dt > 0 and np.isfinite(t_end) and np.isfinite(dt)):
             raise ParameterError(f"t_end and dt must be positive [s], got {t_end!r}, {dt!r}")
         if max_dt is not None and not (float(max_dt) > 0 and np.isfinite(float(max_dt))):
             raise ParameterError(f"max_dt must be a positive step [s] or None (no limit), got {max_dt!r}")
-        if not (rtol > 0 and atol > 0):
-            raise ParameterError("rtol and atol must be positive")
         if linear_solver not in ("auto", "dense", "sparse"):
             raise ParameterError(f"linear_solver must be 'auto', 'dense' or 'sparse', got {linear_solver!r}")
-        t0 = float(t0)
-        if not np.isfinite(t0):
-            raise ParameterError(f"t0 must be a finite time [s], got {t0!r}")
         self._prepare_layout()
         x = self.initial_state(x0, t0)
         self._scale = self._scales(x, t0)
@@ -1386,20 +1395,13 @@ class Stepper:
 
     def __init__(self, model, dt, method="trapezoidal", x0=None, t0=0.0, rtol=1e-6, atol=1e-9, max_iterations=12,
                  min_dt=None, compiled=None):
-        from . import integrate as itg
-        if method not in ("trapezoidal", "midpoint", "bdf2"):
-            raise ParameterError(f"method must be 'trapezoidal', 'midpoint' or 'bdf2', got {method!r}")
-        dt, t0 = float(dt), float(t0)
+        self._code, t0 = _check_run(method, rtol, atol, t0)
+        dt = float(dt)
         if not (dt > 0 and math.isfinite(dt)):
             raise ParameterError(f"the stepper's dt must be a positive step [s], got {dt!r}")
-        if not math.isfinite(t0):
-            raise ParameterError(f"t0 must be a finite time [s], got {t0!r}")
-        if not (rtol > 0 and atol > 0):
-            raise ParameterError("rtol and atol must be positive")
         if min_dt is not None and not (float(min_dt) > 0):
             raise ParameterError(f"min_dt must be a positive step [s] or None (dt/1024), got {min_dt!r}")
         self.model, self.dt, self.method, self.t = model, dt, method, t0
-        self._code = {"trapezoidal": itg.TRAPEZOIDAL, "midpoint": itg.MIDPOINT, "bdf2": itg.BDF2}[method]
         self._rtol, self._atol, self._maxit = float(rtol), float(atol), int(max_iterations)
         self._min_dt = None if min_dt is None else float(min_dt)
         self._compiled = compiled
@@ -1450,10 +1452,13 @@ class Stepper:
                 raise ParameterError(f"t must be a finite time [s], got {t!r}")
             self.t = float(t)
         if self._net is not None:
-            self._st[31] = 0.0                  # no BDF2 history
-            self._st[16] = self._st[19] = 0.0   # the linearized predictor's memory is of another state
-            self._st[5] = 0.0
+            self._forget_history()
         return self
+
+    def _forget_history(self):
+        """The next step starts without history: no BDF2 history (st[31]), no linearized predictor's memory
+        (st[16], st[19]: it is of another state), no quadratic predictor (st[5]); the matrix is kept."""
+        self._st[31] = self._st[16] = self._st[19] = self._st[5] = 0.0
 
     def hold(self, u):
         """Hold the free inputs (:attr:`Model.inputs` order) at the constant ``u`` from now on. The first call
@@ -1524,7 +1529,7 @@ class Stepper:
                 self._counts[k] += int(v)
             if got < 0:
                 self._x[:] = x_start
-                st[31] = st[16] = st[19] = st[5] = 0.0
+                self._forget_history()
                 self._counts["wall_time"] += _time.perf_counter() - wall
                 raise ConvergenceError(f"Model stepper: Newton failed at t = {st[7]:.6g} s down to dt = {min_dt:.3g} "
                                        f"s ({self.method}, compiled network); the stepper stays at t = {self.t:.6g} "
