@@ -1849,10 +1849,8 @@ def beam_within(scene_name, tolerance, measure="tip", out=None, quick=False):
     beams = [r for r in rows if "_shapes" in r]
     pick = select(beams + [r for r in rows if r.get("estimated")], tol, measure)
     if pick is None or "_shapes" not in pick:
-        best = _best(beams, measure)
-        raise ParameterError(f"no beam of {scene_name} reaches {100 * tol:g} % on the unseen {measure} error; the "
-                             f"best is {100 * best[column(measure)]:.4g} % ({best['family']} {_label(best)}): "
-                             f"ask for at least that, or model this body by FEM")
+        raise ParameterError(f"{scene_name}: {unreachable(beams + [r for r in rows if r.get('estimated')], tol, measure)}"
+                             f"; or model this body by FEM")
     from soroshapes.io import load_beam
 
     path = write_model(pick, scene, out / f"model-{measure}-{tol:g}.json", measure, tol)

@@ -24,7 +24,8 @@ def test_bench_ladder_pneunet2d(record, tmp_path):
 
 
 def test_bench_ladder_network_by_tolerance(record, tmp_path):
-    """Two PneuNet bodies of one network ask for 1 % and 0.3 % of the length (quick scene): the models they
+    """Two PneuNet bodies of one network ask for 1 % and 0.3 % of the length on the backbone shape (quick scene;
+    its reference tip is known only to 0.6 %, so 0.3 % on the tip cannot be checked): the models they
     get, and the time of the network's simulation (0.3 s at 1 ms) against the all-fine network (both bodies at
     0.3 %), wall (perf_counter) and CPU (process_time) as medians of 5 runs each, on the compiled path (the
     identified polynomial actuators lowered, soroshapes.network) and on the Python path (``compiled=False``,
@@ -39,7 +40,7 @@ def test_bench_ladder_network_by_tolerance(record, tmp_path):
     from soroshapes.network import Schedule
 
     def body(tol):
-        return beam_within("pneunet2d", tol, out=tmp_path, quick=True)
+        return beam_within("pneunet2d", tol, "shape", out=tmp_path, quick=True)
 
     def network(a, b):
         mdl = Model().add(a, "left").add(b, "right")
