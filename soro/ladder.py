@@ -1847,10 +1847,10 @@ def beam_within(scene_name, tolerance, measure="tip", out=None, quick=False):
         _LADDERS[key] = ladder(scene, out)[0]
     rows = _LADDERS[key]
     beams = [r for r in rows if "_shapes" in r]
-    pick = select(beams + [r for r in rows if r.get("estimated")], tol, measure)
+    candidates = beams + [r for r in rows if r.get("estimated")]
+    pick = select(candidates, tol, measure)
     if pick is None or "_shapes" not in pick:
-        raise ParameterError(f"{scene_name}: {unreachable(beams + [r for r in rows if r.get('estimated')], tol, measure)}"
-                             f"; or model this body by FEM")
+        raise ParameterError(f"{scene_name}: {unreachable(candidates, tol, measure)}; or model this body by FEM")
     from soroshapes.io import load_beam
 
     path = write_model(pick, scene, out / f"model-{measure}-{tol:g}.json", measure, tol)
