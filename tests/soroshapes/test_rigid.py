@@ -524,13 +524,14 @@ def test_the_beam_contact_rows_of_the_newton_matrix_are_closed_form_and_contract
     contact_jacobian), no differenced column. Against forward differences of the whole network's right-hand side
     (network.rhs) at states in contact:
 
-    * the body's rows (its wrench through B) agree to 2 % of their largest entry: what they leave out is the
-      normal's turning and the geometric stiffness, second order in the overlap (measured below 1e-3... see the
-      assertion);
+    * the body's rows (its wrench through B) agree to 5 % of their largest entry: they leave out the normal's
+      turning along the surface (its curvature, at the hexagon's edges) and the geometric stiffness (measured
+      1.6e-8, 1.4e-2, 1.5e-4 at the three states);
     * in the beam's rows they leave out the inertial and gravity derivatives as well (the beam's model rows), so
       the Newton iteration with the model matrix :math:`A_m = I - cJ_m` on the true one :math:`A = I - cJ`
       contracts by the spectral radius of :math:`I - A_m^{-1}A`; at BDF2's c = 2h/3 with the demo's h = 2 ms it
-      stays far below the rate (THETA_REFRESH = 0.1) at which the integrator refreshes a matrix."""
+      is at most 8.2e-4 here (5e-3 asked), far below the rate (THETA_REFRESH = 0.1) at which the integrator
+      refreshes a matrix."""
     from soroshapes import network
     from soroshapes.numerics import FD_STEP
     mdl, shp, states = _finger_on_spinning_bolt()
@@ -560,10 +561,6 @@ def test_the_beam_contact_rows_of_the_newton_matrix_are_closed_form_and_contract
         J1[n:2 * n] = np.linalg.solve(M, Jm[n:2 * n])                  # the beam's rows in first-order form
         assert np.array_equal(Jm[:n], np.eye(N)[n:2 * n])              # q' = qd
         bolt = slice(2 * n, N)
-        err = np.abs(J1[bolt] - Jd[bolt]).max() / np.abs(Jd[bolt]).max()
-        print("bolt rows", err)
+        assert np.abs(J1[bolt] - Jd[bolt]).max() < 5e-2 * np.abs(Jd[bolt]).max()
         A, Am = np.eye(N) - c * Jd, np.eye(N) - c * J1
-        rho = np.abs(np.linalg.eigvals(np.eye(N) - np.linalg.solve(Am, A))).max()
-        print("rho", rho)
-        assert err < 2e-2
-        assert rho < 1e-2
+        assert np.abs(np.linalg.eigvals(np.eye(N) - np.linalg.solve(Am, A))).max() < 5e-3
