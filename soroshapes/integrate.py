@@ -24,8 +24,9 @@ components of the network (systems that read each other's states, closed over co
 :math:`M/\gamma` on its rates minus :math:`c/\gamma` times its force Jacobian: the beam's *model* rows
 :math:`\partial f_{in}/\partial x - [K\;\;D]` (the input force in closed form through the inputs' Jacobian, or
 differenced over the columns it reads where a coupling has no closed form; as in the
-beam's own iteration matrix :math:`2M/h + D + \tfrac h2 K`); when a fresh model matrix fails in a step, the step is
-retried with the model rows at the failed iterate, and when that fails too, with the differenced Jacobian
+beam's own iteration matrix :math:`2M/h + D + \tfrac h2 K`); when Newton fails in a step, the step is retried with
+fresh model rows at the failed iterate (as the Python path takes its fresh Jacobian there), and when that fails
+too, with the differenced Jacobian
 :math:`M\,\partial\ddot q/\partial x` of :func:`soroshapes.network.jacobian` there (for that step only: a contact's
 onset fails Newton from the predictor whatever the matrix, and the model rows, closed form for beam contacts, cost
 a fraction of the differenced Jacobian's evaluation per column). The rows of the other systems are
@@ -283,11 +284,11 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
     force = False                   # rebuild the iteration matrix whatever the reuse rule says
     sel = np.zeros(nb, np.bool_)    # the blocks of the components whose matrix is rebuilt at this attempt
     st[9] = 0.0                     # the differenced Jacobian serves only a step whose model matrices failed
-    at_iterate = False              # the model rows at the failed iterate (after a fresh model matrix failed)
+    at_iterate = False              # fresh model rows at the failed iterate (after a failed attempt)
     for attempt in range(4):
-        # the beams' rows: their model Jacobian (M, K, D and the differenced input force), reused while Newton
-        # contracts fast; once a fresh one failed, the model rows at the failed iterate; once those failed too,
-        # the differenced Jacobian there (st[9] = 1)
+        # the beams' rows: their model Jacobian (M, K, D and the input force), reused while Newton contracts
+        # fast; once Newton failed, fresh model rows at the failed iterate; once those failed too, the
+        # differenced Jacobian there (st[9] = 1)
         differenced = st[9] == 1.0
         if at_iterate and not differenced:
             for i in range(N):
@@ -423,9 +424,10 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
                 break                                  # a fresh differenced Jacobian failed
         elif at_iterate:
             st[9] = 1.0                                # nor the model rows at the failed iterate
-        elif everything:
-            at_iterate = True                          # a fresh model matrix was not enough here
-            st[10] += 1
+        else:
+            at_iterate = True                          # the kept or a fresh model matrix was not enough here
+            if everything:
+                st[10] += 1
         force = True
     st[4] = 0.0
     st[11] = 0.0
