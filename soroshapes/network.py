@@ -45,7 +45,9 @@ controller's free inputs, then the couplings in declaration order, then every sy
 implicit step's residual (:func:`residual`) takes a beam second order, its equations of motion in force units
 by one pass of the O(N) recursions. The
 rows of the Newton matrix of reservoirs, linear systems and beam input forces are in closed form
-(:func:`_analytic_rows`: the inputs' Jacobian through StateMaps and output couplings); a tree block's are its
+(:func:`_analytic_rows`: the inputs' Jacobian through StateMaps and output couplings), and so are the rows of beam
+contacts with a spinning body or fixed obstacles, on the beam and on the body (:func:`_contact_rows`, the law's
+derivatives through the nodes' Jacobians, :func:`soroshapes._contact.contact_jacobian`); a tree block's are its
 model rows (:func:`soroshapes._treeblock.block_model_rows`: its mass matrix and K, D, and the differenced force
 of its inputs and contact terms, not its dynamics); the rest, and the full
 Jacobian :math:`J = \partial F/\partial x` (:func:`jacobian`) when a beam's model matrix fails, are taken by
