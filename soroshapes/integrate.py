@@ -24,12 +24,14 @@ components of the network (systems that read each other's states, closed over co
 :math:`M/\gamma` on its rates minus :math:`c/\gamma` times its force Jacobian: the beam's *model* rows
 :math:`\partial f_{in}/\partial x - [K\;\;D]` (the input force in closed form through the inputs' Jacobian, or
 differenced over the columns it reads where a coupling has no closed form; as in the
-beam's own iteration matrix :math:`2M/h + D + \tfrac h2 K`); when Newton fails in a step, the step is retried with
-fresh model rows at the failed iterate (as the Python path takes its fresh Jacobian there), and when that fails
-too, with the differenced Jacobian
+beam's own iteration matrix :math:`2M/h + D + \tfrac h2 K`). Where those rows have no differenced column (every
+beam's in closed form, no tree), a step in which Newton fails is retried with fresh model rows at the failed
+iterate (as the Python path takes its fresh Jacobian there), and when that fails too, with the differenced Jacobian
 :math:`M\,\partial\ddot q/\partial x` of :func:`soroshapes.network.jacobian` there (for that step only: a contact's
 onset fails Newton from the predictor whatever the matrix, and the model rows, closed form for beam contacts, cost
-a fraction of the differenced Jacobian's evaluation per column). The rows of the other systems are
+a fraction of the differenced Jacobian's evaluation per column); otherwise, once a fresh model matrix failed in a
+step, the differenced Jacobian serves the rest of the run (kept across steps, refreshed when Newton contracts slowly
+or fails). The rows of the other systems are
 in closed form where they have one (reservoirs, linear systems) and differenced otherwise
 (:func:`soroshapes.network._cheap_rows`), and :math:`M` is formed from the per-piece operators of the
 first iterate's pass whenever the matrix is factored. The matrix is block diagonal over the components, and
@@ -92,8 +94,8 @@ import numpy as np
 from sorofem._numba import njit
 
 from ._beam import REFRESH_ITS, REFRESH_STEPS, _lu_solve
-from .network import (BEAM, _beam_mass, _beam_mass_matrix, _cheap_rows_of, _iteration_matrix_of, assemble, jacobian,
-                      residual, rhs)
+from .network import (BEAM, TREE, _beam_mass, _beam_mass_matrix, _cheap_rows_of, _iteration_matrix_of, assemble,
+                      jacobian, residual, rhs)
 
 __all__ = ["TRAPEZOIDAL", "MIDPOINT", "BDF2", "integrate", "integrate_adaptive", "workspace", "local_error",
            "step_factor", "lagrange3", "dense_output"]
@@ -283,7 +285,16 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
         x1[i] = guess[i]
     force = False                   # rebuild the iteration matrix whatever the reuse rule says
     sel = np.zeros(nb, np.bool_)    # the blocks of the components whose matrix is rebuilt at this attempt
-    st[9] = 0.0                     # the differenced Jacobian serves only a step whose model matrices failed
+    # model rows with no differenced column (every beam's closed form, no tree: beams in contact with a spinning
+    # body or fixed obstacles) cost about one evaluation: after a failed attempt, fresh ones at the failed
+    # iterate, and the differenced Jacobian serves only a step where those failed too; otherwise, once a fresh
+    # model matrix failed, the differenced Jacobian serves the rest of the run (st[9] stays 1)
+    closed = True
+    for b in range(nb):
+        if (table[b, 0] == BEAM and table[b, 7] != 1) or table[b, 0] == TREE:
+            closed = False
+    if closed:
+        st[9] = 0.0
     at_iterate = False              # fresh model rows at the failed iterate (after a failed attempt)
     for attempt in range(4):
         # the beams' rows: their model Jacobian (M, K, D and the input force), reused while Newton contracts
@@ -424,10 +435,13 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
                 break                                  # a fresh differenced Jacobian failed
         elif at_iterate:
             st[9] = 1.0                                # nor the model rows at the failed iterate
-        else:
+        elif closed:
             at_iterate = True                          # the kept or a fresh model matrix was not enough here
             if everything:
                 st[10] += 1
+        elif everything:
+            st[9] = 1.0                                # a fresh model matrix was not enough here
+            st[10] += 1
         force = True
     st[4] = 0.0
     st[11] = 0.0
