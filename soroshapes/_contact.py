@@ -39,7 +39,8 @@ from sorofem.sdf.program import to_program
 
 from ._sdfeval import evaluate
 
-__all__ = ["lower_contact", "lower_contact_of", "contact_force", "contact_nodal", "CONTACT_HEAD",
+__all__ = ["lower_contact", "lower_contact_of", "contact_force", "contact_nodal", "contact_jacobian",
+           "CONTACT_HEAD",
            "lower_tree_contact", "tree_contact_force"]
 
 #: floats before the node weights
@@ -90,37 +91,10 @@ def contact_nodal(par, ops, consts, depth_values, depth_points, G, eta, Rb, pb, 
     :math:`P_t = I - n n^T` (the obstacle held still, the normal's turning and the velocity's part of the
     friction's normal force left out: the terms a Newton iteration matrix needs). False if a force is not
     finite."""
-    k, c, mu, eps, r = par[0], par[1], par[2], par[3], par[4]
-    stride, nn = int(par[5]), int(par[6])
-    Pb = np.empty((nn, 3))
-    for i in range(nn):
-        a = i * stride
-        for j in range(3):
-            Pb[i, j] = ((G[a, 0, 3] - pb[0]) * Rb[0, j] + (G[a, 1, 3] - pb[1]) * Rb[1, j]) + (G[a, 2, 3] - pb[2]) * Rb[2, j]
-    near = np.empty(nn, np.int64)             # the nodes that may touch: by the bound of their last evaluation
-    ne = 0
-    for i in range(nn):
-        e0, e1, e2 = Pb[i, 0] - memo[i, 0], Pb[i, 1] - memo[i, 1], Pb[i, 2] - memo[i, 2]
-        if not memo[i, 3] - math.sqrt(e0 * e0 + e1 * e1 + e2 * e2) >= r:
-            near[ne] = i
-            ne += 1
-    if ne == 0:
-        return True
-    Pn = np.empty((ne, 3))
-    for e in range(ne):
-        for j in range(3):
-            Pn[e, j] = Pb[near[e], j]
-    d = np.empty(ne)
-    gr = np.empty((ne, 3))
-    S, T = max(depth_values, 1), max(depth_points, 1)
-    evaluate(ops, consts, Pn, d, gr, np.empty(S), np.empty((S, 3)), np.empty((T, 3)), np.empty((T, 3, 3)),
-             np.empty(T))
-    for e in range(ne):
-        i = near[e]
-        if math.isfinite(d[e]):
-            memo[i, 0], memo[i, 1], memo[i, 2], memo[i, 3] = Pn[e, 0], Pn[e, 1], Pn[e, 2], d[e]
+    k, c, mu, r = par[0], par[1], par[2], par[4]
+    stride = int(par[5])
+    Pb, near, ne, d, gr = _near_nodes(par, ops, consts, depth_values, depth_points, G, Rb, pb, memo)
     ns = np.empty(3)
-    vrel = np.empty(3)
     vt = np.empty(3)
     F = np.empty(3)
     tangents = Kc.shape[0] > 0
@@ -129,32 +103,13 @@ def contact_nodal(par, ops, consts, depth_values, depth_points, G, eta, Rb, pb, 
             continue
         i = near[e]
         a = i * stride
-        g0, g1, g2 = gr[e, 0], gr[e, 1], gr[e, 2]
-        gn = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
-        g0, g1, g2 = g0 / gn, g1 / gn, g2 / gn
-        # body velocity at the node: v + omega x Pb (body), then spatial
-        b0 = etab[3] + etab[1] * Pb[i, 2] - etab[2] * Pb[i, 1]
-        b1 = etab[4] + etab[2] * Pb[i, 0] - etab[0] * Pb[i, 2]
-        b2 = etab[5] + etab[0] * Pb[i, 1] - etab[1] * Pb[i, 0]
-        vn = 0.0
-        for j in range(3):
-            ns[j] = Rb[j, 0] * g0 + Rb[j, 1] * g1 + Rb[j, 2] * g2
-            vrel[j] = (G[a, j, 0] * eta[a, 3] + G[a, j, 1] * eta[a, 4] + G[a, j, 2] * eta[a, 5]) \
-                - (Rb[j, 0] * b0 + Rb[j, 1] * b1 + Rb[j, 2] * b2)
-        for j in range(3):
-            vn += vrel[j] * ns[j]
-        fn = max(0.0, k * (r - d[e]) - c * vn)
-        vt[0], vt[1], vt[2] = vrel[0] - vn * ns[0], vrel[1] - vn * ns[1], vrel[2] - vn * ns[2]
-        slip = math.sqrt(vt[0] * vt[0] + vt[1] * vt[1] + vt[2] * vt[2] + eps * eps)
-        wi = par[CONTACT_HEAD + i]
-        F[0] = wi * (fn * ns[0] - mu * (fn / slip) * vt[0])
-        F[1] = wi * (fn * ns[1] - mu * (fn / slip) * vt[1])
-        F[2] = wi * (fn * ns[2] - mu * (fn / slip) * vt[2])
+        fn, slip, _ = _node_force(par, i, d[e], gr[e], G, eta, Rb, Pb, etab, ns, vt, F)
         if not (math.isfinite(F[0]) and math.isfinite(F[1]) and math.isfinite(F[2])):
             return False
         for j in range(3):
             Fc[a, j] += F[j]
         if tangents and fn > 0.0:
+            wi = par[CONTACT_HEAD + i]
             ft = wi * mu * fn / slip
             for j in range(3):
                 for l in range(3):
@@ -163,6 +118,75 @@ def contact_nodal(par, ops, consts, depth_values, depth_points, G, eta, Rb, pb, 
                     Cc[a, j, l] += wi * c * nnt + ft * ((1.0 if j == l else 0.0) - nnt - vt[j] * vt[l] / (slip * slip))
         _react(Rb, Pb, i, F, W)
     return True
+
+
+@njit(cache=True)
+def _near_nodes(par, ops, consts, depth_values, depth_points, G, Rb, pb, memo):
+    """The nodes in body coordinates ``Pb`` (N+1, 3), the ``ne`` nodes that may touch (``near[:ne]``, by the
+    bound of their last evaluation in ``memo``, updated) and their distances ``d`` and SDF gradients ``gr`` (body
+    coordinates)."""
+    r = par[4]
+    stride, nn = int(par[5]), int(par[6])
+    Pb = np.empty((nn, 3))
+    for i in range(nn):
+        a = i * stride
+        for j in range(3):
+            Pb[i, j] = ((G[a, 0, 3] - pb[0]) * Rb[0, j] + (G[a, 1, 3] - pb[1]) * Rb[1, j]) + (G[a, 2, 3] - pb[2]) * Rb[2, j]
+    near = np.empty(nn, np.int64)
+    ne = 0
+    for i in range(nn):
+        e0, e1, e2 = Pb[i, 0] - memo[i, 0], Pb[i, 1] - memo[i, 1], Pb[i, 2] - memo[i, 2]
+        if not memo[i, 3] - math.sqrt(e0 * e0 + e1 * e1 + e2 * e2) >= r:
+            near[ne] = i
+            ne += 1
+    d = np.empty(ne)
+    gr = np.empty((ne, 3))
+    if ne == 0:
+        return Pb, near, ne, d, gr
+    Pn = np.empty((ne, 3))
+    for e in range(ne):
+        for j in range(3):
+            Pn[e, j] = Pb[near[e], j]
+    S, T = max(depth_values, 1), max(depth_points, 1)
+    evaluate(ops, consts, Pn, d, gr, np.empty(S), np.empty((S, 3)), np.empty((T, 3)), np.empty((T, 3, 3)),
+             np.empty(T))
+    for e in range(ne):
+        i = near[e]
+        if math.isfinite(d[e]):
+            memo[i, 0], memo[i, 1], memo[i, 2], memo[i, 3] = Pn[e, 0], Pn[e, 1], Pn[e, 2], d[e]
+    return Pb, near, ne, d, gr
+
+
+@njit(cache=True)
+def _node_force(par, i, d, g, G, eta, Rb, Pb, etab, ns, vt, F):
+    """The law of the module docstring at node i (distance ``d`` < r, SDF gradient ``g`` (3,) in body
+    coordinates): the force on the tube into ``F`` (3,), the spatial unit normal into ``ns`` and the tangential
+    relative velocity into ``vt``; returns (f_n, s, v_n), :math:`s = \\sqrt{|v_t|^2 + \\epsilon^2}`, :math:`v_n` the
+    normal relative velocity."""
+    k, c, mu, eps, r = par[0], par[1], par[2], par[3], par[4]
+    a = i * int(par[5])
+    g0, g1, g2 = g[0], g[1], g[2]
+    gn = math.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+    g0, g1, g2 = g0 / gn, g1 / gn, g2 / gn
+    # body velocity at the node: v + omega x Pb (body), then spatial
+    b0 = etab[3] + etab[1] * Pb[i, 2] - etab[2] * Pb[i, 1]
+    b1 = etab[4] + etab[2] * Pb[i, 0] - etab[0] * Pb[i, 2]
+    b2 = etab[5] + etab[0] * Pb[i, 1] - etab[1] * Pb[i, 0]
+    vn = 0.0
+    vrel = np.empty(3)
+    for j in range(3):
+        ns[j] = Rb[j, 0] * g0 + Rb[j, 1] * g1 + Rb[j, 2] * g2
+        vrel[j] = (G[a, j, 0] * eta[a, 3] + G[a, j, 1] * eta[a, 4] + G[a, j, 2] * eta[a, 5]) \
+            - (Rb[j, 0] * b0 + Rb[j, 1] * b1 + Rb[j, 2] * b2)
+    for j in range(3):
+        vn += vrel[j] * ns[j]
+    fn = max(0.0, k * (r - d) - c * vn)
+    vt[0], vt[1], vt[2] = vrel[0] - vn * ns[0], vrel[1] - vn * ns[1], vrel[2] - vn * ns[2]
+    slip = math.sqrt(vt[0] * vt[0] + vt[1] * vt[1] + vt[2] * vt[2] + eps * eps)
+    wi = par[CONTACT_HEAD + i]
+    for j in range(3):
+        F[j] = wi * (fn * ns[j] - mu * (fn / slip) * vt[j])
+    return fn, slip, vn
 
 
 @njit(cache=True)
@@ -187,6 +211,129 @@ def contact_force(par, ops, consts, depth_values, depth_points, G, J, eta, Rb, p
             fl = G[a, 0, j] * Fc[a, 0] + G[a, 1, j] * Fc[a, 1] + G[a, 2, j] * Fc[a, 2]
             for col in range(n):
                 f[col] += J[a, 3 + j, col] * fl
+    return True
+
+
+@njit(cache=True)
+def contact_jacobian(par, ops, consts, depth_values, depth_points, G, J, eta, Rb, pb, etab, axis, memo, Fq, Fb, Wq,
+                     Wb):
+    r"""The derivatives of the contact's generalized force :math:`f` on the beam and of its wrench :math:`W` on
+    the body (:func:`contact_force`, the same arguments to ``memo``) by the beam's coordinates and rates and by the
+    angle and rate :math:`(\theta, \dot\theta)` of the body turning about its unit ``axis`` (body coordinates,
+    through its origin; zeros for a body that does not move), added to ``Fq`` (n, 2n) :math:`\partial
+    f/\partial(q, \dot q)`, ``Fb`` (n, 2) :math:`\partial f/\partial(\theta, \dot\theta)`, ``Wq`` (6, 2n) and
+    ``Wb`` (6, 2). At each pressing node, with :math:`A_P = -\partial F/\partial P = w k (n - \mu v_t/s) n^T` and
+    :math:`A_v = -\partial F/\partial v = w c (n - \mu v_t/s) n^T + w\mu f_n (P_t - v_t v_t^T/s^2)/s` (the law's
+    full derivatives, friction included; :math:`P_t = I - nn^T`), :math:`B = R_i J_{i,v}` (the node's spatial
+    displacement per unit of q), :math:`r = P_i - p`, :math:`u = a\times r` (:math:`a = R\,` ``axis``: the
+    node's displacement relative to the body per unit of body angle is :math:`-u`):
+
+    .. math:: \partial f/\partial q = -B^T A_P B,\ \partial f/\partial\dot q = -B^T A_v B,\
+              \partial f/\partial\theta = B^T F_\theta,\ \partial f/\partial\dot\theta = B^T A_v u,
+
+    :math:`F_\theta = A_P u + \delta F` with :math:`\delta F` the change of the law as the normal turns with the
+    body, :math:`\delta n = a\times n` (through :math:`f_n`'s damping part, :math:`v_t` and :math:`n` itself),
+
+    :math:`\partial W/\partial q = R^T[([F]_\times + [r]_\times A_P)B;\ A_P B]`, :math:`\partial W/\partial\dot q
+    = R^T[[r]_\times A_v B;\ A_v B]`, :math:`\partial W/\partial\theta = -R^T[r\times F_\theta;\ F_\theta] -
+    [\mathrm{axis}]_\times W_i` (both halves: the body frame turns), :math:`\partial W/\partial\dot\theta =
+    -R^T[r\times A_v u;\ A_v u]`. Left out, as in the beam's own iteration matrix: the normal's turning along the
+    surface (its curvature), and the
+    configuration derivatives of the node's velocity and of :math:`R_i J_{i,v}` (geometric stiffness). False if
+    a force is not finite."""
+    k, c, mu, r = par[0], par[1], par[2], par[4]
+    stride = int(par[5])
+    n = J.shape[2]
+    Pb, near, ne, d, gr = _near_nodes(par, ops, consts, depth_values, depth_points, G, Rb, pb, memo)
+    ns = np.empty(3)
+    vt = np.empty(3)
+    F = np.empty(3)
+    AP = np.empty((3, 3))
+    Av = np.empty((3, 3))
+    B = np.empty((3, n))
+    PB = np.empty((3, n))
+    VB = np.empty((3, n))
+    rr = np.empty(3)
+    u = np.empty(3)
+    aw = np.empty(3)
+    for j in range(3):
+        aw[j] = Rb[j, 0] * axis[0] + Rb[j, 1] * axis[1] + Rb[j, 2] * axis[2]
+    pu = np.empty(3)
+    vu = np.empty(3)
+    Wi = np.zeros(6)
+    for e in range(ne):
+        if not d[e] < r:
+            continue
+        i = near[e]
+        a = i * stride
+        fn, slip, vn = _node_force(par, i, d[e], gr[e], G, eta, Rb, Pb, etab, ns, vt, F)
+        if not (math.isfinite(F[0]) and math.isfinite(F[1]) and math.isfinite(F[2])):
+            return False
+        if fn == 0.0:
+            continue
+        wi = par[CONTACT_HEAD + i]
+        ft = wi * mu * fn / slip
+        for j in range(3):
+            tj = ns[j] - mu * vt[j] / slip
+            for l in range(3):
+                AP[j, l] = wi * k * tj * ns[l]
+                Av[j, l] = wi * c * tj * ns[l] + ft * ((1.0 if j == l else 0.0) - ns[j] * ns[l]
+                                                       - vt[j] * vt[l] / (slip * slip))
+        for j in range(3):
+            rr[j] = G[a, j, 3] - pb[j]
+            for col in range(n):
+                B[j, col] = G[a, j, 0] * J[a, 3, col] + G[a, j, 1] * J[a, 4, col] + G[a, j, 2] * J[a, 5, col]
+        u[0] = aw[1] * rr[2] - aw[2] * rr[1]
+        u[1] = aw[2] * rr[0] - aw[0] * rr[2]
+        u[2] = aw[0] * rr[1] - aw[1] * rr[0]
+        # the normal turns with the body: dn = a x n per unit angle, and with it v_n, f_n and v_t
+        dn0, dn1, dn2 = aw[1] * ns[2] - aw[2] * ns[1], aw[2] * ns[0] - aw[0] * ns[2], aw[0] * ns[1] - aw[1] * ns[0]
+        dvn = (vt[0] + vn * ns[0]) * dn0 + (vt[1] + vn * ns[1]) * dn1 + (vt[2] + vn * ns[2]) * dn2
+        dfn = -c * dvn
+        dvt0, dvt1, dvt2 = -dvn * ns[0] - vn * dn0, -dvn * ns[1] - vn * dn1, -dvn * ns[2] - vn * dn2
+        vdv = (vt[0] * dvt0 + vt[1] * dvt1 + vt[2] * dvt2) / (slip * slip)
+        for j in range(3):
+            pu[j] = AP[j, 0] * u[0] + AP[j, 1] * u[1] + AP[j, 2] * u[2]
+            vu[j] = Av[j, 0] * u[0] + Av[j, 1] * u[1] + Av[j, 2] * u[2]
+        for j, dnj, dvtj in ((0, dn0, dvt0), (1, dn1, dvt1), (2, dn2, dvt2)):
+            pu[j] += wi * (dfn * ns[j] + fn * dnj - mu * (dfn * vt[j] + fn * (dvtj - vt[j] * vdv)) / slip)
+            for col in range(n):
+                PB[j, col] = AP[j, 0] * B[0, col] + AP[j, 1] * B[1, col] + AP[j, 2] * B[2, col]
+                VB[j, col] = Av[j, 0] * B[0, col] + Av[j, 1] * B[1, col] + Av[j, 2] * B[2, col]
+        for row in range(n):                                 # the beam's force
+            b0, b1, b2 = B[0, row], B[1, row], B[2, row]
+            for col in range(n):
+                Fq[row, col] -= b0 * PB[0, col] + b1 * PB[1, col] + b2 * PB[2, col]
+                Fq[row, n + col] -= b0 * VB[0, col] + b1 * VB[1, col] + b2 * VB[2, col]
+            Fb[row, 0] += b0 * pu[0] + b1 * pu[1] + b2 * pu[2]
+            Fb[row, 1] += b0 * vu[0] + b1 * vu[1] + b2 * vu[2]
+        # the body's wrench: spatial moment and force derivatives, then into body coordinates (R^T)
+        for col in range(n):
+            m0 = F[1] * B[2, col] - F[2] * B[1, col] + rr[1] * PB[2, col] - rr[2] * PB[1, col]
+            m1 = F[2] * B[0, col] - F[0] * B[2, col] + rr[2] * PB[0, col] - rr[0] * PB[2, col]
+            m2 = F[0] * B[1, col] - F[1] * B[0, col] + rr[0] * PB[1, col] - rr[1] * PB[0, col]
+            n0 = rr[1] * VB[2, col] - rr[2] * VB[1, col]
+            n1 = rr[2] * VB[0, col] - rr[0] * VB[2, col]
+            n2 = rr[0] * VB[1, col] - rr[1] * VB[0, col]
+            for j in range(3):
+                Wq[j, col] += Rb[0, j] * m0 + Rb[1, j] * m1 + Rb[2, j] * m2
+                Wq[3 + j, col] += Rb[0, j] * PB[0, col] + Rb[1, j] * PB[1, col] + Rb[2, j] * PB[2, col]
+                Wq[j, n + col] += Rb[0, j] * n0 + Rb[1, j] * n1 + Rb[2, j] * n2
+                Wq[3 + j, n + col] += Rb[0, j] * VB[0, col] + Rb[1, j] * VB[1, col] + Rb[2, j] * VB[2, col]
+        for s, v in ((0, pu), (1, vu)):
+            m0 = rr[1] * v[2] - rr[2] * v[1]
+            m1 = rr[2] * v[0] - rr[0] * v[2]
+            m2 = rr[0] * v[1] - rr[1] * v[0]
+            for j in range(3):
+                Wb[j, s] -= Rb[0, j] * m0 + Rb[1, j] * m1 + Rb[2, j] * m2
+                Wb[3 + j, s] -= Rb[0, j] * v[0] + Rb[1, j] * v[1] + Rb[2, j] * v[2]
+        for j in range(6):
+            Wi[j] = 0.0
+        _react(Rb, Pb, i, F, Wi)                             # the body frame turns with theta
+        for h in (0, 3):
+            Wb[h, 0] -= axis[1] * Wi[h + 2] - axis[2] * Wi[h + 1]
+            Wb[h + 1, 0] -= axis[2] * Wi[h] - axis[0] * Wi[h + 2]
+            Wb[h + 2, 0] -= axis[0] * Wi[h + 1] - axis[1] * Wi[h]
     return True
 
 

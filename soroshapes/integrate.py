@@ -24,9 +24,14 @@ components of the network (systems that read each other's states, closed over co
 :math:`M/\gamma` on its rates minus :math:`c/\gamma` times its force Jacobian: the beam's *model* rows
 :math:`\partial f_{in}/\partial x - [K\;\;D]` (the input force in closed form through the inputs' Jacobian, or
 differenced over the columns it reads where a coupling has no closed form; as in the
-beam's own iteration matrix :math:`2M/h + D + \tfrac h2 K`), or, once a fresh model matrix failed in a step, the
-differenced Jacobian :math:`M\,\partial\ddot q/\partial x` of :func:`soroshapes.network.jacobian` for the rest of
-the run (kept across steps, refreshed when Newton contracts slowly or fails). The rows of the other systems are
+beam's own iteration matrix :math:`2M/h + D + \tfrac h2 K`). Where those rows have no differenced column (every
+beam's in closed form, no tree), a step in which Newton fails is retried with fresh model rows at the failed
+iterate (as the Python path takes its fresh Jacobian there), and when that fails too, with the differenced Jacobian
+:math:`M\,\partial\ddot q/\partial x` of :func:`soroshapes.network.jacobian` there (for that step only: a contact's
+onset fails Newton from the predictor whatever the matrix, and the model rows, closed form for beam contacts, cost
+a fraction of the differenced Jacobian's evaluation per column); otherwise, once a fresh model matrix failed in a
+step, the differenced Jacobian serves the rest of the run (kept across steps, refreshed when Newton contracts slowly
+or fails). The rows of the other systems are
 in closed form where they have one (reservoirs, linear systems) and differenced otherwise
 (:func:`soroshapes.network._cheap_rows`), and :math:`M` is formed from the per-piece operators of the
 first iterate's pass whenever the matrix is factored. The matrix is block diagonal over the components, and
@@ -89,8 +94,8 @@ import numpy as np
 from sorofem._numba import njit
 
 from ._beam import REFRESH_ITS, REFRESH_STEPS, _lu_solve
-from .network import (BEAM, _beam_mass, _beam_mass_matrix, _cheap_rows_of, _iteration_matrix_of, assemble, jacobian,
-                      residual, rhs)
+from .network import (BEAM, TREE, _beam_mass, _beam_mass_matrix, _cheap_rows_of, _iteration_matrix_of, assemble,
+                      jacobian, residual, rhs)
 
 __all__ = ["TRAPEZOIDAL", "MIDPOINT", "BDF2", "integrate", "integrate_adaptive", "workspace", "local_error",
            "step_factor", "lagrange3", "dense_output"]
@@ -217,7 +222,8 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
     """One implicit step from (t, x0) into x1; True on success. ``ws``: work arrays; ``st``: statistics and the
     state of the iteration matrix (st[4] = 1 when the differenced Jacobian is valid; st[5] = 1 when the
     quadratic BDF2 predictor may use ``ws[12]``, the state before ``xprev``; st[9] = 1 once the model rows of the
-    beams failed, so that differenced Jacobians serve the rest of the run; st[11] = 1 while the factored matrix
+    beams failed in this step, fresh and at the failed iterate, so that the differenced Jacobian serves its last
+    attempt; st[11] = 1 while the factored matrix
     is valid, for c = st[12]; st[13] = 1 asks for a fresh one everywhere; st[15] counts the components' matrices
     factored). ``ws[15]`` (components, 3): per connected component, 1 when its last step asks for a fresh matrix,
     the steps its matrix served, and the largest contraction rate that matrix showed at a third correction (-1:
@@ -279,10 +285,29 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
         x1[i] = guess[i]
     force = False                   # rebuild the iteration matrix whatever the reuse rule says
     sel = np.zeros(nb, np.bool_)    # the blocks of the components whose matrix is rebuilt at this attempt
-    for attempt in range(3):
-        # the beams' rows: their model Jacobian (M, K, D and the differenced input force), reused while Newton
-        # contracts fast; once a fresh one failed, the differenced Jacobian (st[9] = 1)
+    # model rows with no differenced column (every beam's closed form, no tree: beams in contact with a spinning
+    # body or fixed obstacles) cost about one evaluation: after a failed attempt, fresh ones at the failed
+    # iterate, and the differenced Jacobian serves only a step where those failed too; otherwise, once a fresh
+    # model matrix failed, the differenced Jacobian serves the rest of the run (st[9] stays 1)
+    closed = True
+    for b in range(nb):
+        if (table[b, 0] == BEAM and table[b, 7] != 1) or table[b, 0] == TREE:
+            closed = False
+    if closed:
+        st[9] = 0.0
+    at_iterate = False              # fresh model rows at the failed iterate (after a failed attempt)
+    for attempt in range(4):
+        # the beams' rows: their model Jacobian (M, K, D and the input force), reused while Newton contracts
+        # fast; once Newton failed, fresh model rows at the failed iterate; once those failed too, the
+        # differenced Jacobian there (st[9] = 1)
         differenced = st[9] == 1.0
+        if at_iterate and not differenced:
+            for i in range(N):
+                xp[i] = x1[i] if method != MIDPOINT else 0.5 * (x0[i] + x1[i])
+            xj = xp.copy()
+            if not _cheap_rows_of(te, xj, net, scale, w, f0, fp, xp, JF, True, True, alls):
+                st[11] = 0.0
+                return False
         if differenced and (st[4] == 0.0 or force):
             for i in range(N):                         # the Jacobian at the guess (first) or at the failed iterate
                 xp[i] = x1[i] if method != MIDPOINT else 0.5 * (x0[i] + x1[i])
@@ -328,7 +353,8 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
                     if table[b, 0] == BEAM and sel[b]:
                         _beam_mass_matrix(table[b, 5], net)
                 xj = xe.copy()
-                if not (_cheap_rows_of(te, xj, net, scale, w, f0, fp, xp, JF, not differenced, True, sel)
+                if not (_cheap_rows_of(te, xj, net, scale, w, f0, fp, xp, JF, not (differenced or at_iterate), True,
+                                       sel)
                         and _iteration_matrix_of(c, gam, net, JF, LUc, pivc, fresh)):
                     st[4] = 0.0
                     st[11] = 0.0
@@ -407,6 +433,12 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
         if differenced:
             if force:
                 break                                  # a fresh differenced Jacobian failed
+        elif at_iterate:
+            st[9] = 1.0                                # nor the model rows at the failed iterate
+        elif closed:
+            at_iterate = True                          # the kept or a fresh model matrix was not enough here
+            if everything:
+                st[10] += 1
         elif everything:
             st[9] = 1.0                                # a fresh model matrix was not enough here
             st[10] += 1
@@ -447,8 +479,8 @@ def integrate(x, t0, h, nsteps, method, record_every, min_dt, net, scale, rtol, 
     0 trapezoidal, 1 midpoint, 2 BDF2 with a trapezoidal first step and after a split). Records (t, x, w) every
     ``record_every`` steps and at the end into out_t, out_x, out_w from row 1 (row 0: the caller's start).
     ``st``: steps, rejected, newton_iterations, jacobians, matrix valid, quadratic predictor valid, cut_steps,
-    failure time, system evaluations in Newton iterations, beam model rows given up (1 once), steps where the
-    beams' model rows failed, then the matrix reuse state (11-14, see :func:`_step`), matrices factored.
+    failure time, system evaluations in Newton iterations, the differenced Jacobian in use (this step), steps
+    where a fresh model matrix failed, then the matrix reuse state (11-14, see :func:`_step`), matrices factored.
     ``ws``: the work arrays (:func:`workspace`); ``prev``: the state before x, the BDF2 history, valid when
     st[31] = 1 (set on return). A run continued by a later call with the same ``st``, ``ws`` and ``prev`` (and
     the same h) takes the steps one call would have taken (the iteration matrix, the predictors' memory and the

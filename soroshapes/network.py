@@ -45,7 +45,9 @@ controller's free inputs, then the couplings in declaration order, then every sy
 implicit step's residual (:func:`residual`) takes a beam second order, its equations of motion in force units
 by one pass of the O(N) recursions. The
 rows of the Newton matrix of reservoirs, linear systems and beam input forces are in closed form
-(:func:`_analytic_rows`: the inputs' Jacobian through StateMaps and output couplings); a tree block's are its
+(:func:`_analytic_rows`: the inputs' Jacobian through StateMaps and output couplings), and so are the rows of beam
+contacts with a spinning body or fixed obstacles, on the beam and on the body (:func:`_contact_rows`, the law's
+derivatives through the nodes' Jacobians, :func:`soroshapes._contact.contact_jacobian`); a tree block's are its
 model rows (:func:`soroshapes._treeblock.block_model_rows`: its mass matrix and K, D, and the differenced force
 of its inputs and contact terms, not its dynamics); the rest, and the full
 Jacobian :math:`J = \partial F/\partial x` (:func:`jacobian`) when a beam's model matrix fails, are taken by
@@ -74,6 +76,7 @@ from ._beam import newton_euler as _ne
 from ._beam import newton_euler_planar as _ne_planar
 from ._beam import mass_coriolis_gravity as _mcg
 from ._contact import contact_force as _contact_force
+from ._contact import contact_jacobian as _contact_jacobian
 from ._contact import tree_contact_force as _tree_contact_force
 from . import _treeblock        # the tree block kind
 from .numerics import FD_STEP
@@ -444,12 +447,14 @@ def _lower_terms(spec, blocks, index, free_rows):
     return cint, np.concatenate(cflt) if cflt else np.zeros(0), reads
 
 
-def _mark_analytic(table, blocks, link_tab, link_rows, ckind, free_rows, wterm):
+def _mark_analytic(table, blocks, link_tab, link_rows, ckind, free_rows, wsum, wterm):
     """Set ``table[i, 7]`` = 1 for the systems whose rows of the Newton matrix :func:`_analytic_rows` writes in
     closed form: reservoirs, linear systems and beams (their input force) whose every input is a reservoir volume,
-    a state-independent controller value (none, a :class:`Schedule`) or a coupling from a system's output or a
-    :class:`StateMap` (not a wrench sum, not a state feedback controller), and beams on which no coupling's force
-    acts (a grasp or a contact). The others are differenced (:func:`_fd_rows`)."""
+    a state-independent controller value (none, a :class:`Schedule`), a coupling from a system's output or a
+    :class:`StateMap`, or a wrench sum of beam contacts on a spinning body (:func:`_analytic_sum`; not another
+    wrench sum, not a state feedback controller), and beams on which no coupling's force acts but such contacts
+    (with a spinning body or fixed obstacles; not a grasp, not a free body's contact). The others are
+    differenced (:func:`_fd_rows`)."""
     NW = sum(b["nw"] for b in blocks)
     known = np.ones(NW, np.bool_)
     if ckind in (2, 3):                                 # a feedback controller's inputs read beam states
@@ -460,7 +465,7 @@ def _mark_analytic(table, blocks, link_tab, link_rows, ckind, free_rows, wterm):
         for lk, src, ro, nr in link_tab:
             rows = link_rows[ro:ro + nr]
             if lk == 2:
-                bad = True
+                bad = not _analytic_sum(wsum, wterm, src)
             elif lk == 0 and table[src, 0] == LINEAR:
                 bad = not known[table[src, 3]:table[src, 3] + table[src, 4]].all()
             else:
@@ -468,10 +473,19 @@ def _mark_analytic(table, blocks, link_tab, link_rows, ckind, free_rows, wterm):
             if bad and known[rows].any():
                 known[rows] = False
                 changed = True
-    acted = {int(row[3]) for row in wterm if row[3] >= 0}
+    acted = {int(row[3]) for si in range(len(wsum)) if not _analytic_sum(wsum, wterm, si)
+             for row in wterm[wsum[si][0]:wsum[si][0] + wsum[si][1]] if row[3] >= 0}
     for i in range(table.shape[0]):
         ok = table[i, 0] in (BEAM, FLUIDIC, LINEAR) and known[table[i, 3]:table[i, 3] + table[i, 4]].all()
         table[i, 7] = int(ok and i not in acted)
+
+
+def _analytic_sum(wsum, wterm, si):
+    """Whether the rows that wrench sum si adds to the Newton matrix have a closed form
+    (:func:`_contact_rows`): every term a beam's contact (:func:`soroshapes._contact.contact_jacobian`) and the
+    body a spinning one or fixed obstacles."""
+    first, count, _, pose = wsum[si][0], wsum[si][1], wsum[si][2], wsum[si][3]
+    return pose in (_SPINNING, _FIXED) and all(wterm[tt][0] == _CONTACT for tt in range(first, first + count))
 
 
 class Lowered:
@@ -676,7 +690,7 @@ def lower(blocks, links, volumes, controller, free):
     else:
         raise NotImplementedError(f"the Python controller {getattr(controller, '__name__', controller)!r}")
 
-    _mark_analytic(table, blocks, link_tab, link_rows, ckind, free_rows, wterm)
+    _mark_analytic(table, blocks, link_tab, link_rows, ckind, free_rows, wsum, wterm)
 
     # dependency of each block's derivative on the blocks' states (closed over sources fed by their inputs)
     nb = len(blocks)
@@ -1651,12 +1665,10 @@ def _add_force(f, bext, xo):
 
 
 @njit(cache=True)
-def _contact_term(net, tt, R, p, eta, x, W):
-    """Contact term tt (:func:`soroshapes._contact.contact_force`) between its beam, at its state in x, and the
-    body at pose (R, p) with twist eta: the beam's force into the external-force buffer, the wrench into W.
-    False if the beam's state is out of range or a force is not finite."""
-    table, wterm, wflt, bext, sops, sconsts = net[0], net[24], net[25], net[28], net[29], net[30]
-    bb, o, m = wterm[tt, 3], wterm[tt, 1], wterm[tt, 2]
+def _term_kinematics(net, bb, x):
+    """(n, G, J, eta) of beam block bb at its state in x: its frames, Jacobians and velocities at its chain of
+    points (:func:`soroshapes._beam.kinematics`), computed once per state (:func:`_kinematics_level`)."""
+    table = net[0]
     xo = table[bb, 1]
     (n, _, order, Kb, D, Gin, h, B, X0, base, wts, Md, ag, brows, piv, G, J, Jd, eta_b, etad, S, E, V, Op, AJ, Wb,
      M, C, fg, Rr, qdd, f_in, wko, end) = _beam_views(table[bb, 5], net)
@@ -1666,6 +1678,82 @@ def _contact_term(net, tt, R, p, eta, x, W):
         dOp = np.zeros((6, n))
         _kinematics(q, qd, False, order, h, B, brows, X0, base, G, J, Jd, eta_b, S, E, V, Op, dOp, AJ)
         _kinematics_done(net, bb, 1)
+    return n, G, J, eta_b
+
+
+@njit(cache=True)
+def _contact_rows(net, x, closed, dW, JF):
+    r"""The closed-form rows of beam contacts (:func:`_analytic_sum`; :func:`soroshapes._contact.contact_jacobian`)
+    at x, after :func:`_assemble` at x: each contact's force derivative added to its beam's rate rows of JF
+    (force units, for a beam with ``closed``) and its wrench derivative to the rows of ``dW`` that the body's
+    wrench coupling fills (:func:`_input_jacobian`), in the columns of the beam and of the spinning body. False if
+    a force is not finite."""
+    table, link_tab, link_rows, wsum, wterm, wflt = net[0], net[8], net[9], net[23], net[24], net[25]
+    sops, sconsts, tcache = net[29], net[30], net[31]
+    for si in range(wsum.shape[0]):
+        first, count, body, pose, po = wsum[si, 0], wsum[si, 1], wsum[si, 2], wsum[si, 3], wsum[si, 4]
+        if pose == _FREE:
+            continue
+        use = body >= 0 and closed[body]
+        for tt in range(first, first + count):
+            if wterm[tt, 0] != _CONTACT:
+                use = False
+                break
+            use = use or closed[wterm[tt, 3]]
+        if not use:
+            continue
+        ro = -1                                         # the body's input rows that its wrench sum fills
+        if body >= 0:
+            for li in range(link_tab.shape[0]):
+                if link_tab[li, 0] == 2 and link_tab[li, 1] == si:
+                    ro = link_tab[li, 2]
+        R, p, eta = _body_pose(net, si, x)
+        axis = np.zeros(3)
+        xb = 0
+        if pose == _SPINNING:
+            xb = table[body, 1]
+            for j in range(3):
+                axis[j] = wflt[po + 12 + j]
+        for tt in range(first, first + count):
+            bb, o, m = wterm[tt, 3], wterm[tt, 1], wterm[tt, 2]
+            xo = table[bb, 1]
+            n, G, J, eta_b = _term_kinematics(net, bb, x)
+            Fq, Fb = np.zeros((n, 2 * n)), np.zeros((n, 2))
+            Wq, Wb = np.zeros((6, 2 * n)), np.zeros((6, 2))
+            so, sn, co = wterm[tt, 4], wterm[tt, 5], wterm[tt, 6]
+            nn = int(wflt[o + 6])
+            memo = tcache[tt, 6 + n:6 + n + 4 * nn].reshape((nn, 4))
+            if not _contact_jacobian(wflt[o:o + m], sops[so:so + sn], sconsts[co:], wterm[tt, 7], wterm[tt, 8], G, J,
+                                     eta_b, R, p, eta, axis, memo, Fq, Fb, Wq, Wb):
+                return False
+            if closed[bb]:
+                for k in range(n):
+                    row = JF[xo + n + k]
+                    for c in range(2 * n):
+                        row[xo + c] += Fq[k, c]
+                    if pose == _SPINNING:
+                        row[xb] += Fb[k, 0]
+                        row[xb + 1] += Fb[k, 1]
+            if ro >= 0:
+                for r in range(6):
+                    d = dW[link_rows[ro + r]]
+                    for c in range(2 * n):
+                        d[xo + c] += Wq[r, c]
+                    if pose == _SPINNING:
+                        d[xb] += Wb[r, 0]
+                        d[xb + 1] += Wb[r, 1]
+    return True
+
+
+@njit(cache=True)
+def _contact_term(net, tt, R, p, eta, x, W):
+    """Contact term tt (:func:`soroshapes._contact.contact_force`) between its beam, at its state in x, and the
+    body at pose (R, p) with twist eta: the beam's force into the external-force buffer, the wrench into W.
+    False if the beam's state is out of range or a force is not finite."""
+    table, wterm, wflt, bext, sops, sconsts = net[0], net[24], net[25], net[28], net[29], net[30]
+    bb, o, m = wterm[tt, 3], wterm[tt, 1], wterm[tt, 2]
+    xo = table[bb, 1]
+    n, G, J, eta_b = _term_kinematics(net, bb, x)
     f = np.zeros(n)
     so, sn, co = wterm[tt, 4], wterm[tt, 5], wterm[tt, 6]
     nn = int(wflt[o + 6])
@@ -2091,9 +2179,11 @@ def _map_row_jacobian(mapint, maps, table, x, mi, r, d):
 @njit(cache=True)
 def _analytic_rows(t, x, net, w, closed, JF):
     r"""The rows of JF of the systems with ``closed[i]`` in closed form, at (t, x): with :math:`W_x` =
-    :func:`_input_jacobian`, a linear system's :math:`[A\;\; B W_x]`, a beam's input force :math:`G W_x` (its
-    rate rows; the caller adds :math:`-[K\;\; D]` and the coordinate rows), a reservoir's rows of
-    :func:`_fluidic_jacobian`. False if the inputs are out of range."""
+    :func:`_input_jacobian` (and the wrench of beam contacts on a spinning body, :func:`_contact_rows`), a linear
+    system's :math:`[A\;\; B W_x]`, a beam's input force :math:`G W_x` plus its contacts' force derivative
+    (:func:`_contact_rows`; its rate rows; the caller adds :math:`-[K\;\; D]` and the coordinate rows), a
+    reservoir's rows of :func:`_fluidic_jacobian`. False if the inputs are out of range or a contact force is
+    not finite."""
     table, bint, bflt = net[0], net[1], net[2]
     lint, lflt, fpar = net[20], net[21], net[5]
     N = x.shape[0]
@@ -2101,6 +2191,14 @@ def _analytic_rows(t, x, net, w, closed, JF):
         return False
     dW = np.empty((w.shape[0], N))
     _input_jacobian(x, net, w, dW)
+    for i in range(table.shape[0]):
+        if closed[i] and table[i, 0] == BEAM:
+            n = bint[table[i, 5], 0]
+            for k in range(table[i, 1] + n, table[i, 1] + 2 * n):
+                for c in range(N):
+                    JF[k, c] = 0.0
+    if not _contact_rows(net, x, closed, dW, JF):     # contacts: into the beams' rows and the bodies' inputs
+        return False
     for i in range(table.shape[0]):
         if not closed[i]:
             continue
@@ -2111,8 +2209,6 @@ def _analytic_rows(t, x, net, w, closed, JF):
             go = bint[bi, 5] + 2 * n * n
             for k in range(n):
                 row = JF[xo + n + k]
-                for c in range(N):
-                    row[c] = 0.0
                 for j in range(m):
                     g = bflt[go + k * m + j]
                     if g != 0.0:
