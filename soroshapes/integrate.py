@@ -94,7 +94,7 @@ import numpy as np
 from sorofem._numba import njit
 
 from ._beam import REFRESH_ITS, REFRESH_STEPS, _lu_solve
-from .network import (BEAM, TREE, _beam_mass, _beam_mass_matrix, _cheap_rows_of, _iteration_matrix_of, assemble,
+from .network import (BEAM, TREE, _beam_mass_matrix, _beam_mass_of, _cheap_rows_of, _iteration_matrix_of, assemble,
                       jacobian, residual, rhs)
 
 __all__ = ["TRAPEZOIDAL", "MIDPOINT", "BDF2", "integrate", "integrate_adaptive", "workspace", "local_error",
@@ -149,7 +149,7 @@ def _predict(x0, gam, c, net, scale, ws, st, guess):
         if table[b, 0] == BEAM:
             n = table[b, 2] // 2
             o = table[b, 1] + n
-            M = _beam_mass(table[b, 5], net)
+            M = _beam_mass_of(table[b, 5], net[1], net[3])
             for k in range(n):
                 s = 0.0
                 for l in range(n):

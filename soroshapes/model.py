@@ -532,7 +532,7 @@ class _View:
 # ------------------------------------------------------------------------------------------------------------
 # the model
 # ------------------------------------------------------------------------------------------------------------
-def _check_run(method, rtol, atol, t0):
+def _check_run(method, rtol, atol, t0, newton_tol=1e-3):
     """Check the arguments a run shares (:meth:`Model.simulate`, :class:`Stepper`) and return ``method``'s code
     in :mod:`soroshapes.integrate` and ``t0`` [s] as a float."""
     from . import integrate as itg
@@ -541,6 +541,8 @@ def _check_run(method, rtol, atol, t0):
         raise ParameterError(f"method must be 'trapezoidal', 'midpoint' or 'bdf2', got {method!r}")
     if not (rtol > 0 and atol > 0):
         raise ParameterError("rtol and atol must be positive")
+    if not (0.0 < float(newton_tol) <= 1.0):
+        raise ParameterError(f"newton_tol is a fraction of the step tolerance in (0, 1], got {newton_tol!r}")
     t0 = float(t0)
     if not np.isfinite(t0):
         raise ParameterError(f"t0 must be a finite time [s], got {t0!r}")
@@ -1022,7 +1024,7 @@ class Model:
 
     # -- integration -----------------------------------------------------------------------------------
     def stepper(self, dt, method="trapezoidal", x0=None, t0=0.0, rtol=1e-6, atol=1e-9, *, max_iterations=12,
-                min_dt=None, compiled=None):
+                min_dt=None, compiled=None, newton_tol=1e-3):
         """A :class:`Stepper` that continues the network from ``(t0, x0)`` call after call (``advance(t_end)``
         or ``advance(steps=k)``, fixed steps of at most ``dt`` [s], ``hold(u)`` for constant free inputs), keeping
         the lowered network and the integrator's memory between calls: what a real-time loop calls once per
@@ -1037,11 +1039,11 @@ class Model:
         >>> round(float(x[0]), 4), stp.stats["steps"]       # 1 - exp(-2.5)
         (0.9179, 300)
         """
-        return Stepper(self, dt, method, x0, t0, rtol, atol, max_iterations, min_dt, compiled)
+        return Stepper(self, dt, method, x0, t0, rtol, atol, max_iterations, min_dt, compiled, newton_tol)
 
     def simulate(self, t_end, dt, method="trapezoidal", x0=None, rtol=1e-6, atol=1e-9, adaptive=False, *,
                  max_iterations=12, record_every=1, min_dt=None, max_dt=None, t0=0.0, linear_solver="auto",
-                 compiled=None):
+                 compiled=None, newton_tol=1e-3):
         """Integrate the network from ``t0`` to ``t0 + t_end`` [s] by the implicit ``method`` ("trapezoidal",
         "midpoint", "bdf2"); ``t0`` lets a simulation continue from a state reached earlier (time-dependent
         volumes, signals and controllers see the absolute time). The trajectory is recorded every
@@ -1053,8 +1055,9 @@ class Model:
           error estimate kept below ``rtol*|x_j| + atol*s_j`` (RMS); the records at the output times are the
           methods' second-order dense output (the quadratic through the last three states), not steps.
 
-        ``rtol``, ``atol``: also the Newton tolerance: Newton stops when every correction is below 1e-3 of
-        ``rtol*|x_j| + atol*s_j``. A step whose Newton iterations fail is split (fixed) or halved (adaptive) down
+        ``rtol``, ``atol``: also the Newton tolerance: Newton stops when every correction (compiled path: the
+        rate-based estimate of the remaining error, :mod:`soroshapes.integrate`) is below ``newton_tol`` (1e-3)
+        of ``rtol*|x_j| + atol*s_j``. A step whose Newton iterations fail is split (fixed) or halved (adaptive) down
         to ``min_dt`` (default h/1024, adaptive h*1e-6), then a :class:`~sorofem.errors.ConvergenceError` gives
         the time. ``linear_solver``: the Newton matrix
         :math:`I - cJ` is factorized dense (LAPACK) or sparse (SuperLU on the block-sparse :meth:`jacobian`);
@@ -1066,7 +1069,7 @@ class Model:
         ``stats``; ``traj["name"]`` is one system's (``x``, ``u``, and ``q``, ``qd`` of a beam or ``volume``,
         ``pressure`` of a reservoir).
         """
-        _, t0 = _check_run(method, rtol, atol, t0)
+        _, t0 = _check_run(method, rtol, atol, t0, newton_tol)
         t_end, dt = float(t_end), float(dt)
         if not (t_end > 0 and dt > 0 and np.isfinite(t_end) and np.isfinite(dt)):
             raise ParameterError(f"t_end and dt must be positive [s], got {t_end!r}, {dt!r}")
@@ -1078,6 +1081,7 @@ class Model:
         x = self.initial_state(x0, t0)
         self._scale = self._scales(x, t0)
         self._rtol, self._atol, self._maxit = float(rtol), float(atol), int(max_iterations)
+        self._ntol = float(newton_tol)
         self._sparse = linear_solver == "sparse" or (linear_solver == "auto" and self._N >= 200)
         self._rhs(t0, x)                                         # validates sizes, controller and couplings
         self._last_error = None
@@ -1152,13 +1156,13 @@ class Model:
             min_dt = h * 1e-6 if min_dt is None else float(min_dt)
             got = itg.integrate_adaptive(x.copy(), t0, t0 + t_end, h, h * record_every,
                                          np.inf if max_dt is None else float(max_dt), code, min_dt, net.arrays,
-                                         self._scale, self._rtol, self._atol, self._maxit, 1e-3, out_t, out_x, out_w,
-                                         st)
+                                         self._scale, self._rtol, self._atol, self._maxit, self._ntol, out_t, out_x,
+                                         out_w, st)
             self._stats.update(min_step=float(st[28]), max_step=float(st[29]))
         else:
             min_dt = h / 1024 if min_dt is None else float(min_dt)
             got = itg.integrate(x.copy(), t0, h, nsteps, code, record_every, min_dt, net.arrays, self._scale,
-                                self._rtol, self._atol, self._maxit, 1e-3, out_t, out_x, out_w, st,
+                                self._rtol, self._atol, self._maxit, self._ntol, out_t, out_x, out_w, st,
                                 itg.workspace(self._N, self._NW, net.arrays), x.copy())
         self._stats.update(steps=int(st[0]), rejected=int(st[1]), newton_iterations=int(st[2]),
                            jacobians=int(st[3]), cut_steps=int(st[6]), matrices=int(st[15]),
@@ -1275,7 +1279,7 @@ class Model:
                 nrm = np.max(np.abs(dx) / self._weights(x1))
                 if not np.all(np.isfinite(x1)):
                     break
-                if nrm <= 1e-3:
+                if nrm <= self._ntol:
                     ok = True
                     break
                 if it >= 2 and nrm > 0.5 * prev_norm:
@@ -1394,8 +1398,8 @@ class Stepper:
     """
 
     def __init__(self, model, dt, method="trapezoidal", x0=None, t0=0.0, rtol=1e-6, atol=1e-9, max_iterations=12,
-                 min_dt=None, compiled=None):
-        self._code, t0 = _check_run(method, rtol, atol, t0)
+                 min_dt=None, compiled=None, newton_tol=1e-3):
+        self._code, t0 = _check_run(method, rtol, atol, t0, newton_tol)
         dt = float(dt)
         if not (dt > 0 and math.isfinite(dt)):
             raise ParameterError(f"the stepper's dt must be a positive step [s], got {dt!r}")
@@ -1403,6 +1407,7 @@ class Stepper:
             raise ParameterError(f"min_dt must be a positive step [s] or None (dt/1024), got {min_dt!r}")
         self.model, self.dt, self.method, self.t = model, dt, method, t0
         self._rtol, self._atol, self._maxit = float(rtol), float(atol), int(max_iterations)
+        self._ntol = float(newton_tol)
         self._min_dt = None if min_dt is None else float(min_dt)
         self._compiled = compiled
         self._held = None
@@ -1509,7 +1514,8 @@ class Stepper:
         wall = _time.perf_counter()
         if self._net is None:
             tr = self.model.simulate(n * h, h, self.method, x0=self._x, t0=self.t, rtol=self._rtol, atol=self._atol,
-                                     max_iterations=self._maxit, record_every=n + 1, min_dt=min_dt, compiled=False)
+                                     max_iterations=self._maxit, record_every=n + 1, min_dt=min_dt, compiled=False,
+                                     newton_tol=self._ntol)
             st = tr.stats
             for k in ("steps", "newton_iterations", "matrices", "jacobians", "cut_steps"):
                 self._counts[k] += int(st[k])
@@ -1522,7 +1528,7 @@ class Stepper:
             before = st[[0, 2, 3, 6, 15]].copy()
             out_t, out_x, out_w = self._out
             got = itg.integrate(self._x, self.t, h, n, self._code, n, min_dt, self._net.arrays, self._scale,
-                                self._rtol, self._atol, self._maxit, 1e-3, out_t, out_x, out_w, st, self._ws,
+                                self._rtol, self._atol, self._maxit, self._ntol, out_t, out_x, out_w, st, self._ws,
                                 self._prev)
             d = st[[0, 2, 3, 6, 15]] - before
             for k, v in zip(("steps", "newton_iterations", "jacobians", "cut_steps", "matrices"), d):

@@ -1021,11 +1021,19 @@ def _beam_ne_views(bi, net):
 
 
 @njit(cache=True)
+def _beam_ne_start(n, P, wko):
+    """Offset in the beam workspace of the first array of :func:`_beam_ne_arrays` (after those of
+    :func:`_beam_arrays`)."""
+    Np = P + 1
+    return wko + Np * 16 + 12 * Np * n + 12 * Np + 216 + 16 + 48 + 12 * n + 48 + 2 * n * n + 4 * n
+
+
+@njit(cache=True)
 def _beam_ne_arrays(bi, bint, bwork):
     """:func:`_beam_ne_views` from the network's beam arrays."""
     n, P, wko = bint[bi, 0], bint[bi, 2], bint[bi, 6]
     Np = P + 1
-    o = wko + Np * 16 + 12 * Np * n + 12 * Np + 216 + 16 + 48 + 12 * n + 48 + 2 * n * n + 4 * n
+    o = _beam_ne_start(n, P, wko)
     acc = bwork[o:o + Np * 6].reshape((Np, 6))
     o += Np * 6
     SA = bwork[o:o + P * 36].reshape((P, 6, 6))
@@ -1060,6 +1068,45 @@ def _beam_ne_arrays(bi, bint, bwork):
     oE = oe + 12 * Np + 216
     E = bwork[oE:oE + 16].reshape((4, 4))
     return acc, SA, SX, V, T, Jm, Ym, Opm, Mm, LU, a, v, R, f, G, eta, E, wko, o
+
+
+@njit(cache=True)
+def _beam_pass_arrays(bi, bint, bwork):
+    """The arrays of :func:`_beam_ne_arrays` that one residual pass writes (acc, SA, SX, V, a, R, f, G, eta, E)
+    and the (start, end) of the beam's workspace, without the views it does not read (each view costs its
+    reference counting: the residual runs every Newton sweep)."""
+    n, P, wko = bint[bi, 0], bint[bi, 2], bint[bi, 6]
+    Np = P + 1
+    o = _beam_ne_start(n, P, wko)
+    acc = bwork[o:o + Np * 6].reshape((Np, 6))
+    o += Np * 6
+    SA = bwork[o:o + P * 36].reshape((P, 6, 6))
+    o += P * 36
+    SX = bwork[o:o + P * 24].reshape((P, 4, 6))
+    o += P * 24
+    V = bwork[o:o + 192].reshape((32, 6))
+    o += 192 + 36 + 12 * Np * n + 6 * n + 2 * n * n        # T, Jm, Ym, Opm, Mm, LU
+    a = bwork[o:o + n]
+    o += 2 * n                                              # a, v
+    R = bwork[o:o + n]
+    o += n
+    f = bwork[o:o + n]
+    o += n
+    G = bwork[wko:wko + Np * 16].reshape((Np, 4, 4))
+    oe = wko + Np * 16 + 12 * Np * n
+    eta = bwork[oe:oe + Np * 6].reshape((Np, 6))
+    oE = oe + 12 * Np + 216
+    E = bwork[oE:oE + 16].reshape((4, 4))
+    return acc, SA, SX, V, a, R, f, G, eta, E, wko, o
+
+
+@njit(cache=True)
+def _beam_mass_of(bi, bint, bwork):
+    """:func:`_beam_mass` from the network's beam arrays (only the view of M)."""
+    n, P = bint[bi, 0], bint[bi, 2]
+    Np = P + 1
+    o = _beam_ne_start(n, P, bint[bi, 6]) + Np * 6 + P * 60 + 228 + 12 * Np * n + 6 * n
+    return bwork[o:o + n * n].reshape((n, n))
 
 
 @njit(cache=True)
@@ -1147,7 +1194,7 @@ def _beam_residual(bi, xe, x1, xhat, gam, xo, w, wo, bint, bflt, bwork, bintb, b
     a beam that moves in its body x-z plane, flagged at lowering; no mass matrix is formed or solved). Leaves the
     pass's per-piece operators for :func:`_beam_mass_matrix`. False if the state is out of range."""
     n, m, order, K, D, h, B, X0, base, wts, Md, ag, rows, go = _beam_model(bi, bint, bflt, bintb)
-    acc, SA, SX, NV, T, Jm, Ym, Opm, Mm, LU, a, v, R, f_in, G, eta, E, start, stop = _beam_ne_arrays(bi, bint, bwork)
+    acc, SA, SX, NV, a, R, f_in, G, eta, E, start, stop = _beam_pass_arrays(bi, bint, bwork)
     _beam_input_force(xo, n, m, bflt, go, w, wo, bext, f_in, bint[bi, 10], bint[bi, 11])
     q = xe[xo:xo + n]
     qd = xe[xo + n:xo + 2 * n]
@@ -1357,7 +1404,7 @@ def _controller_terms(t, x, net, w, only):
 def _beam_mass(bi, net):
     """The mass matrix that the last :func:`_beam_rhs` or :func:`_beam_mass_matrix` of beam bi left in its
     workspace (a view)."""
-    return _beam_ne_views(bi, net)[8]
+    return _beam_mass_of(bi, net[1], net[3])
 
 
 @njit(cache=True)
@@ -2335,7 +2382,7 @@ def _iteration_matrix_of(c, gam, net, JF, LUc, pivc, sel):
                 A[a, a] += 1.0
             else:
                 if mb != bl:                            # the views once per beam, not once per row
-                    M = _beam_ne_arrays(table[bl, 5], net[1], net[3])[8]
+                    M = _beam_mass_of(table[bl, 5], net[1], net[3])
                     mb = bl
                 first = a - rate                      # the beam's rate columns are contiguous in the component
                 for l in range(n):

@@ -1,12 +1,13 @@
 """Speed of the Model composer on the seed's soft hand (demos/soft_hand.py), one core.
 
 Target (issue): real-time factor (simulated time / wall time) >= 50 for the soft hand, 5 fingers x 5 Chebyshev
-modes + 5 pressure-regulated reservoirs (60 states), with the demo's settings (BDF2, dt = 2 ms, rtol 1e-4,
-atol 1e-6). The demo's network runs on the compiled path (soroshapes.network); the same network on the Python
-path (``compiled=False``) is timed in the same run: the speed-up and the trajectory difference (tip angles, deg)
-are recorded. Also recorded: the Newton/Jacobian statistics and where the time goes (compiled: system
-evaluations per step and the cost of one network evaluation F(t, x) in a compiled loop; Python: counts of F and
-of input assemblies W(t, x), split into Newton and Jacobian work), the breakdown that says what to speed up.
+modes + 5 pressure-regulated reservoirs (60 states), with the demo's settings (its DT, METHOD, RTOL, ATOL,
+NEWTON_TOL: BDF2, dt = 2 ms, Newton to 1e-3 |x| + 1e-7 s). The demo's network runs on the compiled path
+(soroshapes.network); the same network on the Python path (``compiled=False``) is timed in the same run: the
+speed-up and the trajectory difference (tip angles, deg) are recorded. Also recorded: the Newton/Jacobian
+statistics and where the time goes (compiled: system evaluations per step and the cost of one network evaluation
+F(t, x) in a compiled loop; Python: counts of F and of input assemblies W(t, x), split into Newton and Jacobian
+work), the breakdown that says what to speed up.
 Correctness of what was timed is asserted (never a time).
 """
 import os
@@ -45,17 +46,17 @@ def _count(obj, attr, counter, key):
 
 def test_bench_soft_hand_realtime_factor(record):
     H = _hand()
-    t_sim, dt, method, rtol, atol = 2.0, 2e-3, "bdf2", 1e-4, 1e-6
+    t_sim, dt, method, rtol, atol, ntol = 2.0, H.DT, H.METHOD, H.RTOL, H.ATOL, H.NEWTON_TOL     # the demo's
     mdl, fingers = H.build()
     assert mdl.n == 60
-    mdl.simulate(0.02, dt, method=method, rtol=rtol, atol=atol)          # warm up (numba)
+    mdl.simulate(0.02, dt, method=method, rtol=rtol, atol=atol, newton_tol=ntol)          # warm up (numba)
 
     # 1. the plain run, as in the demo (compiled network)
     assert mdl.evaluation_path == "compiled"
     wall = cpu = np.inf
     for _ in range(2):
         t0, c0 = time.perf_counter(), time.process_time()
-        tr = mdl.simulate(t_sim, dt, method=method, rtol=rtol, atol=atol)
+        tr = mdl.simulate(t_sim, dt, method=method, rtol=rtol, atol=atol, newton_tol=ntol)
         wall, cpu = min(wall, time.perf_counter() - t0), min(cpu, time.process_time() - c0)
     st = tr.stats
     assert st["cut_steps"] == 0 and np.all(np.isfinite(tr.x)) and st["path"] == "compiled"
@@ -67,7 +68,7 @@ def test_bench_soft_hand_realtime_factor(record):
     # 2. the same network on the Python path: speed-up and trajectory difference
     mdl_py, _ = H.build()
     t0 = time.perf_counter()
-    trp = mdl_py.simulate(t_sim, dt, method=method, rtol=rtol, atol=atol, compiled=False)
+    trp = mdl_py.simulate(t_sim, dt, method=method, rtol=rtol, atol=atol, newton_tol=ntol, compiled=False)
     wall_py = time.perf_counter() - t0
     angle = np.array([H.tip_angle(f, tr[n].q) for f, n in zip(fingers, H.NAMES)])
     angle_py = np.array([H.tip_angle(f, trp[n].q) for f, n in zip(fingers, H.NAMES)])
@@ -84,7 +85,7 @@ def test_bench_soft_hand_realtime_factor(record):
     mdl._prepare_layout()
     for b in mdl._blocks.values():
         _count(b, "rhs", c, "shapes_rhs" if b.kind == "shapes" else "fluidic_rhs")
-    tri = mdl.simulate(t_sim, dt, method=method, rtol=rtol, atol=atol, compiled=False)
+    tri = mdl.simulate(t_sim, dt, method=method, rtol=rtol, atol=atol, newton_tol=ntol, compiled=False)
     wall_i = tri.stats["wall_time"]
     # rhs calls made inside jacobian(): block FD columns call the block rhs directly; dW calls _assemble
     steps, its, jacs = tri.stats["steps"], tri.stats["newton_iterations"], tri.stats["jacobians"]
@@ -103,7 +104,8 @@ def test_bench_soft_hand_realtime_factor(record):
         "newton_share": round((c["rhs_s"] - 0.0) / wall_i, 3),
         "jacobian_share": round(c["jacobian_s"] / wall_i, 3),
     }
-    record(states=mdl.n, simulated_s=t_sim, dt=dt, method=method, rtol=rtol, atol=atol, wall_s=round(wall, 3),
+    record(states=mdl.n, simulated_s=t_sim, dt=dt, method=method, rtol=rtol, atol=atol, newton_tol=ntol,
+           wall_s=round(wall, 3),
            realtime_factor=round(rtf, 3), cpu_s=round(cpu, 3),
            realtime_factor_cpu_time=round(t_sim / cpu, 3),      # this process's CPU time: less load-dependent
            python_path_wall_s=round(wall_py, 3),
@@ -311,10 +313,11 @@ def test_bench_soft_hand_adaptive_steps(record):
 
 def test_bench_soft_hand_newton_tolerance(record):
     """Fewer Newton sweeps by a looser Newton tolerance? The demo's fixed 2 ms BDF2 run with the compiled driver
-    (soroshapes.integrate.integrate, as Model.simulate calls it) at Newton tolerances ``ntol`` 1e-3 (Model.simulate's)
-    to 1e-1 of the step tolerance: sweeps per step, the components' corrections histogram (1 .. 6+), CPU real-time
-    factor (best of three) and the tip-angle error against the 0.125 ms reference. Each component takes at least
-    two corrections (the rate estimate needs a second), so the sweeps stay above 3 while the error does not move."""
+    (soroshapes.integrate.integrate, as Model.simulate calls it) at Newton tolerances ``ntol`` 1e-3 (Model.simulate's
+    default) to 1e-1 of the step tolerance (rtol 1e-4), and at the demo's (RTOL, NEWTON_TOL): sweeps per step, the
+    components' corrections histogram (1 .. 6+), CPU real-time factor (best of three) and the tip-angle error
+    against the 0.125 ms reference (in fixed steps rtol and ntol only set Newton's stopping test: the error does
+    not move). Each component takes at least two corrections (the rate estimate needs a second)."""
     from soroshapes import integrate as itg
 
     H = _hand()
@@ -328,19 +331,19 @@ def test_bench_soft_hand_newton_tolerance(record):
     cols = [slice(12 * i, 12 * i + 5) for i in range(5)]      # q of each finger (10 states, then its reservoir: 2)
     assert [mdl.systems[2 * i] for i in range(5)] == list(H.NAMES) and mdl.n == 60
     rows = {}
-    for ntol in (1e-3, 1e-2, 1e-1):
+    for rtol, ntol in ((1e-4, 1e-3), (1e-4, 1e-2), (1e-4, 1e-1), (H.RTOL, H.NEWTON_TOL)):
         cpu = np.inf
         for _ in range(3):
             out_t, out_x, out_w = np.zeros(1001), np.zeros((1001, N)), np.zeros((1001, net.NW))
             out_x[0] = x0
             st = np.zeros(32)
             c0 = time.process_time()
-            got = itg.integrate(x0.copy(), 0.0, 2e-3, 1000, itg.BDF2, 1, 2e-3 / 1024, net.arrays, scale, 1e-4, 1e-6,
+            got = itg.integrate(x0.copy(), 0.0, 2e-3, 1000, itg.BDF2, 1, 2e-3 / 1024, net.arrays, scale, rtol, 1e-6,
                                 12, ntol, out_t, out_x, out_w, st, itg.workspace(N, net.NW, net.arrays), x0.copy())
             cpu = min(cpu, time.process_time() - c0)
         assert got == 1001
         a = np.array([H.tip_angle(f, out_x[:, c]) for f, c in zip(fingers, cols)])
-        rows[f"ntol_{ntol:g}"] = dict(realtime_factor_cpu_time=round(t_sim / cpu, 2),
+        rows[f"rtol_{rtol:g}_ntol_{ntol:g}"] = dict(realtime_factor_cpu_time=round(t_sim / cpu, 2),
                                       newton_sweeps_per_step=round(st[2] / st[0], 2),
                                       component_matrices_per_step=round(st[15] / st[0], 3),
                                       component_corrections_histogram_1_to_6=st[20:26].astype(int).tolist(),

@@ -122,3 +122,41 @@ def test_max_dt_caps_the_step_and_bad_values_are_refused():
     assert tr.stats["max_step"] <= 5e-3 * (1 + 1e-12)
     with pytest.raises(ParameterError, match="max_dt"):
         linear_oscillator().simulate(1.0, 1e-3, adaptive=True, max_dt=-1.0)
+
+
+def falling_beam():
+    """A planar cantilever released straight under its own weight (2 Chebyshev modes of bending, a large swing:
+    w L^3 / (8 EI) ~ 2): a nonlinear network on the compiled path."""
+    from sorofem import materials, sdf
+    from soroshapes import Basis, Shapes
+    mat = materials.NeoHookean(E=1e5, nu=0.45, density=1000)
+    shp = Shapes(Basis.chebyshev(2), dofs=(0, 2, 0, 0, 0, 0), length=0.1, section=sdf.Circle(0.005), material=mat,
+                 damping=0.01, segments=4).add_gravity((0, 0, -9.81))
+    return Model().add(shp, "beam")
+
+
+def test_newton_tolerance_trades_sweeps_within_the_step_tolerance():
+    """``newton_tol`` (the fraction of the step tolerance Newton's remaining error is held below): a looser one takes
+    fewer sweeps; each step's Newton error is at most newton_tol tolerances, so over the run's steps (a damped,
+    stable swing) the states stay within steps x newton_tol x (rtol |x| + atol s) of a run with a tight Newton.
+    The Stepper runs the same steps as simulate."""
+    rtol, atol, T, dt = 1e-4, 1e-6, 0.3, 2e-3
+    runs = {ntol: falling_beam().simulate(T, dt, "bdf2", rtol=rtol, atol=atol, newton_tol=ntol)
+            for ntol in (1e-6, 1e-3, 1e-1)}
+    assert all(tr.stats["path"] == "compiled" for tr in runs.values())
+    its = [runs[k].stats["newton_iterations"] for k in (1e-6, 1e-3, 1e-1)]
+    assert its[0] > its[1] >= its[2], its
+    ref = runs[1e-6].x
+    size = np.abs(ref).max(axis=0)
+    for ntol in (1e-3, 1e-1):
+        bound = runs[ntol].stats["steps"] * ntol * (rtol * size + atol * np.maximum(size, 1.0))
+        assert np.all(np.abs(runs[ntol].x - ref).max(axis=0) <= bound), ntol
+    stp = falling_beam().stepper(dt, "bdf2", rtol=rtol, atol=atol, newton_tol=1e-1)
+    x = stp.advance(T)
+    assert np.allclose(x, runs[1e-1].x[-1], rtol=0, atol=1e-12)
+    assert stp.stats["newton_iterations"] == its[2]
+    py = falling_beam().simulate(T, dt, "bdf2", rtol=rtol, atol=atol, newton_tol=1e-1, compiled=False)
+    assert np.max(np.abs(py.x[-1] - ref[-1]) / (rtol * size + atol)) < 150 * 0.1
+    for bad in (0.0, 2.0, np.nan):
+        with pytest.raises(ParameterError, match="newton_tol"):
+            falling_beam().simulate(T, dt, "bdf2", newton_tol=bad)
