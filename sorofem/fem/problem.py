@@ -500,12 +500,7 @@ class Fem:
             if load is not None:
                 prescribed.append((tuple(consts_here), load))
         if self.pressure_space == "per_material":   # each material's pressure is zero off its cells
-            everywhere = np.arange(n_local, dtype=np.int32)
-            for k in range(len(self._materials)):
-                sub = W.sub(1 + k)
-                off = np.setdiff1d(dolfinx.fem.locate_dofs_topological(sub, tdim, everywhere),
-                                   dolfinx.fem.locate_dofs_topological(sub, tdim, np.flatnonzero(marker == k)))
-                bcs.append(dolfinx.fem.dirichletbc(dolfinx.fem.Constant(msh, 0.0), off.astype(np.int32), sub))
+            bcs.extend(self._off_material_pressures(W, marker))
 
         jacobian = ufl.derivative(residual, w, ufl.TrialFunction(W))
         R_form, J_form = dolfinx.fem.form(residual), dolfinx.fem.form(jacobian)
@@ -911,6 +906,30 @@ class Fem:
         return [("displacement", np.asarray(W.sub(0).collapse()[1]), self._size()),
                 (second[0], np.concatenate([np.asarray(W.sub(1 + k).collapse()[1]) for k in range(n_sub)]),
                  second[1])]
+
+    def _off_material_pressures(self, W, marker):
+        """Dirichlet conditions p_k = 0 on the unknowns of material k's pressure field that touch none of its
+        cells (``marker``: the material of each local cell). A rank sees its own cells only: the touching is
+        summed over the ranks that share an unknown."""
+        import dolfinx.fem
+        from petsc4py import PETSc
+
+        msh = self.mesh.dolfinx
+        tdim = msh.topology.dim
+        everywhere = np.arange(len(marker), dtype=np.int32)
+        touched = dolfinx.fem.Function(W)
+        vec = _dolfinx.petsc_vec(touched)
+        bcs = []
+        for k in range(len(self._materials)):
+            sub = W.sub(1 + k)
+            touched.x.array[:] = 0.0
+            touched.x.array[dolfinx.fem.locate_dofs_topological(sub, tdim, np.flatnonzero(marker == k))] = 1.0
+            vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+            dofs = dolfinx.fem.locate_dofs_topological(sub, tdim, everywhere)
+            off = np.asarray(dofs[touched.x.array[dofs] == 0.0], dtype=np.int32)
+            bcs.append(dolfinx.fem.dirichletbc(dolfinx.fem.Constant(msh, 0.0), off, sub))
+        return bcs
 
     def _pressure_parts(self):
         """The pressure field(s) of the mixed state, as parts of :func:`sorofem._dolfinx.mixed_space`."""

@@ -280,3 +280,17 @@ def test_plane_stress_and_mixed_eigen_give_the_serial_figures_on_two_ranks():
     assert v == pytest.approx(COOK_P2[8], abs=1e-4)
     assert vortex_eigenvalue(ALL_LAWS["neo-hookean"](0.4999), 2, True) == pytest.approx(1.0, rel=2e-3)
     assert vortex_eigenvalue(ALL_LAWS["linear"](0.3), 2, False, "plane_stress") == pytest.approx(1.0, rel=2e-3)
+
+
+@pytest.mark.mpi
+def test_per_material_pressure_is_exact_on_two_ranks():
+    """Under ``mpirun -n 2``: the unknowns of a material's pressure that touch its cells only on the other rank
+    stay free, so the stretched bimaterial strip is still exact."""
+    from mpi4py import MPI
+    assert MPI.COMM_WORLD.size == 2
+    L, H, a = 0.02, 0.01, 1.3
+    fem, traj, mats = _bimaterial_stretch("per_material", a)
+    (P_soft, t_soft, _), (P_stiff, t_stiff, _) = (_plane_strain_uniaxial(m, a) for m in mats)
+    assert fem.evaluate([[L, H]])[0][1] == pytest.approx((t_soft - 1) * H / 2 + (t_stiff - 1) * H / 2, rel=1e-8)
+    if MPI.COMM_WORLD.rank == 0:
+        assert -traj.reactions["left"][-1][0] == pytest.approx((P_soft + P_stiff) * H / 2, rel=1e-8)
