@@ -175,12 +175,13 @@ class Fem:
                                  f"{mesh.bounds[0][0]:.3g} m")
         if degree not in (1, 2):
             raise ParameterError(f"degree must be 1 or 2, got {degree!r}")
-        if mixed is True:
-            mixed = "taylor_hood"
-        if mixed not in (False, None) + PRESSURE_SPACES:
+        if not isinstance(mixed, str):
+            mixed = "taylor_hood" if mixed else False
+        if mixed and mixed not in PRESSURE_SPACES:
             raise ParameterError(f"mixed must be True, False or a pressure space {PRESSURE_SPACES}, got {mixed!r}")
         if mixed and degree != 2:
-            raise ParameterError("the mixed formulation uses P2 displacement elements: pass degree=2")
+            raise ParameterError("the mixed formulation (Taylor-Hood or a pressure per material) uses P2 displacement "
+                                 "elements: pass degree=2")
         if mixed and formulation == "plane_stress":
             raise ParameterError("plane stress does not lock (the thickness is free to change): use mixed=False "
                                  "with formulation='plane_stress'")
