@@ -249,12 +249,16 @@ def richardson(values, ratio=2.0, max_order=None):
     :math:`p = \log_r(e_1/e_2)`) and ``converging`` (False when :math:`e_2 \ge e_1`: then ``error`` is the
     conservative :math:`e_2` itself and ``order`` NaN). With ``max_order`` (the element's formal order), an
     observed order above it is not trusted (the coarse meshes are not in the asymptotic range): the error is
-    :math:`e_2/(r^{p'} - 1)` with :math:`p' = \min(p, \text{max_order})`, ``order_used`` :math:`p'`."""
+    :math:`e_2/(r^{p'} - 1)` with :math:`p' = \min(p, \text{max_order})`, ``order_used`` :math:`p'`. A sequence
+    that turns back (:math:`(Q_h - Q_{h/2}) \cdot (Q_{h/2} - Q_{h/4}) < 0`, e.g. the 2D PneuNet's contact force
+    2.0512, 2.0475, 2.0497 N/m) oscillates: not converging, the error :math:`e_2` (extrapolating it claimed
+    0.027 % against a last change of 0.107 %)."""
     a, b, c = (np.atleast_1d(np.asarray(v, dtype=float)) for v in values)
     e1, e2 = float(np.linalg.norm(a - b)), float(np.linalg.norm(b - c))
     if e2 == 0.0:
         return {"error": 0.0, "order": float("inf"), "converging": True, "e1": e1, "e2": e2}
-    if e2 >= e1:
+    # the second change turned back (a scalar changed sign): an oscillation, not a power of h
+    if e2 >= e1 or float(np.sum((a - b) * (b - c))) < 0.0:
         return {"error": e2, "order": float("nan"), "converging": False, "e1": e1, "e2": e2}
     p = float(np.log(e1 / e2) / np.log(ratio))
     q = p if max_order is None else min(p, float(max_order))
