@@ -21,10 +21,12 @@ def test_richardson_recovers_the_error_of_a_second_order_sequence():
     assert r["error"] == pytest.approx(3.0 * 0.01 * np.hypot(1.0, 0.5), rel=1e-12)
     r = richardson([1.0, 1.1, 1.3])     # diverging: the last difference, flagged
     assert not r["converging"] and r["error"] == pytest.approx(0.2)
-    r = richardson([0.8870, 0.8951, 0.8949])     # shrinking changes that turn back: an oscillation, flagged
-    assert not r["converging"] and r["error"] == pytest.approx(0.0002)
+    r = richardson([0.8870, 0.8951, 0.8949])     # shrinking changes that turn back: an oscillation, flagged,
+    assert r["oscillating"] and r["error"] == pytest.approx(0.0002)    # its error at least the last change
+    r = richardson([3.03, 3.56, 3.28])            # nearly equal changes: the (larger) extrapolation stays
+    assert r["oscillating"] and r["error"] == pytest.approx(0.28 / (2 ** np.log2(0.53 / 0.28) - 1))
     r = richardson([np.array([1.0, 0.0]), np.array([1.1, 0.0]), np.array([1.1, -0.01])])   # at right angles: fine
-    assert r["converging"] and r["order"] == pytest.approx(np.log2(10))
+    assert r["converging"] and not r["oscillating"] and r["order"] == pytest.approx(np.log2(10))
 
 
 def test_the_pareto_front_keeps_only_undominated_rows():
