@@ -22,7 +22,8 @@ turns their errors (:class:`sorofem.errors.SoroError`) into exit codes; library 
 ``soro trade SCENE [--tol T] [--measure tip|shape|volume|blocked|tip_contact|force_contact] [--quick] [--out DIR]``
     The fidelity ladder of a scene (:mod:`soro.ladder`; scenes: ``pneunet2d``, ``cantilever``, ``pneunet3d``):
     FEM rungs (P1, P2, P2 mixed on three meshes, h, h/2, h/4, or h, h/sqrt2, h/2 in 3D; the finest P2 mixed is the
-    reference, its own error estimated by Richardson; the 3D scene adds the plane-strain section) and
+    reference, with one pressure per material in the 2D PneuNet, its own error estimated by Richardson; the 3D
+    scene adds the plane-strain section) and
     beam rungs (DVS, Chebyshev, PCC), a table marking the Pareto fronts, one log-log plot per measure and the
     error budget (``DIR``, default ``out/ladder/SCENE``). With ``--tol`` (``1%`` or ``0.01``) it selects the
     cheapest model within the tolerance on the unseen loads, writes it to ``DIR/model.json`` (Python:

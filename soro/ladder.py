@@ -3,11 +3,13 @@ r"""The fidelity ladder of a scene: FEM rungs and beam rungs on one speed-accura
 A scene is an actuator with its loads. Its ladder measures every model of it against one reference:
 
 FEM rungs
-    P1, P2 and P2 mixed (Taylor-Hood, :class:`sorofem.fem.Fem` ``mixed=True``) displacement elements, each on
-    three meshes of element size h, h/2, h/4. The reference is the finest P2 mixed model; its own
-    discretization error is estimated by Richardson extrapolation from its three meshes
-    (:func:`richardson`): with :math:`e_1 = |Q_h - Q_{h/2}|`, :math:`e_2 = |Q_{h/2} - Q_{h/4}|`, the observed order
-    :math:`p = \log_2(e_1/e_2)` and the error of the finest :math:`e_2/(2^p - 1)`.
+    P1, P2 and P2 mixed (Taylor-Hood, :class:`sorofem.fem.Fem` ``mixed=True``; and ``fem-p2jump``, one pressure
+    per material, ``mixed="per_material"``) displacement elements, each on three meshes of element size h, h/2,
+    h/4. The reference is the finest model of the scene's last family (P2 mixed; in the two-material 2D PneuNet
+    the one whose pressure may jump across the layer's top); its own discretization error is estimated by
+    Richardson extrapolation from its three meshes (:func:`richardson`): with :math:`e_1 = |Q_h - Q_{h/2}|`,
+    :math:`e_2 = |Q_{h/2} - Q_{h/4}|`, the observed order :math:`p = \log_2(e_1/e_2)` and the error of the finest
+    :math:`e_2/(2^p - 1)` (:math:`p` at most the scene's ``formal_order``).
 Beam rungs
     DVS (the POD of the reference's training snapshots), Chebyshev and PCC bases of 1-6 bending modes
     (:func:`soro.trade.trade` builds them the same way), identified on the reference's training ramp
@@ -107,8 +109,11 @@ def measures_of(rows):
     """The measures some row of ``rows`` has a finite value of (what this scene's ladder measured)."""
     return tuple(m for m in MEASURES if any(np.isfinite(r.get(column(m)) if r.get(column(m)) is not None
                                                         else np.nan) for r in rows))
-#: FEM rungs: name -> (degree, mixed); the last one is the reference family.
-FEM_FAMILIES = {"fem-p1": (1, False), "fem-p2": (2, False), "fem-p2mixed": (2, True)}
+#: FEM rungs: name -> (degree, mixed: the pressure space of :class:`sorofem.fem.Fem`); a scene's last family is
+#: its reference. ``fem-p2jump``: P2 mixed with one continuous pressure per material, so that the pressure may
+#: jump across the interfaces between materials (Taylor-Hood's cannot: the 2D PneuNet's layer top, see Scene).
+FEM_FAMILIES = {"fem-p1": (1, False), "fem-p2": (2, False), "fem-p2mixed": (2, "taylor_hood"),
+                "fem-p2jump": (2, "per_material")}
 BEAM_FAMILIES = ("dvs", "chebyshev", "pcc")
 
 
@@ -121,13 +126,15 @@ class _Levels:
     test_level: float = 0.85
     validation_level: float = 0.65
     modes: tuple = (1, 2, 3, 4, 5, 6)
-    fem_families: tuple = tuple(FEM_FAMILIES)
+    fem_families: tuple = ("fem-p1", "fem-p2", "fem-p2mixed")
     repeats: int = 7
     fem_repeats: int = 1
     eigen: bool = True
     #: the FEM model's dimension (the 3D PneuNet: 3); solve times by CPU time instead of wall time
     dim: ClassVar[int] = 2
     cpu_time: ClassVar[bool] = False
+    #: the reference's order of convergence in h that Richardson trusts at most (None: any observed order)
+    formal_order: ClassVar = None
 
     def sizes(self):
         """The three element sizes [m] of each FEM family: h, h/2, h/4."""
@@ -154,20 +161,34 @@ class Scene(_Levels):
     Every rung meshes one geometry: the CSG section, and the mesh follows the strain-limiting layer's top
     (``demos/pneunet_inflation.py`` ``layer_shape``, :meth:`sorofem.mesh.Mesh.from_sdf` ``interfaces=``). With the
     layer picked by cell midpoints its thickness was 1.98 mm at h = 0.3 and 2.03 mm at 0.15 mm (quick scene),
-    and the tip jumped 0.26 mm with it. On the one geometry the quick scene's P2 mixed tip y [mm] at the top
-    unseen load is -13.625, -13.782, -13.525, -13.406, -13.311, -13.254 at h = 2.4 ... 0.075 mm: monotone from
-    1.2 mm on, observed order 1.1, 0.34, 0.74. It converges slowly because the Taylor-Hood pressure is continuous
-    across the layer's top, where the true pressure jumps (a band of h/8 elements along it alone moves the
-    0.6 mm tip by 0.20 of the 0.27 mm still to go), and because of the chambers' re-entrant corners (P2
-    without pressure: refining them moves the tip 0.07 mm). So the full scene's rungs are h = 0.6, 0.3, 0.15 mm:
-    there the observed order is low and its Richardson estimate conservative (quick scene: 0.40 mm at 0.15 mm,
-    against 0.06 mm to the next mesh and about 0.16 mm to the extrapolated limit). Measured on the full scene:
-    P2 mixed tip y -46.055, -45.799, -45.595 mm at h = 0.6, 0.3, 0.15 mm (order 0.33, the reference's tip known
-    to 1.6 % of L by Richardson; volume order 1.5, 0.07 %); P2 without pressure -45.666, -45.633, -45.579 mm,
-    0.025 % of L from the reference at 0.15 mm. The quick scene (h = 2.4, 1.2, 0.6 mm) is not monotone yet:
-    its reference error is the last change itself, 0.6 % of L."""
+    and the tip jumped 0.26 mm with it.
+
+    The reference family is ``fem-p2jump``: P2 mixed with one continuous pressure per material
+    (:class:`sorofem.fem.Fem` ``mixed="per_material"``), since the true pressure jumps across the layer's top
+    (Dragon Skin below, Ecoflex above). Taylor-Hood's one continuous pressure cannot jump there and converges
+    slowly: the quick scene's P2 mixed tip y [mm] at the top unseen load is -13.625, -13.782, -13.525, -13.406,
+    -13.311, -13.254 at h = 2.4 ... 0.075 mm (order 0.33-1.1), the full scene's -46.055, -45.799, -45.595 at
+    h = 0.6, 0.3, 0.15 mm (order 0.33: known to 1.6 % of L). With a pressure per material the quick scene's tip
+    (x, y) [mm] is (42.703, -13.037), (42.608, -13.254), (42.602, -13.264), (42.597, -13.277), (42.610,
+    -13.251), (42.623, -13.223) at h = 2.4 ... 0.075 mm: within 0.03 mm (0.07 % of L) from h = 1.2 mm on, but
+    its changes do not shrink there (0.012, 0.014, 0.029, 0.031 mm per halving; the cavity volume converges at
+    order 1.2-1.5; P2 x P0, a constant pressure per cell, sits 0.04 mm away and drifts towards it). The full
+    scene's tip (x, y) [mm]: (58.539, -44.731), (57.913, -45.259), (57.673, -45.424), (57.586, -45.493) at
+    h = 2.4, 1.2, 0.6, 0.3 mm, changes 0.819, 0.291, 0.111 mm, observed order 1.49 then 1.39. So the full
+    scene's rungs are h = 1.2, 0.6, 0.3 mm (the 0.3 mm reference solves in 44 s, against 532 s for
+    Taylor-Hood's 0.15 mm). Richardson trusts no order above :attr:`formal_order` (the corners' 1.09): on
+    2.4/1.2/0.6 mm it estimates 0.26 mm at 0.6 mm, against 0.11 mm to the next mesh (at order 1.49 it would be
+    0.16 mm); on the full rungs 0.098 mm, 0.12 % of L, against 0.079 mm to the next mesh (h = 0.15 mm: (57.650,
+    -45.446), 150 s, turning back as the quick scene's tip does; at the observed order 1.39 the estimate would
+    have been 0.069 mm, below that change). The quick scene (h = 2.4, 1.2, 0.6 mm): observed order 4.3, capped,
+    0.010 mm, against 0.014 mm to the next mesh."""
 
     name: str = "pneunet2d"
+    #: P2 mixed with one pressure per material is the reference (it may jump across the layer's top)
+    fem_families: tuple = ("fem-p1", "fem-p2", "fem-p2mixed", "fem-p2jump")
+    #: the chambers' re-entrant corners (270 degrees of material, traction-free: Williams' exponent
+    #: lambda = 0.5445) bound a point value's convergence on uniform meshes to h^(2 lambda)
+    formal_order: ClassVar[float] = 1.09
     chambers: int = 4
     size: float = 2.4e-3
     p_max: float = 5e3
@@ -185,10 +206,10 @@ SLOW_FEM_S = 20.0
 
 #: The scenes ``soro trade SCENE`` knows, full and quick (``--quick``; what the tests run).
 SCENES = {
-    "pneunet2d": {"full": Scene(chambers=7, size=0.6e-3, p_max=6e3, train_steps=16, repeats=15, fem_repeats=3,
+    "pneunet2d": {"full": Scene(chambers=7, size=1.2e-3, p_max=6e3, train_steps=16, repeats=15, fem_repeats=3,
                                 blocked=True, cylinder=True),
                   "quick": Scene(chambers=4, size=2.4e-3, p_max=5e3, train_steps=10, modes=(1, 2, 3, 4),
-                                 fem_families=("fem-p1", "fem-p2mixed"), repeats=9, eigen=False)},
+                                 fem_families=("fem-p1", "fem-p2jump"), repeats=9, eigen=False)},
 }
 
 
@@ -230,7 +251,10 @@ def richardson(values, ratio=2.0, max_order=None):
     :math:`p = \log_r(e_1/e_2)`) and ``converging`` (False when :math:`e_2 \ge e_1`: then ``error`` is the
     conservative :math:`e_2` itself and ``order`` NaN). With ``max_order`` (the element's formal order), an
     observed order above it is not trusted (the coarse meshes are not in the asymptotic range): the error is
-    :math:`e_2/(r^{p'} - 1)` with :math:`p' = \min(p, \text{max_order})`, ``order_used`` :math:`p'`."""
+    :math:`e_2/(r^{p'} - 1)` with :math:`p' = \min(p, \text{max_order})`, ``order_used`` :math:`p'`. A sequence
+    that turns back (:math:`(Q_h - Q_{h/2}) \cdot (Q_{h/2} - Q_{h/4}) < 0`, e.g. the full 2D PneuNet's blocked
+    force 0.8870, 0.8951, 0.8949 N/m) oscillates (``oscillating``): its error is at least :math:`e_2`
+    (extrapolating it at the observed order 5.5 claimed 0.0005 % against a last change of 0.02 %)."""
     a, b, c = (np.atleast_1d(np.asarray(v, dtype=float)) for v in values)
     e1, e2 = float(np.linalg.norm(a - b)), float(np.linalg.norm(b - c))
     if e2 == 0.0:
@@ -239,7 +263,11 @@ def richardson(values, ratio=2.0, max_order=None):
         return {"error": e2, "order": float("nan"), "converging": False, "e1": e1, "e2": e2}
     p = float(np.log(e1 / e2) / np.log(ratio))
     q = p if max_order is None else min(p, float(max_order))
-    return {"error": e2 / (ratio ** q - 1.0), "order": p, "order_used": q, "converging": True, "e1": e1, "e2": e2}
+    error = e2 / (ratio ** q - 1.0)
+    # the second change turned back (a scalar changed sign): an oscillation, not a power of h
+    oscillating = float(np.sum((a - b) * (b - c))) < 0.0
+    return {"error": max(error, e2) if oscillating else error, "order": p, "order_used": q, "converging": True,
+            "oscillating": oscillating, "e1": e1, "e2": e2}
 
 
 # ------------------------------------------------------------------------------------------------ FEM rungs
@@ -567,7 +595,7 @@ def ladder(scene, out, progress=None):
     if isinstance(scene, PneuNet3DScene):
         return pneunet3d_ladder(scene, out, progress)
     doc = fem_ladder(scene, out, progress)
-    fem_rows, rich = _fem_rows(doc)
+    fem_rows, rich = _fem_rows(doc, scene.formal_order)
     rows = fem_rows + beam_ladder(scene, doc, out)
     info = {"richardson": rich, "length": doc["length"], "fem": doc}
     if scene.blocked:
@@ -1328,7 +1356,7 @@ def blocked_rows(rows, scene, doc, bdoc, repeats=3):
     :math:`\alpha` = ``blocked_scale`` = :math:`R_{ref}(1)/R_{beam}(1)` (exact: the beams carry no weight), then
     compares :math:`\alpha R_{beam}` at the unseen level. What remains is the pressure dependence: measured on the
     full 2D PneuNet, every beam is 3.6-4.3 % off at 0.85 p_max and DVS 1 7.3 % at 0.65 p_max, because the FEM's
-    blocked force grows more slowly than linearly with pressure (R(0.65)/R(1) = 0.715, R(0.85)/R(1) = 0.878)
+    blocked force grows more slowly than linearly with pressure (R(0.65)/R(1) = 0.714, R(0.85)/R(1) = 0.877)
     while the beam's, from the free-bending actuation :math:`\tau(u)`, is nearly linear (DVS 1: 0.662 and 0.846):
     an actuation that depends on u alone cannot hold both states (the chambers inflate differently when the
     actuator is held straight). Returns the reference's Richardson dict."""
@@ -1550,6 +1578,12 @@ def pareto_front(rows, measure):
     return front
 
 
+def _order_cap(rich):
+    """``, order 1.09 used`` when Richardson capped the observed order (:func:`richardson` ``max_order``)."""
+    q = rich.get("order_used")
+    return f", order {q:.2f} used" if q is not None and q < rich["order"] else ""
+
+
 def _label(r):
     return f"h={1e3 * r['size']:.2f}mm" if r.get("size") else f"{r['modes']} modes"
 
@@ -1582,7 +1616,8 @@ def ladder_table(rows, tolerance=None, measure="tip"):
     return "\n".join(lines)
 
 
-_STYLE = {"fem-p1": "v-", "fem-p2": "D-", "fem-p2mixed": "P-", "dvs": "o-", "chebyshev": "s-", "pcc": "^-"}
+_STYLE = {"fem-p1": "v-", "fem-p2": "D-", "fem-p2mixed": "P-", "fem-p2jump": "*-", "dvs": "o-", "chebyshev": "s-",
+          "pcc": "^-"}
 
 
 def ladder_figure(rows, measure, tolerance=None, pick=None, floor=None):
@@ -1638,7 +1673,8 @@ def error_budget(rows, info):
               "reference_converging": rt["converging"], "beams": []}
     lines = [f"reference discretization (Richardson on {info.get('refinement', 'h, h/2, h/4')} of the P2 mixed "
              f"tip): {100 * rt['error'] / L:.4f} % of L (observed order {rt['order']:.2f}"
-             f"{'' if rt['converging'] else ', NOT converging: error = last difference'})",
+             f"{'' if rt['converging'] else ', NOT converging: error = last difference'}"
+             f"{_order_cap(rt)})",
              f"{'beam':<16} {'tip train %':>11} {'truncation':>10} {'ident.':>8} {'tip unseen %':>12} "
              f"{'truncation':>10} {'ident.':>8} {'fit residual':>12}"]
     for r in rows:
@@ -1727,7 +1763,8 @@ def unreachable(rows, tolerance, measure="tip"):
             f"{', the reference: its Richardson estimate' if best.get('estimated') else ''}); ask for at least that")
     if tol < ref_err:
         text += (f"; and the reference itself is only known to {100 * ref_err:.4g} % (Richardson on its three "
-                 f"meshes): a smaller tolerance cannot be checked (refine the reference: the full scene)")
+                 f"meshes): a smaller tolerance cannot be checked (refine the reference: the full scene, or finer "
+                 f"meshes)")
     return text
 
 

@@ -17,7 +17,7 @@ import numpy as np
 
 __all__ = ["SUPPORTED", "version", "support_status", "create_mesh", "gmsh_node_order", "gmsh_facet_node_order",
            "geometry_degree", "geometry_dofs", "cell_dofs", "entity_vertex_nodes", "function_space",
-           "mixed_space", "taylor_hood_space", "interpolation_points", "petsc_vec", "set_bc", "apply_lifting",
+           "mixed_space", "interpolation_points", "petsc_vec", "set_bc", "apply_lifting",
            "create_petsc_vector", "orthonormalize", "colliding_cells", "write_meshtags", "set_jit_timeout"]
 
 #: Oldest and newest DOLFINx ``(major, minor)`` that the test suite runs on (Debian 12 and Debian 13).
@@ -236,11 +236,6 @@ def mixed_space(mesh, parts):
     import ufl
 
     return dolfinx.fem.FunctionSpace(mesh, ufl.MixedElement(els))
-
-
-def taylor_hood_space(mesh):
-    """The mixed space P2^d x P1 (displacement, pressure) on ``mesh`` (see :func:`mixed_space`)."""
-    return mixed_space(mesh, [("Lagrange", 2, "vector"), ("Lagrange", 1, None)])
 
 
 def interpolation_points(V):

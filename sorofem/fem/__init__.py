@@ -10,7 +10,7 @@ _init_petsc()  # before DOLFINx: Python keeps its signal handling (sorofem._pets
 from .eigen import Modes
 from .kinematics import FORMULATIONS
 from .forms import FemForms
-from .problem import Fem, LockingWarning
+from .problem import PRESSURE_SPACES, Fem, LockingWarning
 from .results import Trajectory
 
-__all__ = ["Fem", "FemForms", "LockingWarning", "Trajectory", "Modes", "FORMULATIONS"]
+__all__ = ["Fem", "FemForms", "LockingWarning", "Trajectory", "Modes", "FORMULATIONS", "PRESSURE_SPACES"]

@@ -48,11 +48,15 @@ from .newton import NewtonSolver, VolumeConstraint
 from .stepping import march
 from .results import Trajectory, VertexGatherer
 
-__all__ = ["Fem", "LockingWarning"]
+__all__ = ["Fem", "LockingWarning", "PRESSURE_SPACES"]
 
 #: Poisson ratio from which displacement-only P1 elements warn of volumetric locking (bulk/shear modulus
 #: ratio ~100). The silicone presets' default 0.49 (ratio 50) stays below it.
 LOCKING_NU = 0.495
+
+#: Pressure spaces of the mixed formulation (``Fem(mixed=...)``): one continuous P1 field (Taylor-Hood), one
+#: continuous P1 field per material (the pressure may jump across material interfaces), a constant per cell.
+PRESSURE_SPACES = ("taylor_hood", "per_material", "p0")
 
 
 class LockingWarning(UserWarning):
@@ -131,9 +135,14 @@ class Fem:
         tractions [Pa], energies [J/m]).
     degree : {1, 2}
         Polynomial degree of the displacement (2 with ``mixed``).
-    mixed : bool
-        Taylor-Hood displacement-pressure formulation for nearly incompressible materials (any material;
-        solve and eigen; not dynamics, contact or tendons).
+    mixed : bool or {"taylor_hood", "per_material", "p0"}
+        Displacement-pressure formulation for nearly incompressible materials (any material; solve and
+        eigen; not dynamics, contact or tendons), P2 displacement with the pressure space (see
+        :data:`PRESSURE_SPACES`): ``True`` or ``"taylor_hood"``, one continuous P1 pressure (Taylor-Hood);
+        ``"per_material"``, one continuous P1 pressure per material, so that the pressure may jump across
+        the interfaces between materials (Taylor-Hood in each; with one material the same as
+        ``"taylor_hood"``); ``"p0"``, a constant pressure per cell (P2/P0, stable in 2D; first-order
+        pressure).
     quadrature_degree : int, optional
         Quadrature degree of all integrals (default ``2 * degree``).
     petsc_options : dict, optional
@@ -166,12 +175,19 @@ class Fem:
                                  f"{mesh.bounds[0][0]:.3g} m")
         if degree not in (1, 2):
             raise ParameterError(f"degree must be 1 or 2, got {degree!r}")
+        if not isinstance(mixed, str):
+            mixed = "taylor_hood" if mixed else False
+        if mixed and mixed not in PRESSURE_SPACES:
+            raise ParameterError(f"mixed must be True, False or a pressure space {PRESSURE_SPACES}, got {mixed!r}")
         if mixed and degree != 2:
-            raise ParameterError("the mixed formulation uses Taylor-Hood P2/P1 elements: pass degree=2")
+            raise ParameterError("the mixed formulation (Taylor-Hood or a pressure per material) uses P2 displacement "
+                                 "elements: pass degree=2")
         if mixed and formulation == "plane_stress":
             raise ParameterError("plane stress does not lock (the thickness is free to change): use mixed=False "
                                  "with formulation='plane_stress'")
         self.formulation, self.degree, self.mixed = formulation, degree, bool(mixed)
+        #: the pressure space of the mixed formulation (:data:`PRESSURE_SPACES`), None without it
+        self.pressure_space = mixed or None
         self.quadrature_degree = int(quadrature_degree or 2 * degree)
         self.petsc_options = dict(petsc_options or {})
         self.gdim = gdim
@@ -363,7 +379,7 @@ class Fem:
         msh = self.mesh.dolfinx
         tdim, fdim = msh.topology.dim, msh.topology.dim - 1
         if self.mixed:
-            W = _dolfinx.taylor_hood_space(msh)
+            W = _dolfinx.mixed_space(msh, [("Lagrange", 2, "vector")] + self._pressure_parts())
         elif self.formulation == "plane_stress":  # displacement and thickness strain
             W = _dolfinx.mixed_space(msh, [("Lagrange", self.degree, "vector"), ("DG", self.degree - 1, None)])
         else:
@@ -374,8 +390,8 @@ class Fem:
             w.x.array[:] = carry
         p = e33 = None
         if self.mixed:
-            u, p = ufl.split(w)
-            v, _ = ufl.TestFunctions(W)
+            u, *p = ufl.split(w)          # p: one pressure, or one per material ("per_material")
+            v = ufl.TestFunctions(W)[0]
         elif self.formulation == "plane_stress":
             u, e33 = ufl.split(w)
             v, _ = ufl.TestFunctions(W)
@@ -400,19 +416,19 @@ class Fem:
         # P = d(density)/dF is taken with a ufl.variable copy of it
         F = kin.F(u)
 
-        def density(mat, F):  # stored energy per reference volume with the growth split F_e = F theta^(-1/3)
+        def density(k, mat, F):  # stored energy per reference volume with the growth split F_e = F theta^(-1/3)
             Fe = F * growth ** (-1.0 / 3.0)
             if not self.mixed:
                 return growth * mat.strain_energy(Fe)
-            return growth * mat.mixed_energy(Fe, p)
+            return growth * mat.mixed_energy(Fe, p[k if len(p) > 1 else 0])
 
-        energy = sum(density(mat, F) * wt * dx(k) for k, (_, mat) in enumerate(self._materials))
+        energy = sum(density(k, mat, F) * wt * dx(k) for k, (_, mat) in enumerate(self._materials))
         residual = ufl.derivative(energy, w, ufl.TestFunction(W))
         internal = residual
         stress_exprs = []  # von Mises of the Cauchy stress, per material
         Fv = ufl.variable(F)
-        for _, mat in self._materials:
-            P = ufl.diff(density(mat, Fv), Fv)
+        for k, (_, mat) in enumerate(self._materials):
+            P = ufl.diff(density(k, mat, Fv), Fv)
             sigma = P * Fv.T / ufl.det(Fv)
             dev = sigma - ufl.tr(sigma) / 3 * ufl.Identity(3)
             stress_exprs.append(ufl.sqrt(1.5 * ufl.inner(dev, dev)))
@@ -484,6 +500,8 @@ class Fem:
                     support_dofs.setdefault(region, {}).setdefault(comp, []).append(dofs)
             if load is not None:
                 prescribed.append((tuple(consts_here), load))
+        if self.pressure_space == "per_material":   # each material's pressure is zero off its cells
+            bcs.extend(self._off_material_pressures(W, marker))
 
         jacobian = ufl.derivative(residual, w, ufl.TrialFunction(W))
         R_form, J_form = dolfinx.fem.form(residual), dolfinx.fem.form(jacobian)
@@ -885,8 +903,41 @@ class Fem:
             return None
         W = self.forms.space
         second = ("pressure", max(mat.G for _, mat in self._materials)) if self.mixed else ("thickness strain", 1.0)
+        n_sub = len(self._pressure_parts()) if self.mixed else 1
         return [("displacement", np.asarray(W.sub(0).collapse()[1]), self._size()),
-                (second[0], np.asarray(W.sub(1).collapse()[1]), second[1])]
+                (second[0], np.concatenate([np.asarray(W.sub(1 + k).collapse()[1]) for k in range(n_sub)]),
+                 second[1])]
+
+    def _off_material_pressures(self, W, marker):
+        """Dirichlet conditions p_k = 0 on the unknowns of material k's pressure field that touch none of its
+        cells (``marker``: the material of each local cell). A rank sees its own cells only: the touching is
+        summed over the ranks that share an unknown."""
+        import dolfinx.fem
+        from petsc4py import PETSc
+
+        msh = self.mesh.dolfinx
+        tdim = msh.topology.dim
+        everywhere = np.arange(len(marker), dtype=np.int32)
+        touched = dolfinx.fem.Function(W)
+        vec = _dolfinx.petsc_vec(touched)
+        bcs = []
+        for k in range(len(self._materials)):
+            sub = W.sub(1 + k)
+            touched.x.array[:] = 0.0
+            touched.x.array[dolfinx.fem.locate_dofs_topological(sub, tdim, np.flatnonzero(marker == k))] = 1.0
+            vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+            dofs = dolfinx.fem.locate_dofs_topological(sub, tdim, everywhere)
+            off = np.asarray(dofs[touched.x.array[dofs] == 0.0], dtype=np.int32)
+            bcs.append(dolfinx.fem.dirichletbc(dolfinx.fem.Constant(msh, 0.0), off, sub))
+        return bcs
+
+    def _pressure_parts(self):
+        """The pressure field(s) of the mixed state, as parts of :func:`sorofem._dolfinx.mixed_space`."""
+        if self.pressure_space == "p0":
+            return [("DG", 0, None)]
+        n = len(self._materials) if self.pressure_space == "per_material" else 1
+        return [("Lagrange", 1, None)] * n
 
     def _loads(self):
         """Every load of the model (to switch numbers between ramped and constant)."""
@@ -980,6 +1031,7 @@ class Fem:
 
     def _metadata(self):
         return {"formulation": self.formulation, "degree": self.degree, "mixed": self.mixed,
+                "pressure_space": self.pressure_space,
                 "materials": [{"region": r or "all", "name": m.name, "E": m.E, "nu": m.nu, "density": m.density}
                               for r, m in self._materials],
                 "loads": {"pressures": [r for r, _ in self._pressures], "supports": [r for r, _ in self._supports]}}

@@ -1,4 +1,5 @@
-"""Plane stress, the mixed (Taylor-Hood) formulation with every material, and its eigen-analysis, against
+"""Plane stress, the mixed (Taylor-Hood) formulation with every material, its pressure spaces that may jump
+between materials, and its eigen-analysis, against
 published and closed-form references; the locking warning of displacement-only P1 elements.
 
 The refinement study of Cook's membrane to its converged value is ``tests/benchmarks/bench_cook.py``; here the
@@ -159,6 +160,61 @@ def test_mixed_newton_converges_from_rest_for_stiff_bodies_and_measures_each_fie
     assert ratios[0] == pytest.approx(1.0, rel=0.02)
 
 
+# ------------------------------------------------------------------ a pressure that jumps between materials
+def _bimaterial_stretch(mixed, a=1.3):
+    """Two coupled neo-Hookean layers (bottom half soft and nearly incompressible, top half stiffer and
+    compressible), plane strain, pulled to stretch ``a`` along x with the top free. Returns (fem, trajectory)."""
+    L, H = 0.02, 0.01
+    msh = Mesh.rectangle(L, H, size=0.0025, center=(L / 2, H / 2))     # a grid line at y = H/2
+    msh.add_region("bottom_layer", ((0.0, 0.0), (L, H / 2)), kind="cells")
+    soft = materials.NeoHookean(mu=1e5, lmbda=5e6, form="coupled")
+    stiff = materials.NeoHookean(mu=6e5, lmbda=1.2e6, form="coupled")
+    fem = Fem(msh, stiff, degree=2, mixed=mixed).add_material("bottom_layer", soft)
+    fem.add_support("left", "x").add_support("bottom", "y").add_displacement("right", (a - 1) * L, "x")
+    return fem, fem.solve(steps=3), (soft, stiff)
+
+
+def _plane_strain_uniaxial(m, a):
+    """F = diag(a, t, 1) with P22 = mu (t - 1/t) + lambda ln(a t)/t = 0: (P11, t, pressure lambda ln J)."""
+    from scipy.optimize import brentq
+    t = brentq(lambda t: m.pk1(np.diag([a, t, 1.0]))[1, 1], 0.3, 1.5, xtol=1e-15)
+    return m.pk1(np.diag([a, t, 1.0]))[0, 0], t, m.lmbda * np.log(a * t)
+
+
+@pytest.mark.parametrize("mixed", ["per_material", "p0"])
+def test_mixed_pressure_that_may_jump_is_exact_on_a_stretched_bimaterial_strip(mixed):
+    """Closed form: each layer is homogeneous, F_i = diag(a, t_i, 1) with P22 = 0 (coupled neo-Hookean, whose
+    mixed form is exact: p = lambda ln J), so the displacement is piecewise linear (P2 holds it exactly) and the
+    pressure is constant per layer with a jump at y = H/2 (4.0e4 Pa below, 1.5e5 Pa above at a = 1.3). A
+    pressure that may jump there (one P1 field per material, or P0) gives the force and the top's displacement
+    to solver accuracy (4e-16 measured); Taylor-Hood's continuous pressure cannot hold the jump and misses both
+    (force 1.6 %, top 1.4 % measured on this 8 x 4 grid)."""
+    L, H, a = 0.02, 0.01, 1.3
+    fem, traj, (soft, stiff) = _bimaterial_stretch(mixed, a)
+    (P_soft, t_soft, p_soft), (P_stiff, t_stiff, p_stiff) = (_plane_strain_uniaxial(m, a) for m in (soft, stiff))
+    assert abs(p_soft - p_stiff) > 0.5 * abs(p_soft)                    # a real jump
+    force = (P_soft + P_stiff) * H / 2
+    top = (t_soft - 1) * H / 2 + (t_stiff - 1) * H / 2
+    assert -traj.reactions["left"][-1][0] == pytest.approx(force, rel=1e-8)
+    assert fem.evaluate([[L, H]])[0][1] == pytest.approx(top, rel=1e-8)
+    assert fem.evaluate([[L, H / 4]])[0][1] == pytest.approx((t_soft - 1) * H / 4, rel=1e-8)
+    th, th_traj, _ = _bimaterial_stretch("taylor_hood", a)
+    assert abs(-th_traj.reactions["left"][-1][0] / force - 1) > 1e-3
+    assert abs(th.evaluate([[L, H]])[0][1] / top - 1) > 1e-3
+
+
+def test_per_material_pressure_on_one_material_is_taylor_hood():
+    """With one material the per-material space is the Taylor-Hood space: the same unknowns and solution."""
+    msh = Mesh.rectangle(0.04, 0.004, size=0.002, center=(0.02, 0.0))
+    tips = []
+    for mixed in (True, "per_material"):
+        fem = Fem(msh, materials.NeoHookean(E=1e6, nu=0.49), degree=2, mixed=mixed)
+        fem.add_support("left").add_traction("right", [0.0, -2e3]).solve(steps=2)
+        tips.append((fem.forms.state.x.array.size, fem.evaluate([[0.04 * (1 - 1e-12), 0.0]])[0]))
+    assert tips[0][0] == tips[1][0]
+    np.testing.assert_allclose(tips[0][1], tips[1][1], rtol=1e-10)
+
+
 # ------------------------------------------------------------------------- free vibration without locking
 @pytest.mark.parametrize("law", ["linear", "neo-hookean"])
 def test_mixed_free_vibration_has_the_compressible_frequency_as_nu_goes_to_one_half(law):
@@ -202,6 +258,8 @@ def test_unsupported_combinations_are_refused_with_the_alternative():
     m = materials.NeoHookean(mu=1e5)
     with pytest.raises(ParameterError, match="plane stress does not lock"):
         Fem(msh, m, degree=2, mixed=True, formulation="plane_stress")
+    with pytest.raises(ParameterError, match="pressure space"):
+        Fem(msh, m, degree=2, mixed="P1")
     with pytest.raises(ParameterError, match="does not fit a 3D mesh"):
         Fem(Mesh.box(0.02, 0.01, 0.01, size=0.01), m, formulation="plane_stress")
     fem = Fem(msh, m, formulation="plane_stress").add_support("left")
@@ -222,3 +280,17 @@ def test_plane_stress_and_mixed_eigen_give_the_serial_figures_on_two_ranks():
     assert v == pytest.approx(COOK_P2[8], abs=1e-4)
     assert vortex_eigenvalue(ALL_LAWS["neo-hookean"](0.4999), 2, True) == pytest.approx(1.0, rel=2e-3)
     assert vortex_eigenvalue(ALL_LAWS["linear"](0.3), 2, False, "plane_stress") == pytest.approx(1.0, rel=2e-3)
+
+
+@pytest.mark.mpi
+def test_per_material_pressure_is_exact_on_two_ranks():
+    """Under ``mpirun -n 2``: the unknowns of a material's pressure that touch its cells only on the other rank
+    stay free, so the stretched bimaterial strip is still exact."""
+    from mpi4py import MPI
+    assert MPI.COMM_WORLD.size == 2
+    L, H, a = 0.02, 0.01, 1.3
+    fem, traj, mats = _bimaterial_stretch("per_material", a)
+    (P_soft, t_soft, _), (P_stiff, t_stiff, _) = (_plane_strain_uniaxial(m, a) for m in mats)
+    assert fem.evaluate([[L, H]])[0][1] == pytest.approx((t_soft - 1) * H / 2 + (t_stiff - 1) * H / 2, rel=1e-8)
+    if MPI.COMM_WORLD.rank == 0:
+        assert -traj.reactions["left"][-1][0] == pytest.approx((P_soft + P_stiff) * H / 2, rel=1e-8)
