@@ -1029,45 +1029,62 @@ def _beam_ne_start(n, P, wko):
 
 
 @njit(cache=True)
-def _beam_ne_arrays(bi, bint, bwork):
-    """:func:`_beam_ne_views` from the network's beam arrays."""
+def _beam_ne_layout(bi, bint):
+    """The layout of beam bi's O(N) workspace, written once for :func:`_beam_ne_arrays`,
+    :func:`_beam_pass_arrays` and :func:`_beam_mass_of`: (n, P, wko, offsets) with the offsets of acc, SA, SX,
+    V, T, Jm, Ym, Opm, Mm, LU, a, v, R, f and the end, in that order."""
     n, P, wko = bint[bi, 0], bint[bi, 2], bint[bi, 6]
     Np = P + 1
-    o = _beam_ne_start(n, P, wko)
-    acc = bwork[o:o + Np * 6].reshape((Np, 6))
-    o += Np * 6
-    SA = bwork[o:o + P * 36].reshape((P, 6, 6))
-    o += P * 36
-    SX = bwork[o:o + P * 24].reshape((P, 4, 6))
-    o += P * 24
-    V = bwork[o:o + 192].reshape((32, 6))
-    o += 192
-    T = bwork[o:o + 36].reshape((6, 6))
-    o += 36
-    Jm = bwork[o:o + Np * 6 * n].reshape((Np, 6, n))
-    o += Np * 6 * n
-    Ym = bwork[o:o + Np * 6 * n].reshape((Np, 6, n))
-    o += Np * 6 * n
-    Opm = bwork[o:o + 6 * n].reshape((6, n))
-    o += 6 * n
-    Mm = bwork[o:o + n * n].reshape((n, n))
-    o += n * n
-    LU = bwork[o:o + n * n].reshape((n, n))
-    o += n * n
-    a = bwork[o:o + n]
-    o += n
-    v = bwork[o:o + n]
-    o += n
-    R = bwork[o:o + n]
-    o += n
-    f = bwork[o:o + n]
-    o += n
+    o_acc = _beam_ne_start(n, P, wko)
+    o_SA = o_acc + Np * 6
+    o_SX = o_SA + P * 36
+    o_V = o_SX + P * 24
+    o_T = o_V + 192
+    o_Jm = o_T + 36
+    o_Ym = o_Jm + Np * 6 * n
+    o_Opm = o_Ym + Np * 6 * n
+    o_Mm = o_Opm + 6 * n
+    o_LU = o_Mm + n * n
+    o_a = o_LU + n * n
+    o_v = o_a + n
+    o_R = o_v + n
+    o_f = o_R + n
+    return n, P, wko, (o_acc, o_SA, o_SX, o_V, o_T, o_Jm, o_Ym, o_Opm, o_Mm, o_LU, o_a, o_v, o_R, o_f, o_f + n)
+
+
+@njit(cache=True)
+def _beam_frames(n, P, wko, bwork):
+    """The frames G, twists eta and E of :func:`_beam_views` (shared by the O(N) passes)."""
+    Np = P + 1
     G = bwork[wko:wko + Np * 16].reshape((Np, 4, 4))
     oe = wko + Np * 16 + 12 * Np * n
     eta = bwork[oe:oe + Np * 6].reshape((Np, 6))
     oE = oe + 12 * Np + 216
     E = bwork[oE:oE + 16].reshape((4, 4))
-    return acc, SA, SX, V, T, Jm, Ym, Opm, Mm, LU, a, v, R, f, G, eta, E, wko, o
+    return G, eta, E
+
+
+@njit(cache=True)
+def _beam_ne_arrays(bi, bint, bwork):
+    """:func:`_beam_ne_views` from the network's beam arrays."""
+    n, P, wko, o = _beam_ne_layout(bi, bint)
+    Np = P + 1
+    acc = bwork[o[0]:o[1]].reshape((Np, 6))
+    SA = bwork[o[1]:o[2]].reshape((P, 6, 6))
+    SX = bwork[o[2]:o[3]].reshape((P, 4, 6))
+    V = bwork[o[3]:o[4]].reshape((32, 6))
+    T = bwork[o[4]:o[5]].reshape((6, 6))
+    Jm = bwork[o[5]:o[6]].reshape((Np, 6, n))
+    Ym = bwork[o[6]:o[7]].reshape((Np, 6, n))
+    Opm = bwork[o[7]:o[8]].reshape((6, n))
+    Mm = bwork[o[8]:o[9]].reshape((n, n))
+    LU = bwork[o[9]:o[10]].reshape((n, n))
+    a = bwork[o[10]:o[11]]
+    v = bwork[o[11]:o[12]]
+    R = bwork[o[12]:o[13]]
+    f = bwork[o[13]:o[14]]
+    G, eta, E = _beam_frames(n, P, wko, bwork)
+    return acc, SA, SX, V, T, Jm, Ym, Opm, Mm, LU, a, v, R, f, G, eta, E, wko, o[14]
 
 
 @njit(cache=True)
@@ -1075,38 +1092,24 @@ def _beam_pass_arrays(bi, bint, bwork):
     """The arrays of :func:`_beam_ne_arrays` that one residual pass writes (acc, SA, SX, V, a, R, f, G, eta, E)
     and the (start, end) of the beam's workspace, without the views it does not read (each view costs its
     reference counting: the residual runs every Newton sweep)."""
-    n, P, wko = bint[bi, 0], bint[bi, 2], bint[bi, 6]
+    n, P, wko, o = _beam_ne_layout(bi, bint)
     Np = P + 1
-    o = _beam_ne_start(n, P, wko)
-    acc = bwork[o:o + Np * 6].reshape((Np, 6))
-    o += Np * 6
-    SA = bwork[o:o + P * 36].reshape((P, 6, 6))
-    o += P * 36
-    SX = bwork[o:o + P * 24].reshape((P, 4, 6))
-    o += P * 24
-    V = bwork[o:o + 192].reshape((32, 6))
-    o += 192 + 36 + 12 * Np * n + 6 * n + 2 * n * n        # T, Jm, Ym, Opm, Mm, LU
-    a = bwork[o:o + n]
-    o += 2 * n                                              # a, v
-    R = bwork[o:o + n]
-    o += n
-    f = bwork[o:o + n]
-    o += n
-    G = bwork[wko:wko + Np * 16].reshape((Np, 4, 4))
-    oe = wko + Np * 16 + 12 * Np * n
-    eta = bwork[oe:oe + Np * 6].reshape((Np, 6))
-    oE = oe + 12 * Np + 216
-    E = bwork[oE:oE + 16].reshape((4, 4))
-    return acc, SA, SX, V, a, R, f, G, eta, E, wko, o
+    acc = bwork[o[0]:o[1]].reshape((Np, 6))
+    SA = bwork[o[1]:o[2]].reshape((P, 6, 6))
+    SX = bwork[o[2]:o[3]].reshape((P, 4, 6))
+    V = bwork[o[3]:o[4]].reshape((32, 6))
+    a = bwork[o[10]:o[11]]
+    R = bwork[o[12]:o[13]]
+    f = bwork[o[13]:o[14]]
+    G, eta, E = _beam_frames(n, P, wko, bwork)
+    return acc, SA, SX, V, a, R, f, G, eta, E, wko, o[14]
 
 
 @njit(cache=True)
 def _beam_mass_of(bi, bint, bwork):
     """:func:`_beam_mass` from the network's beam arrays (only the view of M)."""
-    n, P = bint[bi, 0], bint[bi, 2]
-    Np = P + 1
-    o = _beam_ne_start(n, P, bint[bi, 6]) + Np * 6 + P * 60 + 228 + 12 * Np * n + 6 * n
-    return bwork[o:o + n * n].reshape((n, n))
+    n, _, _, o = _beam_ne_layout(bi, bint)
+    return bwork[o[8]:o[9]].reshape((n, n))
 
 
 @njit(cache=True)
