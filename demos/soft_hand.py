@@ -90,8 +90,9 @@ fingers       method   dt      space   time    total       CPU       real time
 ms/s, 38.6x at load 4.3. The rule of the choice: the least CPU whose total error is within the previous version's
 0.90 deg *and* whose space and time errors are each within it (the totals of the 10-piece fingers at 3-4 ms are
 small only because a 1.2 deg space error cancels a time error of the opposite sign: luck, not accuracy). The
-chosen 4 pieces of order 4 at 3.125 ms are 22 % more accurate in total (0.70 against 0.90 deg) at 1.9 times
-less CPU than the previous version (the Newton tolerance gives 1.55 of that, the step 1.25). Fourth-order fingers
+chosen 4 pieces of order 4 at 3.125 ms are 22 % more accurate in total (0.70 against 0.90 deg) at 1.8 times
+less CPU than the previous version, back to back in one process (the bench above, load 3.7: 14.3 against 25.2 ms
+per simulated second, 70x against 40x); the looser Newton gives about 1.5 of that, the step 1.2. Fourth-order fingers
 cost about what second-order ones do per step (the evaluation is dominated by the recursions' fixed cost, not by
 the pieces), so they buy back the space error, and the larger step spends it on time, which grows as dt^2. The
 trapezoidal and implicit midpoint rules have a 2.5 times smaller time error but cost twice as much per step
