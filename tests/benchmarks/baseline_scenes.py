@@ -56,7 +56,8 @@ def soft_hand(tree):
     with the baseline's discretization (:data:`SAME_MODEL`), run the baseline's demo settings (10 second-order
     pieces, BDF2 at dt = 2 ms, rtol 1e-4); this tree as it is runs its demo's settings (``build()``, ``DT``,
     ``METHOD``, ``RTOL``, ``ATOL``, ``NEWTON_TOL``: as accurate as the baseline's, bench_model.py::
-    test_bench_soft_hand_space_time_trade). Figures: the fingers' q every 50 ms (a multiple of both steps)."""
+    test_bench_soft_hand_space_time_trade), best of three. Figures: the fingers' q every 50 ms (a multiple of both
+    steps)."""
     demo = _demo(tree, "soft_hand")
     if Path(tree).resolve() == BASELINE_TREE.resolve() or SAME_MODEL:
         build = (lambda: demo.build(10, 2)) if hasattr(demo, "SEGMENTS") else demo.build
@@ -67,10 +68,12 @@ def soft_hand(tree):
     dt = kw.pop("dt")
     mdl, _ = build()
     mdl.simulate(0.02, dt, **kw)          # warm up
-    mdl, _ = build()
-    t0 = time.perf_counter()
-    tr = mdl.simulate(1.0, dt, **kw)
-    wall = time.perf_counter() - t0
+    wall = np.inf
+    for _ in range(3):                    # best of three, as rod15
+        mdl, _ = build()
+        t0 = time.perf_counter()
+        tr = mdl.simulate(1.0, dt, **kw)
+        wall = min(wall, time.perf_counter() - t0)
     every = np.abs(tr.t / 0.05 - np.round(tr.t / 0.05)) < 1e-6
     assert every.sum() == 21, tr.t
     return {"wall_s": wall, "simulated_s": 1.0,
