@@ -59,7 +59,7 @@ def test_bench_soft_hand_realtime_factor(record):
     # 1. the plain run, as in the demo (compiled network)
     assert mdl.evaluation_path == "compiled"
     wall = cpu = np.inf
-    for _ in range(2):
+    for _ in range(3):                     # best of three, as the trade bench
         t0, c0 = time.perf_counter(), time.process_time()
         tr = mdl.simulate(t_sim, dt, method=method, rtol=rtol, atol=atol, newton_tol=ntol)
         wall, cpu = min(wall, time.perf_counter() - t0), min(cpu, time.process_time() - c0)
