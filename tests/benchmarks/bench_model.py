@@ -370,19 +370,18 @@ def test_bench_rigid_body_on_the_ground(record):
 def test_bench_soft_hand_adaptive_steps(record):
     """The soft hand (the demo's fingers) with error-controlled steps (``adaptive=True``:
     soroshapes.integrate.integrate_adaptive, variable-step BDF2, rtol 1e-4 and atol 1e-6 as the local error
-    tolerance, first step and output interval 2 ms) against fixed 2 ms steps (the previous demo's step), both measured against a fine-step reference (fixed
-    0.125 ms, rtol 1e-6, atol 1e-8: its own dt error ~0.17/256 deg): the tip angles' largest difference [deg]
-    over the five fingers and the 2 ms output grid, real-time factors (CPU, best of three), steps, rejections,
-    Newton sweeps and matrices per step; also the adaptive run at rtol 1e-3, atol 1e-5, whose error is about that of
-    the fixed 2 ms steps. The demo's accuracy is the error of its fixed 2 ms steps (0.13 deg against 1 ms over 1 s
-    in its docstring; 0.34 deg against this reference over 2 s); asserted: the adaptive run stays within the fixed
-    run's error and 0.2 deg.
+    tolerance, first step and output interval 2 ms) against fixed 2 ms steps (the previous demo's step), both
+    measured against a fine-step reference (fixed 0.125 ms, rtol 1e-6, atol 1e-8: its own dt error ~0.17/256 deg):
+    the tip angles' largest difference [deg] over the five fingers and the 2 ms output grid (the time error),
+    real-time factors (CPU, best of three), steps, rejections, Newton sweeps and matrices per step; also the
+    adaptive run at rtol 1e-3, atol 1e-5, whose error is about that of the fixed 2 ms steps. Asserted: the adaptive
+    run stays within the fixed run's error and 0.2 deg.
 
     Measured with 4 fourth-order pieces (load 7, CPU): fixed 2 ms 24.5x, 0.334 deg; adaptive rtol 1e-4 8.4x, 2800
     steps + 495 rejected, 0.059 deg; adaptive rtol 1e-3 19.3x, 1145 steps + 292 rejected, 0.338 deg: the demo's
     fixed 3.125 ms steps with a loose Newton (62-74x, 0.82 deg time error) are the cheaper way to its accuracy.
-    Measured with 10 second-order pieces (load 14, CPU real-time factors): fixed 2 ms 15.0x, 1000 steps, 0.336 deg; adaptive rtol 1e-4 5.4x,
-    2452 steps + 491 rejected (0.05-2.2 ms), 0.074 deg; adaptive rtol 1e-3 11.8x, 998 steps + 261 rejected,
+    With 10 second-order pieces (load 14): fixed 2 ms 15.0x, 1000 steps, 0.336 deg; adaptive rtol 1e-4 5.4x, 2452
+    steps + 491 rejected (0.05-2.2 ms), 0.074 deg; adaptive rtol 1e-3 11.8x, 998 steps + 261 rejected,
     0.437 deg. The hand is never at rest on this accuracy scale (five fingers switching 75 ms apart, each ringing
     at 3.3 Hz with zeta 0.1, and kinks in F where the valves saturate): the error-controlled step averages
     0.6-1.5 ms in every 50 ms window of the run at rtol 1e-4, so larger steps do not pay here; each change of
