@@ -52,15 +52,55 @@ formula), and the volume coupling is the declarative :class:`soroshapes.network.
 (``mdl.evaluation_path == "compiled"``; the key figures equal those of the Python callables to 1e-6 deg).
 
 *Integration.* ``Model.simulate`` with BDF2 (L-stable: the stiff, overdamped high Chebyshev modes and the
-20 ms pressure loop are damped, not ringing as with the trapezoidal rule), fixed ``dt`` = 2 ms (against dt = 1 ms
-the middle finger's tip angle differs by at most 0.13 deg over 1 s, by 1.0 deg at 5 ms and 3.8 deg at 10 ms; over
-2 s the largest tip-angle error against dt = 0.125 ms is 0.336 deg). In fixed steps ``rtol``, ``atol`` and
-``newton_tol`` only set Newton's stopping test: it stops when its estimated remaining error is below
-``newton_tol (rtol |x| + atol s)`` = 1e-3 |x| + 1e-7 s. A hundred times tighter Newton (rtol 1e-4, newton_tol
-1e-3) moves the tip angles by 2.4e-4 deg and leaves that 0.336 deg error as it is, at 1.45 times the cost.
-*Space.* Ten second-order Magnus pieces per finger leave a spatial error of 1.2 deg in the tip angles over 2 s
-(against 80 fourth-order pieces; 20 fourth-order pieces are within 0.001 deg), larger than the time error:
-``build(segments, order)`` takes others (4 fourth-order pieces: 0.18 deg).
+20 ms pressure loop are damped, not ringing as with the trapezoidal rule) in fixed steps of ``DT`` = 3.125 ms
+(320 per second). In fixed steps ``rtol``, ``atol`` and ``newton_tol`` only set Newton's stopping test: it stops
+when its estimated remaining error is below ``newton_tol (rtol |x| + atol s)`` = 0.03 |x| + 3e-7 s. Against a
+Newton to 1e-7 |x| (rtol 1e-4, newton_tol 1e-3) the tip angles move by 0.0025 deg and the pressures by 8 Pa
+(0.4 % of the discretization error below), at 1.6 times less CPU (``bench_model.py::
+test_bench_soft_hand_newton_tolerance``: 2.48 Newton sweeps per step against 4.08).
+
+*Accuracy: space against time.* The demo's accuracy is the largest tip-angle error over the five fingers and
+the first 2 s (the 2 ms output grid of the old settings; every step of the others) against a reference
+converged in both: 32 fourth-order Magnus pieces per finger, BDF2 at dt = 0.125 ms (16 pieces differ from it
+by 0.003 deg; dt = 0.0625 ms by 0.001 deg). Its two parts, measured apart: the *space* error, the fingers'
+discretization at the reference dt, and the *time* error, the step against the same fingers at 0.125 ms. The
+two partly cancel in the total, so their sum is also given (a bound that does not rely on that). CPU per
+simulated second and real-time factor: one core, every row with this Newton (0.03 |x|), load average 3.3
+(``tests/benchmarks/bench_model.py::test_bench_soft_hand_space_time_trade`` measures a part of it again):
+
+============  =======  ======  ======  ======  ==========  ========  =========
+fingers       method   dt      space   time    total       CPU       real time
+                       [ms]    [deg]   [deg]   (sum)       [ms/s]
+============  =======  ======  ======  ======  ==========  ========  =========
+10 x order 2  BDF2     2       1.213   0.334   0.90 (1.55) 16.7 (*)  60x (*)
+10 x order 2  BDF2     3.125   1.213   0.821   0.46 (2.03) 13.1      76x
+10 x order 2  BDF2     4       1.213   1.331   0.38 (2.54) 11.8      85x
+4 x order 4   BDF2     2       0.175   0.333   0.23 (0.51) 17.1      59x
+4 x order 4   BDF2     2.5     0.175   0.513   0.40 (0.69) 15.4      65x
+4 x order 4   BDF2     3.125   0.175   0.818   0.70 (0.99) 13.6      74x   <- the demo
+4 x order 4   BDF2     4       0.175   1.325   1.20 (1.50) 11.3      88x
+6 x order 4   BDF2     3.125   0.207   0.815   0.63 (1.02) 16.4      61x
+8 x order 4   BDF2     2       0.060   0.333   0.28 (0.39) 22.2      45x
+8 x order 4   BDF2     3.125   0.060   0.814   0.76 (0.87) 17.5      57x
+4 x order 4   trap.    4       0.175   0.343   0.25 (0.52) 22.8      44x
+4 x order 4   trap.    6.25    0.175   0.841   0.73 (1.02) 14.8      67x
+4 x order 4   midpt.   6.25    0.175   0.815   0.72 (0.99) 14.4      69x
+============  =======  ======  ======  ======  ==========  ========  =========
+
+(*) the previous version's settings (10 second-order pieces, dt = 2 ms), whose Newton stopped at 1e-3 |x|: 25.9
+ms/s, 38.6x at load 4.3. The rule of the choice: the least CPU whose total error is within the previous version's
+0.90 deg *and* whose space and time errors are each within it (the totals of the 10-piece fingers at 3-4 ms are
+small only because a 1.2 deg space error cancels a time error of the opposite sign: luck, not accuracy). The
+chosen 4 pieces of order 4 at 3.125 ms are 22 % more accurate in total (0.70 against 0.90 deg) at 1.8 times
+less CPU than the previous version, back to back in one process (the bench above, load 3.7: 14.3 against 25.2 ms
+per simulated second, 70x against 40x); the looser Newton gives about 1.5 of that, the step 1.2. Over the full
+5 s run the totals are 0.74 against 0.97 deg (space 0.18 and 1.29, time 0.86 and 0.35). Fourth-order fingers cost
+about what second-order ones do per step (10 pieces of order 2 evaluate the strains at 10 points, 4 pieces of
+order 4 at 8: one and two Gauss points per piece), so they buy back the space error, and the larger step spends it on time, which grows as dt^2. The
+trapezoidal and implicit midpoint rules have a 2.5 times smaller time error but cost twice as much per step
+(their start-of-step evaluation F(t_k, x_k) is a forward dynamics of every finger), which leaves them a little
+behind BDF2 at equal error. Fewer than 4 pieces of order 4 do not do: 3 give a space error of 2.8 deg, 2 a
+singular mass matrix (5 modes, 4 Gauss points).
 
 Parameters
 ----------
@@ -74,7 +114,8 @@ chamber            8 x 6 mm at 2.5 mm behind the backbone, whole length
 reservoir          V0 = 1.80e-4 m^3, isothermal air, 293.15 K, PI regulator (tau_p 20 ms, T_i 1 s,
                    5 g/s saturation)
 drive              80 tanh(8 sin(7 t + i pi/6))/tanh 8 kPa, i = 0..4
-simulation         T = 5 s (quick: 1 s), BDF2, dt = 2 ms, Newton to 1e-3 |x| + 1e-7 s
+simulation         T = 5 s (quick: 1 s), BDF2, dt = 3.125 ms, Newton to 0.03 |x| + 3e-7 s; fingers of
+                   4 Magnus pieces of order 4
 =================  =====================================================================================
 
 Figures
@@ -89,9 +130,9 @@ neighbours; the drive's step is 30 deg), ``phase_step_fingers_deg`` (the four id
 (largest :math:`|p - p_d|` where :math:`|p_d|` > 79 kPa and was so for 0.1 s), ``volume_change_max_pct``,
 ``valve_saturated_fraction``, ``analysis_window_s``, ``t_end_s``, ``dt_s``, ``method``, ``states``,
 ``rtol``, ``atol``, ``steps``, ``newton_iterations``, ``newton_per_step``, ``jacobians``, ``cut_steps``,
-``simulation_wall_time_s``,
-``real_time_factor``. Pictures: ``trajectories.png`` (tip angles, tip paths in the bending plane, pressures
-and set points vs time), ``hand.png`` (3D snapshot of the hand at the end).
+``simulation_wall_time_s``, ``real_time_factor`` (wall time of the run, after a warm-up of ten steps that loads
+the compiled kernels). Pictures: ``trajectories.png`` (tip angles, tip paths in the bending plane, pressures and
+set points vs time), ``hand.png`` (3D snapshot of the hand at the end, the fingers drawn through 16 pieces).
 """
 from pathlib import Path
 
@@ -104,10 +145,11 @@ NAMES = ("thumb", "index", "middle", "ring", "little")
 LENGTHS = (80 * mm, 90 * mm, 90 * mm, 90 * mm, 90 * mm)
 WIDTH, THICK, CORNER = 15 * mm, 12 * mm, 3 * mm
 MODES = 5
-SEGMENTS, ORDER = 10, 2      # the fingers' spatial discretization (Magnus pieces and order)
-#: the integration: BDF2 in fixed steps of DT [s]; Newton stops when its estimated remaining error is below
-#: NEWTON_TOL of the step tolerance rtol |x| + atol s (see "Integration" above)
-DT, METHOD, RTOL, ATOL, NEWTON_TOL = 2e-3, "bdf2", 1e-2, 1e-6, 1e-1
+#: the fingers' spatial discretization (Magnus pieces and order) and the integration: BDF2 in fixed steps of DT
+#: [s]; Newton stops when its estimated remaining error is below NEWTON_TOL of rtol |x| + atol s. Chosen by the
+#: space-time trade of the docstring ("Accuracy: space against time")
+SEGMENTS, ORDER = 4, 4
+DT, METHOD, RTOL, ATOL, NEWTON_TOL = 3.125e-3, "bdf2", 1e-1, 1e-6, 0.3
 CH_AREA, CH_OFFSET = 6 * mm * 4 * mm, 2 * mm
 P_AMP, OMEGA, PHASE, SHARPNESS = 80 * kPa, 7.0, np.pi / 6, 8.0
 V0 = 4 * np.pi / 3 * (35 * mm) ** 3
@@ -129,6 +171,8 @@ def main(out: Path, quick: bool = False) -> dict:
     mdl, fingers = build()
     prm = QUICK if quick else FULL
     t_end, dt, method, rtol, atol = prm["t_end"], DT, METHOD, RTOL, ATOL
+    # a few steps first: a fresh process loads the compiled kernels (~0.5 s), which the real-time factor leaves out
+    mdl.simulate(10 * dt, dt, method=method, rtol=rtol, atol=atol, newton_tol=NEWTON_TOL)
     tr = mdl.simulate(t_end, dt, method=method, rtol=rtol, atol=atol, newton_tol=NEWTON_TOL)
     st = tr.stats
 
@@ -307,7 +351,10 @@ def plots(out, fingers, tr, angles, window):
         a.grid(alpha=0.3)
     save_figure(fig, out / "trajectories.png", dpi=110)
 
-    beams = [{"frames": f.forward_kinematics(tr[n].q[-1]), "radius": 0.5 * THICK} for f, n in zip(fingers, NAMES)]
+    # drawn through the frames of 16 pieces (q are modal coordinates, the same for any pieces): the demo's 4 pieces
+    # would show a curled finger as a polygon of 5 frames
+    _, drawn = build(segments=16)
+    beams = [{"frames": f.forward_kinematics(tr[n].q[-1]), "radius": 0.5 * THICK} for f, n in zip(drawn, NAMES)]
     render_png(out / "hand.png", beams, view=(30, -120), size=(7, 6), dpi=120,
                obstacles=[{"type": "plane", "point": (-45 * mm, 0.0, -0.5 * THICK), "normal": (0, 0, 1),
                            "size": 90 * mm, "color": "tan", "alpha": 0.4}],
@@ -327,6 +374,8 @@ def scene(quick=False):
     regulator (the oscillators are replaced by the sliders)."""
     from soro.play import Channel, Scene
 
-    mdl, _ = build()
+    # the page draws each finger through its node frames: 8 pieces (9 frames, 0.06 deg space error) look round
+    # where the demo's 4 would show a curled finger as a polygon; play needs 1x real time, not the demo's 70x
+    mdl, _ = build(segments=8)
     channels = [Channel(f"p_{n}.pressure_ref", 0.0, 100 * kPa, label=f"{n} pressure") for n in NAMES]
-    return Scene(mdl, channels, dt=2e-3, method="bdf2", view=(-35.0, 35.0), title="soft_hand", focus="index")
+    return Scene(mdl, channels, dt=DT, method=METHOD, view=(-35.0, 35.0), title="soft_hand", focus="index")
