@@ -692,9 +692,17 @@ class Shapes:
     def natural_frequencies(self, count=None, q=None):
         """Natural frequencies [Hz] of the undamped linearization about ``q`` (default straight), ascending:
         :math:`K\\phi = \\omega^2 M\\phi` (geometric stiffness of gravity and loads not included)."""
-        from scipy.linalg import eigh
+        from scipy.linalg import LinAlgError, eigh
+        if not self.density > 0:
+            raise ParameterError(f"natural frequencies need a mass: the material's density is {self.density!r}")
         M = self.mass_matrix(q)
-        w2 = eigh(self.K, M, eigvals_only=True)
+        try:
+            w2 = eigh(self.K, M, eigvals_only=True)
+        except LinAlgError:
+            raise ParameterError(
+                f"the mass matrix of this beam is singular ({self.n} coordinates on {len(self.model.sigma) - 1} "
+                f"segments, order {self.order}): its nodes cannot tell every mode apart; use more segments "
+                f"(segments= per unit of the basis) or fewer modes") from None
         f = np.sqrt(np.maximum(w2, 0.0)) / (2 * np.pi)
         return f[:count] if count else f
 

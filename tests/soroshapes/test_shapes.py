@@ -392,3 +392,15 @@ def test_sliding_on_a_floor_dissipates_energy_only_with_friction():
         losses[mu] = (tr.total[0] - tr.total[-1]) / tr.total[0]
         assert np.all(np.diff(tr.total) <= 1e-9 * tr.total[0])          # never gains energy
     assert abs(losses[0.0]) < 1e-4 and losses[0.6] > 0.1
+
+
+def test_a_beam_too_coarse_for_its_modes_says_so_instead_of_a_linear_algebra_error():
+    """Five Chebyshev modes on two fourth-order pieces: the mass matrix is singular (its quadrature nodes cannot
+    tell the modes apart); the error names the segments, not scipy's factorization; a finer beam gives frequencies."""
+    def beam(segments):
+        return Shapes(Basis.chebyshev(5), dofs=(0, 5, 0, 0, 0, 0), length=0.08, section=sdf.Circle(0.005),
+                      material=materials.NeoHookean(E=1e5, nu=0.45, density=1000.0), segments=segments, order=4)
+
+    with pytest.raises(ParameterError, match="mass matrix of this beam is singular.*use more segments"):
+        beam(2).natural_frequencies(1)
+    assert np.all(np.isfinite(beam(8).natural_frequencies(3)))
