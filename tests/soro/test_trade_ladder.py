@@ -83,6 +83,17 @@ def test_the_ladder_has_fem_and_beam_rungs_and_a_converging_reference(quick):
     assert beam_t < fem_t / 5
 
 
+def test_the_full_scene_is_graded_towards_its_corners_and_keyed_by_it():
+    """The full 2D scene's meshes are graded towards the corners (every family and load alike): its cache key
+    holds the grading and Richardson trusts P2's order 2 there; the quick scene stays uniform (its cache key as
+    before, the corners' order 1.09)."""
+    from soro.ladder import GRADING, SCENES
+
+    quick, full = SCENES["pneunet2d"]["quick"], SCENES["pneunet2d"]["full"]
+    assert quick.grading is None and "grading" not in quick.fem_settings() and quick.formal_order == 1.09
+    assert full.grading == GRADING and full.fem_settings()["grading"] == list(GRADING) and full.formal_order == 2.0
+
+
 def test_the_tip_error_of_a_fem_family_shrinks_with_the_mesh(quick):
     """P1 on h, h/2, h/4 against the reference: the finest is closer than the coarsest."""
     _, _, rows, _ = quick
