@@ -404,15 +404,32 @@ def fem_ladder(scene, out, progress=None):
     length = extra["length"]
     ref = rungs[-1]
     degree, mixed = FEM_FAMILIES[ref["family"]]
-    _, t_train, *_ = _solve_case(scene, pn, degree, mixed, ref["size"], 1.0, scene.train_steps, out / "train.h5")
-    _solve_case(scene, pn, degree, mixed, ref["size"], scene.validation_level, scene.test_steps,
-                out / "validation.h5")
+    t_train = _reference_ramp(scene, pn, out, "train", degree, mixed, ref["size"], 1.0, scene.train_steps)
+    _reference_ramp(scene, pn, out, "validation", degree, mixed, ref["size"], scene.validation_level,
+                    scene.test_steps)
     doc = {"settings": scene.fem_settings(), "length": length, "rungs": rungs,
            "reference": {"family": ref["family"], "size": ref["size"], "train": "train.h5",
                          "unseen": ref["path"], "validation": "validation.h5", "train_s": t_train}}
     with atomic_path(out / "fem.json") as tmp:
         Path(tmp).write_text(json.dumps(doc))
     return doc
+
+
+def _reference_ramp(scene, pn, out, name, degree, mixed, size, level, steps):
+    """The reference's ramp to ``level`` x p_max in ``steps`` steps (``train``: the training ramp, ``validation``)
+    written to ``out/<name>.h5`` and recorded in ``out/<name>.json`` with the scene's settings, so that an
+    interrupted ladder resumes past it (as its rungs do); returns its solve time [s]."""
+    from sorofem.io import atomic_path
+
+    path, done = out / f"{name}.h5", out / f"{name}.json"
+    if done.is_file() and path.is_file():
+        rec = json.loads(done.read_text())
+        if rec.get("settings") == scene.fem_settings() and rec.get("size") == size:
+            return rec["solve_s"]
+    _, solve_s, *_ = _solve_case(scene, pn, degree, mixed, size, level, steps, path)
+    with atomic_path(done) as tmp:
+        Path(tmp).write_text(json.dumps({"settings": scene.fem_settings(), "size": size, "solve_s": solve_s}))
+    return solve_s
 
 
 def _fem_rows(doc, max_order=None):
