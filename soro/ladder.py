@@ -65,7 +65,7 @@ import numpy as np
 
 from sorofem.errors import ParameterError, SoroError
 
-__all__ = ["Scene", "SCENES", "MEASURES", "FEM_FAMILIES", "BEAM_FAMILIES", "richardson", "fem_ladder",
+__all__ = ["Scene", "SCENES", "GRADING", "MEASURES", "FEM_FAMILIES", "BEAM_FAMILIES", "richardson", "fem_ladder",
            "beam_ladder", "ladder", "pareto_front", "CantileverScene", "elastica", "cantilever_fem_ladder",
            "cantilever_beam_ladder", "cantilever_ladder", "cantilever_budget", "cost_table", "ladder_table",
            "ladder_figure", "error_budget", "select",
@@ -174,18 +174,36 @@ class Scene(_Levels):
     -13.311, -13.254 at h = 2.4 ... 0.075 mm (order 0.33-1.1), the full scene's -46.055, -45.799, -45.595 at
     h = 0.6, 0.3, 0.15 mm (order 0.33: known to 1.6 % of L). With a pressure per material the quick scene's tip
     (x, y) [mm] is (42.703, -13.037), (42.608, -13.254), (42.602, -13.264), (42.597, -13.277), (42.610,
-    -13.251), (42.623, -13.223) at h = 2.4 ... 0.075 mm: within 0.03 mm (0.07 % of L) from h = 1.2 mm on, but
-    its changes do not shrink there (0.012, 0.014, 0.029, 0.031 mm per halving; the cavity volume converges at
-    order 1.2-1.5; P2 x P0, a constant pressure per cell, sits 0.04 mm away and drifts towards it). The full
-    scene's tip (x, y) [mm]: (58.539, -44.731), (57.913, -45.259), (57.673, -45.424), (57.586, -45.493) at
-    h = 2.4, 1.2, 0.6, 0.3 mm, changes 0.819, 0.291, 0.111 mm, observed order 1.49 then 1.39. So the full
-    scene's rungs are h = 1.2, 0.6, 0.3 mm (the 0.3 mm reference solves in 44 s, against 532 s for
-    Taylor-Hood's 0.15 mm). Richardson trusts no order above :attr:`formal_order` (the corners' 1.09): on
-    2.4/1.2/0.6 mm it estimates 0.26 mm at 0.6 mm, against 0.11 mm to the next mesh (at order 1.49 it would be
-    0.16 mm); on the full rungs 0.098 mm, 0.12 % of L, against 0.079 mm to the next mesh (h = 0.15 mm: (57.650,
-    -45.446), 150 s, turning back as the quick scene's tip does; at the observed order 1.39 the estimate would
-    have been 0.069 mm, below that change). The quick scene (h = 2.4, 1.2, 0.6 mm): observed order 4.3, capped,
-    0.010 mm, against 0.014 mm to the next mesh."""
+    -13.251), (42.623, -13.223) at h = 2.4 ... 0.075 mm (uniform meshes): within 0.03 mm (0.07 % of L) from
+    h = 1.2 mm on, but its changes do not shrink there (0.012, 0.014, 0.029, 0.031 mm per halving).
+
+    Why, and the graded meshes (``grading``). The tip measure (the displacement interpolated at (L, LAYER/2))
+    and Newton's tolerance (1e-9 of the residual and of the update) are not the cause: at a tenth of the load
+    (p_max = 0.5 kPa) the same measure on the same uniform meshes changes by 0.0140, 0.0036, 0.0007 mm at h =
+    1.2 ... 0.15 mm (order 2). The floor comes with large deformation at the corners: at the top unseen load
+    the chamber roofs' corners stretch 2.5 (uniform 0.075 mm) and 3.4 (graded, smaller corner cells), the
+    corners of the gaps between the blocks are squeezed (J of the corner cell 0.65, 0.32), and a uniform mesh
+    resolves a little more of that at each halving. Meshes graded towards the corners
+    (:meth:`sorofem.mesh.Mesh.from_sdf` ``grading``, :data:`GRADING`: sizes h (r / 1.5 mm)^0.6 within 1.5 mm of
+    a corner, at least h/10) give the quick tip (42.586, -13.301), (42.616, -13.238), (42.625, -13.218) at
+    h = 1.2, 0.6, 0.3 mm: changes 0.070 and 0.022 mm along one direction (the x and y changes shrink by 3.1
+    and 3.1), observed order 1.65, Richardson 0.0105 mm (0.023 % of L) at 0.3 mm; QUICK015. The graded 0.6 mm
+    mesh (5.6k cells) is within 0.016 mm of the uniform 0.075 mm one (196k cells). A stronger grading (exponent
+    0.35, smallest h/20) stops Newton at h = 0.3 mm (load 0.59 of 0.85); a weaker one (0.5 within 1 mm) is not
+    monotone (changes 0.035, 0.082 mm). The graded meshes cost Newton step cuts near the corners: the full
+    scene's P1 rungs solve in 17 / 56 / 191 s (uniform 0.4 / 2 / 8 s), P2's 1.2 and 0.6 mm in 74 / 197 s
+    (load 7-8 on 2 cores).
+
+    The full scene's tip (x, y) [mm] on uniform meshes: (58.539, -44.731), (57.913, -45.259), (57.673,
+    -45.424), (57.586, -45.493), (57.650, -45.446) at h = 2.4 ... 0.15 mm, changes 0.819, 0.291, 0.111, 0.079
+    mm, turning back at 0.15 mm (Richardson on 1.2/0.6/0.3 mm, capped at the corners' order 1.09: 0.098 mm, 0.12
+    % of L). Graded (:data:`SCENES` ``full``, rungs h = 1.2, 0.6, 0.3 mm): (57.522, -45.549), (57.692, -45.414),
+    (57.747, -45.368), changes 0.217 and 0.072 mm along one direction (x 0.170, 0.055; y 0.134, 0.046 mm),
+    observed order 1.60, Richardson 0.035 mm, 0.044 % of L (solves 24, 55, 628 s at load 7-9). Its limit,
+    (57.774, -45.345), lies 0.24 mm (0.30 % of L) from the uniform 0.3 mm tip and 0.16 mm from the uniform
+    0.15 mm one: the uniform meshes' estimate (0.12 %) was too small. The quick scene stays
+    uniform (h = 2.4, 1.2, 0.6 mm, its test cost): observed order 4.3, capped at 1.09, 0.010 mm, against
+    0.014 mm to the next mesh."""
 
     name: str = "pneunet2d"
     #: P2 mixed with one pressure per material is the reference (it may jump across the layer's top)
