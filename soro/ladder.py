@@ -187,10 +187,13 @@ class Scene(_Levels):
     (:meth:`sorofem.mesh.Mesh.from_sdf` ``grading``, :data:`GRADING`: sizes h (r / 1.5 mm)^0.6 within 1.5 mm of
     a corner, at least h/10) give the quick tip (42.586, -13.301), (42.616, -13.238), (42.625, -13.218) at
     h = 1.2, 0.6, 0.3 mm: changes 0.070 and 0.022 mm along one direction (the x and y changes shrink by 3.1
-    and 3.1), observed order 1.65, Richardson 0.0105 mm (0.023 % of L) at 0.3 mm; QUICK015. The graded 0.6 mm
-    mesh (5.6k cells) is within 0.016 mm of the uniform 0.075 mm one (196k cells). A stronger grading (exponent
-    0.35, smallest h/20) stops Newton at h = 0.3 mm (load 0.59 of 0.85); a weaker one (0.5 within 1 mm) is not
-    monotone (changes 0.035, 0.082 mm). The graded meshes cost Newton step cuts near the corners: the full
+    and 3.1), observed order 1.65, Richardson 0.0105 mm (0.023 % of L) at 0.3 mm. The graded 0.6 mm mesh (5.6k
+    cells) is within 0.017 mm of the uniform 0.075 mm one (196k cells). The change to one finer mesh is not
+    shown: at h = 0.15 mm (corner cells 0.015 mm) Newton stops at load 0.55 of 0.85, as does a stronger
+    grading (exponent 0.35, smallest h/20) at h = 0.3 mm, whose corner cells are 0.015 mm too (load 0.59). So
+    the sharp corners' fields at this load cannot be resolved much further by this model; rounded corners (a
+    molded PneuNet's fillets) or contact of the corner's faces would be the next step. A weaker grading (0.5
+    within 1 mm) is not monotone (changes 0.035, 0.082 mm). The graded meshes cost Newton step cuts near the corners: the full
     scene's P1 rungs solve in 17 / 56 / 191 s (uniform 0.4 / 2 / 8 s), P2's 1.2 and 0.6 mm in 74 / 197 s
     (load 7-8 on 2 cores).
 
