@@ -191,8 +191,11 @@ class Scene(_Levels):
     cells) is within 0.017 mm of the uniform 0.075 mm one (196k cells). The change to one finer mesh is not
     shown: at h = 0.15 mm (corner cells 0.015 mm) Newton stops at load 0.55 of 0.85, as does a stronger
     grading (exponent 0.35, smallest h/20) at h = 0.3 mm, whose corner cells are 0.015 mm too (load 0.59). So
-    the sharp corners' fields at this load cannot be resolved much further by this model; rounded corners (a
-    molded PneuNet's fillets) or contact of the corner's faces would be the next step. A weaker grading (0.5
+    the sharp corners' fields at this load cannot be resolved much further by this model. Rounding only the
+    chambers' corners (0.5 mm, a probe, not the scene) is not enough: uniform meshes then change by 0.092,
+    0.0045, 0.014 mm (h = 1.2 ... 0.15 mm), graded ones by 0.056, 0.022 mm, and the two differ by 0.053 mm at
+    0.3 mm; the corners of the gaps between the blocks (squeezed) remain. Rounding those too, or contact of the
+    corners' faces, would be the next step. A weaker grading (0.5
     within 1 mm) is not monotone (changes 0.035, 0.082 mm). The graded meshes cost Newton step cuts near the corners: the full
     scene's P1 rungs solve in 17 / 56 / 191 s (uniform 0.4 / 2 / 8 s), P2's 1.2 and 0.6 mm in 74 / 197 s
     (load 7-8 on 2 cores).
