@@ -65,7 +65,7 @@ import numpy as np
 
 from sorofem.errors import ParameterError, SoroError
 
-__all__ = ["Scene", "SCENES", "MEASURES", "FEM_FAMILIES", "BEAM_FAMILIES", "richardson", "fem_ladder",
+__all__ = ["Scene", "SCENES", "GRADING", "MEASURES", "FEM_FAMILIES", "BEAM_FAMILIES", "richardson", "fem_ladder",
            "beam_ladder", "ladder", "pareto_front", "CantileverScene", "elastica", "cantilever_fem_ladder",
            "cantilever_beam_ladder", "cantilever_ladder", "cantilever_budget", "cost_table", "ladder_table",
            "ladder_figure", "error_budget", "select",
@@ -148,6 +148,10 @@ class _Levels:
         for k in ("blocked", "cylinder"):          # cached apart (blocked.json, contact.json)
             d.pop(k, None)
         d["fem_families"] = list(d["fem_families"])
+        if d.get("grading", 0) is None:     # a uniform scene's cache key as before the setting existed
+            d.pop("grading")
+        elif "grading" in d:
+            d["grading"] = list(d["grading"])
         return d
 
 
@@ -170,25 +174,52 @@ class Scene(_Levels):
     -13.311, -13.254 at h = 2.4 ... 0.075 mm (order 0.33-1.1), the full scene's -46.055, -45.799, -45.595 at
     h = 0.6, 0.3, 0.15 mm (order 0.33: known to 1.6 % of L). With a pressure per material the quick scene's tip
     (x, y) [mm] is (42.703, -13.037), (42.608, -13.254), (42.602, -13.264), (42.597, -13.277), (42.610,
-    -13.251), (42.623, -13.223) at h = 2.4 ... 0.075 mm: within 0.03 mm (0.07 % of L) from h = 1.2 mm on, but
-    its changes do not shrink there (0.012, 0.014, 0.029, 0.031 mm per halving; the cavity volume converges at
-    order 1.2-1.5; P2 x P0, a constant pressure per cell, sits 0.04 mm away and drifts towards it). The full
-    scene's tip (x, y) [mm]: (58.539, -44.731), (57.913, -45.259), (57.673, -45.424), (57.586, -45.493) at
-    h = 2.4, 1.2, 0.6, 0.3 mm, changes 0.819, 0.291, 0.111 mm, observed order 1.49 then 1.39. So the full
-    scene's rungs are h = 1.2, 0.6, 0.3 mm (the 0.3 mm reference solves in 44 s, against 532 s for
-    Taylor-Hood's 0.15 mm). Richardson trusts no order above :attr:`formal_order` (the corners' 1.09): on
-    2.4/1.2/0.6 mm it estimates 0.26 mm at 0.6 mm, against 0.11 mm to the next mesh (at order 1.49 it would be
-    0.16 mm); on the full rungs 0.098 mm, 0.12 % of L, against 0.079 mm to the next mesh (h = 0.15 mm: (57.650,
-    -45.446), 150 s, turning back as the quick scene's tip does; at the observed order 1.39 the estimate would
-    have been 0.069 mm, below that change). The quick scene (h = 2.4, 1.2, 0.6 mm): observed order 4.3, capped,
-    0.010 mm, against 0.014 mm to the next mesh."""
+    -13.251), (42.623, -13.223) at h = 2.4 ... 0.075 mm (uniform meshes): within 0.03 mm (0.07 % of L) from
+    h = 1.2 mm on, but its changes do not shrink there (0.012, 0.014, 0.029, 0.031 mm per halving).
+
+    Why, and the graded meshes (``grading``). The tip measure (the displacement interpolated at (L, LAYER/2))
+    and Newton's tolerance (1e-9 of the residual and of the update) are not the cause: at a tenth of the load
+    (p_max = 0.5 kPa) the same measure on the same uniform meshes changes by 0.0140, 0.0036, 0.0007 mm at h =
+    1.2 ... 0.15 mm (order 2). The floor comes with large deformation at the corners: at the top unseen load
+    the chamber roofs' corners stretch 2.5 (uniform 0.075 mm) and 3.4 (graded, smaller corner cells), the
+    corners of the gaps between the blocks are squeezed (J of the corner cell 0.65, 0.32), and a uniform mesh
+    resolves a little more of that at each halving. Meshes graded towards the corners
+    (:meth:`sorofem.mesh.Mesh.from_sdf` ``grading``, :data:`GRADING`: sizes h (r / 1.5 mm)^0.6 within 1.5 mm of
+    a corner, at least h/10) give the quick tip (42.586, -13.301), (42.616, -13.238), (42.625, -13.218) at
+    h = 1.2, 0.6, 0.3 mm: changes 0.070 and 0.022 mm along one direction (the x and y changes shrink by 3.1
+    and 3.1), observed order 1.65, Richardson 0.0105 mm (0.023 % of L) at 0.3 mm. The graded 0.6 mm mesh (5.6k
+    cells) is within 0.017 mm of the uniform 0.075 mm one (196k cells). The change to one finer mesh is not
+    shown: at h = 0.15 mm (corner cells 0.015 mm) Newton stops at load 0.55 of 0.85, as does a stronger
+    grading (exponent 0.35, smallest h/20) at h = 0.3 mm, whose corner cells are 0.015 mm too (load 0.59). So
+    the sharp corners' fields at this load cannot be resolved much further by this model. Rounding only the
+    chambers' corners (0.5 mm, a probe, not the scene) is not enough: uniform meshes then change by 0.092,
+    0.0045, 0.014 mm (h = 1.2 ... 0.15 mm), graded ones by 0.056, 0.022 mm, and the two differ by 0.053 mm at
+    0.3 mm; the corners of the gaps between the blocks (squeezed) remain. Rounding those too, or contact of the
+    corners' faces, would be the next step. A weaker grading (0.5
+    within 1 mm) is not monotone (changes 0.035, 0.082 mm). The graded meshes cost Newton step cuts near the corners: the full
+    scene's P1 rungs solve in 17 / 56 / 191 s (uniform 0.4 / 2 / 8 s), P2's 1.2 and 0.6 mm in 74 / 197 s
+    (load 7-8 on 2 cores).
+
+    The full scene's tip (x, y) [mm] on uniform meshes: (58.539, -44.731), (57.913, -45.259), (57.673,
+    -45.424), (57.586, -45.493), (57.650, -45.446) at h = 2.4 ... 0.15 mm, changes 0.819, 0.291, 0.111, 0.079
+    mm, turning back at 0.15 mm (Richardson on 1.2/0.6/0.3 mm, capped at the corners' order 1.09: 0.098 mm, 0.12
+    % of L). Graded (:data:`GRADING`, the same rungs h = 1.2, 0.6, 0.3 mm): (57.522, -45.549), (57.692, -45.414),
+    (57.747, -45.368), changes 0.217 and 0.072 mm along one direction (x 0.170, 0.055; y 0.134, 0.046 mm),
+    observed order 1.60, Richardson 0.035 mm, 0.044 % of L (solves 24, 55, 628 s at load 7-9). Its limit,
+    (57.774, -45.345), lies 0.24 mm (0.30 % of L) from the uniform 0.3 mm tip and 0.16 mm from the uniform
+    0.15 mm one: the uniform meshes' estimate (0.12 %) was too small. P2 with a pressure per material at 0.6
+    mm lies 0.090 % from that reference on the unseen load and 0.097 % at the validation load. But the full
+    scene cannot run graded yet: its reference's training ramp (to p_max in 16 steps) stops Newton at load
+    0.745, and Taylor-Hood's unseen ramp at 0.757 of 0.85; so :data:`SCENES` ``full`` stays uniform. The quick scene stays
+    uniform (h = 2.4, 1.2, 0.6 mm, its test cost): observed order 4.3, capped at 1.09, 0.010 mm, against
+    0.014 mm to the next mesh."""
 
     name: str = "pneunet2d"
     #: P2 mixed with one pressure per material is the reference (it may jump across the layer's top)
     fem_families: tuple = ("fem-p1", "fem-p2", "fem-p2mixed", "fem-p2jump")
-    #: the chambers' re-entrant corners (270 degrees of material, traction-free: Williams' exponent
-    #: lambda = 0.5445) bound a point value's convergence on uniform meshes to h^(2 lambda)
-    formal_order: ClassVar[float] = 1.09
+    #: the mesh graded towards the corners, :meth:`sorofem.mesh.Mesh.from_sdf` ``grading=(radius [m], exponent,
+    #: smallest)``, every family and load alike; None: uniform meshes
+    grading: tuple = None
     chambers: int = 4
     size: float = 2.4e-3
     p_max: float = 5e3
@@ -199,10 +230,24 @@ class Scene(_Levels):
     #: the contact load (:func:`pneunet_contact_fem`, :func:`pneunet_contact_rows`): curling onto a cylinder
     cylinder: bool = False
 
+    @property
+    def formal_order(self):
+        """The order Richardson trusts at most. Uniform meshes: the chambers' re-entrant corners (270 degrees
+        of material, traction-free: Williams' exponent lambda = 0.5445) bound a point value's convergence to
+        h^(2 lambda) = h^1.09. Graded meshes (``grading``): 2, P2's order in the energy norm (a point value
+        converges as fast or faster once the corners no longer pollute it)."""
+        return 1.09 if self.grading is None else 2.0
+
 
 #: A FEM solve longer than this [s] is timed once (``fem_repeats`` apply to the faster ones): a minute-long
 #: solve varies by a few percent, far less than the factors between rungs.
 SLOW_FEM_S = 20.0
+
+#: A mesh grading of the 2D PneuNet towards its corners (:meth:`sorofem.mesh.Mesh.from_sdf` ``grading``): sizes
+#: h (r / 1.5 mm)^0.6 within 1.5 mm of a corner, at least h/10 (see :class:`Scene`). The full scene does not use
+#: it yet: on its h = 0.3 mm mesh the reference's unseen ramp converges (tip known to 0.044 % of L), but its
+#: training ramp to p_max (16 steps) stops Newton at load 0.745, and Taylor-Hood's unseen ramp at 0.757 of 0.85.
+GRADING = (1.5e-3, 0.4, 0.1)
 
 #: The scenes ``soro trade SCENE`` knows, full and quick (``--quick``; what the tests run).
 SCENES = {
@@ -280,10 +325,16 @@ def _volume(vols):
     return sum(np.asarray(v, dtype=float) for v in vols.values())
 
 
+def _build_2d(scene, pn, degree, mixed, size):
+    """The 2D PneuNet's FEM model of ``degree``/``mixed`` on element size ``size`` [m], its mesh graded as the
+    scene says (``scene.grading``): every family and load of the scene is meshed the same way. (fem, length)."""
+    return pn.build(2, scene.chambers, size, scene.p_max, degree=degree, mixed=mixed, grading=scene.grading)
+
+
 def _solve_case(scene, pn, degree, mixed, size, level, steps, path):
     """Build a FEM model and ramp it to ``level`` x p_max; returns (build s, solve s, fem, length)."""
     t0 = time.perf_counter()
-    fem, length = pn.build(2, scene.chambers, size, scene.p_max, degree=degree, mixed=mixed)
+    fem, length = _build_2d(scene, pn, degree, mixed, size)
     t1 = time.perf_counter()
     traj = fem.solve(load_level=level, steps=steps, max_step=level / steps, progress=False)
     t2 = time.perf_counter()
@@ -366,7 +417,7 @@ def fem_ladder(scene, out, progress=None):
                 break
         freq = None
         if scene.eigen:
-            fem2, _ = pn.build(2, scene.chambers, h, scene.p_max, degree=degree, mixed=mixed)
+            fem2, _ = _build_2d(scene, pn, degree, mixed, h)
             freq = float(fem2.eigen(n=1).frequencies[0])
         data = recover_strains(path, _backbone(pn, length), samples=81, steps=[len(traj.times) - 1])
         P = data.positions()[0]
@@ -382,15 +433,32 @@ def fem_ladder(scene, out, progress=None):
     length = extra["length"]
     ref = rungs[-1]
     degree, mixed = FEM_FAMILIES[ref["family"]]
-    _, t_train, *_ = _solve_case(scene, pn, degree, mixed, ref["size"], 1.0, scene.train_steps, out / "train.h5")
-    _solve_case(scene, pn, degree, mixed, ref["size"], scene.validation_level, scene.test_steps,
-                out / "validation.h5")
+    t_train = _reference_ramp(scene, pn, out, "train", degree, mixed, ref["size"], 1.0, scene.train_steps)
+    _reference_ramp(scene, pn, out, "validation", degree, mixed, ref["size"], scene.validation_level,
+                    scene.test_steps)
     doc = {"settings": scene.fem_settings(), "length": length, "rungs": rungs,
            "reference": {"family": ref["family"], "size": ref["size"], "train": "train.h5",
                          "unseen": ref["path"], "validation": "validation.h5", "train_s": t_train}}
     with atomic_path(out / "fem.json") as tmp:
         Path(tmp).write_text(json.dumps(doc))
     return doc
+
+
+def _reference_ramp(scene, pn, out, name, degree, mixed, size, level, steps):
+    """The reference's ramp to ``level`` x p_max in ``steps`` steps (``train``: the training ramp, ``validation``)
+    written to ``out/<name>.h5`` and recorded in ``out/<name>.json`` with the scene's settings, so that an
+    interrupted ladder resumes past it (as its rungs do); returns its solve time [s]."""
+    from sorofem.io import atomic_path
+
+    path, done = out / f"{name}.h5", out / f"{name}.json"
+    if done.is_file() and path.is_file():
+        rec = json.loads(done.read_text())
+        if rec.get("settings") == scene.fem_settings() and rec.get("size") == size:
+            return rec["solve_s"]
+    _, solve_s, *_ = _solve_case(scene, pn, degree, mixed, size, level, steps, path)
+    with atomic_path(done) as tmp:
+        Path(tmp).write_text(json.dumps({"settings": scene.fem_settings(), "size": size, "solve_s": solve_s}))
+    return solve_s
 
 
 def _fem_rows(doc, max_order=None):
@@ -1288,7 +1356,7 @@ def blocked_beam(shp, u=None, axis=1, steps=1):
 def _pneunet_blocked(scene, pn, degree, mixed, size, level):
     """The 2D PneuNet's FEM model of ``degree``/``mixed`` on ``size`` with its end face (``right``: the base's end,
     below the chambers) held vertically, ramped to ``level`` x p_max: (reaction [N per m of depth], CPU s)."""
-    fem, _ = pn.build(2, scene.chambers, size, scene.p_max, degree=degree, mixed=mixed)
+    fem, _ = _build_2d(scene, pn, degree, mixed, size)
     R, cpu, _ = blocked_fem(fem, "right", level, scene.test_steps)
     return R, cpu
 
@@ -1418,7 +1486,7 @@ def _pneunet_cylinder(length):
 def _pneunet_on_cylinder(scene, pn, degree, mixed, size, level):
     """The 2D PneuNet's FEM model of ``degree``/``mixed`` on ``size`` ramped to ``level`` x p_max with the rigid
     cylinder as a contact: (tip [m] (3,), the cylinder's force on the body [N per m of depth] (2,), CPU s)."""
-    fem, length = pn.build(2, scene.chambers, size, scene.p_max, degree=degree, mixed=mixed)
+    fem, length = _build_2d(scene, pn, degree, mixed, size)
     return _fem_on_cylinder(scene, pn, fem, length, level)
 
 
@@ -1802,7 +1870,7 @@ def load_model(path):
         if isinstance(sc, CantileverScene):
             return "fem", _cantilever_fem(sc, doc["degree"], doc["mixed"], doc["size"]), sc.length
         fem, length = _pneunet().build(doc.get("dim", 2), sc.chambers, doc["size"], sc.p_max, degree=doc["degree"],
-                                       mixed=doc["mixed"])
+                                       mixed=doc["mixed"], grading=sc.grading if isinstance(sc, Scene) else None)
         return "fem", fem, length
     from soroshapes.io import load_beam
 

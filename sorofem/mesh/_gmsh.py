@@ -131,6 +131,25 @@ def set_size_callback(gmsh, h):
     gmsh.model.mesh.setSizeCallback(callback)
 
 
+def grade_to_corners(gmsh, size, radius, exponent, smallest):
+    """A background size field graded towards the model's points (a CSG shape's corners): the size
+    ``size * (r / radius)^(1 - exponent)`` at a distance r < ``radius`` [m] of the nearest point, at least
+    ``smallest * size``, ``size`` beyond. Call after the geometry is synchronized, before meshing."""
+    points = [tag for _, tag in gmsh.model.getEntities(0)]
+    field = gmsh.model.mesh.field
+    dist = field.add("Distance")
+    field.setNumbers(dist, "PointsList", points)
+    grade = field.add("MathEval")
+    field.setString(grade, "F", f"max({smallest * size!r}, {size!r} * min(1, F{dist} / {radius!r})^"
+                                f"{1.0 - exponent!r})")
+    field.setAsBackgroundMesh(grade)
+    opt = gmsh.option.setNumber
+    opt("Mesh.MeshSizeMin", smallest * size)
+    opt("Mesh.MeshSizeMax", size)
+    opt("Mesh.MeshSizeExtendFromBoundary", 0)
+    opt("Mesh.MeshSizeFromPoints", 0)
+
+
 # --------------------------------------------------------------------------------------------------------- CSG
 
 

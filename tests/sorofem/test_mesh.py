@@ -396,3 +396,46 @@ def test_interfaces_need_the_csg_path_and_shapes_of_the_domains_dimension():
         Mesh.from_sdf(two_holes(), size=2 * mm, method="levelset", interfaces=[layer])
     with pytest.raises(GeometryError, match="2D signed distance"):
         Mesh.from_sdf(two_holes(), size=2 * mm, interfaces=[sdf.Sphere(1 * mm)])
+
+
+def l_shape():
+    """A 20 mm square less its top right quarter: one re-entrant (270 degree) corner, at the origin."""
+    return sdf.Rectangle(20 * mm, 20 * mm) - sdf.Rectangle(10 * mm, 10 * mm, center=(5 * mm, 5 * mm))
+
+
+def test_a_mesh_graded_towards_the_corners_is_fine_there_and_coarse_elsewhere():
+    """``grading=(radius, exponent, smallest)``: within 0.3 h of the re-entrant corner (the origin) a uniform mesh
+    at h has at most a few cell midpoints (a cell's midpoint lies about h/3 from its vertex); the graded one
+    (sizes down to h/10 there) has rings of them, while the whole mesh stays within 3x the uniform count (the
+    grading reaches only 1.5 h around each of the 6 corners)."""
+    h = 1 * mm
+
+    def near_corner(msh):
+        try:
+            return len(msh.add_region("near", sdf.Circle(0.3 * h), kind="cells").cells("near"))
+        except MeshError:       # no midpoint there
+            return 0
+    uniform = Mesh.from_sdf(l_shape(), size=h)
+    graded = Mesh.from_sdf(l_shape(), size=h, grading=(1.5 * h, 0.4, 0.1))
+    assert near_corner(uniform) <= 4 < 8 <= near_corner(graded)
+    assert uniform.num_cells < graded.num_cells < 3 * uniform.num_cells
+    assert graded.area == pytest.approx(l_shape().area, rel=1e-10)
+
+
+def test_a_size_function_smallest_at_the_origin_does_not_cap_the_mesh():
+    """A callable size is the mesh's size everywhere: 0.3 mm at the origin growing to 2.3 mm at 10 mm. gmsh caps
+    the callback at the largest size, which is taken over a sample of the bounds (before, the origin's 0.3 mm
+    capped the whole mesh: ~4 times the uniform 0.3 mm estimate's cells, here far fewer)."""
+    def size(x):
+        return 0.3 * mm + 0.2 * np.linalg.norm(np.atleast_2d(x), axis=1)
+    n = Mesh.from_sdf(l_shape(), size=size).num_cells
+    assert n < 0.25 * mesh_mod.estimate_cells(l_shape(), 0.3 * mm)
+
+
+@pytest.mark.parametrize("grading, kw, match", [((1 * mm, 1.2, 0.1), {}, "exponent"),
+                                                 ((1 * mm, 0.4), {}, "radius"),
+                                                 ((1 * mm, 0.4, 0.1), {"boundary_size": 0.5 * mm}, "number size"),
+                                                 ((1 * mm, 0.4, 0.1), {"method": "levelset"}, "CSG path")])
+def test_a_bad_grading_is_refused_naming_what_to_fix(grading, kw, match):
+    with pytest.raises(MeshError, match=match):
+        Mesh.from_sdf(l_shape(), size=1 * mm, grading=grading, **kw)
