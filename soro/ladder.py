@@ -19,8 +19,8 @@ Measures (errors, fractions): ``tip`` (distance of the backbone's tip / L), ``sh
 backbone points / L), ``volume`` (error of the total cavity volume change from rest / the reference's change: the
 rest volume of a meshed cavity depends on the mesh; a beam's volume is its identified quadratic model of q,
 fitted on the reference's snapshots), ``freq`` (first natural frequency about the rest state,
-relative), ``blocked`` (the 2D PneuNet with its tip face held vertically, a frictionless wall normal to the tip's
-path: the reaction at the top unseen load, relative to the reference's, :func:`blocked_fem`, :func:`blocked_beam`,
+relative), ``blocked`` (the 2D and the 3D PneuNet with the base's end face held vertically, a frictionless wall
+normal to the tip's path: the reaction [N/m in 2D, N in 3D] at the top unseen load, relative to the reference's, :func:`blocked_fem`, :func:`blocked_beam`,
 :func:`blocked_rows`; a beam identified on free bending needs one stiffness scale, fitted on the training load's
 blocked force), and a contact load's ``tip_contact`` and ``force_contact`` (the cantilever pushed onto a floor; the
 2D PneuNet curling onto the cylinder of ``demos/dvs_pneunet.py``, :func:`pneunet_contact_rows`). ``--measure``
@@ -96,11 +96,15 @@ def column(measure):
 def scene_measures(scene):
     """The measures the ladder of ``scene`` takes: the 2D PneuNet tip, shape, volume and (``scene.blocked``)
     blocked; the cantilever tip, shape and (``scene.contact``) tip_contact, force_contact; the 3D PneuNet tip,
-    shape, volume."""
+    shape, volume and (``scene.blocked``) blocked.
+
+    The cantilever has no ``blocked`` measure: its load is a dead force at the tip, so the force that holds the
+    tip in place is that load itself (and its moment), for every model: nothing to compare. A passive strip's
+    force measure is its reaction on an obstacle: the floor's, ``force_contact``."""
     if isinstance(scene, CantileverScene):
         return ("tip", "shape") + (("tip_contact", "force_contact") if scene.contact else ())
     if isinstance(scene, PneuNet3DScene):
-        return ("tip", "shape", "volume")
+        return ("tip", "shape", "volume") + (("blocked",) if scene.blocked else ())
     return (("tip", "shape", "volume") + (("blocked",) if scene.blocked else ())
             + (("tip_contact", "force_contact") if scene.cylinder else ()))
 
@@ -1259,15 +1263,17 @@ def contact_figure(rows, measure="tip", floor=None):
 
 
 # ------------------------------------------------------------------------------------------------ blocked force
-def blocked_fem(fem, region, level, steps, axis=1):
-    r"""The blocked force of a FEM model: ``region`` (the tip face) held along ``axis`` (0 x, 1 y; a frictionless
-    wall normal to the tip's path) while the loads ramp to ``level`` in ``steps`` steps. The reaction is the
-    assembled residual at the held dofs (sorofem's support reactions: the force the wall exerts on the body).
-    Returns (reaction [N; N per m of depth in plane strain] along ``axis``, CPU time of the solve [s], the
+def blocked_fem(fem, region, level, steps, axis=1, linear_start=None):
+    r"""The blocked force of a FEM model: ``region`` (the tip face) held along ``axis`` (0 x, 1 y, 2 z; a
+    frictionless wall normal to the tip's path) while the loads ramp to ``level`` in ``steps`` steps (the first
+    cut to ``linear_start``, :meth:`sorofem.fem.Fem.solve`). The reaction is the assembled residual at the held
+    dofs (sorofem's support reactions: the force the wall exerts on the body), summed over the face. Returns
+    (reaction along ``axis`` [N in 3D; N per m of depth in plane strain], CPU time of the solve [s], the
     trajectory)."""
     fem.add_support(region, components=[axis])
     c0 = time.process_time()
-    traj = fem.solve(load_level=level, steps=steps, max_step=level / steps, progress=False)
+    traj = fem.solve(load_level=level, steps=steps, max_step=level / steps, linear_start=linear_start,
+                     progress=False)
     cpu = time.process_time() - c0
     return float(traj.reactions[region][-1][axis]), cpu, traj
 
@@ -1285,11 +1291,28 @@ def blocked_beam(shp, u=None, axis=1, steps=1):
     return float(eq.reactions[0][3 + axis]), cpu, eq
 
 
+def _blocked_linear_start(scene):
+    """The first step's cut of a scene's blocked ramps: the 3D PneuNet's ``linear_start`` (its unloaded thin
+    walls), None (no cut) for the 2D scene."""
+    return scene.linear_start if isinstance(scene, PneuNet3DScene) else None
+
+
+def _blocked_depth(scene):
+    """What a PneuNet beam's blocked force [N] is divided by to compare with the scene's FEM: the actuator's
+    width ``WIDTH`` [m] for the 2D scene (its FEM reaction is per m of depth), 1 for the 3D one (N)."""
+    return _pneunet().WIDTH if scene.dim == 2 else 1.0
+
+
+def _blocked_unit(scene):
+    return "N/m" if scene.dim == 2 else "N"
+
+
 def _pneunet_blocked(scene, pn, degree, mixed, size, level):
-    """The 2D PneuNet's FEM model of ``degree``/``mixed`` on ``size`` with its end face (``right``: the base's end,
-    below the chambers) held vertically, ramped to ``level`` x p_max: (reaction [N per m of depth], CPU s)."""
-    fem, _ = pn.build(2, scene.chambers, size, scene.p_max, degree=degree, mixed=mixed)
-    R, cpu, _ = blocked_fem(fem, "right", level, scene.test_steps)
+    """The PneuNet's FEM model (the scene's ``dim``: 2, plane strain, or 3) of ``degree``/``mixed`` on ``size``
+    with its end face (``right``: the base's end, below the chambers; in 3D the whole end face of the base)
+    held vertically, ramped to ``level`` x p_max: (reaction [N per m of depth in 2D; N in 3D], CPU s)."""
+    fem, _ = pn.build(scene.dim, scene.chambers, size, scene.p_max, degree=degree, mixed=mixed)
+    R, cpu, _ = blocked_fem(fem, "right", level, scene.test_steps, linear_start=_blocked_linear_start(scene))
     return R, cpu
 
 
@@ -1310,12 +1333,12 @@ def _rung_cache(path, scene):
 
 
 def pneunet_blocked_fem(scene, out, doc, progress=None):
-    """The blocked load of the 2D PneuNet's FEM rungs (``doc`` from :func:`fem_ladder`): the tip face held
+    """The blocked load of the PneuNet's (2D or 3D) FEM rungs (``doc`` from :func:`fem_ladder`): the tip face held
     vertically (:func:`blocked_fem`) at the top unseen load (``test_level``) on every rung, and on the reference
     also at the top training load (1: what a beam's stiffness scale is fitted on, see :func:`blocked_rows`) and
     at the validation load. Cached, rung by rung, in ``out/blocked.json`` (with the scene's settings; an
-    interrupted run resumes). Returns that document: ``rungs`` (``force`` [N/m], ``solve_s`` CPU [s]) in the
-    order of ``doc["rungs"]`` and ``reference`` (``train``, ``validation`` forces [N/m])."""
+    interrupted run resumes). Returns that document: ``rungs`` (``force`` [N/m in 2D, N in 3D], ``solve_s`` CPU
+    [s]) in the order of ``doc["rungs"]`` and ``reference`` (``train``, ``validation`` forces)."""
     bdoc, save = _rung_cache(Path(out) / "blocked.json", scene)
     pn = _pneunet()
     say = progress or (lambda msg: None)
@@ -1324,7 +1347,7 @@ def pneunet_blocked_fem(scene, out, doc, progress=None):
         if key not in bdoc["rungs"]:
             R, cpu = _pneunet_blocked(scene, pn, r["degree"], r["mixed"], r["size"], scene.test_level)
             bdoc["rungs"][key] = {"force": R, "solve_s": cpu}
-            say(f"blocked {r['family']} h={1e3 * r['size']:.2f} mm: {R:.4f} N/m, {cpu:.2f} s CPU")
+            say(f"blocked {r['family']} h={1e3 * r['size']:.2f} mm: {R:.5g} {_blocked_unit(scene)}, {cpu:.2f} s CPU")
             save()
     ref = doc["rungs"][-1]
     for name, level in (("train", 1.0), ("validation", scene.validation_level)):
@@ -1336,17 +1359,19 @@ def pneunet_blocked_fem(scene, out, doc, progress=None):
 
 
 def _beam_blocked(row, scene, level):
-    """A PneuNet beam row's blocked force at ``level`` x p_max [N per m of depth: the beam's section is
-    ``WIDTH`` deep] and its CPU time."""
+    """A PneuNet beam row's blocked force at ``level`` x p_max (2D: N per m of depth, the beam's section is
+    ``WIDTH`` deep; 3D: N) and its CPU time."""
     R, cpu, _ = blocked_beam(row["_shapes"], u=[level * scene.p_max])
-    return R / _pneunet().WIDTH, cpu
+    return R / _blocked_depth(scene), cpu
 
 
 def blocked_rows(rows, scene, doc, bdoc, repeats=3):
-    r"""Add the blocked load's columns to the PneuNet's ladder ``rows`` (FEM rows first, in the order of
-    ``doc["rungs"]``, then beam rows): ``blocked_force`` [N per m of depth] at the top unseen load,
-    ``blocked_solve_s`` (CPU time; a beam's: median of ``repeats``), ``blocked_unseen`` (error relative to the
-    reference's force; the reference's own: its Richardson estimate on its family's three meshes).
+    r"""Add the blocked load's columns to the PneuNet's (2D or 3D) ladder ``rows`` (FEM rows first, in the order
+    of ``doc["rungs"]``, then beam rows; the 3D ladder's plane-strain row gets none):
+    ``blocked_force`` [N per m of depth in 2D; N in 3D] at the top unseen load, ``blocked_solve_s`` (CPU time; a
+    beam's: median of ``repeats``), ``blocked_unseen`` (error relative to the reference's force; the reference's
+    own: its Richardson estimate on its family's three meshes, refined by ``doc["ratio"]``, the order capped at
+    the scene's ``formal_order``).
 
     A beam identified on free bending (:func:`soroshapes.dvs.identify`) fits only its actuation
     :math:`\tau(u) = K q(u)` to the FEM's free shapes, with the stiffness K of an assumed section: scaling K
@@ -1363,8 +1388,8 @@ def blocked_rows(rows, scene, doc, bdoc, repeats=3):
     keys = bdoc["order"]
     ref_force = bdoc["rungs"][keys[-1]]["force"]
     fam = [k for k in keys if k.rsplit("-h", 1)[0] == keys[-1].rsplit("-h", 1)[0]]
-    rich = richardson([bdoc["rungs"][k]["force"] for k in fam], doc.get("ratio", 2.0))
-    fem_rows = [r for r in rows if "_shapes" not in r]
+    rich = richardson([bdoc["rungs"][k]["force"] for k in fam], doc.get("ratio", 2.0), scene.formal_order)
+    fem_rows = [r for r in rows if r["family"] in FEM_FAMILIES]
     for row, k in zip(fem_rows, keys):
         b = bdoc["rungs"][k]
         row.update(blocked_force=b["force"], blocked_solve_s=b["solve_s"],
@@ -1383,16 +1408,18 @@ def blocked_rows(rows, scene, doc, bdoc, repeats=3):
         row.update(blocked_force=alpha * R, blocked_solve_s=float(np.median(cpu)), blocked_scale=alpha,
                    blocked_raw=abs(R - ref_force) / abs(ref_force),
                    blocked_unseen=abs(alpha * R - ref_force) / abs(ref_force))
-    return dict(rich, reference_force=ref_force, train_force=R1, validation_force=bdoc["reference"]["validation"])
+    return dict(rich, reference_force=ref_force, train_force=R1, validation_force=bdoc["reference"]["validation"],
+                unit=_blocked_unit(scene))
 
 
 def blocked_table(rows, info):
-    """The blocked load as text: per rung the force [N per m of depth], its error (~: the reference's Richardson
+    """The blocked load as text: per rung the force (``info["blocked"]["unit"]``: N per m of depth in 2D, N in
+    3D), its error (~: the reference's Richardson
     estimate), a beam's raw error (its assumed section's stiffness) and fitted stiffness scale, the CPU time of
     the blocked solve."""
     b = info["blocked"]
-
-    head = (f"{'family':<12} {'size':>11} {'R [N/m]':>9} {'error %':>8} {'raw %':>9} {'scale':>8} {'solve ms':>9}")
+    unit = b.get("unit", "N/m")
+    head = (f"{'family':<12} {'size':>11} {f'R [{unit}]':>9} {'error %':>8} {'raw %':>9} {'scale':>8} {'solve ms':>9}")
     lines = [head, "-" * len(head)]
     for r in rows:
         if "blocked_unseen" not in r:
@@ -1401,10 +1428,11 @@ def blocked_table(rows, info):
         lines.append(f"{r['family']:<12} {_label(r):>11} {r['blocked_force']:>9.4f} {est}{_pct(r['blocked_unseen']):>7} "
                      f"{_pct(r.get('blocked_raw')):>9} {_fmt(r, 'blocked_scale', '.4g'):>8} "
                      f"{1e3 * r['blocked_solve_s']:>9.1f}")
-    lines.append(f"tip face held vertically at the top unseen load: reference force {b['reference_force']:.5f} N/m "
+    lines.append(f"tip face held vertically at the top unseen load: reference force {b['reference_force']:.5f} {unit} "
                  f"(training load {b['train_force']:.5f}, validation {b['validation_force']:.5f}); reference "
                  f"discretization (Richardson): {100 * b['error'] / abs(b['reference_force']):.4f} % (order "
-                 f"{b['order']:.2f}); beams: error after one stiffness scale fitted on the training load's blocked "
+                 f"{b['order']:.2f}{'' if b['converging'] else ', NOT converging: error = last difference'}"
+                 f"{_order_cap(b) if b['converging'] else ''}); beams: error after one stiffness scale fitted on the training load's blocked "
                  "force (raw: the assumed section, which free-bending identification leaves undetermined)")
     return "\n".join(lines)
 
@@ -1819,11 +1847,11 @@ def validate(path, scene, out, measure):
     out = Path(out)
     if isinstance(scene, CantileverScene):
         return _validate_cantilever(path, scene, out, measure)
+    if measure == "blocked":
+        return _validate_blocked(path, scene, out)
     if isinstance(scene, PneuNet3DScene):
         return _validate_pneunet3d(path, scene, out, measure)
     pn = _pneunet()
-    if measure == "blocked":
-        return _validate_blocked(path, scene, out)
     if measure.endswith("_contact"):
         return _validate_cylinder(path, scene, out, measure)
     doc = json.loads((out / "fem.json").read_text())
@@ -1859,9 +1887,9 @@ def _validate_blocked(path, scene, out):
     kind, model, extra = load_model(path)
     lv = scene.validation_level
     if kind == "beam":
-        R = blocked_beam(model, u=[lv * scene.p_max])[0] / _pneunet().WIDTH * extra.meta.get("blocked_scale", 1.0)
+        R = blocked_beam(model, u=[lv * scene.p_max])[0] / _blocked_depth(scene) * extra.meta.get("blocked_scale", 1.0)
     else:
-        R = blocked_fem(model, "right", lv, scene.test_steps)[0]
+        R = blocked_fem(model, "right", lv, scene.test_steps, linear_start=_blocked_linear_start(scene))[0]
     return float(abs(R - R_ref) / abs(R_ref))
 
 
@@ -1931,8 +1959,10 @@ def run_ladder(scene_name="pneunet2d", tolerance=None, measure="tip", out=None, 
         tol = None if tolerance is None else parse_tolerance(tolerance)
         column(measure)
         if measure not in scene_measures(scene):
-            why = {"volume": "it has no cavity", "blocked": "its blocked load is not built (the quick 2D PneuNet "
-                   "skips it: run the full scene)", "tip_contact": "it has no contact load",
+            why = {"volume": "it has no cavity", "blocked": "the cantilever's load is a dead tip force, so its "
+                   "blocked force is that load for every model (its force measure is force_contact)"
+                   if isinstance(scene, CantileverScene) else "its blocked load is not built (the quick PneuNet "
+                   "scenes skip it: run the full scene)", "tip_contact": "it has no contact load",
                    "force_contact": "it has no contact load"}.get(measure, "")
             raise ParameterError(f"{scene_name}{' --quick' if quick else ''} does not measure {measure!r}: {why}; "
                                  f"use one of {', '.join(scene_measures(scene))}")
@@ -2040,6 +2070,8 @@ class PneuNet3DScene(_Levels):
     linear_start: float = 0.01
     size_2d: float = 0.6e-3
     eigen: bool = False
+    #: the blocked load (:func:`pneunet_blocked_fem`, :func:`blocked_rows`): the base's end face held vertically
+    blocked: bool = False
     dim: ClassVar[int] = 3
     cpu_time: ClassVar[bool] = True
     #: the reference's formal order (P2: 3 for displacements): Richardson trusts no higher observed order
@@ -2054,7 +2086,7 @@ class PneuNet3DScene(_Levels):
         return f"h = {'/'.join(f'{1e3 * h:.2f}' for h in self.sizes())} mm (ratio {self.ratio:.3g})"
 
 
-SCENES["pneunet3d"] = {"full": PneuNet3DScene(size=2e-3, repeats=15),
+SCENES["pneunet3d"] = {"full": PneuNet3DScene(size=2e-3, repeats=15, blocked=True),
                        "quick": PneuNet3DScene(size=4e-3, train_steps=6, test_steps=4, size_2d=1.2e-3,
                                                modes=(1, 2, 3, 4), fem_families=("fem-p1", "fem-p2mixed"), repeats=9)}
 _STYLE["plane-strain"] = "X"
@@ -2212,7 +2244,10 @@ def pneunet3d_ladder(scene, out, progress=None):
         row["rss_mb"], row["peak_mb"] = r["rss_mb"], r.get("peak_mb")
         row["solve_wall_s"] = float(np.median(r["solve_wall_s"]))
     rows = fem_rows + [_plane_strain_row(doc)] + beam_ladder(scene, doc, out)
-    return rows, {"richardson": rich, "length": doc["length"], "fem": doc, "refinement": scene.refinement()}
+    info = {"richardson": rich, "length": doc["length"], "fem": doc, "refinement": scene.refinement()}
+    if scene.blocked:
+        info["blocked"] = blocked_rows(rows, scene, doc, pneunet_blocked_fem(scene, out, doc, progress))
+    return rows, info
 
 
 def pneunet3d_budget(rows, info):
