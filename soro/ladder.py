@@ -628,6 +628,12 @@ class CantileverScene(_Levels):
     contact force; a beam's tube of radius H/2 on the plane), against the FEM reference and against the
     elastica on the floor (:func:`elastica_on_floor`).
 
+    No ``blocked`` measure: the strip is passive and loaded by a dead force at its tip, so the force that holds
+    its tip in place is that load itself (P, and its moment about the clamp) in every model, FEM or beam: a
+    measure that cannot tell models apart. Its force measure is the floor's reaction, ``force_contact``. (A
+    propped strip under its own weight, R = 3wL/8 in closed form, would be a meaningful blocked case; it is
+    not built: ``gravity`` is off in the scene's loads.)
+
     The modulus is soft (100 kPa, the value the ladder was first measured with); stiffer bodies converge too
     since sorofem's Newton measures the mixed pressure [Pa] and the displacement [m] separately."""
 
