@@ -1438,7 +1438,8 @@ def blocked_table(rows, info):
                  f"(training load {b['train_force']:.5f}, validation {b['validation_force']:.5f}); reference "
                  f"discretization (Richardson): {100 * b['error'] / abs(b['reference_force']):.4f} % (order "
                  f"{b['order']:.2f}{'' if b['converging'] else ', NOT converging: error = last difference'}"
-                 f"{_order_cap(b) if b['converging'] else ''}); beams: error after one stiffness scale fitted on the training load's blocked "
+                 f"{_order_cap(b) if b['converging'] else ''}"
+                 f"{', turning back: at least the last change' if b.get('oscillating') else ''}); beams: error after one stiffness scale fitted on the training load's blocked "
                  "force (raw: the assumed section, which free-bending identification leaves undetermined)")
     return "\n".join(lines)
 
@@ -2054,13 +2055,20 @@ class PneuNet3DScene(_Levels):
     ``linear_start`` times the body's size (:meth:`sorofem.fem.Fem.solve`: the unloaded thin walls).
 
     ``ratio`` is sqrt 2, not 2: three 3D refinements that fit. The full scene runs h = 2, 1.41, 1 mm (P2 mixed
-    24k, 53k and 117k unknowns; 15, 49 and 179 s CPU per ramp; 1.9 GB at 1 mm; the whole scene about 25 min of
-    CPU): the P2 mixed tip converges at an observed order 2.0 (oscillating: y at the top unseen load -1.822,
-    -1.958, -1.889 mm), the reference's own error 0.29 % of L (tip), shape 0.08 %, while the cavity volume's
-    error stays at 2 % (the inflating walls, 2 mm thick, are not resolved on these meshes). The coarser h = 2.83,
-    2, 1.41 mm did not converge monotonically (0.60 % of L). (These figures were measured while the layer was
-    picked by cell midpoints, a thickness that varied with h; the mesh now follows the layer's top, and they
-    are to be measured again.) The plane-strain
+    25k, 53k and 121k unknowns; 18, 51 and 205 s CPU per ramp; 2.05 GB peak at 1 mm; measured on the mesh that
+    follows the layer's top, session 11, and reproduced bit for bit since). The P2 mixed tip (x, y) at the top
+    unseen load is (22.638, -1.893), (22.615, -2.011), (22.620, -1.955) mm: observed order 2.19 but turning
+    back, so the reference's own error is the last change, 0.245 % of L (shape 0.088 %). The blocked force
+    (``blocked``: the base's end face held vertically, N) is 0.03738, 0.03870, 0.03819 N: turning back too, known
+    to 1.34 %; P2 without the pressure field 0.04102, 0.04022, 0.03958 N (volumetric locking: 3.6 % above); after
+    one stiffness scale fitted on the training load's blocked force the beams lie 0.34-1.14 % from it (DVS 1:
+    1.04 %), closer than in 2D (3.6-4.3 %). The cavity volume change does not converge on these meshes (P2 mixed
+    1.2268, 1.2437, 1.2700 cm^3: the changes grow): the 2 mm walls get one to two elements across (mean edge
+    in the side walls 2.09, 1.64, 1.21 mm; the cells grow 2.2-2.5x per refinement, not 2.8x), so their bending is
+    pre-asymptotic. A volume-only refinement of one chamber, half of it by symmetry (``volume_study``,
+    :func:`pneunet3d_volume_study`): its volume change is 306.69, 307.66, 311.88, 318.31, 320.41 mm^3 at h = 2.83,
+    2, 1.41, 1, 0.71 mm, changes 0.97, 4.22, 6.43, 2.10 mm^3: pre-asymptotic down to 1 mm, converging below it.
+    The plane-strain
     rung (``size_2d`` [m], P2 mixed, the same section) is the 2D model of the same actuator: its error against
     the 3D reference is a model-form error (no refinement of the 2D model removes it); its cavity volume is the
     section's area times the chambers' inner width. Solve times are CPU times (FEM and beams): on a loaded
