@@ -735,3 +735,18 @@ def test_the_volume_study_sets_the_references_volume_error(tiny3d, tmp_path):
     assert "volume_ladder" in info["richardson"] and info["richardson"]["volume"]["source"] == "volume study"
     text, budget = pneunet3d_budget(rows, info)
     assert "volume-only refinement" in text and budget["reference_volume"] == pytest.approx(0.05 / 1.15)
+
+
+def test_which_scenes_measure_the_blocked_force(tmp_path, capsys):
+    """The full 3D PneuNet measures the blocked force (its quick scene skips it, as the 2D one does); the
+    cantilever never does: its tip load is the blocked force of every model, and `soro trade cantilever --measure
+    blocked` is refused before any solve, naming its force measure (force_contact)."""
+    from soro import cli
+    from soro.ladder import SCENES, scene_measures
+
+    assert "blocked" in scene_measures(SCENES["pneunet3d"]["full"])
+    assert "blocked" not in scene_measures(SCENES["pneunet3d"]["quick"])
+    assert "blocked" not in scene_measures(SCENES["cantilever"]["full"])
+    assert cli.main(["trade", "cantilever", "--measure", "blocked", "--tol", "1%", "--out", str(tmp_path / "x")]) == 2
+    assert "its force measure is force_contact" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
