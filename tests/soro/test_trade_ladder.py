@@ -710,9 +710,9 @@ def test_the_half_chamber_of_the_volume_study_is_half_a_chamber():
 
 def test_the_volume_study_sets_the_references_volume_error(tiny3d, tmp_path):
     """With ``volume_study`` the reference row's volume error is the distance of the study's chamber at the
-    reference's h from the study's extrapolated limit (here a seeded record: 1.0, 1.1, 1.15 mm^3 on h sqrt 2, h,
-    h/sqrt 2: changes 0.1 then 0.05, order 2, the finest's error 0.05/(2 - 1), the limit 1.2 mm^3, so 0.1/1.1 at
-    h), the ladder's own estimate is kept as ``volume_ladder``, and the budget says both. The FEM part and the blocked load are read back from the tiny ladder's cache (the study is cached
+    reference's h from the study's extrapolated limit (here a seeded record: 1.0, 1.1, 1.15 mm^3 on h, h/sqrt 2,
+    h/2: changes 0.1 then 0.05, order 2, the finest's error 0.05/(2 - 1), the limit 1.2 mm^3, so 0.2/1.0 at h),
+    the ladder's own estimate is kept as ``volume_ladder``, and the budget says both. The FEM part and the blocked load are read back from the tiny ladder's cache (the study is cached
     apart from the FEM settings)."""
     import json
     import shutil
@@ -725,17 +725,17 @@ def test_the_volume_study_sets_the_references_volume_error(tiny3d, tmp_path):
     assert study.fem_settings() == scene.fem_settings()
     work = tmp_path / "ladder"
     shutil.copytree(out, work)
-    rec = {"sizes": [3e-3 * 2 ** 0.5, 3e-3, 3e-3 / 2 ** 0.5], "dV": [1.0e-9, 1.1e-9, 1.15e-9], "unknowns": [1, 2, 3],
+    rec = {"sizes": [3e-3, 3e-3 / 2 ** 0.5, 1.5e-3], "dV": [1.0e-9, 1.1e-9, 1.15e-9], "unknowns": [1, 2, 3],
            "solve_s": [0.0, 0.0, 0.0]}
     (work / "volume-study.json").write_text(json.dumps({"settings": study.fem_settings(), "record": rec}))
     rows, info = ladder(study, work)
     ref = next(r for r in rows if r.get("estimated"))
     assert info["volume_study"]["richardson"]["order"] == pytest.approx(2.0)
     assert info["volume_study"]["limit"] == pytest.approx(1.2e-9)
-    assert ref["volume_unseen"] == pytest.approx(0.1 / 1.1) == info["volume_study"]["relative_error"]
+    assert ref["volume_unseen"] == pytest.approx(0.2) == info["volume_study"]["relative_error"]
     assert "volume_ladder" in info["richardson"] and info["richardson"]["volume"]["source"] == "volume study"
     text, budget = pneunet3d_budget(rows, info)
-    assert "volume-only refinement" in text and budget["reference_volume"] == pytest.approx(0.1 / 1.1)
+    assert "volume-only refinement" in text and budget["reference_volume"] == pytest.approx(0.2)
 
 
 def test_which_scenes_measure_the_blocked_force(tmp_path, capsys):
