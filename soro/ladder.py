@@ -450,19 +450,15 @@ def fem_ladder(scene, out, progress=None):
 
 def _reference_ramp(scene, pn, out, name, degree, mixed, size, level, steps):
     """The reference's ramp to ``level`` x p_max in ``steps`` steps (``train``: the training ramp, ``validation``)
-    written to ``out/<name>.h5`` and recorded in ``out/<name>.json`` with the scene's settings, so that an
-    interrupted ladder resumes past it (as its rungs do); returns its solve time [s]."""
-    from sorofem.io import atomic_path
-
+    written to ``out/<name>.h5`` and recorded in ``out/<name>.json`` (:func:`_resumed`, as the 3D scene's ramps),
+    so that an interrupted ladder resumes past it (as its rungs do); returns its solve time [s]."""
     path, done = out / f"{name}.h5", out / f"{name}.json"
-    if done.is_file() and path.is_file():
-        rec = json.loads(done.read_text())
-        if rec.get("settings") == scene.fem_settings() and rec.get("size") == size:
-            return rec["solve_s"]
-    _, solve_s, *_ = _solve_case(scene, pn, degree, mixed, size, level, steps, path)
-    with atomic_path(done) as tmp:
-        Path(tmp).write_text(json.dumps({"settings": scene.fem_settings(), "size": size, "solve_s": solve_s}))
-    return solve_s
+    if not path.is_file():
+        done.unlink(missing_ok=True)             # a record without its ramp is redone
+
+    def make():
+        return {"size": size, "solve_s": _solve_case(scene, pn, degree, mixed, size, level, steps, path)[1]}
+    return _resumed(done, scene, make)["solve_s"]
 
 
 def _fem_rows(doc, max_order=None):
