@@ -1298,9 +1298,11 @@ def _midpoint_residual(vm, q, qd, dt, fext, K, D, points, order, h, B, rows, xi0
     (:func:`_contact_forces`, into ``cwork`` = (Fp, Kc, Cc)) at the points, plus :math:`D v_m + K q_m - f_{ext}`
     (``D`` with no rows: no damping). Returns :math:`|R|` (not finite when the state overflowed or a contact force
     was not finite). Inlined (numba IR) where it is called: a call of a kernel with some thirty array arguments
-    costs a large part of the residual of a 4-piece rod (:func:`integrate_midpoint`, 15-DOF rod: 10.4 -> 9.1 us
-    per step). At most 30 arguments, or CPython passes them as one tuple, which numba cannot inline. (Inlining
-    the recursions it calls too gave 8.1 us, but made the first compilation minutes long.)"""
+    costs a noticeable part of the residual of a 4-piece rod (the 15-DOF rod of ``bench_shapes.py`` in
+    :func:`integrate_midpoint`, quiet machine, back to back: 10.7-11.0 -> 9.8-10.0 us per step, the same
+    trajectory). At most 30 arguments, or CPython passes them as one tuple, which numba cannot inline. (Inlining
+    the recursions it calls too saved another ~1 us per step in a prototype, but their first compilation took
+    about a minute more per kernel that inlines them.)"""
     n = q.shape[0]
     pl_nodes, pl_W, pl_spatial = points
     Fp, Kc, Cc = cwork
