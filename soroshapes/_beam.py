@@ -1289,15 +1289,23 @@ def forward_dynamics(q, qd, f_in, K, D, pl_nodes, pl_W, pl_spatial, order, h, B,
     return True
 
 
-@njit(cache=True)
-def _midpoint_residual(vm, q, qd, dt, fext, K, D, pl_nodes, pl_W, pl_spatial, order, h, B, rows, xi0, g0, w, Md,
-                       ag, G, eta, acc, SA, SX, E, V, qm, a, R, contacts, Fp, Kc, Cc):
+@njit(cache=True, inline="always")
+def _midpoint_residual(vm, q, qd, dt, fext, K, D, points, order, h, B, rows, xi0, g0, w, Md, ag, G, eta, acc, SA, SX,
+                       E, V, qm, a, R, contacts, cwork):
     r"""R = the implicit-midpoint residual at the mean velocity ``vm``: :func:`newton_euler` at
-    :math:`q_m = q + \tfrac h2 v_m`, :math:`\dot q = v_m`, :math:`a = 2(v_m - \dot q_n)/h`, with the forces of
-    the fixed obstacles' ``contacts`` (:func:`_contact_forces`, into ``Fp``, ``Kc``, ``Cc``) at the points, plus
-    :math:`D v_m + K q_m - f_{ext}`. Returns :math:`|R|` (not finite when the state overflowed or a contact force
-    was not finite)."""
+    :math:`q_m = q + \tfrac h2 v_m`, :math:`\dot q = v_m`, :math:`a = 2(v_m - \dot q_n)/h`, with the point
+    wrenches ``points`` = (nodes, wrenches, spatial) and the forces of the fixed obstacles' ``contacts``
+    (:func:`_contact_forces`, into ``cwork`` = (Fp, Kc, Cc)) at the points, plus :math:`D v_m + K q_m - f_{ext}`
+    (``D`` with no rows: no damping). Returns :math:`|R|` (not finite when the state overflowed or a contact force
+    was not finite). Inlined (numba IR) where it is called: a call of a kernel with some thirty array arguments
+    costs a noticeable part of the residual of a 4-piece rod (the 15-DOF rod of ``bench_shapes.py`` in
+    :func:`integrate_midpoint`, quiet machine, back to back: 10.7-11.0 -> 9.8-10.0 us per step, the same
+    trajectory). At most 30 arguments, or CPython passes them as one tuple, which numba cannot inline. (Inlining
+    the recursions it calls too saved another ~1 us per step in a prototype, but their first compilation took
+    about a minute more per kernel that inlines them.)"""
     n = q.shape[0]
+    pl_nodes, pl_W, pl_spatial = points
+    Fp, Kc, Cc = cwork
     for k in range(n):
         qm[k] = q[k] + 0.5 * dt * vm[k]
         a[k] = 2.0 * (vm[k] - qd[k]) / dt
@@ -1305,11 +1313,15 @@ def _midpoint_residual(vm, q, qd, dt, fext, K, D, pl_nodes, pl_W, pl_spatial, or
     if contacts[0].shape[0] > 0 and not _contact_forces(contacts, G, eta, Fp, Kc, Cc):
         return np.inf
     _ne_backward(n, order, h, B, rows, w, Md, ag, pl_nodes, pl_W, pl_spatial, Fp, G, eta, acc, SA, SX, V, R)
+    damped = D.shape[0] > 0
     nr = 0.0
     for k in range(n):
         s = R[k] - fext[k]
+        if damped:
+            for l in range(n):
+                s += D[k, l] * vm[l]
         for l in range(n):
-            s += D[k, l] * vm[l] + K[k, l] * qm[l]
+            s += K[k, l] * qm[l]
         R[k] = s
         nr += s * s
     return np.sqrt(nr)
@@ -1436,6 +1448,8 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
     Fp = np.zeros((npf, 3))          # the contacts' forces at the points and their stiffness and damping
     Kc = np.zeros((npf, 3, 3))
     Cc = np.zeros((npf, 3, 3))
+    cwork = (Fp, Kc, Cc)
+    Dres = D if np.any(D != 0.0) else np.zeros((0, 0))   # the residual skips a zero damping
     nhist = 0
     pord = 2                        # the predictor: extrapolation 0 constant, 1 linear, 2 quadratic; 3 the
                                     # linearized step, 4 the linearized step plus its last error
@@ -1502,49 +1516,54 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
         spent = 0
         theta = 0.0
         best = np.inf
+        points = (pl_nodes, pl_W[step], pl_spatial)
         for attempt in range(2):        # a step that fails is retried with the complete (differenced) matrix
             exact = exact_mode or attempt == 1
             fresh = refresh or not have or since >= REFRESH_STEPS or attempt == 1
             for k in range(n):
                 vm[k] = v0[k]           # the predictor, or on the retry the best iterate of the first attempt
-            nr = _midpoint_residual(vm, q, qd, dt, fext[step], K, D, pl_nodes, pl_W[step], pl_spatial, order, h,
-                                    B, rows, xi0, g0, w, Md, ag, G, eta, acc, SA, SX, E, V, qm, a, R, contacts, Fp,
-                                    Kc, Cc)
-            spent += 1
-            if not np.isfinite(nr):
-                return step
-            if fresh and exact:
-                for k in range(n):
-                    R0[k] = R[k]
-                for c in range(n):
-                    e = fd_step * max(abs(vm[c]), 1.0)
-                    old = vm[c]
-                    vm[c] = old + e
-                    e = vm[c] - old
-                    _midpoint_residual(vm, q, qd, dt, fext[step], K, D, pl_nodes, pl_W[step], pl_spatial, order,
-                                       h, B, rows, xi0, g0, w, Md, ag, G, eta, acc, SA, SX, E, V, qm, a, dv,
-                                       contacts, Fp, Kc, Cc)
-                    vm[c] = old
-                    for k in range(n):
-                        Sm[k, c] = (dv[k] - R0[k]) / e
-                for k in range(n):
-                    R[k] = R0[k]
-                jacs[step] = 2
-            elif fresh:
-                mass_matrix_pieces(order, h, B, rows, w, Md, SA, SX, Tw, Jw, Yw, Opw, Sm)
-                for k in range(n):
-                    for l in range(n):
-                        Sm[k, l] = 2.0 * Sm[k, l] / dt + D[k, l] + 0.5 * dt * K[k, l]
-                if npf > 0:
-                    _add_contact_matrix(Jw, G, Kc, Cc, 0.5 * dt, Sm)
-                jacs[step] = 1
-            if fresh:
-                have = _lu(Sm, piv)
-                if not have:
-                    return step
-                since = 0
             prev = 0.0
-            for it in range(1, max_it + 1):
+            # one evaluation site (the residual is inlined): at the predictor (it = 0), then after each correction
+            for it in range(max_it + 1):
+                nr = _midpoint_residual(vm, q, qd, dt, fext[step], K, Dres, points, order, h, B, rows, xi0, g0, w,
+                                        Md, ag, G, eta, acc, SA, SX, E, V, qm, a, R, contacts, cwork)
+                spent += 1
+                if not np.isfinite(nr):
+                    if it == 0:
+                        return step
+                    break
+                if it == max_it:
+                    break
+                if it == 0:
+                    if fresh and exact:
+                        for k in range(n):
+                            R0[k] = R[k]
+                        for c in range(n):
+                            e = fd_step * max(abs(vm[c]), 1.0)
+                            old = vm[c]
+                            vm[c] = old + e
+                            e = vm[c] - old
+                            _midpoint_residual(vm, q, qd, dt, fext[step], K, Dres, points, order, h, B, rows, xi0,
+                                               g0, w, Md, ag, G, eta, acc, SA, SX, E, V, qm, a, dv, contacts, cwork)
+                            vm[c] = old
+                            for k in range(n):
+                                Sm[k, c] = (dv[k] - R0[k]) / e
+                        for k in range(n):
+                            R[k] = R0[k]
+                        jacs[step] = 2
+                    elif fresh:
+                        mass_matrix_pieces(order, h, B, rows, w, Md, SA, SX, Tw, Jw, Yw, Opw, Sm)
+                        for k in range(n):
+                            for l in range(n):
+                                Sm[k, l] = 2.0 * Sm[k, l] / dt + D[k, l] + 0.5 * dt * K[k, l]
+                        if npf > 0:
+                            _add_contact_matrix(Jw, G, Kc, Cc, 0.5 * dt, Sm)
+                        jacs[step] = 1
+                    if fresh:
+                        have = _lu(Sm, piv)
+                        if not have:
+                            return step
+                        since = 0
                 for k in range(n):
                     dv[k] = -R[k]
                 _lu_solve(Sm, piv, dv)
@@ -1563,7 +1582,7 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
                     for k in range(n):
                         v0[k] = vm[k]
                 bound = tol * nv + 1e-12
-                if it > 1:
+                if it > 0:
                     theta = ndv / prev
                     if theta >= 1.0:          # not contracting
                         break
@@ -1574,12 +1593,6 @@ def integrate_midpoint(q, qd, dt, nsteps, rec_every, fext, pl_nodes, pl_W, pl_sp
                 if ok:
                     break
                 prev = ndv
-                nr = _midpoint_residual(vm, q, qd, dt, fext[step], K, D, pl_nodes, pl_W[step], pl_spatial,
-                                        order, h, B, rows, xi0, g0, w, Md, ag, G, eta, acc, SA, SX, E, V, qm, a, R,
-                                        contacts, Fp, Kc, Cc)
-                spent += 1
-                if not np.isfinite(nr):
-                    break
             if ok:
                 break
             if fresh and not exact:

@@ -218,7 +218,18 @@ THETA_REFRESH = 0.1
 
 
 @njit(cache=True)
-def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, x1, hp):
+def _closed(net):
+    """True when the model rows of every beam are in closed form and there is no tree (see :func:`_step`'s
+    retries): constant per network, so :func:`integrate` and :func:`integrate_adaptive` decide it once per run."""
+    table = net[0]
+    for b in range(table.shape[0]):
+        if (table[b, 0] == BEAM and table[b, 7] != 1) or table[b, 0] == TREE:
+            return False
+    return True
+
+
+@njit(cache=True)
+def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, x1, hp, closed):
     """One implicit step from (t, x0) into x1; True on success. ``ws``: work arrays; ``st``: statistics and the
     state of the iteration matrix (st[4] = 1 when the differenced Jacobian is valid; st[5] = 1 when the
     quadratic BDF2 predictor may use ``ws[12]``, the state before ``xprev``; st[9] = 1 once the model rows of the
@@ -228,7 +239,7 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
     factored). ``ws[15]`` (components, 3): per connected component, 1 when its last step asks for a fresh matrix,
     the steps its matrix served, and the largest contraction rate that matrix showed at a third correction (-1:
     none yet). ``hp``: the two previous step sizes (h_{k-1}, h_{k-2}) [s] for the variable-step BDF2 and its
-    predictor (equal to ``h`` in fixed steps)."""
+    predictor (equal to ``h`` in fixed steps). ``closed``: :func:`_closed` of the network, decided once per run."""
     (w, f0, fp, xp, r, guess, Jac, JF, LUc, pivc, rc, fx0, pp, xhat, xe, cst, Fk, xq, xl, elin, pk) = ws
     N = x0.shape[0]
     table = net[0]
@@ -289,10 +300,6 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
     # body or fixed obstacles) cost about one evaluation: after a failed attempt, fresh ones at the failed
     # iterate, and the differenced Jacobian serves only a step where those failed too; otherwise, once a fresh
     # model matrix failed, the differenced Jacobian serves the rest of the run (st[9] stays 1)
-    closed = True
-    for b in range(nb):
-        if (table[b, 0] == BEAM and table[b, 7] != 1) or table[b, 0] == TREE:
-            closed = False
     if closed:
         st[9] = 0.0
     at_iterate = False              # fresh model rows at the failed iterate (after a failed attempt)
@@ -449,7 +456,7 @@ def _step(method, t, x0, h, xprev, net, scale, rtol, atol, maxit, ntol, ws, st, 
 
 
 @njit(cache=True)
-def _split(method, t, x, h, hh, min_dt, net, scale, rtol, atol, maxit, ntol, ws, st, xn, tmp):
+def _split(method, t, x, h, hh, min_dt, net, scale, rtol, atol, maxit, ntol, ws, st, xn, tmp, closed):
     """Cover [t, t+h] with steps of hh, halved on failure (down to min_dt) after a failed step; the result in
     xn. Returns the time reached (t + h on success)."""
     st[6] += 1
@@ -461,7 +468,7 @@ def _split(method, t, x, h, hh, min_dt, net, scale, rtol, atol, maxit, ntol, ws,
         for i in range(x.shape[0]):
             tmp[i] = xn[i]
         if not _step(method, t, tmp, step, tmp, net, scale, rtol, atol, maxit, ntol, ws, st, xn,
-                     np.array([step, step])):
+                     np.array([step, step]), closed):
             for i in range(x.shape[0]):
                 xn[i] = tmp[i]
             hh *= 0.5
@@ -489,13 +496,14 @@ def integrate(x, t0, h, nsteps, method, record_every, min_dt, net, scale, rtol, 
     N = x.shape[0]
     hp = np.array([h, h])
     xn, tmp = np.zeros(N), np.zeros(N)
+    closed = _closed(net)
     net[34][0] = np.nan                 # the schedule's cached row (network._assemble): the table may have changed
     have_prev = st[31] == 1.0
     rec = 1
     for k in range(nsteps):
         t = t0 + k * h
         if method == BDF2 and have_prev:
-            ok = _step(BDF2, t, x, h, prev, net, scale, rtol, atol, maxit, ntol, ws, st, xn, hp)
+            ok = _step(BDF2, t, x, h, prev, net, scale, rtol, atol, maxit, ntol, ws, st, xn, hp, closed)
             if ok:
                 for i in range(N):
                     ws[12][i] = prev[i]
@@ -504,16 +512,17 @@ def integrate(x, t0, h, nsteps, method, record_every, min_dt, net, scale, rtol, 
             else:
                 st[5] = 0.0
                 reached = _split(TRAPEZOIDAL, t, x, h, 0.5 * h, min_dt, net, scale, rtol, atol, maxit, ntol, ws, st, xn,
-                                 tmp)
+                                 tmp, closed)
                 if reached < t + h - 1e-12 * h:
                     st[7] = reached
                     return -1
                 have_prev = False
         else:
             base = TRAPEZOIDAL if method == BDF2 else method
-            ok = _step(base, t, x, h, prev, net, scale, rtol, atol, maxit, ntol, ws, st, xn, hp)
+            ok = _step(base, t, x, h, prev, net, scale, rtol, atol, maxit, ntol, ws, st, xn, hp, closed)
             if not ok:
-                reached = _split(base, t, x, h, 0.5 * h, min_dt, net, scale, rtol, atol, maxit, ntol, ws, st, xn, tmp)
+                reached = _split(base, t, x, h, 0.5 * h, min_dt, net, scale, rtol, atol, maxit, ntol, ws, st, xn, tmp,
+                                 closed)
                 if reached < t + h - 1e-12 * h:
                     st[7] = reached
                     return -1
@@ -641,6 +650,7 @@ def integrate_adaptive(x, t0, t_end, h, dt_out, max_dt, method, min_dt, net, sca
     was estimated. Returns the number of rows recorded, or -1 (the time in st[7])."""
     N = x.shape[0]
     ws = _workspace(N, out_w.shape[1], net)
+    closed = _closed(net)
     xn, xm1, xp, xo = np.zeros(N), x.copy(), np.zeros(N), np.zeros(N)
     pp = ws[12]                                   # the state before xm1 (the quadratic predictor's third point)
     hp = np.array([h, h])                         # the last two step sizes
@@ -658,7 +668,7 @@ def integrate_adaptive(x, t0, t_end, h, dt_out, max_dt, method, min_dt, net, sca
         if method == BDF2 and nhist == 0:
             m = TRAPEZOIDAL
         st[5] = 1.0 if nhist == 2 else 0.0
-        if not _step(m, t, x, h, xm1, net, scale, rtol, atol, maxit, ntol, ws, st, xn, hp):
+        if not _step(m, t, x, h, xm1, net, scale, rtol, atol, maxit, ntol, ws, st, xn, hp, closed):
             st[6] += 1                            # Newton failed: halve the step
             st[16], st[19] = 0.0, 0.0             # the linearized predictor's memory is of the failed step
             h *= 0.5
