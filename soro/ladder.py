@@ -255,8 +255,8 @@ GRADING = (1.5e-3, 0.4, 0.1)
 
 #: The scenes ``soro trade SCENE`` knows, full and quick (``--quick``; what the tests run).
 SCENES = {
-    "pneunet2d": {"full": Scene(chambers=7, size=1.2e-3, p_max=6e3, train_steps=16, repeats=15, fem_repeats=3,
-                                blocked=True, cylinder=True),
+    "pneunet2d": {"full": Scene(chambers=7, size=1.2e-3, p_max=0.9e3, train_steps=16, repeats=15, fem_repeats=3,
+                                blocked=True, cylinder=True, grading=GRADING),
                   "quick": Scene(chambers=4, size=2.4e-3, p_max=5e3, train_steps=10, modes=(1, 2, 3, 4),
                                  fem_families=("fem-p1", "fem-p2jump"), repeats=9, eigen=False)},
 }
