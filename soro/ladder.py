@@ -74,7 +74,7 @@ __all__ = ["Scene", "SCENES", "GRADING", "MEASURES", "FEM_FAMILIES", "BEAM_FAMIL
            "pneunet3d_budget", "pneunet3d_costs", "unreachable", "elastica_on_floor", "contact_table",
            "contact_figure", "column", "scene_measures", "measures_of", "blocked_fem", "blocked_beam",
            "pneunet_blocked_fem", "blocked_rows", "blocked_table", "pneunet_contact_fem", "pneunet_contact_rows",
-           "pneunet_contact_table", "pneunet3d_volume_study"]
+           "pneunet_contact_table", "pneunet3d_volume_study", "wall_gaps"]
 
 #: The error measures of the ladder (the selection takes one of them): on the unseen free loads ``tip``,
 #: ``shape``, ``volume``; ``blocked`` (the tip held: its reaction at the top unseen load, :func:`blocked_rows`);
@@ -204,19 +204,22 @@ class Scene(_Levels):
     scene's P1 rungs solve in 17 / 56 / 191 s (uniform 0.4 / 2 / 8 s), P2's 1.2 and 0.6 mm in 74 / 197 s
     (load 7-8 on 2 cores).
 
-    The full scene's tip (x, y) [mm] on uniform meshes: (58.539, -44.731), (57.913, -45.259), (57.673,
-    -45.424), (57.586, -45.493), (57.650, -45.446) at h = 2.4 ... 0.15 mm, changes 0.819, 0.291, 0.111, 0.079
-    mm, turning back at 0.15 mm (Richardson on 1.2/0.6/0.3 mm, capped at the corners' order 1.09: 0.098 mm, 0.12
-    % of L). Graded (:data:`GRADING`, the same rungs h = 1.2, 0.6, 0.3 mm): (57.522, -45.549), (57.692, -45.414),
-    (57.747, -45.368), changes 0.217 and 0.072 mm along one direction (x 0.170, 0.055; y 0.134, 0.046 mm),
-    observed order 1.60, Richardson 0.035 mm, 0.044 % of L (solves 24, 55, 628 s at load 7-9). Its limit,
-    (57.774, -45.345), lies 0.24 mm (0.30 % of L) from the uniform 0.3 mm tip and 0.16 mm from the uniform
-    0.15 mm one: the uniform meshes' estimate (0.12 %) was too small. P2 with a pressure per material at 0.6
-    mm lies 0.090 % from that reference on the unseen load and 0.097 % at the validation load. But the full
-    scene cannot run graded yet: its reference's training ramp (to p_max in 16 steps) stops Newton at load
-    0.745, and Taylor-Hood's unseen ramp at 0.757 of 0.85; so :data:`SCENES` ``full`` stays uniform. The quick scene stays
-    uniform (h = 2.4, 1.2, 0.6 mm, its test cost): observed order 4.3, capped at 1.09, 0.010 mm, against
-    0.014 mm to the next mesh."""
+    The walls of neighbouring chambers (:func:`wall_gaps`). The model has no self-contact, and the inflated
+    chambers' side walls bulge into the 1.5 mm gaps between the blocks: on the full scene (P2 with a pressure per
+    material, graded h = 0.6 mm) the gaps close at 1.62 kPa on the free ramp, 1.05 kPa with the tip face held
+    (the blocked load) and 1.19 kPa on the cylinder; beyond, the walls pass through each other (by 1.64 mm at 6
+    kPa, free; the quick scene's 4 chambers by 1.33 mm at its 5 kPa). Session 13's full scene (p_max 6 kPa) was
+    in that state from a quarter of its training ramp on, and its graded reference's stop at load 0.745 (4.5
+    kPa, Newton stagnating at residual 6e-5 with steps of 6e-5) came with the overlap squeezing the gap corners
+    (J of the corner cell 0.46 at 6 kPa on h = 0.6 mm). So the full scene stops at p_max = 0.9 kPa, below every
+    load's contact: there the gaps are 0.53 mm (free) and 0.17 mm (blocked) at the top training load (graded
+    h = 0.3 mm), and the tip moves 11.6 mm (14 % of L) down. At 6 kPa the full scene's tip changed by 0.819,
+    0.291, 0.111, 0.079 mm on uniform meshes (h = 2.4 ... 0.15 mm, turning back), and graded (h = 1.2, 0.6, 0.3
+    mm) converged at order 1.60 to 0.044 % of L, 0.30 % of L from the uniform 0.3 mm tip (session 13): figures
+    of the overlapping model, not of a PneuNet. The quick scene keeps 5 kPa
+    (its test cost and numbers; a plumbing check): its table says that its walls overlap.
+
+    The full scene at 0.9 kPa, graded (:data:`GRADING`, h = 1.2, 0.6, 0.3 mm): FULL_NUMBERS"""
 
     name: str = "pneunet2d"
     #: P2 mixed with one pressure per material is the reference (it may jump across the layer's top)
@@ -248,9 +251,8 @@ class Scene(_Levels):
 SLOW_FEM_S = 20.0
 
 #: A mesh grading of the 2D PneuNet towards its corners (:meth:`sorofem.mesh.Mesh.from_sdf` ``grading``): sizes
-#: h (r / 1.5 mm)^0.6 within 1.5 mm of a corner, at least h/10 (see :class:`Scene`). The full scene does not use
-#: it yet: on its h = 0.3 mm mesh the reference's unseen ramp converges (tip known to 0.044 % of L), but its
-#: training ramp to p_max (16 steps) stops Newton at load 0.745, and Taylor-Hood's unseen ramp at 0.757 of 0.85.
+#: h (r / 1.5 mm)^0.6 within 1.5 mm of a corner, at least h/10 (see :class:`Scene`). The full scene uses it (at
+#: p_max 0.9 kPa, below the walls' contact; at 6 kPa its reference's training ramp stopped Newton at load 0.745).
 GRADING = (1.5e-3, 0.4, 0.1)
 
 #: The scenes ``soro trade SCENE`` knows, full and quick (``--quick``; what the tests run).
@@ -289,6 +291,40 @@ def _backbone(pn, length, dim=2):
     if dim == 3:
         return Backbone.line([0.0, pn.LAYER / 2, 0.0], [length, pn.LAYER / 2, 0.0], normal=(0.0, 1.0, 0.0))
     return Backbone.line([0.0, pn.LAYER / 2], [length, pn.LAYER / 2])
+
+
+def wall_gaps(vertices, displacement, chambers):
+    r"""The gaps [m] between the facing walls of neighbouring chambers of the 2D PneuNet (``demos/
+    pneunet_inflation.py``'s geometry, ``chambers`` of them), one per gap, in the deformed state ``vertices`` +
+    ``displacement`` ((n, 2 or 3) [m], the mesh's vertices and one step's vertex displacement).
+
+    A gap's faces are the boundary vertices on :math:`x = iP \mp G/2` above the base (P the pitch, G the gap).
+    Its value is the least signed distance from the right face's vertices to the left face's polyline, positive
+    on the gap's side: G at rest, 0 where the walls touch, negative where they overlap (the FEM model has no
+    self-contact, so inflated walls pass through each other: the full scene at 6 kPa overlapped by 1.6 mm)."""
+    pn = _pneunet()
+    X = np.asarray(vertices, dtype=float)[:, :2]
+    x = X + np.asarray(displacement, dtype=float)[:, :2]
+    tol = 1e-9 * pn.PITCH * chambers
+    gaps = []
+    for i in range(1, chambers):
+        up = X[:, 1] > pn.BASE - tol
+        left = np.flatnonzero(up & (np.abs(X[:, 0] - (i * pn.PITCH - pn.GAP / 2)) < tol))
+        right = np.flatnonzero(up & (np.abs(X[:, 0] - (i * pn.PITCH + pn.GAP / 2)) < tol))
+        if len(left) < 2 or len(right) < 1:
+            raise ParameterError(f"wall_gaps: gap {i} has no wall faces on these vertices: give the 2D PneuNet's "
+                                 f"mesh of {chambers} chambers")
+        left = left[np.argsort(X[left, 1])]
+        a, ab = x[left[:-1]], x[left[1:]] - x[left[:-1]]              # the left face's segments, bottom to top
+        d = x[right][:, None, :] - a[None]                            # (right vertices, segments, 2)
+        s = np.clip(np.einsum("rsk,sk->rs", d, ab) / np.einsum("sk,sk->s", ab, ab), 0.0, 1.0)
+        e = d - s[..., None] * ab[None]
+        dist = np.linalg.norm(e, axis=2)
+        near = np.argmin(dist, axis=1)
+        r = np.arange(len(right))
+        side = np.sign(ab[near, 1] * d[r, near, 0] - ab[near, 0] * d[r, near, 1])   # + : right of the rising face
+        gaps.append(float(np.min(side * dist[r, near])))
+    return np.asarray(gaps)
 
 
 # ------------------------------------------------------------------------------------------------ Richardson
@@ -654,10 +690,29 @@ def _time_interleaved(rows, loads, repeats, clock=time.perf_counter):
         r["solve_time_s"], r["solve_iqr_s"] = float(np.median(t)), _iqr(t)
 
 
+def _train_wall_gap(scene, out, doc):
+    """The least gap [m] between neighbouring chambers' walls (:func:`wall_gaps`) at the top training load, on the
+    reference's training ramp (the snapshot file of ``doc``)."""
+    from sorofem.snapshots import Snapshots
+
+    snap = Snapshots(Path(out) / doc["reference"]["train"])
+    return float(wall_gaps(snap.vertices, snap.displacement(snap.n_steps - 1), scene.chambers).min())
+
+
+def _wall_gap_text(gap):
+    """The table's line on the walls of neighbouring chambers at the top training load (``gap`` [m])."""
+    if gap >= 0:
+        return f"walls of neighbouring chambers at the top training load: {1e3 * gap:.3f} mm apart (they do not touch)"
+    return (f"WARNING: the walls of neighbouring chambers overlap by {-1e3 * gap:.3f} mm at the top training load: "
+            "the FEM model has no self-contact, so its results there are not physical (lower p_max)")
+
+
 def ladder(scene, out, progress=None):
     """The whole ladder: (rows, info) with the FEM rows first (:func:`fem_ladder`, cached in ``out``) then the
     beam rows (:func:`beam_ladder`, measured on every call), and ``info`` with the reference's Richardson
-    estimates ``richardson`` (per measure), ``length`` [m] and the FEM document ``fem``."""
+    estimates ``richardson`` (per measure), ``length`` [m], the FEM document ``fem`` and (2D PneuNet)
+    ``wall_gap`` [m], the least gap between neighbouring chambers' walls at the top training load
+    (:func:`wall_gaps`; negative: they overlap)."""
     if isinstance(scene, CantileverScene):
         return cantilever_ladder(scene, out, progress)
     if isinstance(scene, PneuNet3DScene):
@@ -665,7 +720,7 @@ def ladder(scene, out, progress=None):
     doc = fem_ladder(scene, out, progress)
     fem_rows, rich = _fem_rows(doc, scene.formal_order)
     rows = fem_rows + beam_ladder(scene, doc, out)
-    info = {"richardson": rich, "length": doc["length"], "fem": doc}
+    info = {"richardson": rich, "length": doc["length"], "fem": doc, "wall_gap": _train_wall_gap(scene, out, doc)}
     if scene.blocked:
         info["blocked"] = blocked_rows(rows, scene, doc, pneunet_blocked_fem(scene, out, doc, progress))
     if scene.cylinder:
@@ -2057,6 +2112,8 @@ def run_ladder(scene_name="pneunet2d", tolerance=None, measure="tip", out=None, 
     budget_text, budget = (cantilever_budget(rows, info) if cant else pneunet3d_budget(rows, info) if three
                            else error_budget(rows, info))
     text = table + "\n\nerror budget (tip)\n" + budget_text
+    if "wall_gap" in info:
+        text += "\n\n" + _wall_gap_text(info["wall_gap"])
     if cant:
         text += "\n\ncosts\n" + cost_table(rows)
         if "contact" in info:
@@ -2083,7 +2140,7 @@ def run_ladder(scene_name="pneunet2d", tolerance=None, measure="tip", out=None, 
     result = {"scene": scene_name, "quick": quick, "rows": [{k: v for k, v in r.items() if not k.startswith("_")}
                                                            for r in rows],
               "richardson": info["richardson"], "budget": budget}
-    for k in ("contact", "blocked", "cylinder", "volume_study"):
+    for k in ("contact", "blocked", "cylinder", "volume_study", "wall_gap"):
         if k in info:
             result[k] = info[k]
     if tol is not None:

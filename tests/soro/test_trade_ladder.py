@@ -634,6 +634,32 @@ def test_the_pneunet_layer_is_one_geometry_on_every_rung(size):
     assert fem.mesh.measure("layer") == pytest.approx(pn.LAYER * length, rel=1e-10)
 
 
+def test_the_full_pneunets_walls_stay_apart_at_its_p_max_and_overlap_above_their_contact_load():
+    """The FEM model has no self-contact: the inflated side walls of neighbouring chambers bulge into the 1.5 mm
+    gaps and pass through each other past contact (session 13's 6 kPa full scene: by 1.64 mm). With the tip face
+    held (the blocked load, the first to close them: 1.05 kPa on h = 0.6 mm), P2 per material on the full scene's
+    graded h = 1.2 mm mesh: at its p_max (0.9 kPa) the least gap is 0.176 mm (0.168 mm on h = 0.3 mm: the mesh
+    moves it by 0.01 mm), at 1.3 kPa the walls overlap by 0.29 mm. Bounds: 0.1 mm apart, 0.1 mm overlap. At rest
+    :func:`wall_gaps` is the gap itself, and a block shifted 2 mm towards its neighbour overlaps it by exactly
+    0.5 mm. About 4 s."""
+    from soro.ladder import SCENES, _build_2d, _pneunet, wall_gaps
+
+    scene, pn = SCENES["pneunet2d"]["full"], _pneunet()
+
+    def blocked_gaps(level):
+        fem, _ = _build_2d(scene, pn, 2, "per_material", scene.size)
+        fem.add_support("right", components=[1])
+        tr = fem.solve(load_level=level, steps=3, max_step=level / 3, progress=False)
+        return tr.vertices, wall_gaps(tr.vertices, np.asarray(tr.displacement)[-1], scene.chambers)
+    X, at_p_max = blocked_gaps(1.0)
+    assert len(at_p_max) == scene.chambers - 1 and at_p_max.min() > 0.1e-3
+    assert blocked_gaps(1.3e3 / scene.p_max)[1].min() < -0.1e-3
+    U = np.zeros_like(np.asarray(X))
+    np.testing.assert_allclose(wall_gaps(X, U, scene.chambers), pn.GAP, rtol=1e-9)
+    U[np.asarray(X)[:, 0] > pn.PITCH, 0] = -2e-3                      # the blocks right of gap 1 shifted left
+    assert wall_gaps(X, U, scene.chambers)[0] == pytest.approx(pn.GAP - 2e-3, rel=1e-9)
+
+
 # ------------------------------------------------------------------------------------------------ 3D blocked force
 def test_the_3d_blocked_force_of_a_propped_cantilever_is_the_closed_form():
     """:func:`blocked_fem` in 3D: a 100 x 5 x 5 mm neo-Hookean bar (nu = 0.49) clamped at x = 0, under an end moment
