@@ -660,6 +660,18 @@ def test_the_full_pneunets_walls_stay_apart_at_its_p_max_and_overlap_above_their
     assert wall_gaps(X, U, scene.chambers)[0] == pytest.approx(pn.GAP - 2e-3, rel=1e-9)
 
 
+def test_a_contact_load_the_reference_never_reaches_is_refused_with_what_to_change():
+    """A 2D PneuNet whose reference does not touch the cylinder (zero force: a 2-chamber P1 scene at 0.9 kPa did
+    not) has no force error to measure: a SoroError says so and what to change, instead of a division by zero."""
+    from sorofem.errors import SoroError
+    from soro.ladder import Scene, pneunet_contact_rows
+
+    cdoc = {"order": ["fem-p1-h0"], "rungs": {"fem-p1-h0": {"tip": [0.08, 0.0, 0.0], "force": [0.0, 0.0],
+                                                            "solve_s": 1.0}}, "reference": {}}
+    with pytest.raises(SoroError, match="does not reach the cylinder.*raise p_max"):
+        pneunet_contact_rows([{"family": "fem-p1", "estimated": True}], Scene(p_max=900.0), {"length": 0.08}, cdoc)
+
+
 # ------------------------------------------------------------------------------------------------ 3D blocked force
 def test_the_3d_blocked_force_of_a_propped_cantilever_is_the_closed_form():
     """:func:`blocked_fem` in 3D: a 100 x 5 x 5 mm neo-Hookean bar (nu = 0.49) clamped at x = 0, under an end moment
