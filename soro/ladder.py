@@ -715,20 +715,26 @@ def _train_wall_gap(scene, out, doc):
     return float(wall_gaps(snap.vertices, snap.displacement(snap.n_steps - 1), scene.chambers).min())
 
 
-def _wall_gap_text(gap):
-    """The table's line on the walls of neighbouring chambers at the top training load (``gap`` [m])."""
-    if gap >= 0:
-        return f"walls of neighbouring chambers at the top training load: {1e3 * gap:.3f} mm apart (they do not touch)"
-    return (f"WARNING: the walls of neighbouring chambers overlap by {-1e3 * gap:.3f} mm at the top training load: "
-            "the FEM model has no self-contact, so its results there are not physical (lower p_max)")
+def _wall_gap_text(gaps):
+    """The table's line on the walls of neighbouring chambers at the top training load, the reference's least gap
+    [m] per load (``gaps``: ``free``, and ``blocked``, ``cylinder`` when the scene has them; None: not recorded)."""
+    have = {k: g for k, g in gaps.items() if g is not None}
+    text = ", ".join(f"{k} {1e3 * g:.3f} mm" for k, g in have.items())
+    over = [k for k, g in have.items() if g < 0]
+    if not over:
+        return f"walls of neighbouring chambers at the top training load, least gap (they do not touch): {text}"
+    return (f"WARNING: the walls of neighbouring chambers overlap at the top training load ({', '.join(over)}; "
+            f"least gap {text}): the FEM model has no self-contact, so its results there are not physical "
+            "(lower p_max)")
 
 
 def ladder(scene, out, progress=None):
     """The whole ladder: (rows, info) with the FEM rows first (:func:`fem_ladder`, cached in ``out``) then the
     beam rows (:func:`beam_ladder`, measured on every call), and ``info`` with the reference's Richardson
-    estimates ``richardson`` (per measure), ``length`` [m], the FEM document ``fem`` and (2D PneuNet)
-    ``wall_gap`` [m], the least gap between neighbouring chambers' walls at the top training load
-    (:func:`wall_gaps`; negative: they overlap)."""
+    estimates ``richardson`` (per measure), ``length`` [m], the FEM document ``fem`` and ``wall_gap``: the
+    reference's least gap [m] between neighbouring chambers' walls at the top training load (:func:`wall_gaps`;
+    negative: they overlap) on the free ramp (``free``) and, when the scene has them, held at the tip
+    (``blocked``) and on the cylinder (``cylinder``)."""
     if isinstance(scene, CantileverScene):
         return cantilever_ladder(scene, out, progress)
     if isinstance(scene, PneuNet3DScene):
@@ -736,11 +742,16 @@ def ladder(scene, out, progress=None):
     doc = fem_ladder(scene, out, progress)
     fem_rows, rich = _fem_rows(doc, scene.formal_order)
     rows = fem_rows + beam_ladder(scene, doc, out)
-    info = {"richardson": rich, "length": doc["length"], "fem": doc, "wall_gap": _train_wall_gap(scene, out, doc)}
+    info = {"richardson": rich, "length": doc["length"], "fem": doc,
+            "wall_gap": {"free": _train_wall_gap(scene, out, doc)}}
     if scene.blocked:
-        info["blocked"] = blocked_rows(rows, scene, doc, pneunet_blocked_fem(scene, out, doc, progress))
+        bdoc = pneunet_blocked_fem(scene, out, doc, progress)
+        info["blocked"] = blocked_rows(rows, scene, doc, bdoc)
+        info["wall_gap"]["blocked"] = bdoc["reference"].get("train_wall_gap")
     if scene.cylinder:
-        info["cylinder"] = pneunet_contact_rows(rows, scene, doc, pneunet_contact_fem(scene, out, doc, progress))
+        cdoc = pneunet_contact_fem(scene, out, doc, progress)
+        info["cylinder"] = pneunet_contact_rows(rows, scene, doc, cdoc)
+        info["wall_gap"]["cylinder"] = cdoc["rungs"][cdoc["order"][-1]].get("wall_gap")
     return rows, info
 
 
@@ -1452,13 +1463,22 @@ def _pneunet_blocked(scene, pn, degree, mixed, size, level):
     """The PneuNet's FEM model (the scene's ``dim``: 2, plane strain, meshed as the scene's grading says, or 3)
     of ``degree``/``mixed`` on ``size`` with its end face (``right``: the base's end, below the chambers; in 3D
     the whole end face of the base) held vertically, ramped to ``level`` x p_max: (reaction [N per m of depth in
-    2D; N in 3D], CPU s)."""
+    2D; N in 3D], CPU s, the least gap [m] between neighbouring chambers' walls at ``level``, :func:`wall_gaps`;
+    None in 3D)."""
     if scene.dim == 2:
         fem, _ = _build_2d(scene, pn, degree, mixed, size)
     else:
         fem, _ = pn.build(scene.dim, scene.chambers, size, scene.p_max, degree=degree, mixed=mixed)
-    R, cpu, _ = blocked_fem(fem, "right", level, scene.test_steps, linear_start=_blocked_linear_start(scene))
-    return R, cpu
+    R, cpu, traj = blocked_fem(fem, "right", level, scene.test_steps, linear_start=_blocked_linear_start(scene))
+    return R, cpu, _least_wall_gap(scene, traj)
+
+
+def _least_wall_gap(scene, traj):
+    """The least gap [m] between neighbouring chambers' walls (:func:`wall_gaps`) in the last state of a 2D
+    PneuNet's trajectory; None in 3D."""
+    if scene.dim != 2:
+        return None
+    return float(wall_gaps(traj.vertices, np.asarray(traj.displacement)[-1], scene.chambers).min())
 
 
 def _rung_cache(path, scene):
@@ -1483,21 +1503,24 @@ def pneunet_blocked_fem(scene, out, doc, progress=None):
     also at the top training load (1: what a beam's stiffness scale is fitted on, see :func:`blocked_rows`) and
     at the validation load. Cached, rung by rung, in ``out/blocked.json`` (with the scene's settings; an
     interrupted run resumes). Returns that document: ``rungs`` (``force`` [N/m in 2D, N in 3D], ``solve_s`` CPU
-    [s]) in the order of ``doc["rungs"]`` and ``reference`` (``train``, ``validation`` forces)."""
+    [s]) in the order of ``doc["rungs"]`` and ``reference`` (``train``, ``validation`` forces, and the least gap
+    [m] between neighbouring chambers' walls at each, ``train_wall_gap``, ``validation_wall_gap``; None in 3D)."""
     bdoc, save = _rung_cache(Path(out) / "blocked.json", scene)
     pn = _pneunet()
     say = progress or (lambda msg: None)
     for r in doc["rungs"]:
         key = f"{r['family']}-h{r['level']}"
         if key not in bdoc["rungs"]:
-            R, cpu = _pneunet_blocked(scene, pn, r["degree"], r["mixed"], r["size"], scene.test_level)
+            R, cpu, _ = _pneunet_blocked(scene, pn, r["degree"], r["mixed"], r["size"], scene.test_level)
             bdoc["rungs"][key] = {"force": R, "solve_s": cpu}
             say(f"blocked {r['family']} h={1e3 * r['size']:.2f} mm: {R:.5g} {_blocked_unit(scene)}, {cpu:.2f} s CPU")
             save()
     ref = doc["rungs"][-1]
     for name, level in (("train", 1.0), ("validation", scene.validation_level)):
         if name not in bdoc["reference"]:
-            bdoc["reference"][name] = _pneunet_blocked(scene, pn, ref["degree"], ref["mixed"], ref["size"], level)[0]
+            R, _, gap = _pneunet_blocked(scene, pn, ref["degree"], ref["mixed"], ref["size"], level)
+            bdoc["reference"][name] = R
+            bdoc["reference"][f"{name}_wall_gap"] = gap
             save()
     bdoc["order"] = [f"{r['family']}-h{r['level']}" for r in doc["rungs"]]
     return bdoc
@@ -1606,7 +1629,8 @@ def _fem_on_cylinder(scene, pn, fem, length, level):
     cpu = time.process_time() - c0
     X = np.array([[length * (1 - 1e-12), pn.LAYER / 2]])
     tip = X[0] + fem.evaluate(X)[0, :2]
-    return [float(tip[0]), float(tip[1]), 0.0], [float(v) for v in traj.reactions["contact_0"][-1]], cpu
+    return ([float(tip[0]), float(tip[1]), 0.0], [float(v) for v in traj.reactions["contact_0"][-1]], cpu,
+            _least_wall_gap(scene, traj))
 
 
 def pneunet_contact_fem(scene, out, doc, progress=None):
@@ -1614,21 +1638,23 @@ def pneunet_contact_fem(scene, out, doc, progress=None):
     the rigid cylinder of ``demos/dvs_pneunet.py`` (radius 0.26 L, 1 mm below the bottom face at 0.55 L;
     frictionless penalty contact, sorofem's default stiffness) at the top training pressure on every rung, and on
     the reference also at the validation load. Cached rung by rung in ``out/contact.json`` (as
-    :func:`pneunet_blocked_fem`). Returns it: ``rungs`` (``tip`` [m], ``force`` [N/m] (2,), ``solve_s`` CPU) and
-    ``reference`` (``validation``: tip and force)."""
+    :func:`pneunet_blocked_fem`). Returns it: ``rungs`` (``tip`` [m], ``force`` [N/m] (2,), ``solve_s`` CPU,
+    ``wall_gap`` [m]: the least gap between neighbouring chambers' walls, :func:`wall_gaps`) and ``reference``
+    (``validation``: tip and force)."""
     cdoc, save = _rung_cache(Path(out) / "contact.json", scene)
     pn = _pneunet()
     say = progress or (lambda msg: None)
     for r in doc["rungs"]:
         key = f"{r['family']}-h{r['level']}"
         if key not in cdoc["rungs"]:
-            tip, F, cpu = _pneunet_on_cylinder(scene, pn, r["degree"], r["mixed"], r["size"], 1.0)
-            cdoc["rungs"][key] = {"tip": tip, "force": F, "solve_s": cpu}
+            tip, F, cpu, gap = _pneunet_on_cylinder(scene, pn, r["degree"], r["mixed"], r["size"], 1.0)
+            cdoc["rungs"][key] = {"tip": tip, "force": F, "solve_s": cpu, "wall_gap": gap}
             say(f"contact {r['family']} h={1e3 * r['size']:.2f} mm: |F| {np.hypot(*F):.4f} N/m, {cpu:.2f} s CPU")
             save()
     if "validation" not in cdoc["reference"]:
         ref = doc["rungs"][-1]
-        tip, F, _ = _pneunet_on_cylinder(scene, pn, ref["degree"], ref["mixed"], ref["size"], scene.validation_level)
+        tip, F, _, _ = _pneunet_on_cylinder(scene, pn, ref["degree"], ref["mixed"], ref["size"],
+                                            scene.validation_level)
         cdoc["reference"]["validation"] = {"tip": tip, "force": F}
         save()
     cdoc["order"] = [f"{r['family']}-h{r['level']}" for r in doc["rungs"]]
@@ -1711,7 +1737,7 @@ def _validate_cylinder(path, scene, out, measure):
         tip, F, _ = _beam_on_cylinder(model, scene, L, lv)
         F = extra.meta.get("blocked_scale", 1.0) * F[:2] / _pneunet().WIDTH
     else:
-        tip, F, _ = _fem_on_cylinder(scene, _pneunet(), model, L, lv)
+        tip, F, _, _ = _fem_on_cylinder(scene, _pneunet(), model, L, lv)
     if measure == "tip_contact":
         return float(np.linalg.norm(np.asarray(tip) - ref["tip"]) / L)
     return float(np.linalg.norm(np.asarray(F) - ref["force"]) / np.linalg.norm(ref["force"]))

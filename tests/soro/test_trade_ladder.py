@@ -97,6 +97,19 @@ def test_a_graded_scene_is_keyed_by_its_grading_and_trusts_a_higher_order():
     assert graded.fem_settings()["grading"] == list(GRADING) and graded.formal_order == 2.0
 
 
+def test_the_table_warns_when_the_walls_of_neighbouring_chambers_overlap(quick):
+    """The quick scene keeps 5 kPa (its test cost and numbers), where its chambers' walls overlap on the free ramp
+    (by 1.33 mm measured on h = 0.6 mm; the model has no self-contact): the ladder records the reference's least
+    gap and its table says WARNING; gaps that stay open are reported as such."""
+    from soro.ladder import _wall_gap_text
+
+    _, _, _, info = quick
+    assert info["wall_gap"]["free"] < -0.5e-3
+    assert _wall_gap_text(info["wall_gap"]).startswith("WARNING: the walls of neighbouring chambers overlap")
+    text = _wall_gap_text({"free": 0.53e-3, "blocked": 0.17e-3, "cylinder": None})
+    assert "do not touch" in text and "blocked 0.170 mm" in text and "cylinder" not in text
+
+
 def test_the_tip_error_of_a_fem_family_shrinks_with_the_mesh(quick):
     """P1 on h, h/2, h/4 against the reference: the finest is closer than the coarsest."""
     _, _, rows, _ = quick
