@@ -225,15 +225,17 @@ class Scene(_Levels):
 
     The full scene at 0.9 kPa, graded (:data:`GRADING`, h = 1.2, 0.6, 0.3 mm): the reference's tip
     (x, y) [mm] at the top unseen load (0.765 kPa) is (79.133, -9.034), (79.137, -9.013), (79.138, -9.005):
-    changes 0.0217 and 0.0081 mm, observed order 1.42, Richardson 0.0049 mm, 0.0061 % of L (shape 0.003 %).
-    Its training ramp (to p_max in 16 steps) and every load run: solves 2.3, 6.7, 24 s, the training ramp 46 s,
+    changes 0.0217 and 0.0081 mm, observed order 1.42, Richardson 0.0049 mm, 0.0061 % of L (shape 0.003 %). At
+    p_max, the top of the training ramp the beams learn from: (78.841, -10.608), (78.847, -10.582), (78.849,
+    -10.570), order 1.20, Richardson 0.0090 mm, 0.011 % of L (the tip point (L, LAYER/2) evaluated directly).
+    Every ramp and load runs to its end (training: to p_max in 16 steps): solves 2.3, 6.7, 24 s, training 46 s,
     the whole ladder 12 min (load 1.5). P2 reaches 0.006 % at 0.3 mm, Taylor-Hood only 0.10 % (order 1.0),
     P1 0.71 %. The blocked force's reference is known to 0.17 % (order 0.95), the cylinder's force to 0.31 %
     (oscillating). The beams: PCC and Chebyshev with 1 mode 0.095 % (validation load 0.070 %), PCC 2 0.048 %,
     DVS and the others 0.10-0.19 %; the integrated recovered bending strain from the clamp's undeformed frame
     (what a clamped beam can reach with every mode) is 0.18 %: the 1-2 mode beams lie below it by a cancellation
     of errors, and the selection holds on the validation load, not used to choose it. ``soro trade pneunet2d
-    --tol 0.1%`` and ``--tol 1%`` both select PCC 1 (0.23 ms per solve; the same in a second run), within 0.070 %
+    --tol 0.1%`` and ``--tol 1%`` both select PCC 1 (0.23 ms per solve; the same in three runs), within 0.070 %
     on the validation load. Counting the reference's own 0.006 %, its unseen error is at most 0.101 %, on the
     line (:func:`select` does not add it); PCC 2 (0.048 %, 0.31 ms) leaves a margin (not validated)."""
 
