@@ -84,15 +84,13 @@ def test_the_ladder_has_fem_and_beam_rungs_and_a_converging_reference(quick):
 
 
 def test_a_graded_scene_is_keyed_by_its_grading_and_trusts_a_higher_order():
-    """A 2D scene graded towards the corners (every family and load alike): its cache key holds the grading and
-    Richardson trusts P2's order 2 there; a uniform scene's cache key is as before the setting existed, with the
-    corners' order 1.09."""
-    from dataclasses import replace
-
+    """A 2D scene graded towards the corners (every family and load alike; the full scene is): its cache key holds
+    the grading and Richardson trusts P2's order 2 there; a uniform scene's (the quick one's) cache key is as
+    before the setting existed, with the corners' order 1.09."""
     from soro.ladder import GRADING, SCENES
 
     quick = SCENES["pneunet2d"]["quick"]
-    graded = replace(SCENES["pneunet2d"]["full"], grading=GRADING)
+    graded = SCENES["pneunet2d"]["full"]
     assert quick.grading is None and "grading" not in quick.fem_settings() and quick.formal_order == 1.09
     assert graded.fem_settings()["grading"] == list(GRADING) and graded.formal_order == 2.0
 
