@@ -84,17 +84,28 @@ def test_the_ladder_has_fem_and_beam_rungs_and_a_converging_reference(quick):
 
 
 def test_a_graded_scene_is_keyed_by_its_grading_and_trusts_a_higher_order():
-    """A 2D scene graded towards the corners (every family and load alike): its cache key holds the grading and
-    Richardson trusts P2's order 2 there; a uniform scene's cache key is as before the setting existed, with the
-    corners' order 1.09."""
-    from dataclasses import replace
-
+    """A 2D scene graded towards the corners (every family and load alike; the full scene is): its cache key holds
+    the grading and Richardson trusts P2's order 2 there; a uniform scene's (the quick one's) cache key is as
+    before the setting existed, with the corners' order 1.09."""
     from soro.ladder import GRADING, SCENES
 
     quick = SCENES["pneunet2d"]["quick"]
-    graded = replace(SCENES["pneunet2d"]["full"], grading=GRADING)
+    graded = SCENES["pneunet2d"]["full"]
     assert quick.grading is None and "grading" not in quick.fem_settings() and quick.formal_order == 1.09
     assert graded.fem_settings()["grading"] == list(GRADING) and graded.formal_order == 2.0
+
+
+def test_the_table_warns_when_the_walls_of_neighbouring_chambers_overlap(quick):
+    """The quick scene keeps 5 kPa (its test cost and numbers), where its chambers' walls overlap on the free ramp
+    (by 1.33 mm measured on h = 0.6 mm; the model has no self-contact): the ladder records the reference's least
+    gap and its table says WARNING; gaps that stay open are reported as such."""
+    from soro.ladder import _wall_gap_text
+
+    _, _, _, info = quick
+    assert info["wall_gap"]["free"] < -0.5e-3
+    assert _wall_gap_text(info["wall_gap"]).startswith("WARNING: the walls of neighbouring chambers overlap")
+    text = _wall_gap_text({"free": 0.53e-3, "blocked": 0.17e-3, "cylinder": None})
+    assert "do not touch" in text and "blocked 0.170 mm" in text and "cylinder" not in text
 
 
 def test_the_tip_error_of_a_fem_family_shrinks_with_the_mesh(quick):
@@ -632,6 +643,44 @@ def test_the_pneunet_layer_is_one_geometry_on_every_rung(size):
     scene = SCENES["pneunet2d"]["quick"]
     fem, length = pn.build(2, scene.chambers, size, scene.p_max, degree=1)
     assert fem.mesh.measure("layer") == pytest.approx(pn.LAYER * length, rel=1e-10)
+
+
+def test_the_full_pneunets_walls_stay_apart_at_its_p_max_and_overlap_above_their_contact_load():
+    """The FEM model has no self-contact: the inflated side walls of neighbouring chambers bulge into the 1.5 mm
+    gaps and pass through each other past contact (session 13's 6 kPa full scene: by 1.64 mm). With the tip face
+    held (the blocked load, the first to close them: 1.05 kPa on h = 0.6 mm), P2 per material on the full scene's
+    graded h = 1.2 mm mesh: at its p_max (0.9 kPa) the least gap is 0.176 mm (0.168 mm on h = 0.3 mm: the mesh
+    moves it by 0.01 mm), at 1.3 kPa the walls overlap by 0.29 mm. Bounds: 0.1 mm apart, 0.1 mm overlap. At rest
+    :func:`wall_gaps` is the gap itself, and a block shifted 2 mm towards its neighbour overlaps it by exactly
+    0.5 mm. About 4 s."""
+    from soro.ladder import SCENES, _build_2d, _pneunet, wall_gaps
+
+    scene, pn = SCENES["pneunet2d"]["full"], _pneunet()
+
+    def blocked_gaps(level):
+        fem, _ = _build_2d(scene, pn, 2, "per_material", scene.size)
+        fem.add_support("right", components=[1])
+        tr = fem.solve(load_level=level, steps=3, max_step=level / 3, progress=False)
+        return tr.vertices, wall_gaps(tr.vertices, np.asarray(tr.displacement)[-1], scene.chambers)
+    X, at_p_max = blocked_gaps(1.0)
+    assert len(at_p_max) == scene.chambers - 1 and at_p_max.min() > 0.1e-3
+    assert blocked_gaps(1.3e3 / scene.p_max)[1].min() < -0.1e-3
+    U = np.zeros_like(np.asarray(X))
+    np.testing.assert_allclose(wall_gaps(X, U, scene.chambers), pn.GAP, rtol=1e-9)
+    U[np.asarray(X)[:, 0] > pn.PITCH, 0] = -2e-3                      # the blocks right of gap 1 shifted left
+    assert wall_gaps(X, U, scene.chambers)[0] == pytest.approx(pn.GAP - 2e-3, rel=1e-9)
+
+
+def test_a_contact_load_the_reference_never_reaches_is_refused_with_what_to_change():
+    """A 2D PneuNet whose reference does not touch the cylinder (zero force: a 2-chamber P1 scene at 0.9 kPa did
+    not) has no force error to measure: a SoroError says so and what to change, instead of a division by zero."""
+    from sorofem.errors import SoroError
+    from soro.ladder import Scene, pneunet_contact_rows
+
+    cdoc = {"order": ["fem-p1-h0"], "rungs": {"fem-p1-h0": {"tip": [0.08, 0.0, 0.0], "force": [0.0, 0.0],
+                                                            "solve_s": 1.0}}, "reference": {}}
+    with pytest.raises(SoroError, match="does not reach the cylinder.*raise p_max"):
+        pneunet_contact_rows([{"family": "fem-p1", "estimated": True}], Scene(p_max=900.0), {"length": 0.08}, cdoc)
 
 
 # ------------------------------------------------------------------------------------------------ 3D blocked force
