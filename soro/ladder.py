@@ -234,10 +234,11 @@ class Scene(_Levels):
     (oscillating). The beams: PCC and Chebyshev with 1 mode 0.095 % (validation load 0.070 %), PCC 2 0.048 %,
     DVS and the others 0.10-0.19 %; the integrated recovered bending strain from the clamp's undeformed frame
     (what a clamped beam can reach with every mode) is 0.18 %: the 1-2 mode beams lie below it by a cancellation
-    of errors, and the selection holds on the validation load, not used to choose it. ``soro trade pneunet2d
-    --tol 0.1%`` and ``--tol 1%`` both select PCC 1 (0.23 ms per solve; the same in three runs), within 0.070 %
-    on the validation load. Counting the reference's own 0.006 %, its unseen error is at most 0.101 %, on the
-    line (:func:`select` does not add it); PCC 2 (0.048 %, 0.31 ms) leaves a margin (not validated)."""
+    of errors, and the selection holds on the validation load, not used to choose it. :func:`select` counts
+    each model's error with the reference's own 0.006 %: ``soro trade pneunet2d --tol 0.1%`` selects PCC 2
+    (0.048 % + 0.006 %, 0.38 ms per solve; the same in two runs), 0.040 % on the validation load (at most 0.046 %
+    with the reference's); PCC 1 (0.095 % + 0.006 % = 0.101 %) is just out. ``--tol 1%`` selects PCC 1 (0.27
+    ms), 0.070 % on the validation load."""
 
     name: str = "pneunet2d"
     #: P2 mixed with one pressure per material is the reference (it may jump across the layer's top)
