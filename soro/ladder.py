@@ -326,8 +326,8 @@ def wall_gaps(vertices, displacement, chambers):
     x = X + np.asarray(displacement, dtype=float)[:, :2]
     tol = 1e-9 * pn.PITCH * chambers
     gaps = []
+    up = X[:, 1] > pn.BASE - tol                                      # the walls: above the base
     for i in range(1, chambers):
-        up = X[:, 1] > pn.BASE - tol
         left = np.flatnonzero(up & (np.abs(X[:, 0] - (i * pn.PITCH - pn.GAP / 2)) < tol))
         right = np.flatnonzero(up & (np.abs(X[:, 0] - (i * pn.PITCH + pn.GAP / 2)) < tol))
         if len(left) < 2 or len(right) < 1:
