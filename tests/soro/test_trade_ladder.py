@@ -586,7 +586,9 @@ def test_the_blocked_force_of_a_propped_cantilever_is_the_closed_form():
 def blocked2d(tmp_path_factory):
     """The plumbing of the blocked and the cylinder contact measures on a tiny 2D PneuNet (about 5 s of CPU: 2
     chambers, P1 rungs only on h = 2.4, 1.2, 0.6 mm, the finest P1 its reference; beams with 1-2 modes). Its
-    numbers are not the scene's (`soro trade pneunet2d --measure blocked` is)."""
+    numbers are not the scene's (`soro trade pneunet2d --measure blocked` is). At its 5 kPa its one gap's walls
+    overlap (least gap -1.06 mm free, -1.90 mm blocked, -1.09 mm on the cylinder: measured; its table warns),
+    and it cannot go below contact: at 1.5 and 2 kPa its locking P1 reference does not reach the cylinder."""
     from soro.ladder import Scene, ladder
 
     out = tmp_path_factory.mktemp("blocked2d")
