@@ -826,6 +826,15 @@ class CantileverScene(_Levels):
         w = self.density * 9.80665 * self.height if self.gravity else 0.0
         return w, self.tip_load * self.EI() / self.length ** 2
 
+    def apply_loads(self, shapes, level=1.0):
+        """Give a beam of this scene (a rung, or one read from a model file: :func:`beam_within`, which holds no
+        loads) the scene's loads at ``level``: its weight if ``gravity``, and the tip load along -y over the beam
+        rungs' section depth (``_CANTILEVER_DEPTH``; the loads per m of depth scale with it). Returns ``shapes``."""
+        w, P = self.loads()
+        if self.gravity:
+            shapes.add_gravity((0.0, -9.80665 * level, 0.0))
+        return shapes.add_point_load(force=(0.0, -level * P * _CANTILEVER_DEPTH, 0.0))
+
     def EI(self):
         """Plane-strain bending stiffness per m of depth [N m]: E/(1 - nu^2) h^3/12."""
         return self.E / (1 - self.nu ** 2) * self.height ** 3 / 12
@@ -1064,14 +1073,11 @@ def _cantilever_beam(scene, bases, dofs, level=1.0, segments=40, contact=False):
     from sorofem import sdf
     from soroshapes import Shapes
 
-    depth = _CANTILEVER_DEPTH
-    w, P = scene.loads()
-    shp = Shapes(bases, dofs, length=scene.length, section=sdf.Rectangle(scene.height, depth),   # (body y, z)
+    shp = Shapes(bases, dofs, length=scene.length,
+                 section=sdf.Rectangle(scene.height, _CANTILEVER_DEPTH),                         # (body y, z)
                  material=scene.material(), E=scene.E / (1 - scene.nu ** 2), damping=0.0, segments=segments,
                  contact_radius=scene.height / 2)
-    if scene.gravity:
-        shp.add_gravity((0.0, -9.80665 * level, 0.0))
-    shp.add_point_load(force=(0.0, -level * P * depth, 0.0))
+    scene.apply_loads(shp, level)
     if contact:
         shp.add_contact(scene.floor(3))
     return shp
@@ -1281,11 +1287,7 @@ def _validate_cantilever(path, scene, out, measure):
     kind, model, extra = load_model(path)
     lv = scene.validation_level
     if kind == "beam":
-        w, P = scene.loads()
-        depth = _CANTILEVER_DEPTH
-        if scene.gravity:
-            model.add_gravity((0.0, -9.80665 * lv, 0.0))
-        model.add_point_load(force=(0.0, -lv * P * depth, 0.0))
+        scene.apply_loads(model, lv)
         Pm = _positions_at(model, model.statics(steps=4), sigma)
     else:
         model.solve(load_level=lv, steps=scene.test_steps, max_step=lv / scene.test_steps, progress=False)
@@ -1305,10 +1307,7 @@ def _validate_cantilever_contact(path, scene, doc, measure):
     kind, model, extra = load_model(path)
     lv = ref["level"]
     if kind == "beam":
-        w, P = scene.loads()
-        if scene.gravity:
-            model.add_gravity((0.0, -9.80665 * lv, 0.0))
-        model.add_point_load(force=(0.0, -lv * P * _CANTILEVER_DEPTH, 0.0))
+        scene.apply_loads(model, lv)
         model.contact_radius = scene.height / 2
         model.add_contact(scene.floor(3))
         q = model.statics(steps=2 * scene.test_steps)
@@ -2095,7 +2094,7 @@ def beam_within(scene_name, tolerance, measure="tip", out=None, quick=False):
     ``out/ladder/SCENE``). Writes ``model-<measure>-<tolerance>.json`` there and returns ``(shapes, beamfile)``
     read back from it (:func:`soroshapes.io.load_beam`), ready for a :class:`soroshapes.Model`. The file holds
     the beam, its identified actuators and cavity volumes, not the scene's external loads: a cantilever body
-    gets its tip load from the network (``shapes.add_point_load``, as :func:`validate` does).
+    gets its tip load from :meth:`CantileverScene.apply_loads`, as :func:`validate` gives it.
 
     A ParameterError when no beam meets the tolerance: naming the best one reachable, or, when only the FEM
     reference is known to be within it, the best beam and its error. Measured on the quick cantilever

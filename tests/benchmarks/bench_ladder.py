@@ -39,12 +39,11 @@ def test_bench_ladder_network_by_tolerance(record, tmp_path):
 
     import numpy as np
 
-    from soro.ladder import _CANTILEVER_DEPTH, SCENES, beam_within, ladder, write_model
+    from soro.ladder import SCENES, beam_within, ladder, write_model
     from soroshapes import Model
     from soroshapes.io import load_beam
 
     scene = SCENES["cantilever"]["quick"]
-    _, P = scene.loads()
     out = tmp_path / "cantilever"
 
     def body(tol):
@@ -60,7 +59,7 @@ def test_bench_ladder_network_by_tolerance(record, tmp_path):
         mdl = Model()
         for name, tol in (("left", a), ("right", b)):
             shp = body(tol)[0] if tol else load_beam(path)[0]
-            mdl.add(shp.add_point_load(force=(0.0, -P * _CANTILEVER_DEPTH, 0.0)), name)
+            mdl.add(scene.apply_loads(shp), name)
         return mdl
     nets = {k: network(*v) for k, v in pairs.items()}
     for mdl in nets.values():                                          # warm-up (compilation)

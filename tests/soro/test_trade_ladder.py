@@ -319,7 +319,7 @@ def test_bodies_asking_for_different_tolerances_get_different_models(cantilever)
     error, slower). No beam comes within 0.1 %: the elastica a bending-only beam converges to is 0.18 % from the FEM
     (shear, thickness), so a body asking 0.1 % is told the best beam and to model it by FEM."""
     from soroshapes import Model
-    from soro.ladder import _CANTILEVER_DEPTH, beam_within, validate
+    from soro.ladder import beam_within, validate
 
     scene, out, rows, _ = cantilever
     ref = next(r["tip_unseen"] for r in rows if r.get("estimated"))
@@ -331,10 +331,7 @@ def test_bodies_asking_for_different_tolerances_get_different_models(cantilever)
     assert loose.n < tight.n
     for tol in (0.01, 0.0022):
         assert validate(out / f"model-tip-{tol:g}.json", scene, out, "tip") + ref <= tol
-    _, P = scene.loads()
-    mdl = Model()
-    for name, shp in (("loose", loose), ("tight", tight)):
-        mdl.add(shp.add_point_load(force=(0.0, -P * _CANTILEVER_DEPTH, 0.0)), name)
+    mdl = Model().add(scene.apply_loads(loose), "loose").add(scene.apply_loads(tight), "tight")   # tip loads
     tr = mdl.simulate(0.05, 2.5e-3)
     assert np.all(np.isfinite(tr.x[-1]))
     tips = [shp.positions(tr[name].x[-1][:shp.n])[-1][1] for name, shp in (("loose", loose), ("tight", tight))]
