@@ -31,7 +31,9 @@ def test_bench_ladder_network_by_tolerance(record, tmp_path):
     Chebyshev beam with the most modes, the one closest to the elastica: ``all_finest``), wall (perf_counter) and
     CPU (process_time) as medians of 7 rounds, the three networks interleaved within each round (a change of the
     machine's load shifts them alike). Point loads keep these networks on the Python path
-    (``Model.evaluation_path``), whose per-step cost hides the bodies' own; so also the bodies' static solves
+    (``Model.evaluation_path``), whose per-step cost hides the bodies' own. The same for two bodies that accept
+    only Chebyshev and PCC and ask for 10 % and 1 % of L on the shape (one mode and Chebyshev 2:
+    ``mixed_physical``) against both at 1 % and both at the finest. And the bodies' static solves
     under their loads: the sum of the two bodies' CPU medians (the ladder's rows, timed interleaved in this run by
     ``soro.ladder._time_statics``) of each network against the mixed one's. Asserted: the bodies get different
     models and every run ends finite; never a time."""
@@ -53,13 +55,20 @@ def test_bench_ladder_network_by_tolerance(record, tmp_path):
     finest = max((r for r in rows if r["family"] == "chebyshev"), key=lambda r: r["modes"])
     path = write_model(finest, scene, tmp_path / "finest.json", "tip", 1.0)
     (_, fl), (_, ft) = body("1%"), body("0.22%")
-    pairs = {"mixed": ("1%", "0.22%"), "all_tight": ("0.22%", "0.22%"), "all_finest": (None, None)}
+    pairs = {"mixed": ("1%", "0.22%"), "all_tight": ("0.22%", "0.22%"), "all_finest": (None, None),
+             "mixed_physical": ("shape 10%", "shape 1%"), "all_tight_physical": ("shape 1%", "shape 1%")}
+
+    def beam(tol):
+        if tol is None:
+            return load_beam(path)
+        if tol.startswith("shape "):         # the bodies that accept only Chebyshev and PCC, on the shape
+            return beam_within("cantilever", tol[6:], "shape", out=out, quick=True, families=("chebyshev", "pcc"))
+        return body(tol)
 
     def network(a, b):
         mdl = Model()
         for name, tol in (("left", a), ("right", b)):
-            shp = body(tol)[0] if tol else load_beam(path)[0]
-            mdl.add(scene.apply_loads(shp), name)
+            mdl.add(scene.apply_loads(beam(tol)[0]), name)
         return mdl
     nets = {k: network(*v) for k, v in pairs.items()}
     for mdl in nets.values():                                          # warm-up (compilation)
@@ -78,16 +87,22 @@ def test_bench_ladder_network_by_tolerance(record, tmp_path):
     speed = {f"{clock}_{k}_over_mixed": d[k] / d["mixed"] for clock, d in (("wall", wall), ("cpu", cpu))
              for k in ("all_tight", "all_finest")}
     solve = {(r["family"], r["modes"]): r["solve_time_s"] for r in rows if "_shapes" in r}
-    key_of = {"1%": (fl.meta["family"], fl.meta["modes"]), "0.22%": (ft.meta["family"], ft.meta["modes"]),
-              None: (finest["family"], finest["modes"])}
+    key_of = {tol: (f.meta["family"], f.meta["modes"]) for tol in {t for ab in pairs.values() for t in ab} if tol
+              for f in [beam(tol)[1]]}
+    key_of[None] = (finest["family"], finest["modes"])
     statics = {k: solve[key_of[a]] + solve[key_of[b]] for k, (a, b) in pairs.items()}
     speed.update({f"statics_{k}_over_mixed": statics[k] / statics["mixed"] for k in ("all_tight", "all_finest")})
+    for clock, d in (("wall", wall), ("cpu", cpu), ("statics", statics)):
+        speed[f"{clock}_all_tight_physical_over_mixed_physical"] = d["all_tight_physical"] / d["mixed_physical"]
+        speed[f"{clock}_all_finest_over_mixed_physical"] = d["all_finest"] / d["mixed_physical"]
+    physical = {tol: key_of[tol] for tol in ("shape 10%", "shape 1%")}
     paths = {k: mdl.evaluation_path for k, mdl in nets.items()}
     print("\nnetwork by tolerance (cantilever, quick):", fl.meta["family"], fl.meta["modes"], "/", ft.meta["family"],
           ft.meta["modes"], "; finest", finest["family"], finest["modes"], "\npaths", paths, "\nwall s", wall,
-          "\ncpu s", cpu, "\nstatics cpu s (both bodies)", statics, "\n", speed)
+          "\nphysical bases", physical, "\ncpu s", cpu, "\nstatics cpu s (both bodies)", statics, "\n", speed)
     record(loose=fl.meta, tight=ft.meta, finest={"family": finest["family"], "modes": finest["modes"]},
-           wall_s=wall, cpu_s=cpu, statics_cpu_s=statics, paths=paths, **speed)
+           physical={k: list(v) for k, v in physical.items()}, wall_s=wall, cpu_s=cpu, statics_cpu_s=statics,
+           paths=paths, **speed)
 
 
 def test_bench_ladder_pneunet3d(record):
