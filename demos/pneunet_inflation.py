@@ -43,6 +43,18 @@ pressure           0 ... p_max, p_max = 6.5 kPa (2D) / 16 kPa (3D; quick 10 kPa)
 mesh               2D h = 0.8 mm (quick 1.2 mm); 3D h = 3.0 mm (quick 4 mm), P2
 =================  ===========================================  ======================================
 
+Walls of neighbouring chambers
+------------------------------
+The FEM model has no self-contact. The inflated chambers' side walls bulge into the 1.5 mm gaps between the
+blocks, and past the pressure where they touch the model lets them pass through each other: its results there
+are those of an unphysical body (a real PneuNet's walls press on each other). The report gives the 2D ramp's
+least gap at its top pressure and the pressure where the walls first touch (:func:`wall_contact`, with
+:func:`soro.ladder.wall_gaps`). Measured (quick: 4 chambers, h = 1.2 mm, P2): they touch at 1.76 kPa and
+overlap by 1.57 mm at 6.5 kPa, so the 2D ramp's angles beyond 1.76 kPa (and the 90 degrees of the full run) are
+past contact. The pressure is kept: the demo's point is the bending towards 90 degrees, which this geometry
+reaches only with its walls pressing on each other, i.e. with self-contact, which the FEM does not model yet
+(the ladder's scenes, ``soro.ladder.SCENES``, stop below contact instead).
+
 Steps and limits
 ----------------
 2D: a pressure ramp (:meth:`Fem.solve`) whose first step is cut so that its linear response moves no point by
@@ -72,8 +84,10 @@ sections), ``deformed_3d.png`` (the inflated 3D actuator's surface coloured by v
 ``limit_pressure_kPa_3d`` and ``limit_angle_deg_3d`` (the 3D path's pressure maximum and the tip angle there,
 if it passed one, else null), ``tip_angle_deg_2d``, ``tip_angle_deg_3d``, ``newton_iterations_max``,
 ``steps_2d``/``steps_3d``, ``dofs_2d``/``dofs_3d``, ``cavities_2d``/``cavities_3d``,
-``pressure_at_90deg_kPa_2d`` (interpolated; null if 90 degrees is not reached), the Newton iterations per step
-(``newton_iterations_2d``/``_3d``) and the wall times.
+``pressure_at_90deg_kPa_2d`` (interpolated; null if 90 degrees is not reached), ``least_wall_gap_mm_2d`` (the
+walls of neighbouring chambers at the 2D ramp's top: negative where they overlap) and ``wall_contact_kPa_2d``
+(where they first touch; null if they never do), the Newton iterations per step (``newton_iterations_2d``/``_3d``)
+and the wall times.
 """
 import math
 import time
@@ -123,6 +137,7 @@ def main(out: Path, quick: bool = False) -> dict:
     a2, pa2 = tip_angle(traj2.vertices, traj2.displacement, length2), traj2.times * p2
     a3, pa3 = tip_angle(traj3.vertices, traj3.displacement, length3), traj3.times * p3
     limit3 = limit_point(traj3.times)
+    gaps2, contact2 = wall_contact(traj2.vertices, traj2.displacement, prm["chambers"], pa2)
     summary = {
         "max_pressure_kPa": p2 / kPa,
         "max_pressure_kPa_3d": p3 / kPa,
@@ -134,6 +149,8 @@ def main(out: Path, quick: bool = False) -> dict:
         "tip_angle_deg_3d": float(a3[-1]),
         "pressure_at_90deg_kPa_2d": _kpa(_angle_at(pa2, a2, 90.0)),
         "pressure_at_90deg_kPa_3d": _kpa(_angle_at(pa3, a3, 90.0)),
+        "least_wall_gap_mm_2d": float(gaps2[-1] / mm),
+        "wall_contact_kPa_2d": _kpa(contact2),
         "newton_iterations_max": int(max(t.newton_iterations[1:].max() for t in (traj2, traj3))),
         "newton_iterations_2d": traj2.newton_iterations[1:].tolist(),
         "newton_iterations_3d": traj3.newton_iterations[1:].tolist(),
@@ -243,6 +260,21 @@ def ramp(fem, steps):
     except ConvergenceError as e:
         traj = e.trajectory
     return traj, time.perf_counter() - t0
+
+
+def wall_contact(vertices, displacement, chambers, pressure):
+    """The walls of neighbouring chambers along a 2D ramp: (the least gap [m] per step, :func:`soro.ladder.wall_gaps`
+    over every gap, negative where the walls overlap; the pressure [Pa] at which they first touch, linear between
+    the steps, or None if they never do). ``vertices`` (n, 2), ``displacement`` (steps, n, 2) [m], ``pressure``
+    (steps,) [Pa]. The FEM model has no self-contact: past that pressure the walls pass through each other."""
+    from soro.ladder import wall_gaps
+
+    g = np.array([wall_gaps(vertices, u, chambers).min() for u in np.asarray(displacement)])
+    over = np.flatnonzero(g < 0)
+    if not len(over):
+        return g, None
+    k, p = int(over[0]), np.asarray(pressure, dtype=float)
+    return g, (float(p[0]) if k == 0 else float(p[k - 1] + (p[k] - p[k - 1]) * g[k - 1] / (g[k - 1] - g[k])))
 
 
 def limit_point(t):
