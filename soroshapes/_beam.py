@@ -602,8 +602,9 @@ def generalized_inertial_force(J, eta, etad, G, w, Md, a, ag, pl_nodes, pl_W, pl
 # The recursions keep their twists and wrenches as 6-tuples of floats (values, not arrays) and index the stored
 # arrays element by element: every view of an array row (``eta[s]``, ``SX[s, 0]``, ``X[0]``) costs a call that
 # atomically increments the array's reference count and one that decrements it, and the former array form made
-# dozens of such calls per piece in each recursion (33 increments in the forward one's own code). The 15-DOF rod of ``bench_shapes.py`` (4 pieces): 10.2 ->
-# 6.8 us per step (CPU time, back to back, the same trajectory to the last bit; ~3.3 -> ~1.8 us per residual).
+# dozens of such calls per piece in each recursion (33 increments in the forward one's own code). The 15-DOF rod
+# of ``bench_shapes.py`` (4 pieces): 10.2 -> 6.8 us per step (CPU time, back to back, the same trajectory to the
+# last bit; ~3.3 -> ~1.8 us per residual).
 @njit(cache=True)
 def _ad6(x, y):
     """ad_x y of 6-tuples x = (w, v), y: (w x y_w, v x y_w + w x y_v)."""
