@@ -1035,28 +1035,37 @@ def _adv2(x, y, out):
 
 
 @njit(cache=True)
-def _adtv2(x, y, out):
-    """out = ad_x^T y on 3-twists and their dual wrenches (m_y, f_x, f_z) (:func:`_adtv` restricted)."""
-    y0, y1, y2 = y[0], y[1], y[2]
-    out[0] = y2 * x[1] - y1 * x[2]
-    out[1] = -y2 * x[0]
-    out[2] = y1 * x[0]
+def _ad3(x, y):
+    """ad_x y on 3-twists (omega_y, v_x, v_z) as a 3-tuple: the planar restriction of :func:`_ad6`."""
+    return (0.0, x[0] * y[2] - x[2] * y[0], x[1] * y[0] - x[0] * y[1])
 
 
 @njit(cache=True)
-def _strain2(Bv, rows, x0, q, out):
-    """out = Theta q + x0 on 3-twists (strain row r of coordinate k is planar row (r - 1)/2; ``x0`` a
-    6-vector)."""
-    out[0] = x0[1]
-    out[1] = x0[3]
-    out[2] = x0[5]
+def _adt3(x, y):
+    """ad_x^T y on 3-twists and their dual wrenches (m_y, f_x, f_z) as a 3-tuple (:func:`_adt6` restricted)."""
+    return (y[2] * x[1] - y[1] * x[2], -y[2] * x[0], y[1] * x[0])
+
+
+@njit(cache=True)
+def _strains3(B, s, j, rows, xi0, q, qd, a, W):
+    r"""The strain, its rate and its acceleration at Gauss point j of piece s on 3-twists, as 3-tuples (strain
+    row r of coordinate k is planar row (r - 1)/2; summed in rows 27-29 of the work array ``W``)."""
+    W[27, 0], W[27, 1], W[27, 2] = xi0[s, j, 1], xi0[s, j, 3], xi0[s, j, 5]
+    for r in range(3):
+        W[28, r] = 0.0
+        W[29, r] = 0.0
     for k in range(q.shape[0]):
-        out[(rows[k] - 1) // 2] += Bv[k] * q[k]
+        r = (rows[k] - 1) // 2
+        b = B[s, j, k]
+        W[27, r] += b * q[k]
+        W[28, r] += b * qd[k]
+        W[29, r] += b * a[k]
+    return (W[27, 0], W[27, 1], W[27, 2]), (W[28, 0], W[28, 1], W[28, 2]), (W[29, 0], W[29, 1], W[29, 2])
 
 
 @njit(cache=True)
-def _planar_coeffs(theta, out):
-    r"""The coefficients of T on se(2) into out: :math:`(\beta, \gamma, c_3, c_4)`. On 3-twists
+def _planar_coeffs(theta):
+    r"""The coefficients of T on se(2): :math:`(\beta, \gamma, c_3, c_4)`. On 3-twists
     :math:`\mathrm{ad}_\Omega^3 = -\theta^2\mathrm{ad}_\Omega` (:math:`\theta = \Omega_0`), so the series
     :math:`T = I - c_1\mathrm{ad} + c_2\mathrm{ad}^2 - c_3\mathrm{ad}^3 + c_4\mathrm{ad}^4` of
     :func:`soroshapes.lie._tse3_coeffs` is :math:`T = I - \beta\,\mathrm{ad} + \gamma\,\mathrm{ad}^2` with
@@ -1065,13 +1074,13 @@ def _planar_coeffs(theta, out):
     -2c_4\theta` (from :math:`c_1' = \theta^2 c_3'`, :math:`c_2' = \theta^2 c_4'`)."""
     c1, c2, c3, c4 = _tse3_coeffs(abs(theta))
     t2 = theta * theta
-    out[0], out[1], out[2], out[3] = c1 - c3 * t2, c2 - c4 * t2, c3, c4
+    return c1 - c3 * t2, c2 - c4 * t2, c3, c4
 
 
 @njit(cache=True)
 def _tpoly2(Om, cf, u, X, out):
     r"""out = T(Om) u on 3-twists, :math:`u - \beta\,\mathrm{ad}u + \gamma\,\mathrm{ad}^2u` (``cf`` of
-    :func:`_planar_coeffs`); leaves ad u and ad^2 u in X[0], X[1] for :func:`_dtpoly2`."""
+    :func:`_planar_coeffs`) (arrays; ``X`` (2, 3) scratch)."""
     _adv2(Om, u, X[0])
     _adv2(Om, X[0], X[1])
     for r in range(3):
@@ -1079,48 +1088,9 @@ def _tpoly2(Om, cf, u, X, out):
 
 
 @njit(cache=True)
-def _tpoly2_t(Om, cf, y, X, out):
-    """out = T(Om)^T y on planar wrenches (:func:`_tpoly2` transposed)."""
-    _adtv2(Om, y, X[0])
-    _adtv2(Om, X[0], X[1])
-    for r in range(3):
-        out[r] = y[r] - cf[0] * X[0, r] + cf[1] * X[1, r]
-
-
-@njit(cache=True)
-def _dtpoly2(Om, u, X, Y, cf, out):
-    r"""out = dT(Om)[u] u on 3-twists after :func:`_tpoly2` (X[0] = ad u, X[1] = ad^2 u): from
-    :math:`T = I - \beta\,\mathrm{ad}_\Omega + \gamma\,\mathrm{ad}_\Omega^2` and
-    :math:`\mathrm{ad}_u u = 0`, :math:`dT[u]u = \theta u_0(2c_3\,\mathrm{ad}u - 2c_4\,\mathrm{ad}^2u) +
-    \gamma\,\mathrm{ad}_u\mathrm{ad}\,u` (see :func:`_planar_coeffs`)."""
-    t = 2.0 * Om[0] * u[0]
-    _adv2(u, X[0], Y[0])
-    for r in range(3):
-        out[r] = t * (cf[2] * X[0, r] - cf[3] * X[1, r]) + cf[1] * Y[0, r]
-
-
-@njit(cache=True)
-def _bvec2(A, x, y):
-    """y = A x for a planar Ad (3, 3) (first row (1, 0, 0))."""
-    x0, x1, x2 = x[0], x[1], x[2]
-    y[0] = x0
-    y[1] = A[1, 0] * x0 + A[1, 1] * x1 + A[1, 2] * x2
-    y[2] = A[2, 0] * x0 + A[2, 1] * x1 + A[2, 2] * x2
-
-
-@njit(cache=True)
-def _bvec2_t(A, x, y):
-    """y = A^T x for a planar Ad (3, 3)."""
-    x0, x1, x2 = x[0], x[1], x[2]
-    y[0] = x0 + A[1, 0] * x1 + A[2, 0] * x2
-    y[1] = A[1, 1] * x1 + A[2, 1] * x2
-    y[2] = A[1, 2] * x1 + A[2, 2] * x2
-
-
-@njit(cache=True)
 def _segment2(s, Om, G, A):
     r"""The frame G[s+1] = G[s] exp(Om) of a planar piece (rotation by :math:`\theta` = Om[0] about y, offset
-    :math:`(I + b\hat\omega + c\hat\omega^2)v` in the x-z plane) and its Ad of the inverse into A[:3, :3]:
+    :math:`(I + b\hat\omega + c\hat\omega^2)v` in the x-z plane) and its Ad of the inverse into A[s, :3, :3]:
     rows (1, 0, 0), :math:`(c p_z + s p_x, c, -s)`, :math:`(s p_z - c p_x, s, c)` (:math:`c = \cos\theta`,
     :math:`s = \sin\theta`)."""
     th = Om[0]
@@ -1138,9 +1108,9 @@ def _segment2(s, Om, G, A):
         G[s + 1, i, 3] = g0 * px + g2 * pz + g3
         G[s + 1, 3, i] = 0.0
     G[s + 1, 3, 3] = 1.0
-    A[0, 0], A[0, 1], A[0, 2] = 1.0, 0.0, 0.0
-    A[1, 0], A[1, 1], A[1, 2] = cs * pz + sn * px, cs, -sn
-    A[2, 0], A[2, 1], A[2, 2] = sn * pz - cs * px, sn, cs
+    A[s, 0, 0], A[s, 0, 1], A[s, 0, 2] = 1.0, 0.0, 0.0
+    A[s, 1, 0], A[s, 1, 1], A[s, 1, 2] = cs * pz + sn * px, cs, -sn
+    A[s, 2, 0], A[s, 2, 1], A[s, 2, 2] = sn * pz - cs * px, sn, cs
 
 
 @njit(cache=True)
@@ -1156,113 +1126,112 @@ def newton_euler_planar(q, qd, a, order, h, B, rows, xi0, g0, w, Md, ag, pl_node
     :func:`mass_matrix_planar`; ``acc`` holds the 3-twists in its first three columns."""
     n = q.shape[0]
     P = h.shape[0]
-    xd1, xd2, xa1, xa2, Omd, Oa, psi, tmp, lam, y, z1, z2, F, dTv = (
-        V[0, :3], V[1, :3], V[2, :3], V[3, :3], V[4, :3], V[5, :3], V[6, :3], V[7, :3], V[8, :3], V[9, :3],
-        V[10, :3], V[11, :3], V[12, :3], V[13, :3])
-    X, Y = V[15:19, :3], V[19:25, :3]
-    zero = V[14]
-    for r in range(6):
-        zero[r] = 0.0
     for i in range(4):
         for j in range(4):
             G[0, i, j] = g0[i, j]
     for r in range(3):
         acc[0, r] = 0.0
-    e0, e1, e2 = 0.0, 0.0, 0.0          # the twist at the current node
     for r in range(6):
         eta[0, r] = 0.0
+    e = (0.0, 0.0, 0.0)                 # the twist and the acceleration twist at the current node
+    al = e
     for s in range(P):
         hs = h[s]
-        xi1, xi2, Om, cf = SX[s, 0, :3], SX[s, 1, :3], SX[s, 2, :3], SX[s, 3]
-        _strain2(B[s, 0], rows, xi0[s, 0], q, xi1)
-        _strain2(B[s, 0], rows, zero, qd, xd1)
-        _strain2(B[s, 0], rows, zero, a, xa1)
+        xi1, xd1, xa1 = _strains3(B, s, 0, rows, xi0, q, qd, a, V)
+        SX[s, 0, 0], SX[s, 0, 1], SX[s, 0, 2] = xi1
         if order == 2:
-            for r in range(3):
-                Om[r] = hs * xi1[r]
-                Omd[r] = hs * xd1[r]
-                Oa[r] = hs * xa1[r]
+            Om = (hs * xi1[0], hs * xi1[1], hs * xi1[2])
+            Omd = (hs * xd1[0], hs * xd1[1], hs * xd1[2])
+            Oa = (hs * xa1[0], hs * xa1[1], hs * xa1[2])
         else:
             c = MAGNUS4_C * hs * hs
-            _strain2(B[s, 1], rows, xi0[s, 1], q, xi2)
-            _strain2(B[s, 1], rows, zero, qd, xd2)
-            _strain2(B[s, 1], rows, zero, a, xa2)
-            _adv2(xi1, xi2, tmp)
-            for r in range(3):
-                Om[r] = 0.5 * hs * (xi1[r] + xi2[r]) + c * tmp[r]
-            _adv2(xd1, xi2, tmp)
-            _adv2(xi1, xd2, y)
-            for r in range(3):
-                Omd[r] = 0.5 * hs * (xd1[r] + xd2[r]) + c * (tmp[r] + y[r])
-            _adv2(xa1, xi2, tmp)
-            _adv2(xi1, xa2, y)
-            for r in range(3):
-                Oa[r] = 0.5 * hs * (xa1[r] + xa2[r]) + c * (tmp[r] + y[r])
-            _adv2(xd1, xd2, tmp)
-            for r in range(3):
-                Oa[r] += 2.0 * c * tmp[r]
-        Ai = SA[s]
-        _segment2(s, Om, G, Ai)
-        _planar_coeffs(Om[0], cf)
-        _tpoly2(Om, cf, Omd, X, psi)
-        _dtpoly2(Om, Omd, X, Y, cf, dTv)
-        e = eta[s + 1]
-        tmp[0], tmp[1], tmp[2] = e0, e1, e2
-        _bvec2(Ai, tmp, y)
-        e0, e1, e2 = y[0] + psi[0], y[1] + psi[1], y[2] + psi[2]
-        e[0], e[1], e[2], e[3], e[4], e[5] = 0.0, e0, 0.0, e1, 0.0, e2
-        _bvec2(Ai, acc[s, :3], acc[s + 1, :3])
-        tmp[0], tmp[1], tmp[2] = e0, e1, e2
-        _adv2(psi, tmp, z1)
-        _tpoly2(Om, cf, Oa, X, y)
-        for r in range(3):
-            acc[s + 1, r] += dTv[r] - z1[r] + y[r]
+            xi2, xd2, xa2 = _strains3(B, s, 1, rows, xi0, q, qd, a, V)
+            SX[s, 1, 0], SX[s, 1, 1], SX[s, 1, 2] = xi2
+            t = _ad3(xi1, xi2)
+            Om = (0.5 * hs * (xi1[0] + xi2[0]) + c * t[0], 0.5 * hs * (xi1[1] + xi2[1]) + c * t[1],
+                  0.5 * hs * (xi1[2] + xi2[2]) + c * t[2])
+            t, y = _ad3(xd1, xi2), _ad3(xi1, xd2)
+            Omd = (0.5 * hs * (xd1[0] + xd2[0]) + c * (t[0] + y[0]), 0.5 * hs * (xd1[1] + xd2[1]) + c * (t[1] + y[1]),
+                   0.5 * hs * (xd1[2] + xd2[2]) + c * (t[2] + y[2]))
+            t, y = _ad3(xa1, xi2), _ad3(xi1, xa2)
+            u = _ad3(xd1, xd2)
+            Oa = (0.5 * hs * (xa1[0] + xa2[0]) + c * (t[0] + y[0]) + 2.0 * c * u[0],
+                  0.5 * hs * (xa1[1] + xa2[1]) + c * (t[1] + y[1]) + 2.0 * c * u[1],
+                  0.5 * hs * (xa1[2] + xa2[2]) + c * (t[2] + y[2]) + 2.0 * c * u[2])
+        SX[s, 2, 0], SX[s, 2, 1], SX[s, 2, 2] = Om
+        _segment2(s, Om, G, SA)
+        b1, b2, c3, c4 = _planar_coeffs(Om[0])
+        SX[s, 3, 0], SX[s, 3, 1], SX[s, 3, 2], SX[s, 3, 3] = b1, b2, c3, c4
+        # psi = T Omd, dT[Omd] Omd = 2 th Omd_0 (c3 ad Omd - c4 ad^2 Omd) + gamma ad_Omd ad Omd
+        x0 = _ad3(Om, Omd)
+        x1 = _ad3(Om, x0)
+        y0 = _ad3(Omd, x0)
+        t2 = 2.0 * Om[0] * Omd[0]
+        psi = (Omd[0] - b1 * x0[0] + b2 * x1[0], Omd[1] - b1 * x0[1] + b2 * x1[1], Omd[2] - b1 * x0[2] + b2 * x1[2])
+        dTv = (t2 * (c3 * x0[0] - c4 * x1[0]) + b2 * y0[0], t2 * (c3 * x0[1] - c4 * x1[1]) + b2 * y0[1],
+               t2 * (c3 * x0[2] - c4 * x1[2]) + b2 * y0[2])
+        # the Ad of the piece's inverse (first row (1, 0, 0)) carries the twist and the acceleration twist
+        e = (e[0] + psi[0], SA[s, 1, 0] * e[0] + SA[s, 1, 1] * e[1] + SA[s, 1, 2] * e[2] + psi[1],
+             SA[s, 2, 0] * e[0] + SA[s, 2, 1] * e[1] + SA[s, 2, 2] * e[2] + psi[2])
+        eta[s + 1, 0], eta[s + 1, 1], eta[s + 1, 2] = 0.0, e[0], 0.0
+        eta[s + 1, 3], eta[s + 1, 4], eta[s + 1, 5] = e[1], 0.0, e[2]
+        z = _ad3(psi, e)
+        x0 = _ad3(Om, Oa)
+        x1 = _ad3(Om, x0)
+        al = (al[0] + (dTv[0] - z[0] + (Oa[0] - b1 * x0[0] + b2 * x1[0])),
+              SA[s, 1, 0] * al[0] + SA[s, 1, 1] * al[1] + SA[s, 1, 2] * al[2]
+              + (dTv[1] - z[1] + (Oa[1] - b1 * x0[1] + b2 * x1[1])),
+              SA[s, 2, 0] * al[0] + SA[s, 2, 1] * al[1] + SA[s, 2, 2] * al[2]
+              + (dTv[2] - z[2] + (Oa[2] - b1 * x0[2] + b2 * x1[2])))
+        acc[s + 1, 0], acc[s + 1, 1], acc[s + 1, 2] = al
     for k in range(n):
         out[k] = 0.0
-    for r in range(3):
-        lam[r] = 0.0
+    l0 = l1 = l2 = 0.0                  # the carried wrench
     for i in range(P, 0, -1):
         wi = w[i]
         if wi != 0.0:
             m0, m1, m2 = Md[i, 1], Md[i, 3], Md[i, 5]
             ew, ex, ez = eta[i, 1], eta[i, 3], eta[i, 5]
             # M alpha - ad_eta^T M eta - M (0, R^T a_g), in the plane
-            F[0] = m0 * acc[i, 0] - (m2 * ez * ex - m1 * ex * ez)
-            F[1] = m1 * acc[i, 1] + m2 * ez * ew
-            F[2] = m2 * acc[i, 2] - m1 * ex * ew
-            F[1] -= m1 * (G[i, 0, 0] * ag[0] + G[i, 1, 0] * ag[1] + G[i, 2, 0] * ag[2])
-            F[2] -= m2 * (G[i, 0, 2] * ag[0] + G[i, 1, 2] * ag[1] + G[i, 2, 2] * ag[2])
-            for r in range(3):
-                lam[r] += wi * F[r]
+            l0 += wi * (m0 * acc[i, 0] - (m2 * ez * ex - m1 * ex * ez))
+            l1 += wi * ((m1 * acc[i, 1] + m2 * ez * ew) - m1 * (G[i, 0, 0] * ag[0] + G[i, 1, 0] * ag[1]
+                                                               + G[i, 2, 0] * ag[2]))
+            l2 += wi * ((m2 * acc[i, 2] - m1 * ex * ew) - m2 * (G[i, 0, 2] * ag[0] + G[i, 1, 2] * ag[1]
+                                                               + G[i, 2, 2] * ag[2]))
         for p in range(pl_nodes.shape[0]):
             if pl_nodes[p] != i:
                 continue
             if pl_spatial[p]:
-                lam[0] -= G[i, 0, 1] * pl_W[p, 0] + G[i, 1, 1] * pl_W[p, 1] + G[i, 2, 1] * pl_W[p, 2]
-                lam[1] -= G[i, 0, 0] * pl_W[p, 3] + G[i, 1, 0] * pl_W[p, 4] + G[i, 2, 0] * pl_W[p, 5]
-                lam[2] -= G[i, 0, 2] * pl_W[p, 3] + G[i, 1, 2] * pl_W[p, 4] + G[i, 2, 2] * pl_W[p, 5]
+                l0 -= G[i, 0, 1] * pl_W[p, 0] + G[i, 1, 1] * pl_W[p, 1] + G[i, 2, 1] * pl_W[p, 2]
+                l1 -= G[i, 0, 0] * pl_W[p, 3] + G[i, 1, 0] * pl_W[p, 4] + G[i, 2, 0] * pl_W[p, 5]
+                l2 -= G[i, 0, 2] * pl_W[p, 3] + G[i, 1, 2] * pl_W[p, 4] + G[i, 2, 2] * pl_W[p, 5]
             else:
-                lam[0] -= pl_W[p, 1]
-                lam[1] -= pl_W[p, 3]
-                lam[2] -= pl_W[p, 5]
+                l0 -= pl_W[p, 1]
+                l1 -= pl_W[p, 3]
+                l2 -= pl_W[p, 5]
         s = i - 1
         hs = h[s]
-        cf = SX[s, 3]
-        _tpoly2_t(SX[s, 2, :3], cf, lam, X, y)
+        Om = (SX[s, 2, 0], SX[s, 2, 1], SX[s, 2, 2])
+        b1, b2 = SX[s, 3, 0], SX[s, 3, 1]
+        lam = (l0, l1, l2)
+        x0 = _adt3(Om, lam)
+        x1 = _adt3(Om, x0)
+        V[27, 0], V[27, 1], V[27, 2] = (l0 - b1 * x0[0] + b2 * x1[0], l1 - b1 * x0[1] + b2 * x1[1],
+                                        l2 - b1 * x0[2] + b2 * x1[2])          # T^T lam
         if order == 2:
             for k in range(n):
-                out[k] += hs * B[s, 0, k] * y[(rows[k] - 1) // 2]
+                out[k] += hs * B[s, 0, k] * V[27, (rows[k] - 1) // 2]
         else:
             c = MAGNUS4_C * hs * hs
-            _adtv2(SX[s, 0, :3], y, z1)
-            _adtv2(SX[s, 1, :3], y, z2)
+            y = (V[27, 0], V[27, 1], V[27, 2])
+            V[28, 0], V[28, 1], V[28, 2] = _adt3((SX[s, 0, 0], SX[s, 0, 1], SX[s, 0, 2]), y)
+            V[29, 0], V[29, 1], V[29, 2] = _adt3((SX[s, 1, 0], SX[s, 1, 1], SX[s, 1, 2]), y)
             for k in range(n):
                 r = (rows[k] - 1) // 2
                 b1, b2 = B[s, 0, k], B[s, 1, k]
-                out[k] += 0.5 * hs * (b1 + b2) * y[r] + c * (b2 * z1[r] - b1 * z2[r])
-        _bvec2_t(SA[s], lam, tmp)
-        for r in range(3):
-            lam[r] = tmp[r]
+                out[k] += 0.5 * hs * (b1 + b2) * V[27, r] + c * (b2 * V[28, r] - b1 * V[29, r])
+        l0, l1, l2 = (l0 + SA[s, 1, 0] * l1 + SA[s, 2, 0] * l2, SA[s, 1, 1] * l1 + SA[s, 2, 1] * l2,
+                      SA[s, 1, 2] * l1 + SA[s, 2, 2] * l2)
 
 
 @njit(cache=True)
