@@ -313,37 +313,84 @@ def _backbone(pn, length, dim=2):
 
 
 def wall_gaps(vertices, displacement, chambers):
-    r"""The gaps [m] between the facing walls of neighbouring chambers of the 2D PneuNet (``demos/
-    pneunet_inflation.py``'s geometry, ``chambers`` of them), one per gap, in the deformed state ``vertices`` +
-    ``displacement`` ((n, 2 or 3) [m], the mesh's vertices and one step's vertex displacement).
+    r"""The gaps [m] between the facing walls of neighbouring chambers of the PneuNet (``demos/
+    pneunet_inflation.py``'s geometry, ``chambers`` of them; 2D or 3D, from the vertices), one per gap, in the
+    deformed state ``vertices`` + ``displacement`` ((n, 2 or 3) [m], the mesh's vertices and one step's vertex
+    displacement; 2D vertices may carry a zero third coordinate).
 
-    A gap's faces are the boundary vertices on :math:`x = iP \mp G/2` above the base (P the pitch, G the gap).
-    Its value is the least signed distance from the right face's vertices to the left face's polyline, positive
-    on the gap's side: G at rest, 0 where the walls touch, negative where they overlap (the FEM model has no
-    self-contact, so inflated walls pass through each other: the full scene at 6 kPa overlapped by 1.6 mm)."""
+    A gap's faces are the boundary vertices on :math:`x = iP \mp G/2` above the base (P the pitch, G the gap). The
+    left face is a surface through its vertices: in 2D the polyline through them sorted by height; in 3D the
+    triangulation (Delaunay) of its vertices in their undeformed (y, z) coordinates: the face is a plane rectangle
+    at rest, so these are the faces themselves, every vertex of them resolved (not a mid-plane slab), a piecewise
+    linear surface through the deformed vertices (the mesh's own P1 facets up to the diagonals chosen). A gap's
+    value is the least signed distance from the right face's vertices to that surface, positive on the gap's
+    side (the surface's normal that points to +x at rest): G at rest, 0 where the walls touch, negative where
+    they overlap (the FEM model has no self-contact, so inflated walls pass through each other: the full 2D
+    scene at 6 kPa overlapped by 1.6 mm, the 3D one at 10 kPa by about 2.2 mm)."""
     pn = _pneunet()
-    X = np.asarray(vertices, dtype=float)[:, :2]
-    x = X + np.asarray(displacement, dtype=float)[:, :2]
+    X = np.asarray(vertices, dtype=float)
+    U = np.asarray(displacement, dtype=float)
+    if X.ndim != 2 or X.shape[1] not in (2, 3) or U.shape != X.shape:
+        raise ParameterError(f"wall_gaps: vertices and displacement must both be (n, 2) or (n, 3) arrays [m]; got "
+                             f"{X.shape} and {U.shape}")
     tol = 1e-9 * pn.PITCH * chambers
+    dim = 3 if X.shape[1] == 3 and np.ptp(X[:, 2]) > tol else 2
+    X, x = X[:, :dim], (X + U)[:, :dim]
     gaps = []
     up = X[:, 1] > pn.BASE - tol                                      # the walls: above the base
     for i in range(1, chambers):
         left = np.flatnonzero(up & (np.abs(X[:, 0] - (i * pn.PITCH - pn.GAP / 2)) < tol))
         right = np.flatnonzero(up & (np.abs(X[:, 0] - (i * pn.PITCH + pn.GAP / 2)) < tol))
-        if len(left) < 2 or len(right) < 1:
-            raise ParameterError(f"wall_gaps: gap {i} has no wall faces on these vertices: give the 2D PneuNet's "
+        if len(left) < dim or len(right) < 1:
+            raise ParameterError(f"wall_gaps: gap {i} has no wall faces on these vertices: give the PneuNet's "
                                  f"mesh of {chambers} chambers")
-        left = left[np.argsort(X[left, 1])]
-        a, ab = x[left[:-1]], x[left[1:]] - x[left[:-1]]              # the left face's segments, bottom to top
-        d = x[right][:, None, :] - a[None]                            # (right vertices, segments, 2)
-        s = np.clip(np.einsum("rsk,sk->rs", d, ab) / np.einsum("sk,sk->s", ab, ab), 0.0, 1.0)
-        e = d - s[..., None] * ab[None]
-        dist = np.linalg.norm(e, axis=2)
-        near = np.argmin(dist, axis=1)
-        r = np.arange(len(right))
-        side = np.sign(ab[near, 1] * d[r, near, 0] - ab[near, 0] * d[r, near, 1])   # + : right of the rising face
-        gaps.append(float(np.min(side * dist[r, near])))
+        gaps.append(_least_signed_distance(x[right], x, left, X, dim))
     return np.asarray(gaps)
+
+
+def _segment_distances(p, a, b):
+    """Distances (r, s) from points ``p`` (r, d) to segments ``a``-``b`` (s, d)."""
+    ab = b - a
+    d = p[:, None, :] - a[None]
+    s = np.clip(np.einsum("rsk,sk->rs", d, ab) / np.einsum("sk,sk->s", ab, ab), 0.0, 1.0)
+    return np.linalg.norm(d - s[..., None] * ab[None], axis=2)
+
+
+def _least_signed_distance(p, x, face, X, dim):
+    """The least signed distance from the points ``p`` to the surface through the deformed vertices ``x[face]``
+    of a wall face (a plane x = const at rest, :func:`wall_gaps`), positive on the side of +x at rest."""
+    if dim == 2:
+        face = face[np.argsort(X[face, 1])]
+        a, b = x[face[:-1]], x[face[1:]]                              # the segments, bottom to top
+        dist = _segment_distances(p, a, b)
+        near = np.argmin(dist, axis=1)
+        r = np.arange(len(p))
+        ab, d = b[near] - a[near], p - a[near]
+        side = np.sign(ab[:, 1] * d[:, 0] - ab[:, 0] * d[:, 1])      # + : right of the rising face
+        return float(np.min(side * dist[r, near]))
+    from scipy.spatial import Delaunay
+
+    tri = face[Delaunay(X[face][:, 1:]).simplices]                    # (t, 3) vertex ids, planar at rest
+    flip = np.cross(X[tri[:, 1]] - X[tri[:, 0]], X[tri[:, 2]] - X[tri[:, 0]])[:, 0] < 0
+    tri[flip] = tri[flip][:, ::-1]                                    # every normal to +x at rest
+    a, b, c = x[tri[:, 0]], x[tri[:, 1]], x[tri[:, 2]]
+    n = np.cross(b - a, c - a)
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    d = p[:, None, :] - a[None]                                       # (r, t, 3)
+    h = np.einsum("rtk,tk->rt", d, n)                                 # signed height over each triangle's plane
+    q = d - h[..., None] * n[None]                                    # the projection, relative to a
+    e1, e2 = b - a, c - a                                             # barycentric coordinates of q
+    d11, d12, d22 = (np.einsum("tk,tk->t", u, v) for u, v in ((e1, e1), (e1, e2), (e2, e2)))
+    q1, q2 = np.einsum("rtk,tk->rt", q, e1), np.einsum("rtk,tk->rt", q, e2)
+    den = d11 * d22 - d12 ** 2
+    v, w = (d22 * q1 - d12 * q2) / den, (d11 * q2 - d12 * q1) / den
+    inside = (v >= 0) & (w >= 0) & (v + w <= 1)
+    edges = np.minimum(np.minimum(_segment_distances(p, a, b), _segment_distances(p, b, c)),
+                       _segment_distances(p, c, a))
+    dist = np.where(inside, np.abs(h), edges)
+    near = np.argmin(dist, axis=1)
+    r = np.arange(len(p))
+    return float(np.min(np.sign(h[r, near]) * dist[r, near]))
 
 
 # ------------------------------------------------------------------------------------------------ Richardson
@@ -1466,8 +1513,7 @@ def _pneunet_blocked(scene, pn, degree, mixed, size, level):
     """The PneuNet's FEM model (the scene's ``dim``: 2, plane strain, meshed as the scene's grading says, or 3)
     of ``degree``/``mixed`` on ``size`` with its end face (``right``: the base's end, below the chambers; in 3D
     the whole end face of the base) held vertically, ramped to ``level`` x p_max: (reaction [N per m of depth in
-    2D; N in 3D], CPU s, the least gap [m] between neighbouring chambers' walls at ``level``, :func:`wall_gaps`;
-    None in 3D)."""
+    2D; N in 3D], CPU s, the least gap [m] between neighbouring chambers' walls at ``level``, :func:`wall_gaps`)."""
     if scene.dim == 2:
         fem, _ = _build_2d(scene, pn, degree, mixed, size)
     else:
@@ -1477,10 +1523,8 @@ def _pneunet_blocked(scene, pn, degree, mixed, size, level):
 
 
 def _least_wall_gap(scene, traj):
-    """The least gap [m] between neighbouring chambers' walls (:func:`wall_gaps`) in the last state of a 2D
-    PneuNet's trajectory; None in 3D."""
-    if scene.dim != 2:
-        return None
+    """The least gap [m] between neighbouring chambers' walls (:func:`wall_gaps`) in the last state of a (2D or 3D)
+    PneuNet's trajectory."""
     return float(wall_gaps(traj.vertices, np.asarray(traj.displacement)[-1], scene.chambers).min())
 
 
@@ -1507,7 +1551,7 @@ def pneunet_blocked_fem(scene, out, doc, progress=None):
     at the validation load. Cached, rung by rung, in ``out/blocked.json`` (with the scene's settings; an
     interrupted run resumes). Returns that document: ``rungs`` (``force`` [N/m in 2D, N in 3D], ``solve_s`` CPU
     [s]) in the order of ``doc["rungs"]`` and ``reference`` (``train``, ``validation`` forces, and the least gap
-    [m] between neighbouring chambers' walls at each, ``train_wall_gap``, ``validation_wall_gap``; None in 3D)."""
+    [m] between neighbouring chambers' walls at each, ``train_wall_gap``, ``validation_wall_gap``)."""
     bdoc, save = _rung_cache(Path(out) / "blocked.json", scene)
     pn = _pneunet()
     say = progress or (lambda msg: None)
@@ -2265,7 +2309,8 @@ class PneuNet3DScene(_Levels):
     chambers: int = 2
     size: float = 2e-3 * 2 ** 0.5
     ratio: float = 2 ** 0.5
-    p_max: float = 10e3
+    #: below the walls' contact (see the class docstring): 0.79x the blocked load's 2.41 kPa (P2 mixed, h = 1.41 mm)
+    p_max: float = 1.9e3
     train_steps: int = 8
     test_steps: int = 5
     linear_start: float = 0.01
@@ -2439,7 +2484,9 @@ def pneunet3d_ladder(scene, out, progress=None):
     """The 3D PneuNet's ladder: (rows, info) as :func:`ladder`: the 3D FEM rows (errors against the finest P2
     mixed; its own error by Richardson with the scene's ratio), the plane-strain row, then the beams trained
     on the 3D reference's snapshots (:func:`beam_ladder`, timed by CPU). FEM rows also carry ``rss_mb`` and
-    ``solve_wall_s``; ``info["refinement"]`` names the meshes. The reference's Richardson order is capped at the
+    ``solve_wall_s``; ``info["refinement"]`` names the meshes; ``info["wall_gap"]`` is the reference's least gap
+    [m] between neighbouring chambers' walls at the top training load, free and blocked (:func:`wall_gaps` in
+    3D; the table warns when it is negative), as :func:`ladder`'s. The reference's Richardson order is capped at the
     element's formal order (:func:`richardson` ``max_order``): on the quick meshes (h = 4, 2.83, 2 mm) the
     observed tip order was 7.1, which would claim 0.0135 % of L where the formal order 3 gives 0.078 %."""
     doc = pneunet3d_fem_ladder(scene, out, progress)
@@ -2447,7 +2494,8 @@ def pneunet3d_ladder(scene, out, progress=None):
     for row, r in zip(fem_rows, doc["rungs"]):
         row["rss_mb"], row["peak_mb"] = r["rss_mb"], r.get("peak_mb")
         row["solve_wall_s"] = float(np.median(r["solve_wall_s"]))
-    info = {"richardson": rich, "length": doc["length"], "fem": doc, "refinement": scene.refinement()}
+    info = {"richardson": rich, "length": doc["length"], "fem": doc, "refinement": scene.refinement(),
+            "wall_gap": {"free": _train_wall_gap(scene, out, doc)}}
     if scene.volume_study:
         study = pneunet3d_volume_study(scene, out, progress)
         ref = doc["rungs"][-1]
@@ -2458,7 +2506,9 @@ def pneunet3d_ladder(scene, out, progress=None):
         info["volume_study"] = study
     rows = fem_rows + [_plane_strain_row(doc)] + beam_ladder(scene, doc, out)
     if scene.blocked:
-        info["blocked"] = blocked_rows(rows, scene, doc, pneunet_blocked_fem(scene, out, doc, progress))
+        bdoc = pneunet_blocked_fem(scene, out, doc, progress)
+        info["blocked"] = blocked_rows(rows, scene, doc, bdoc)
+        info["wall_gap"]["blocked"] = bdoc["reference"].get("train_wall_gap")
     return rows, info
 
 
