@@ -759,15 +759,22 @@ def _time_interleaved(rows, loads, repeats, clock=time.perf_counter):
 def _train_wall_gap(scene, out, doc):
     """The least gap [m] between neighbouring chambers' walls (:func:`wall_gaps`) at the top training load, on the
     reference's training ramp (the snapshot file of ``doc``)."""
+    return _last_wall_gap(Path(out) / doc["reference"]["train"], scene.chambers)
+
+
+def _last_wall_gap(path, chambers):
+    """The least gap [m] between neighbouring chambers' walls (:func:`wall_gaps`) in the last step of the snapshot
+    file ``path`` (2D or 3D)."""
     from sorofem.snapshots import Snapshots
 
-    snap = Snapshots(Path(out) / doc["reference"]["train"])
-    return float(wall_gaps(snap.vertices, snap.displacement(snap.n_steps - 1), scene.chambers).min())
+    snap = Snapshots(path)
+    return float(wall_gaps(snap.vertices, snap.displacement(snap.n_steps - 1), chambers).min())
 
 
 def _wall_gap_text(gaps):
     """The table's line on the walls of neighbouring chambers at the top training load, the reference's least gap
-    [m] per load (``gaps``: ``free``, and ``blocked``, ``cylinder`` when the scene has them; None: not recorded)."""
+    [m] per load (``gaps``: ``free``, and ``blocked``, ``cylinder`` when the scene has them, the 3D ladder's
+    plane-strain rung at its top load, :data:`PLANE_STRAIN_GAP`; None: not recorded)."""
     have = {k: g for k, g in gaps.items() if g is not None}
     text = ", ".join(f"{k} {1e3 * g:.3f} mm" for k, g in have.items())
     over = [k for k, g in have.items() if g < 0]
@@ -2335,6 +2342,10 @@ class PneuNet3DScene(_Levels):
         return f"h = {'/'.join(f'{1e3 * h:.2f}' for h in self.sizes())} mm (ratio {self.ratio:.3g})"
 
 
+#: the key of the plane-strain rung's least wall gap [m] at its top (unseen) load in the 3D ladder's
+#: ``info["wall_gap"]`` (:func:`pneunet3d_ladder`)
+PLANE_STRAIN_GAP = "plane-strain at the unseen load"
+
 SCENES["pneunet3d"] = {"full": PneuNet3DScene(size=2e-3, repeats=15, blocked=True, volume_study=True),
                        "quick": PneuNet3DScene(size=4e-3, train_steps=6, test_steps=4, size_2d=1.2e-3,
                                                modes=(1, 2, 3, 4), fem_families=("fem-p1", "fem-p2mixed"), repeats=9)}
@@ -2486,7 +2497,8 @@ def pneunet3d_ladder(scene, out, progress=None):
     on the 3D reference's snapshots (:func:`beam_ladder`, timed by CPU). FEM rows also carry ``rss_mb`` and
     ``solve_wall_s``; ``info["refinement"]`` names the meshes; ``info["wall_gap"]`` is the reference's least gap
     [m] between neighbouring chambers' walls at the top training load, free and blocked (:func:`wall_gaps` in
-    3D; the table warns when it is negative), as :func:`ladder`'s. The reference's Richardson order is capped at the
+    3D; the table warns when it is negative), as :func:`ladder`'s, and the plane-strain rung's at its top (unseen)
+    load (:data:`PLANE_STRAIN_GAP`: the section without side walls bends further). The reference's Richardson order is capped at the
     element's formal order (:func:`richardson` ``max_order``): on the quick meshes (h = 4, 2.83, 2 mm) the
     observed tip order was 7.1, which would claim 0.0135 % of L where the formal order 3 gives 0.078 %."""
     doc = pneunet3d_fem_ladder(scene, out, progress)
@@ -2495,7 +2507,8 @@ def pneunet3d_ladder(scene, out, progress=None):
         row["rss_mb"], row["peak_mb"] = r["rss_mb"], r.get("peak_mb")
         row["solve_wall_s"] = float(np.median(r["solve_wall_s"]))
     info = {"richardson": rich, "length": doc["length"], "fem": doc, "refinement": scene.refinement(),
-            "wall_gap": {"free": _train_wall_gap(scene, out, doc)}}
+            "wall_gap": {"free": _train_wall_gap(scene, out, doc),
+                         PLANE_STRAIN_GAP: _last_wall_gap(Path(out) / "plane-strain.h5", scene.chambers)}}
     if scene.volume_study:
         study = pneunet3d_volume_study(scene, out, progress)
         ref = doc["rungs"][-1]

@@ -837,9 +837,10 @@ def test_the_3d_wall_gaps_are_the_gap_at_rest_and_follow_a_moved_wall_through_co
     at z = -W/2: the least gap lies between the plane's distance G - W sin a (on the continuous face) and the
     right face's corner's distance to the tilted face's edge, sqrt((G - W sin a)^2 + (W (1 - cos a))^2): +0.750 mm
     at a = 0.05, -0.742 to -0.760 mm (overlap) at a = 0.15. The ladder records the reference's least gap at the
-    top training load, free and blocked, in ``info["wall_gap"]`` and the table's text says it."""
+    top training load, free and blocked, and the plane-strain rung's at its top load in ``info["wall_gap"]``, and
+    the table's text says them."""
     from sorofem.snapshots import Snapshots
-    from soro.ladder import _pneunet, _wall_gap_text, wall_gaps
+    from soro.ladder import PLANE_STRAIN_GAP, _pneunet, _wall_gap_text, wall_gaps
 
     scene, out, rows, info = tiny3d
     pn = _pneunet()
@@ -865,7 +866,7 @@ def test_the_3d_wall_gaps_are_the_gap_at_rest_and_follow_a_moved_wall_through_co
         corner = np.sign(h) * np.hypot(plane, W * (1 - np.cos(a)))
         gap = wall_gaps(X, U, scene.chambers)[0]
         assert min(plane, corner) - 1e-12 <= gap <= max(plane, corner) + 1e-12 and np.sign(gap) == np.sign(h)
-    assert set(info["wall_gap"]) == {"free", "blocked"}
+    assert set(info["wall_gap"]) == {"free", "blocked", PLANE_STRAIN_GAP}
     assert info["wall_gap"]["free"] == pytest.approx(
         wall_gaps(X, snap.displacement(snap.n_steps - 1), scene.chambers).min(), rel=1e-12)
     text = _wall_gap_text(info["wall_gap"])
