@@ -326,7 +326,8 @@ def wall_gaps(vertices, displacement, chambers):
     value is the least signed distance from the right face's vertices to that surface, positive on the gap's
     side (the surface's normal that points to +x at rest): G at rest, 0 where the walls touch, negative where
     they overlap (the FEM model has no self-contact, so inflated walls pass through each other: the full 2D
-    scene at 6 kPa overlapped by 1.6 mm, the 3D one at 10 kPa by about 2.2 mm)."""
+    scene at 6 kPa overlapped by 1.6 mm, session 13's 3D one at 10 kPa by 2.3 mm). Where they overlap, a vertex's
+    depth is its distance from the other face's surface, from that face's edge where it has passed beyond it."""
     pn = _pneunet()
     X = np.asarray(vertices, dtype=float)
     U = np.asarray(displacement, dtype=float)
