@@ -2303,7 +2303,8 @@ class PneuNet3DScene(_Levels):
     Session 13 ran 10 kPa: its walls overlapped from 2.8 kPa of the training ramp on (t = 0.28) and by 2.28 mm at
     p_max (its stored training snapshots); every 3D figure it gave was of interpenetrating walls. The quick scene
     (h = 4, 2.83, 2 mm: its reference, 2 mm, touches at 2.47 kPa blocked; coarser meshes touch later) keeps
-    the same p_max.
+    the same p_max: its walls stay 0.446 mm apart (free; the plane-strain rung 0.065 mm), its reference tip is
+    known to 0.129 % of L (not converging), and ``--quick --tol 1%`` selects DVS 1 (validated at 0.010 %).
 
     At 1.9 kPa (the full scene, measured 08:35-09:03 UTC, 27 min wall at load 1.8-2.4 with the volume study):
     the tip deflects 0.58 mm (2.5 % of L; 2.96 mm, 13 % of L, at 10 kPa). P2 mixed ramps take 9.9, 25.5, 112 s
