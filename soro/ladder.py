@@ -74,7 +74,7 @@ __all__ = ["Scene", "SCENES", "GRADING", "MEASURES", "FEM_FAMILIES", "BEAM_FAMIL
            "pneunet3d_budget", "pneunet3d_costs", "unreachable", "elastica_on_floor", "contact_table",
            "contact_figure", "column", "scene_measures", "measures_of", "blocked_fem", "blocked_beam",
            "pneunet_blocked_fem", "blocked_rows", "blocked_table", "pneunet_contact_fem", "pneunet_contact_rows",
-           "pneunet_contact_table", "pneunet3d_volume_study", "wall_gaps"]
+           "pneunet_contact_table", "pneunet3d_volume_study", "wall_gaps", "PLANE_STRAIN_GAP"]
 
 #: The error measures of the ladder (the selection takes one of them): on the unseen free loads ``tip``,
 #: ``shape``, ``volume``; ``blocked`` (the tip held: its reaction at the top unseen load, :func:`blocked_rows`);
