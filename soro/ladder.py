@@ -74,7 +74,7 @@ __all__ = ["Scene", "SCENES", "GRADING", "MEASURES", "FEM_FAMILIES", "BEAM_FAMIL
            "pneunet3d_budget", "pneunet3d_costs", "unreachable", "elastica_on_floor", "contact_table",
            "contact_figure", "column", "scene_measures", "measures_of", "blocked_fem", "blocked_beam",
            "pneunet_blocked_fem", "blocked_rows", "blocked_table", "pneunet_contact_fem", "pneunet_contact_rows",
-           "pneunet_contact_table", "pneunet3d_volume_study", "wall_gaps"]
+           "pneunet_contact_table", "pneunet3d_volume_study", "wall_gaps", "PLANE_STRAIN_GAP"]
 
 #: The error measures of the ladder (the selection takes one of them): on the unseen free loads ``tip``,
 #: ``shape``, ``volume``; ``blocked`` (the tip held: its reaction at the top unseen load, :func:`blocked_rows`);
@@ -323,37 +323,85 @@ def _backbone(pn, length, dim=2):
 
 
 def wall_gaps(vertices, displacement, chambers):
-    r"""The gaps [m] between the facing walls of neighbouring chambers of the 2D PneuNet (``demos/
-    pneunet_inflation.py``'s geometry, ``chambers`` of them), one per gap, in the deformed state ``vertices`` +
-    ``displacement`` ((n, 2 or 3) [m], the mesh's vertices and one step's vertex displacement).
+    r"""The gaps [m] between the facing walls of neighbouring chambers of the PneuNet (``demos/
+    pneunet_inflation.py``'s geometry, ``chambers`` of them; 2D or 3D, from the vertices), one per gap, in the
+    deformed state ``vertices`` + ``displacement`` ((n, 2 or 3) [m], the mesh's vertices and one step's vertex
+    displacement; 2D vertices may carry a zero third coordinate).
 
-    A gap's faces are the boundary vertices on :math:`x = iP \mp G/2` above the base (P the pitch, G the gap).
-    Its value is the least signed distance from the right face's vertices to the left face's polyline, positive
-    on the gap's side: G at rest, 0 where the walls touch, negative where they overlap (the FEM model has no
-    self-contact, so inflated walls pass through each other: the full scene at 6 kPa overlapped by 1.6 mm)."""
+    A gap's faces are the boundary vertices on :math:`x = iP \mp G/2` above the base (P the pitch, G the gap). The
+    left face is a surface through its vertices: in 2D the polyline through them sorted by height; in 3D the
+    triangulation (Delaunay) of its vertices in their undeformed (y, z) coordinates: the face is a plane rectangle
+    at rest, so these are the faces themselves, every vertex of them resolved (not a mid-plane slab), a piecewise
+    linear surface through the deformed vertices (the mesh's own P1 facets up to the diagonals chosen). A gap's
+    value is the least signed distance from the right face's vertices to that surface, positive on the gap's
+    side (the surface's normal that points to +x at rest): G at rest, 0 where the walls touch, negative where
+    they overlap (the FEM model has no self-contact, so inflated walls pass through each other: the full 2D
+    scene at 6 kPa overlapped by 1.6 mm, session 13's 3D one at 10 kPa by 2.3 mm). Where they overlap, a vertex's
+    depth is its distance from the other face's surface, from that face's edge where it has passed beyond it."""
     pn = _pneunet()
-    X = np.asarray(vertices, dtype=float)[:, :2]
-    x = X + np.asarray(displacement, dtype=float)[:, :2]
+    X = np.asarray(vertices, dtype=float)
+    U = np.asarray(displacement, dtype=float)
+    if X.ndim != 2 or X.shape[1] not in (2, 3) or U.shape != X.shape:
+        raise ParameterError(f"wall_gaps: vertices and displacement must both be (n, 2) or (n, 3) arrays [m]; got "
+                             f"{X.shape} and {U.shape}")
     tol = 1e-9 * pn.PITCH * chambers
+    dim = 3 if X.shape[1] == 3 and np.ptp(X[:, 2]) > tol else 2
+    X, x = X[:, :dim], (X + U)[:, :dim]
     gaps = []
     up = X[:, 1] > pn.BASE - tol                                      # the walls: above the base
     for i in range(1, chambers):
         left = np.flatnonzero(up & (np.abs(X[:, 0] - (i * pn.PITCH - pn.GAP / 2)) < tol))
         right = np.flatnonzero(up & (np.abs(X[:, 0] - (i * pn.PITCH + pn.GAP / 2)) < tol))
-        if len(left) < 2 or len(right) < 1:
-            raise ParameterError(f"wall_gaps: gap {i} has no wall faces on these vertices: give the 2D PneuNet's "
+        if len(left) < dim or len(right) < 1:
+            raise ParameterError(f"wall_gaps: gap {i} has no wall faces on these vertices: give the PneuNet's "
                                  f"mesh of {chambers} chambers")
-        left = left[np.argsort(X[left, 1])]
-        a, ab = x[left[:-1]], x[left[1:]] - x[left[:-1]]              # the left face's segments, bottom to top
-        d = x[right][:, None, :] - a[None]                            # (right vertices, segments, 2)
-        s = np.clip(np.einsum("rsk,sk->rs", d, ab) / np.einsum("sk,sk->s", ab, ab), 0.0, 1.0)
-        e = d - s[..., None] * ab[None]
-        dist = np.linalg.norm(e, axis=2)
-        near = np.argmin(dist, axis=1)
-        r = np.arange(len(right))
-        side = np.sign(ab[near, 1] * d[r, near, 0] - ab[near, 0] * d[r, near, 1])   # + : right of the rising face
-        gaps.append(float(np.min(side * dist[r, near])))
+        gaps.append(_least_signed_distance(x[right], x, left, X, dim))
     return np.asarray(gaps)
+
+
+def _segment_distances(p, a, b):
+    """Distances (r, s) from points ``p`` (r, d) to segments ``a``-``b`` (s, d)."""
+    ab = b - a
+    d = p[:, None, :] - a[None]
+    s = np.clip(np.einsum("rsk,sk->rs", d, ab) / np.einsum("sk,sk->s", ab, ab), 0.0, 1.0)
+    return np.linalg.norm(d - s[..., None] * ab[None], axis=2)
+
+
+def _least_signed_distance(p, x, face, X, dim):
+    """The least signed distance from the points ``p`` to the surface through the deformed vertices ``x[face]``
+    of a wall face (a plane x = const at rest, :func:`wall_gaps`), positive on the side of +x at rest."""
+    if dim == 2:
+        face = face[np.argsort(X[face, 1])]
+        a, b = x[face[:-1]], x[face[1:]]                              # the segments, bottom to top
+        dist = _segment_distances(p, a, b)
+        near = np.argmin(dist, axis=1)
+        r = np.arange(len(p))
+        ab, d = b[near] - a[near], p - a[near]
+        side = np.sign(ab[:, 1] * d[:, 0] - ab[:, 0] * d[:, 1])      # + : right of the rising face
+        return float(np.min(side * dist[r, near]))
+    from scipy.spatial import Delaunay
+
+    tri = face[Delaunay(X[face][:, 1:]).simplices]                    # (t, 3) vertex ids, planar at rest
+    flip = np.cross(X[tri[:, 1]] - X[tri[:, 0]], X[tri[:, 2]] - X[tri[:, 0]])[:, 0] < 0
+    tri[flip] = tri[flip][:, ::-1]                                    # every normal to +x at rest
+    a, b, c = x[tri[:, 0]], x[tri[:, 1]], x[tri[:, 2]]
+    n = np.cross(b - a, c - a)
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    d = p[:, None, :] - a[None]                                       # (r, t, 3)
+    h = np.einsum("rtk,tk->rt", d, n)                                 # signed height over each triangle's plane
+    q = d - h[..., None] * n[None]                                    # the projection, relative to a
+    e1, e2 = b - a, c - a                                             # barycentric coordinates of q
+    d11, d12, d22 = (np.einsum("tk,tk->t", u, v) for u, v in ((e1, e1), (e1, e2), (e2, e2)))
+    q1, q2 = np.einsum("rtk,tk->rt", q, e1), np.einsum("rtk,tk->rt", q, e2)
+    den = d11 * d22 - d12 ** 2
+    v, w = (d22 * q1 - d12 * q2) / den, (d11 * q2 - d12 * q1) / den
+    inside = (v >= 0) & (w >= 0) & (v + w <= 1)
+    edges = np.minimum(np.minimum(_segment_distances(p, a, b), _segment_distances(p, b, c)),
+                       _segment_distances(p, c, a))
+    dist = np.where(inside, np.abs(h), edges)
+    near = np.argmin(dist, axis=1)
+    r = np.arange(len(p))
+    return float(np.min(np.sign(h[r, near]) * dist[r, near]))
 
 
 # ------------------------------------------------------------------------------------------------ Richardson
@@ -722,15 +770,22 @@ def _time_interleaved(rows, loads, repeats, clock=time.perf_counter):
 def _train_wall_gap(scene, out, doc):
     """The least gap [m] between neighbouring chambers' walls (:func:`wall_gaps`) at the top training load, on the
     reference's training ramp (the snapshot file of ``doc``)."""
+    return _last_wall_gap(Path(out) / doc["reference"]["train"], scene.chambers)
+
+
+def _last_wall_gap(path, chambers):
+    """The least gap [m] between neighbouring chambers' walls (:func:`wall_gaps`) in the last step of the snapshot
+    file ``path`` (2D or 3D)."""
     from sorofem.snapshots import Snapshots
 
-    snap = Snapshots(Path(out) / doc["reference"]["train"])
-    return float(wall_gaps(snap.vertices, snap.displacement(snap.n_steps - 1), scene.chambers).min())
+    snap = Snapshots(path)
+    return float(wall_gaps(snap.vertices, snap.displacement(snap.n_steps - 1), chambers).min())
 
 
 def _wall_gap_text(gaps):
     """The table's line on the walls of neighbouring chambers at the top training load, the reference's least gap
-    [m] per load (``gaps``: ``free``, and ``blocked``, ``cylinder`` when the scene has them; None: not recorded)."""
+    [m] per load (``gaps``: ``free``, and ``blocked``, ``cylinder`` when the scene has them, the 3D ladder's
+    plane-strain rung at its top load, :data:`PLANE_STRAIN_GAP`; None: not recorded)."""
     have = {k: g for k, g in gaps.items() if g is not None}
     text = ", ".join(f"{k} {1e3 * g:.3f} mm" for k, g in have.items())
     over = [k for k, g in have.items() if g < 0]
@@ -1475,8 +1530,7 @@ def _pneunet_blocked(scene, pn, degree, mixed, size, level):
     """The PneuNet's FEM model (the scene's ``dim``: 2, plane strain, meshed as the scene's grading says, or 3)
     of ``degree``/``mixed`` on ``size`` with its end face (``right``: the base's end, below the chambers; in 3D
     the whole end face of the base) held vertically, ramped to ``level`` x p_max: (reaction [N per m of depth in
-    2D; N in 3D], CPU s, the least gap [m] between neighbouring chambers' walls at ``level``, :func:`wall_gaps`;
-    None in 3D)."""
+    2D; N in 3D], CPU s, the least gap [m] between neighbouring chambers' walls at ``level``, :func:`wall_gaps`)."""
     if scene.dim == 2:
         fem, _ = _build_2d(scene, pn, degree, mixed, size)
     else:
@@ -1486,10 +1540,8 @@ def _pneunet_blocked(scene, pn, degree, mixed, size, level):
 
 
 def _least_wall_gap(scene, traj):
-    """The least gap [m] between neighbouring chambers' walls (:func:`wall_gaps`) in the last state of a 2D
-    PneuNet's trajectory; None in 3D."""
-    if scene.dim != 2:
-        return None
+    """The least gap [m] between neighbouring chambers' walls (:func:`wall_gaps`) in the last state of a (2D or 3D)
+    PneuNet's trajectory."""
     return float(wall_gaps(traj.vertices, np.asarray(traj.displacement)[-1], scene.chambers).min())
 
 
@@ -1516,7 +1568,7 @@ def pneunet_blocked_fem(scene, out, doc, progress=None):
     at the validation load. Cached, rung by rung, in ``out/blocked.json`` (with the scene's settings; an
     interrupted run resumes). Returns that document: ``rungs`` (``force`` [N/m in 2D, N in 3D], ``solve_s`` CPU
     [s]) in the order of ``doc["rungs"]`` and ``reference`` (``train``, ``validation`` forces, and the least gap
-    [m] between neighbouring chambers' walls at each, ``train_wall_gap``, ``validation_wall_gap``; None in 3D)."""
+    [m] between neighbouring chambers' walls at each, ``train_wall_gap``, ``validation_wall_gap``)."""
     bdoc, save = _rung_cache(Path(out) / "blocked.json", scene)
     pn = _pneunet()
     say = progress or (lambda msg: None)
@@ -2274,25 +2326,50 @@ class PneuNet3DScene(_Levels):
     ``linear_start`` times the body's size (:meth:`sorofem.fem.Fem.solve`: the unloaded thin walls).
 
     ``ratio`` is sqrt 2, not 2: three 3D refinements that fit. The full scene runs h = 2, 1.41, 1 mm (P2 mixed
-    25k, 53k and 121k unknowns; 18, 51 and 205 s CPU per ramp; 2.05 GB peak at 1 mm; measured on the mesh that
-    follows the layer's top, session 11, and reproduced bit for bit since). The P2 mixed tip (x, y) at the top
-    unseen load is (22.638, -1.893), (22.615, -2.011), (22.620, -1.955) mm: observed order 2.19 but turning
-    back, so the reference's own error is the last change, 0.245 % of L (shape 0.088 %). The blocked force
-    (``blocked``: the base's end face held vertically, N) is 0.03738, 0.03870, 0.03819 N: turning back too, known
-    to 1.34 %; P2 without the pressure field 0.04102, 0.04022, 0.03958 N (volumetric locking: 3.6 % above); after
-    one stiffness scale fitted on the training load's blocked force the beams lie 0.34-1.14 % from it (DVS 1:
-    1.04 %), closer than in 2D (3.6-4.3 %). The cavity volume change does not converge on these meshes (P2 mixed
-    1.2268, 1.2437, 1.2700 cm^3: the changes grow): the 2 mm walls get one to two elements across (mean edge
-    in the side walls 2.09, 1.64, 1.21 mm; the cells grow 2.2-2.5x per refinement, not 2.8x), so their bending is
-    pre-asymptotic. A volume-only refinement of one chamber, half of it by symmetry (``volume_study``,
-    :func:`pneunet3d_volume_study`; standalone runs of a first version of its mesh): its volume change is 306.69,
-    307.66, 311.88, 318.31, 320.41 mm^3 at h = 2.83, 2, 1.41, 1, 0.71 mm, changes 0.97, 4.22, 6.43, 2.10 mm^3;
-    the study's own meshes give 318.381, 320.328, 322.534 mm^3 at h = 1, 0.71, 0.5 mm, changes 1.95 then 2.21
-    mm^3: not converging even with four elements across a wall, so the reference's volume is at least 1.30 %
-    low and its stated error is 2.0 % (1.41/1/0.71 mm alone had suggested 0.95 % at order 3.5).
-    Selected (``soro trade pneunet3d``): ``--tol 1%`` DVS 1 (tip 0.200 %, validated at 0.65 p_max: 0.174 %);
-    ``--tol 2% --measure volume`` DVS 1 (1.01 %, validated 0.21 %; the reference's own 2.0 % just below 2 %); ``--tol 1% --measure blocked`` is refused
-    (the reference is known to 1.34 %); ``--tol 2% --measure blocked`` DVS 1 (1.04 %, validated 1.80 %), twice.
+    25k, 53k and 121k unknowns).
+
+    ``p_max`` = 1.9 kPa, below the walls' contact. The FEM model has no self-contact, and the inflated chambers'
+    side walls bulge into the 1.5 mm gap between them (:func:`wall_gaps`, in 3D over the whole faces). Ramps of
+    P2 mixed in steps of 0.2 kPa, the least gap per step, interpolated to zero: the walls touch at 2.969 and
+    2.901 kPa on the free ramp (h = 2 and 1.41 mm) and at 2.466, 2.411 and 2.299 kPa with the base's end face
+    held (the blocked load; h = 2, 1.41 and 1 mm; 25, 66 and 222 s CPU per ramp). The blocked sequence's changes
+    grow (0.055, then 0.112 kPa), as the volume's below: the contact pressure is not converged on these meshes
+    either, known to about 10 %. p_max is 0.83x the blocked contact on the reference's 1 mm mesh (0.79x on 1.41
+    mm), 0.65x the free one on 1.41 mm. At p_max the reference (h = 1 mm) keeps its
+    walls 0.385 mm apart on the training ramp, 0.223 mm with the tip held, 0.725 mm at the validation load (free)
+    and 0.618 mm (blocked); the plane-strain rung (no side walls: it bends further) 0.031 mm at its top unseen load.
+    Session 13 ran 10 kPa: its walls overlapped from 2.8 kPa of the training ramp on (t = 0.28) and by 2.28 mm at
+    p_max (its stored training snapshots); every 3D figure it gave was of interpenetrating walls. The quick scene
+    (h = 4, 2.83, 2 mm: its reference, 2 mm, touches at 2.47 kPa blocked; coarser meshes touch later) keeps
+    the same p_max: its walls stay 0.446 mm apart (free; the plane-strain rung 0.065 mm), its reference tip is
+    known to 0.129 % of L (not converging), and ``--quick --tol 1%`` selects DVS 1 (validated at 0.010 %).
+
+    At 1.9 kPa (the full scene, measured 08:35-09:03 UTC, 27 min wall at load 1.8-2.4 with the volume study):
+    the tip deflects 0.58 mm (2.5 % of L; 2.96 mm, 13 % of L, at 10 kPa). P2 mixed ramps take 9.9, 25.5, 112 s
+    CPU (at 10 kPa 17.7, 51, 205 s), 3-4 Newton iterations per step; 2.05 GB peak at 1 mm. Its tip (x, y) at the
+    top unseen load is (22.850, 0.443), (22.849, 0.416), (22.848, 0.425) mm: it turns back again (y changes
+    -0.027, +0.009 mm), so the reference's own error is the last change, 0.0405 % of L (1.6 % of the tip's
+    displacement; at 10 kPa 0.245 % of L, 1.9 % of it); shape 0.015 % (0.088 %). The blocked force is 0.007112,
+    0.007403, 0.007336 N: turning back too, known to 0.92 % (1.34 %). The cavity volume change on the ladder's
+    meshes is 188.35, 189.86, 195.87 mm^3 (the changes grow, 1.5 then 6.0 mm^3); P2 without the pressure field
+    lies 3.5-15 % below (volumetric locking), P1 38-55 %. So removing the overlap did not make the reference
+    converge: the tip and the blocked force turn back by about the same fraction of the deflection as at 10 kPa,
+    and the volume's changes still grow; the overlap was not their cause. What remains suspect: the meshes are
+    not a geometric refinement (session 13: the cells grow 2.2-2.5x per step, not 2.8x; gmsh keeps an element
+    across a 2 mm wall) and the cavity's re-entrant edges. A volume-only refinement of one chamber, half of it by symmetry
+    (``volume_study``, :func:`pneunet3d_volume_study`) gives 49.162, 49.530, 49.969 mm^3 at h = 1, 0.71, 0.5 mm
+    (35k, 84k, 192k unknowns; 19, 67, 251 s CPU): changes 0.368 then 0.438 mm^3, growing as at 10 kPa (318.381,
+    320.328, 322.534 mm^3, changes 1.95, 2.21), so the reference's volume error is stated as 2.53 % (its distance
+    from the finest plus the last change; 2.0 % at 10 kPa). The beams, trained on the 3D reference's snapshots,
+    lie 0.036-0.054 % of L from its tip (the strain floor from the clamp's undeformed frame: 0.039 %), after one
+    stiffness scale 0.045-0.30 % from its blocked force, 0.001-0.045 % from its volume change; the plane-strain
+    section 4.35 % of L (tip) and 82 % (volume) from it (22 % and 90 % at 10 kPa).
+    Selected (``soro trade pneunet3d``; tip and blocked the same in two runs): ``--tol 0.1%`` and ``--tol 1%`` DVS 1 (tip
+    0.036 % + the reference's 0.041 %, 0.25 ms CPU per solve; validated at 0.65 p_max: 0.0355 %, at most
+    0.076 %); ``--tol 1.1% --measure blocked`` DVS 2 (0.045 % + 0.917 %; validated 0.107 %, at most 1.023 %: at
+    ``--tol 1%`` the same model is selected but its validation bound, 1.023 %, is not within it);
+    ``--tol 2.6% --measure volume`` Chebyshev 1 (0.042 % + 2.53 %; validated 0.037 %, at most 2.57 %); a volume
+    tolerance below 2.53 % is refused (the reference is not known to it).
     The plane-strain
     rung (``size_2d`` [m], P2 mixed, the same section) is the 2D model of the same actuator: its error against
     the 3D reference is a model-form error (no refinement of the 2D model removes it); its cavity volume is the
@@ -2303,7 +2380,8 @@ class PneuNet3DScene(_Levels):
     chambers: int = 2
     size: float = 2e-3 * 2 ** 0.5
     ratio: float = 2 ** 0.5
-    p_max: float = 10e3
+    #: below the walls' contact (see the class docstring): 0.83x the blocked load's 2.30 kPa (P2 mixed, h = 1 mm)
+    p_max: float = 1.9e3
     train_steps: int = 8
     test_steps: int = 5
     linear_start: float = 0.01
@@ -2327,6 +2405,10 @@ class PneuNet3DScene(_Levels):
         """The meshes as text, e.g. ``h = 2.83/2.00/1.41 mm (ratio 1.41)``."""
         return f"h = {'/'.join(f'{1e3 * h:.2f}' for h in self.sizes())} mm (ratio {self.ratio:.3g})"
 
+
+#: the key of the plane-strain rung's least wall gap [m] at its top (unseen) load in the 3D ladder's
+#: ``info["wall_gap"]`` (:func:`pneunet3d_ladder`)
+PLANE_STRAIN_GAP = "plane-strain at the unseen load"
 
 SCENES["pneunet3d"] = {"full": PneuNet3DScene(size=2e-3, repeats=15, blocked=True, volume_study=True),
                        "quick": PneuNet3DScene(size=4e-3, train_steps=6, test_steps=4, size_2d=1.2e-3,
@@ -2477,7 +2559,10 @@ def pneunet3d_ladder(scene, out, progress=None):
     """The 3D PneuNet's ladder: (rows, info) as :func:`ladder`: the 3D FEM rows (errors against the finest P2
     mixed; its own error by Richardson with the scene's ratio), the plane-strain row, then the beams trained
     on the 3D reference's snapshots (:func:`beam_ladder`, timed by CPU). FEM rows also carry ``rss_mb`` and
-    ``solve_wall_s``; ``info["refinement"]`` names the meshes. The reference's Richardson order is capped at the
+    ``solve_wall_s``; ``info["refinement"]`` names the meshes; ``info["wall_gap"]`` is the reference's least gap
+    [m] between neighbouring chambers' walls at the top training load, free and blocked (:func:`wall_gaps` in
+    3D; the table warns when it is negative), as :func:`ladder`'s, and the plane-strain rung's at its top (unseen)
+    load (:data:`PLANE_STRAIN_GAP`: the section without side walls bends further). The reference's Richardson order is capped at the
     element's formal order (:func:`richardson` ``max_order``): on the quick meshes (h = 4, 2.83, 2 mm) the
     observed tip order was 7.1, which would claim 0.0135 % of L where the formal order 3 gives 0.078 %."""
     doc = pneunet3d_fem_ladder(scene, out, progress)
@@ -2485,7 +2570,9 @@ def pneunet3d_ladder(scene, out, progress=None):
     for row, r in zip(fem_rows, doc["rungs"]):
         row["rss_mb"], row["peak_mb"] = r["rss_mb"], r.get("peak_mb")
         row["solve_wall_s"] = float(np.median(r["solve_wall_s"]))
-    info = {"richardson": rich, "length": doc["length"], "fem": doc, "refinement": scene.refinement()}
+    info = {"richardson": rich, "length": doc["length"], "fem": doc, "refinement": scene.refinement(),
+            "wall_gap": {"free": _train_wall_gap(scene, out, doc),
+                         PLANE_STRAIN_GAP: _last_wall_gap(Path(out) / "plane-strain.h5", scene.chambers)}}
     if scene.volume_study:
         study = pneunet3d_volume_study(scene, out, progress)
         ref = doc["rungs"][-1]
@@ -2496,7 +2583,9 @@ def pneunet3d_ladder(scene, out, progress=None):
         info["volume_study"] = study
     rows = fem_rows + [_plane_strain_row(doc)] + beam_ladder(scene, doc, out)
     if scene.blocked:
-        info["blocked"] = blocked_rows(rows, scene, doc, pneunet_blocked_fem(scene, out, doc, progress))
+        bdoc = pneunet_blocked_fem(scene, out, doc, progress)
+        info["blocked"] = blocked_rows(rows, scene, doc, bdoc)
+        info["wall_gap"]["blocked"] = bdoc["reference"].get("train_wall_gap")
     return rows, info
 
 
