@@ -26,7 +26,7 @@ from sorofem._numba import njit
 # frame, about half of attach_upto's time on the manipulator_pick tree's 86 frames)
 @njit(cache=True)
 def _ad_inverse(h, A):
-    """A = Ad of the inverse of the pose h, :math:`\mathrm{Ad}_{h^{-1}}` (entries that stay zero untouched)."""
+    r"""A = Ad of the inverse of the pose h, :math:`\mathrm{Ad}_{h^{-1}}` (entries that stay zero untouched)."""
     p0 = p1 = p2 = 0.0
     for j in range(3):
         p0 -= h[j, 0] * h[j, 3]
