@@ -81,6 +81,25 @@ def _bapply(A, X, Y, alpha, beta):
 
 
 @njit(cache=True)
+def _bapply_at(A, X, sx, Y, sy, alpha, beta):
+    """:func:`_bapply` on the (6, m) slices ``X[sx]`` and ``Y[sy]`` of 3-D arrays, indexed element by element
+    (a view of a slice costs a reference-count pair; a 2-D operand comes as a (1, 6, m) reshape made once)."""
+    m = X.shape[2]
+    for c in range(m):
+        x0, x1, x2, x3, x4, x5 = X[sx, 0, c], X[sx, 1, c], X[sx, 2, c], X[sx, 3, c], X[sx, 4, c], X[sx, 5, c]
+        for i in range(3):
+            top = A[i, 0] * x0 + A[i, 1] * x1 + A[i, 2] * x2
+            bot = (A[i + 3, 0] * x0 + A[i + 3, 1] * x1 + A[i + 3, 2] * x2
+                   + A[i, 0] * x3 + A[i, 1] * x4 + A[i, 2] * x5)
+            if beta == 0.0:              # never read Y: a stale non-finite buffer must not leak (0 * NaN)
+                Y[sy, i, c] = alpha * top
+                Y[sy, i + 3, c] = alpha * bot
+            else:
+                Y[sy, i, c] = alpha * top + beta * Y[sy, i, c]
+                Y[sy, i + 3, c] = alpha * bot + beta * Y[sy, i + 3, c]
+
+
+@njit(cache=True)
 def _bvec(A, x, y, alpha, beta):
     """y = alpha * A @ x + beta * y for a block matrix A and vectors of length 6."""
     x0, x1, x2, x3, x4, x5 = x[0], x[1], x[2], x[3], x[4], x[5]
@@ -239,23 +258,6 @@ def _dtangent_closed(Om, dO, dT):
 
 
 @njit(cache=True)
-def _tangent_into(Om, Omd, S, want_d):
-    """S[_T] = T(Om); if want_d, S[_DT] = dT(Om)[Omd] (closed forms; see :func:`soroshapes.lie.dTSE3`)."""
-    _tangent_closed(Om, S[_T])
-    if want_d:
-        _dtangent_closed(Om, Omd, S[_DT])
-
-
-@njit(cache=True)
-def _strain(Bv, rows, x0, q, out):
-    """out = Theta q + x0, with Theta stored by columns: column k is ``Bv[k]`` in row ``rows[k]``."""
-    for r in range(6):
-        out[r] = x0[r]
-    for k in range(q.shape[0]):
-        out[rows[k]] += Bv[k] * q[k]
-
-
-@njit(cache=True)
 def _col_ad(x, r, v, out, k, alpha):
     """out[:, k] += alpha * v * ad_x e_r (column r of ad_x, scaled)."""
     w0, w1, w2, v0, v1, v2 = x[0], x[1], x[2], x[3], x[4], x[5]
@@ -287,17 +289,38 @@ def _col_ad(x, r, v, out, k, alpha):
 
 
 @njit(cache=True)
-def _segment(s, q, qd, want_dT, want_dOp, order, h, B, rows, xi0, G, S, E, V, Op, dOp, zero):
-    r"""The Magnus step of segment ``s``: :math:`\Omega`, :math:`\dot\Omega` (``V[4]``, ``V[5]``),
-    :math:`\Omega' = \partial\Omega/\partial q` (``Op``) and, if ``want_dOp``, its rate (``dOp``, order 4;
-    zeroed otherwise), :math:`E = \exp\hat\Omega`, the next frame ``G[s+1] = G[s] E``, ``Ad`` of
-    :math:`E^{-1}` and the tangent operator (and, if ``want_dT``, its derivative along :math:`\dot\Omega`) in
-    ``S``."""
+def _strain_at(B, s, j, rows, x0, q, out):
+    """out = Theta q + x0 at Gauss point j of segment s, with Theta stored by columns: column k is ``B[s, j, k]``
+    in row ``rows[k]`` (indexed element by element: no array-row views, each of which costs a reference-count
+    pair)."""
+    for r in range(6):
+        out[r] = x0[s, j, r]
+    for k in range(q.shape[0]):
+        out[rows[k]] += B[s, j, k] * q[k]
+
+
+@njit(cache=True)
+def _rate_at(B, s, j, rows, qd, out):
+    """out = Theta qd at Gauss point j of segment s (:func:`_strain_at` without the reference strain)."""
+    for r in range(6):
+        out[r] = 0.0
+    for k in range(qd.shape[0]):
+        out[rows[k]] += B[s, j, k] * qd[k]
+
+
+@njit(cache=True)
+def _segment(s, q, qd, want_dT, want_dOp, order, h, B, rows, xi0, G, E, Op, dOp, xi1, xi2, xd1, xd2, Om, Omd, tmp,
+             Ai, T, dT):
+    r"""The Magnus step of segment ``s``: :math:`\Omega`, :math:`\dot\Omega` (``Om``, ``Omd``: rows 4 and 5 of
+    the work array ``V``), :math:`\Omega' = \partial\Omega/\partial q` (``Op``) and, if ``want_dOp``, its rate
+    (``dOp``, order 4; zeroed otherwise), :math:`E = \exp\hat\Omega`, the next frame ``G[s+1] = G[s] E``,
+    ``Ad`` of :math:`E^{-1}` (``Ai``) and the tangent operator ``T`` (and, if ``want_dT``, its derivative
+    ``dT`` along :math:`\dot\Omega`). The rows of ``V`` and the blocks of ``S`` come as arguments, made once
+    per kinematics pass (a view made per segment costs a reference-count pair)."""
     n = q.shape[0]
-    xi1, xi2, xd1, xd2, Om, Omd, tmp = V[0], V[1], V[2], V[3], V[4], V[5], V[7]
     hs = h[s]
-    _strain(B[s, 0], rows, xi0[s, 0], q, xi1)
-    _strain(B[s, 0], rows, zero, qd, xd1)
+    _strain_at(B, s, 0, rows, xi0, q, xi1)
+    _rate_at(B, s, 0, rows, qd, xd1)
     for r in range(6):
         for k in range(n):
             Op[r, k] = 0.0
@@ -310,8 +333,8 @@ def _segment(s, q, qd, want_dT, want_dOp, order, h, B, rows, xi0, G, S, E, V, Op
             Op[rows[k], k] = hs * B[s, 0, k]
     else:
         c = MAGNUS4_C * hs * hs
-        _strain(B[s, 1], rows, xi0[s, 1], q, xi2)
-        _strain(B[s, 1], rows, zero, qd, xd2)
+        _strain_at(B, s, 1, rows, xi0, q, xi2)
+        _rate_at(B, s, 1, rows, qd, xd2)
         _adv(xi1, xi2, tmp)
         for r in range(6):
             Om[r] = 0.5 * hs * (xi1[r] + xi2[r]) + c * tmp[r]
@@ -340,22 +363,30 @@ def _segment(s, q, qd, want_dT, want_dOp, order, h, B, rows, xi0, G, S, E, V, Op
             G[s + 1, i, j] = v
         G[s + 1, 3, i] = 0.0
     G[s + 1, 3, 3] = 1.0
-    _adinv_into(E, S[_AI])
-    _tangent_into(Om, Omd, S, want_dT)
+    _adinv_into(E, Ai)
+    _tangent_closed(Om, T)
+    if want_dT:
+        _dtangent_closed(Om, Omd, dT)
 
 
 @njit(cache=True)
-def _propagate(s, order, rows, S, V, Op, eta, J, AJ):
-    r"""Node s+1 from node s: :math:`\psi = T\dot\Omega` (``V[6]``), :math:`\eta_{s+1} =
+def _propagate(s, order, rows, Ai, T, Omd, psi, Op, eta, J, AJ, Op3, AJ3):
+    r"""Node s+1 from node s: :math:`\psi = T\dot\Omega` (``psi``, row 6 of ``V``), :math:`\eta_{s+1} =
     \mathrm{Ad}_{e^{-\Omega}}\eta_s + \psi`, ``AJ`` = :math:`\mathrm{Ad}_{e^{-\Omega}} J_s` and
-    :math:`J_{s+1} = AJ + T\,\Omega'` (sparse columns at order 2), after :func:`_segment`."""
+    :math:`J_{s+1} = AJ + T\,\Omega'` (sparse columns at order 2), after :func:`_segment` (``Ai``, ``T`` the
+    blocks of ``S`` it wrote, ``Omd`` row 5 of ``V``; ``Op3``, ``AJ3`` the (1, 6, n) reshapes of ``Op``, ``AJ``).
+    The rows of ``eta`` and ``J`` are indexed element by element (no views)."""
     n = J.shape[2]
-    Ai, T, Omd, psi = S[_AI], S[_T], V[5], V[6]
     _bvec(T, Omd, psi, 1.0, 0.0)
-    _bvec(Ai, eta[s], eta[s + 1], 1.0, 0.0)
+    x0, x1, x2, x3, x4, x5 = eta[s, 0], eta[s, 1], eta[s, 2], eta[s, 3], eta[s, 4], eta[s, 5]
+    for i in range(3):                # eta[s+1] = Ai eta[s] (as _bvec), then + psi
+        top = Ai[i, 0] * x0 + Ai[i, 1] * x1 + Ai[i, 2] * x2
+        bot = Ai[i + 3, 0] * x0 + Ai[i + 3, 1] * x1 + Ai[i + 3, 2] * x2 + Ai[i, 0] * x3 + Ai[i, 1] * x4 + Ai[i, 2] * x5
+        eta[s + 1, i] = 1.0 * top
+        eta[s + 1, i + 3] = 1.0 * bot
     for r in range(6):
         eta[s + 1, r] += psi[r]
-    _bapply(Ai, J[s], AJ, 1.0, 0.0)
+    _bapply_at(Ai, J, s, AJ3, 0, 1.0, 0.0)
     if order == 2:
         for k in range(n):
             r = rows[k]
@@ -366,7 +397,7 @@ def _propagate(s, order, rows, S, V, Op, eta, J, AJ):
         for r in range(6):
             for k in range(n):
                 J[s + 1, r, k] = AJ[r, k]
-        _bapply(T, Op, J[s + 1], 1.0, 1.0)
+        _bapply_at(T, Op3, 0, J, s + 1, 1.0, 1.0)
 
 
 @njit(cache=True)
@@ -381,22 +412,23 @@ def kinematics(q, qd, want_rate, order, h, B, rows, xi0, g0, G, J, Jd, eta, S, E
     """
     n = q.shape[0]
     N = h.shape[0]
-    psi = V[6]
+    xi1, xi2, xd1, xd2, Om, Omd, psi, tmp = V[0], V[1], V[2], V[3], V[4], V[5], V[6], V[7]
     Ai, T, dT, A = S[_AI], S[_T], S[_DT], S[_TMP]
-    zero = np.zeros(6)
+    Op3, dOp3, AJ3 = Op.reshape((1, 6, n)), dOp.reshape((1, 6, n)), AJ.reshape((1, 6, n))
     G[0, :, :] = g0
     J[0, :, :] = 0.0
     eta[0, :] = 0.0
     if want_rate:
         Jd[0, :, :] = 0.0
     for s in range(N):
-        _segment(s, q, qd, want_rate, want_rate, order, h, B, rows, xi0, G, S, E, V, Op, dOp, zero)
-        _propagate(s, order, rows, S, V, Op, eta, J, AJ)
+        _segment(s, q, qd, want_rate, want_rate, order, h, B, rows, xi0, G, E, Op, dOp, xi1, xi2, xd1, xd2, Om, Omd,
+                 tmp, Ai, T, dT)
+        _propagate(s, order, rows, Ai, T, Omd, psi, Op, eta, J, AJ, Op3, AJ3)
         if want_rate:
             # Jd[s+1] = Ai Jd[s] - ad_psi AJ + dT Op + T dOp
-            _bapply(Ai, Jd[s], Jd[s + 1], 1.0, 0.0)
+            _bapply_at(Ai, Jd, s, Jd, s + 1, 1.0, 0.0)
             _ad_into(psi, A)
-            _bapply(A, AJ, Jd[s + 1], -1.0, 1.0)
+            _bapply_at(A, AJ3, 0, Jd, s + 1, -1.0, 1.0)
             if order == 2:
                 for k in range(n):
                     r = rows[k]
@@ -404,8 +436,8 @@ def kinematics(q, qd, want_rate, order, h, B, rows, xi0, g0, G, J, Jd, eta, S, E
                     for i in range(6):
                         Jd[s + 1, i, k] += dT[i, r] * f
             else:
-                _bapply(dT, Op, Jd[s + 1], 1.0, 1.0)
-                _bapply(T, dOp, Jd[s + 1], 1.0, 1.0)
+                _bapply_at(dT, Op3, 0, Jd, s + 1, 1.0, 1.0)
+                _bapply_at(T, dOp3, 0, Jd, s + 1, 1.0, 1.0)
 
 
 @njit(cache=True)
@@ -429,17 +461,16 @@ def mass_coriolis_gravity(J, Jd, eta, G, w, Md, ag, M, C, fg, want_c, S, V, Y):
         wi = w[i]
         if wi == 0.0:
             continue
-        m = Md[i]
-        for k in range(n):
+        for k in range(n):                  # Md indexed element by element (no row view per node)
             for l in range(k, n):
                 s = 0.0
                 for r in range(6):
-                    s += J[i, r, k] * m[r] * J[i, r, l]
+                    s += J[i, r, k] * Md[i, r] * J[i, r, l]
                 M[k, l] += wi * s
         # gravity: body force density m_lin R^T ag
         for r in range(3):
             W[r] = 0.0
-            W[r + 3] = m[r + 3] * (G[i, 0, r] * ag[0] + G[i, 1, r] * ag[1] + G[i, 2, r] * ag[2])
+            W[r + 3] = Md[i, r + 3] * (G[i, 0, r] * ag[0] + G[i, 1, r] * ag[1] + G[i, 2, r] * ag[2])
         for k in range(n):
             s = 0.0
             for r in range(3, 6):
@@ -449,10 +480,10 @@ def mass_coriolis_gravity(J, Jd, eta, G, w, Md, ag, M, C, fg, want_c, S, V, Y):
             _ad_into(eta[i], A)
             for r in range(6):
                 for c in range(6):
-                    Bm[r, c] = m[r] * A[r, c] - A[c, r] * m[c]
+                    Bm[r, c] = Md[i, r] * A[r, c] - A[c, r] * Md[i, c]
             for r in range(6):
                 for k in range(n):
-                    s = m[r] * Jd[i, r, k]
+                    s = Md[i, r] * Jd[i, r, k]
                     for c in range(6):
                         s += Bm[r, c] * J[i, c, k]
                     Y[r, k] = s
@@ -522,22 +553,24 @@ def kinematics_vec(q, qd, order, h, B, rows, xi0, g0, G, J, eta, etad, S, E, V, 
     \mathrm{ad}_\psi \eta_{s+1} + dT[\dot\Omega]\dot\Omega + T\,\dot\Omega'\dot q` (no 6 x n rate matrices).
     ``W`` is a (8, 6) work array."""
     N = h.shape[0]
-    xd1, xd2, Omd, psi, tmp = V[2], V[3], V[5], V[6], V[7]
-    Ai, T = S[_AI], S[_T]
-    zero = np.zeros(6)
+    n = q.shape[0]
+    xi1, xi2, xd1, xd2, Om, Omd, psi, tmp = V[0], V[1], V[2], V[3], V[4], V[5], V[6], V[7]
+    Ai, T, dT = S[_AI], S[_T], S[_DT]
+    Op3, AJ3 = Op.reshape((1, 6, n)), AJ.reshape((1, 6, n))
     G[0, :, :] = g0
     J[0, :, :] = 0.0
     eta[0, :] = 0.0
     etad[0, :] = 0.0
     for s in range(N):
-        _segment(s, q, qd, True, False, order, h, B, rows, xi0, G, S, E, V, Op, AJ, zero)   # AJ: scratch here
-        _propagate(s, order, rows, S, V, Op, eta, J, AJ)
+        _segment(s, q, qd, True, False, order, h, B, rows, xi0, G, E, Op, AJ, xi1, xi2, xd1, xd2, Om, Omd, tmp, Ai,
+                 T, dT)                                             # AJ: scratch here
+        _propagate(s, order, rows, Ai, T, Omd, psi, Op, eta, J, AJ, Op3, AJ3)
         # etad[s+1] = Ai etad[s] - ad_psi eta[s+1] + dT[Omd] Omd (+ T (2c ad_xd1 xd2) at order 4)
         _bvec(Ai, etad[s], etad[s + 1], 1.0, 0.0)
         _adv(psi, eta[s + 1], tmp)
         for r in range(6):
             etad[s + 1, r] -= tmp[r]
-        _bvec(S[_DT], Omd, etad[s + 1], 1.0, 1.0)
+        _bvec(dT, Omd, etad[s + 1], 1.0, 1.0)
         if order != 2:
             _adv(xd1, xd2, W[6])
             c = 2.0 * MAGNUS4_C * h[s] * h[s]
@@ -557,24 +590,23 @@ def generalized_inertial_force(J, eta, etad, G, w, Md, a, ag, pl_nodes, pl_W, pl
         wi = w[i]
         if wi == 0.0:
             continue
-        m = Md[i]
-        e = eta[i]
-        for r in range(6):
+        for r in range(6):                  # Md and eta indexed element by element (no row views)
             s = etad[i, r]
             for k in range(n):
                 s += J[i, r, k] * a[k]
-            F[r] = m[r] * s
+            F[r] = Md[i, r] * s
         # - ad_eta^T (M eta) = (w x (m_w * w) + v x (m_v * v), w x (m_v * v))
-        mw0, mw1, mw2 = m[0] * e[0], m[1] * e[1], m[2] * e[2]
-        mv0, mv1, mv2 = m[3] * e[3], m[4] * e[4], m[5] * e[5]
-        F[0] += e[1] * mw2 - e[2] * mw1 + e[4] * mv2 - e[5] * mv1
-        F[1] += e[2] * mw0 - e[0] * mw2 + e[5] * mv0 - e[3] * mv2
-        F[2] += e[0] * mw1 - e[1] * mw0 + e[3] * mv1 - e[4] * mv0
-        F[3] += e[1] * mv2 - e[2] * mv1
-        F[4] += e[2] * mv0 - e[0] * mv2
-        F[5] += e[0] * mv1 - e[1] * mv0
+        e0, e1, e2, e3, e4, e5 = _row6(eta, i)
+        mw0, mw1, mw2 = Md[i, 0] * e0, Md[i, 1] * e1, Md[i, 2] * e2
+        mv0, mv1, mv2 = Md[i, 3] * e3, Md[i, 4] * e4, Md[i, 5] * e5
+        F[0] += e1 * mw2 - e2 * mw1 + e4 * mv2 - e5 * mv1
+        F[1] += e2 * mw0 - e0 * mw2 + e5 * mv0 - e3 * mv2
+        F[2] += e0 * mw1 - e1 * mw0 + e3 * mv1 - e4 * mv0
+        F[3] += e1 * mv2 - e2 * mv1
+        F[4] += e2 * mv0 - e0 * mv2
+        F[5] += e0 * mv1 - e1 * mv0
         for r in range(3):
-            F[r + 3] -= m[r + 3] * (G[i, 0, r] * ag[0] + G[i, 1, r] * ag[1] + G[i, 2, r] * ag[2])
+            F[r + 3] -= Md[i, r + 3] * (G[i, 0, r] * ag[0] + G[i, 1, r] * ag[1] + G[i, 2, r] * ag[2])
         for k in range(n):
             s = 0.0
             for r in range(6):

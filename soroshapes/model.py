@@ -695,13 +695,21 @@ class Model:
         (:attr:`evaluation_path` is ``"compiled"``) every entry is ``"compiled"``; otherwise beams with gravity,
         inputs and point loads still evaluate in one compiled call each, and reservoirs, StateSpace and
         rigid-body right-hand sides, beams with contact, tendons or user forces, and every coupling and the
-        controller run in Python. Also in a trajectory's ``stats``."""
+        controller run in Python; a beam that keeps the network on the Python path for a reason of its own
+        (a time-varying point load: :func:`soroshapes.network.python_reason`) says so in its entry,
+        ``"python: ..."``. Also in a trajectory's ``stats``."""
         return self._paths(self._lowered())
 
     def _paths(self, net):
         """:attr:`evaluation_paths` for the lowered network ``net`` (or the reason it has none)."""
+        from .network import python_reason
         paths = {name: getattr(b.system, "evaluation_path", "python") for name, b in self._blocks.items()}
         compiled = not isinstance(net, str)
+        if not compiled:
+            for name, b in self._blocks.items():
+                why = python_reason(b.system) if paths[name] == "compiled" else None
+                if why is not None:
+                    paths[name] = f"python: {why}"
         if self._links:
             paths["couplings"] = "compiled" if compiled else "python"
         if self._controller is not None:

@@ -6,7 +6,9 @@ What is lowered
 when every part of it has a compiled form:
 
 * systems: :class:`~soroshapes.shapes.Shapes` beams whose loads run compiled (gravity, chambers and linear
-  actuators: ``Shapes.evaluation_path == "compiled"``, no point loads; contact with fixed obstacles,
+  actuators: ``Shapes.evaluation_path == "compiled"``; point loads whose force and moment are constants, in the
+  body or the spatial frame, carried in the beam's flat arrays and evaluated by the beam's own recursions, while
+  a time-varying one keeps the Python path, :func:`python_reason`; contact with fixed obstacles,
   ``Shapes.add_contact``, whose SDF has a program form, :mod:`sorofem.sdf.program`), every :class:`~soroshapes.model.Fluidic`
   reservoir (isothermal or polytropic, regulated or not, with the saturation or the orifice valve of
   :mod:`soroshapes.valves`; a Python valve function keeps the Python path) whose volume is constant or given by a
@@ -82,7 +84,7 @@ from . import _treeblock        # the tree block kind
 from .numerics import FD_STEP
 from .valves import orifice_flow
 
-__all__ = ["StateMap", "Schedule", "lower", "assemble", "rhs", "residual", "jacobian"]
+__all__ = ["StateMap", "Schedule", "lower", "python_reason", "assemble", "rhs", "residual", "jacobian"]
 
 _FUNCTIONS = {"identity": 0, "tanh": 1}
 
@@ -262,8 +264,13 @@ _FLUIDIC_FLOATS = 20
 #: damping, normalization gain
 _RIGID_FLOATS = 25
 # per-beam integer parameters (rows of ``bint``); _B_PLANAR: 1 for a beam that moves in its body x-z plane, whose
-# residual and mass matrix take the planar recursions (soroshapes._beam.newton_euler_planar)
-_B_N, _B_M, _B_P, _B_NG, _B_ORDER, _B_FO, _B_WO, _B_IO, _B_PO, _B_PLANAR = range(10)
+# residual and mass matrix take the planar recursions (soroshapes._beam.newton_euler_planar); _B_DEG, _B_HO: the
+# degree of its identified polynomial actuators and the offset of their higher coefficients in bflt; _B_NPL: its
+# number of (constant) point loads, their nodes (workspace rows) at bintb[_B_PLN], wrenches (k, 6) at bflt[_B_PLW]
+# and frame flags (True: spatial) at the network's point-load flags (net[35]) [_B_PLF]
+(_B_N, _B_M, _B_P, _B_NG, _B_ORDER, _B_FO, _B_WO, _B_IO, _B_PO, _B_PLANAR, _B_DEG, _B_HO, _B_NPL, _B_PLN, _B_PLW,
+ _B_PLF) = range(16)
+_B_COLS = 16
 
 
 def _beam_floats(n, m, P, ng):
@@ -283,6 +290,30 @@ def _beam_ne_work(n, P):
     T, Jm, Ym, Opm, Mm, LU, a, v, R, f (see :func:`_beam_ne_views`)."""
     Np = P + 1
     return (Np * 6, P * 36, P * 24, 192, 36, Np * 6 * n, Np * 6 * n, 6 * n, n * n, n * n, n, n, n, n)
+
+
+# --- point loads: constant ones lowered with the beam ---
+def _constant_wrench(ld):
+    """The wrench (moment, force) (6,) [N m, N] of a :class:`soroshapes.beam.PointLoad` whose force and moment do
+    not change with time, else None: :meth:`Shapes.add_point_load <soroshapes.shapes.Shapes.add_point_load>` keeps
+    a 3-vector as a constant signal holding its ``value``, a callable of t as a signal without one."""
+    parts = [getattr(sig, "value", None) for sig in (ld.moment_at, ld.force_at)]
+    if any(v is None for v in parts):
+        return None
+    return np.concatenate([np.asarray(v, dtype=float).reshape(3) for v in parts])
+
+
+def python_reason(system):
+    """Why a system that runs compiled on its own keeps a network on the Python path, or None: a beam with a
+    time-varying point load (a callable force or moment; the network lowers constant point loads with the beam,
+    in its flat arrays, and the beam's own kernels evaluate them). :attr:`Model.evaluation_paths
+    <soroshapes.model.Model.evaluation_paths>` gives it as that system's path."""
+    from .beam import PointLoad
+
+    for ld in getattr(system, "loads", ()):
+        if isinstance(ld, PointLoad) and _constant_wrench(ld) is None:
+            return f"a time-varying point load at node {ld.node} (a callable force or moment; constant ones run compiled)"
+    return None
 
 
 # --- identified polynomial actuators (soroshapes.dvs.PolynomialForce), compiled ---
@@ -516,6 +547,7 @@ def lower(blocks, links, volumes, controller, free):
     table = np.zeros((len(blocks), 8), np.int64)
     bint, bflt, bintb = [], [], []
     fpar = []
+    pflag = []                                      # the frame of each beam's point loads (True: spatial)
     maps, mapint = [], []
     lint, lflt = [], []
     rflt = []
@@ -560,8 +592,9 @@ def lower(blocks, links, volumes, controller, free):
             inputs[i] = plan.input_matrix
             if not plan.compiled:
                 raise NotImplementedError(f"beam {b['name']!r} ({shp.evaluation_path})")
-            if len(plan.point_loads):
-                raise NotImplementedError(f"beam {b['name']!r} (point loads)")
+            why = python_reason(shp)
+            if why is not None:
+                raise NotImplementedError(f"beam {b['name']!r} ({why})")
             Gin, deg, higher = plan.input_matrix, 1, None
             if Gin is None:                             # an identified polynomial actuator
                 poly = _polynomial_inputs(own, mdl.n)
@@ -583,9 +616,16 @@ def lower(blocks, links, volumes, controller, free):
             if higher is not None:                      # the coefficients of u^2..u^D, (D-1, n, m)
                 bflt.append(np.ascontiguousarray(higher, dtype=float).reshape(-1))
                 fo += higher.size
+            wrenches = np.array([_constant_wrench(ld) for ld in plan.point_loads], float).reshape(-1, 6)
+            npl = len(plan.point_loads)
+            bint[-1] += [npl, io + 2 * n, fo, len(pflag)]       # point loads: nodes after the pivots, wrenches
+            bflt.append(wrenches.reshape(-1))
+            fo += wrenches.size
+            pflag.extend(bool(f) for f in plan.spatial)
             wo += sum(_beam_work(n, P)) + sum(_beam_ne_work(n, P))
             bintb.append(np.zeros(n, np.int64))             # pivots
-            io += 2 * n
+            bintb.append(np.asarray(plan.nodes, np.int64).reshape(-1))
+            io += 2 * n + npl
             kind[i], table[i, 5] = BEAM, len(bint) - 1
         elif b["kind"] == "fluidic":
             fl = b["system"]
@@ -771,7 +811,7 @@ def lower(blocks, links, volumes, controller, free):
     def cat(parts, dtype=float):
         return np.concatenate(parts).astype(dtype) if parts else np.zeros(0, dtype)
 
-    arrays = (table, np.array(bint, np.int64).reshape(-1, 12), cat(bflt), np.zeros(wo), cat(bintb, np.int64),
+    arrays = (table, np.array(bint, np.int64).reshape(-1, _B_COLS), cat(bflt), np.zeros(wo), cat(bintb, np.int64),
               np.array(fpar, float).reshape(-1, _FLUIDIC_FLOATS), np.array(mapint, np.int64).reshape(-1, 4), cat(maps),
               np.array(link_tab, np.int64).reshape(-1, 4), np.array(link_rows, np.int64),
               np.int64(ckind), np.ascontiguousarray(ctimes, float), np.ascontiguousarray(cvals, float).reshape(
@@ -782,7 +822,8 @@ def lower(blocks, links, volumes, controller, free):
               np.concatenate(sops).astype(np.int64) if sops else np.zeros((0, 3), np.int64), cat(sconsts),
               *_term_cache(wterm, table, bint, nb),
               _treeblock.empty_block_args() if tree_args is None else tree_args,          # net[33]: the tree block
-              np.full(1 + len(free_rows), np.nan))          # net[34]: the schedule's row cached per time
+              np.full(1 + len(free_rows), np.nan),          # net[34]: the schedule's row cached per time
+              np.array(pflag, np.bool_))                    # net[35]: the beams' point-load frames (_B_PLF)
     return Lowered(arrays, N, NW, groups, dep)
 
 
@@ -1156,18 +1197,21 @@ def _beam_input_force(xo, n, m, bflt, go, w, wo, bext, f_in, deg=1, ho=0):
 
 
 @njit(cache=True)
-def _beam_rhs(bi, x, xo, w, wo, bint, bflt, bwork, bintb, bext, out):
+def _beam_rhs(bi, x, xo, w, wo, bint, bflt, bwork, bintb, bext, pflag, out):
     """Derivative (qd, qdd) of beam bi into out[xo:xo+2n] (:func:`soroshapes._beam.forward_dynamics`, the O(N)
-    recursions; leaves M at x in the workspace); False if the state is out of range."""
+    recursions, with the beam's point loads; leaves M at x in the workspace); False if the state is out of
+    range."""
     (n, m, order, K, D, Gin, h, B, X0, base, wts, Md, ag, rows, piv, G, J, Jd, eta, etad, S, E, V, Op, AJ, W, M, C,
      fg, R, qdd, f_in, wko, end) = _beam_arrays(bi, bint, bflt, bwork, bintb)
     acc, SA, SX, NV, T, Jm, Ym, Opm, Mm, LU, a, v, R, f, G, eta, E, start, stop = _beam_ne_arrays(bi, bint, bwork)
-    _beam_input_force(xo, n, m, bflt, bint[bi, 5] + 2 * n * n, w, wo, bext, f_in, bint[bi, 10], bint[bi, 11])
+    _beam_input_force(xo, n, m, bflt, bint[bi, 5] + 2 * n * n, w, wo, bext, f_in, bint[bi, _B_DEG], bint[bi, _B_HO])
     q = x[xo:xo + n]
     qd = x[xo + n:xo + 2 * n]
     nodes = np.zeros(0, np.int64)
     pW = np.zeros((0, 6))
     spatial = np.zeros(0, np.bool_)
+    if bint[bi, _B_NPL] > 0:
+        nodes, pW, spatial = _beam_point_loads(bi, bint, bflt, bintb, pflag)
     ok = _fd(q, qd, f_in, K, D, nodes, pW, spatial, order, h, B, rows, X0, base, wts, Md, ag, G, Jm, eta, acc, SA,
              SX, E, NV, T, Ym, Opm, Mm, LU, R, piv, qdd)
     s = 0.0
@@ -1188,27 +1232,38 @@ _NO_NODES, _NO_LOADS, _NO_FLAGS = np.zeros(0, np.int64), np.zeros((0, 6)), np.ze
 
 
 @njit(cache=True)
-def _beam_residual(bi, xe, x1, xhat, gam, xo, w, wo, bint, bflt, bwork, bintb, bext, out):
+def _beam_point_loads(bi, bint, bflt, bintb, pflag):
+    """Views of beam bi's constant point loads as the recursions take them (:func:`soroshapes._beam.newton_euler`):
+    their nodes (workspace rows), wrenches (k, 6) (moment, force) [N m, N] and frames (True: spatial)."""
+    k, on, ow, of = bint[bi, _B_NPL], bint[bi, _B_PLN], bint[bi, _B_PLW], bint[bi, _B_PLF]
+    return bintb[on:on + k], bflt[ow:ow + 6 * k].reshape((k, 6)), pflag[of:of + k]
+
+
+@njit(cache=True)
+def _beam_residual(bi, xe, x1, xhat, gam, xo, w, wo, bint, bflt, bwork, bintb, bext, pflag, out):
     r"""The rows of beam bi in the residual of an implicit step (see :func:`residual`), second order: the
     coordinate rows :math:`q_1 - \hat q - \gamma\dot q_e` and, in force units, the equations of motion at the
     evaluation point with the acceleration the step implies, :math:`a = (\dot q_1 - \hat{\dot q})/\gamma`:
     :math:`\rho = M(q_e)a + C\dot q_e - f_g + D\dot q_e + Kq_e - f_{in}` by one pass of the O(N) recursions
     (:func:`soroshapes._beam.newton_euler`, or its planar form :func:`soroshapes._beam.newton_euler_planar` for
-    a beam that moves in its body x-z plane, flagged at lowering; no mass matrix is formed or solved). Leaves the
-    pass's per-piece operators for :func:`_beam_mass_matrix`. False if the state is out of range."""
+    a beam that moves in its body x-z plane, flagged at lowering; no mass matrix is formed or solved), its constant
+    point loads (:func:`_beam_point_loads`) in the same pass. Leaves the pass's per-piece operators for
+    :func:`_beam_mass_matrix`. False if the state is out of range."""
     n, m, order, K, D, h, B, X0, base, wts, Md, ag, rows, go = _beam_model(bi, bint, bflt, bintb)
     acc, SA, SX, NV, a, R, f_in, G, eta, E, start, stop = _beam_pass_arrays(bi, bint, bwork)
-    _beam_input_force(xo, n, m, bflt, go, w, wo, bext, f_in, bint[bi, 10], bint[bi, 11])
+    _beam_input_force(xo, n, m, bflt, go, w, wo, bext, f_in, bint[bi, _B_DEG], bint[bi, _B_HO])
     q = xe[xo:xo + n]
     qd = xe[xo + n:xo + 2 * n]
     for k in range(n):
         a[k] = (x1[xo + n + k] - xhat[xo + n + k]) / gam
-    if bint[bi, 9]:
-        _ne_planar(q, qd, a, order, h, B, rows, X0, base, wts, Md, ag, _NO_NODES, _NO_LOADS, _NO_FLAGS, G, eta, acc,
-                   SA, SX, E, NV, R)
+    nodes, pW, spatial = _NO_NODES, _NO_LOADS, _NO_FLAGS
+    if bint[bi, _B_NPL] > 0:
+        nodes, pW, spatial = _beam_point_loads(bi, bint, bflt, bintb, pflag)
+    if bint[bi, _B_PLANAR]:
+        _ne_planar(q, qd, a, order, h, B, rows, X0, base, wts, Md, ag, nodes, pW, spatial, G, eta, acc, SA, SX, E, NV,
+                   R)
     else:
-        _ne(q, qd, a, order, h, B, rows, X0, base, wts, Md, ag, _NO_NODES, _NO_LOADS, _NO_FLAGS, G, eta, acc, SA, SX,
-            E, NV, R)
+        _ne(q, qd, a, order, h, B, rows, X0, base, wts, Md, ag, nodes, pW, spatial, G, eta, acc, SA, SX, E, NV, R)
     s = 0.0
     for k in range(n):
         r = R[k] - f_in[k]
@@ -1866,15 +1921,15 @@ def _rigid_rhs(ri, x, xo, w, wo, rflt, out):
 
 
 @njit(cache=True)
-def _system_rhs_a(i, x, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt, tblk, out):
+def _system_rhs_a(i, x, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt, tblk, pflag, out):
     """The derivative of system i (any kind) at x with its inputs in w, into its rows of out, from the network's
-    arrays (see :func:`_beam_arrays`; ``tblk`` the tree block's, net[33]); False if a beam's or the tree's state is
-    out of range."""
+    arrays (see :func:`_beam_arrays`; ``tblk`` the tree block's, net[33]; ``pflag`` the beams' point-load frames,
+    net[35]); False if a beam's or the tree's state is out of range."""
     xo, nx, wo = table[i, 1], table[i, 2], table[i, 3]
     if table[i, 0] == TREE:                     # a tree of bodies (soroshapes._treeblock)
         return _treeblock.block_rhs(tblk, x, xo, w, wo, bext, out)
     if table[i, 0] == BEAM:
-        return _beam_rhs(table[i, 5], x, xo, w, wo, bint, bflt, bwork, bintb, bext, out)
+        return _beam_rhs(table[i, 5], x, xo, w, wo, bint, bflt, bwork, bintb, bext, pflag, out)
     if table[i, 0] == FLUIDIC:
         _fluidic_rhs(table[i, 5], x, xo, nx, w, wo, fpar, out)
     elif table[i, 0] == RIGID:
@@ -1904,7 +1959,7 @@ def rhs(t, x, net, w, out, only):
         return False
     for i in range(table.shape[0]):
         if only[i] and not _system_rhs_a(i, x, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt,
-                                         net[33], out):
+                                         net[33], net[35], out):
             return False
     return _finite_rows(table, only, out)
 
@@ -1924,7 +1979,8 @@ def _evaluate(t, x, net, w, out, mode):
         return False
     for i in range(table.shape[0]):
         if mode[i] == _DERIVATIVE:
-            if not _system_rhs_a(i, x, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt, net[33], out):
+            if not _system_rhs_a(i, x, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt, net[33],
+                                 net[35], out):
                 return False
         elif mode[i] == _INPUT_FORCE and table[i, 0] == TREE:     # the tree's force from outside it
             xo, n = table[i, 1], table[i, 2] // 2
@@ -1935,8 +1991,8 @@ def _evaluate(t, x, net, w, out, mode):
             bi, xo, wo = table[i, 5], table[i, 1], table[i, 3]
             n, m = bint[bi, 0], bint[bi, 1]
             f_in = _beam_ne_arrays(bi, bint, bwork)[13]
-            _beam_input_force(xo, n, m, bflt, bint[bi, 5] + 2 * n * n, w, wo, bext, f_in, bint[bi, 10],
-                              bint[bi, 11])
+            _beam_input_force(xo, n, m, bflt, bint[bi, 5] + 2 * n * n, w, wo, bext, f_in, bint[bi, _B_DEG],
+                              bint[bi, _B_HO])
             for k in range(n):
                 out[xo + k] = 0.0
                 out[xo + n + k] = f_in[k]
@@ -1961,13 +2017,14 @@ def residual(t, xe, x1, xhat, gam, net, w, out, only):
         xo, nx = table[i, 1], table[i, 2]
         if table[i, 0] == BEAM:
             if not _beam_residual(table[i, 5], xe, x1, xhat, gam, xo, w, table[i, 3], bint, bflt, bwork, bintb, bext,
-                                  out):
+                                  net[35], out):
                 return False
             continue
         if table[i, 0] == FLUIDIC:
             _fluidic_rhs(table[i, 5], xe, xo, nx, w, table[i, 3], fpar, out)
         else:
-            _system_rhs_a(i, xe, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt, net[33], out)
+            _system_rhs_a(i, xe, w, table, bint, bflt, bwork, bintb, bext, fpar, rflt, lint, lflt, net[33], net[35],
+                          out)
         for j in range(xo, xo + nx):
             out[j] = x1[j] - xhat[j] - gam * out[j]
     return _finite_rows(table, only, out)

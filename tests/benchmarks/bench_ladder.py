@@ -30,8 +30,10 @@ def test_bench_ladder_network_by_tolerance(record, tmp_path):
     both bodies at the tight tolerance's model (``all_tight``) and both at the ladder's finest beam (the
     Chebyshev beam with the most modes, the one closest to the elastica: ``all_finest``), wall (perf_counter) and
     CPU (process_time) as medians of 7 rounds, the three networks interleaved within each round (a change of the
-    machine's load shifts them alike). Point loads keep these networks on the Python path
-    (``Model.evaluation_path``), whose per-step cost hides the bodies' own. The same for two bodies that accept
+    machine's load shifts them alike). The networks run compiled (constant point loads lower with their beams;
+    ``Model.evaluation_path``, recorded as ``paths``). Every body is a 40-piece fourth-order beam whatever its
+    number of modes, so the pieces, not the modes, set most of a step's cost (issue 18, session 15: about 120 us
+    per step for either pair, 3.3-3.4 Newton sweeps per step). The same for two bodies that accept
     only Chebyshev and PCC and ask for 10 % and 1 % of L on the shape (one mode and Chebyshev 2:
     ``mixed_physical``) against both at 1 % and both at the finest. And the bodies' static solves
     under their loads: the sum of the two bodies' CPU medians (the ladder's rows, timed interleaved in this run by

@@ -137,6 +137,50 @@ def test_evaluation_paths_say_which_path_runs_and_why():
     assert mdl.simulate(0.01, 2e-3).stats["path"] == "python"
 
 
+def loaded_beam(frame, planar, load=True):
+    """A damped beam under gravity with a constant tip load (force and, off the plane, a moment) in ``frame``;
+    ``planar``: it bends about its body y axis only (the planar recursions); ``load`` False: without the load."""
+    mat = materials.NeoHookean(E=1e6, nu=0.45, density=1000)
+    dofs = (0, 3, 0, 0, 0, 0) if planar else (0, 2, 2, 0, 0, 0)
+    shp = Shapes(Basis.chebyshev(3 if planar else 2), dofs=dofs, length=0.1, section=sdf.Circle(0.005),
+                 material=mat, damping=0.03, segments=6).add_gravity((0, 0, -9.81))
+    if not load:
+        return shp
+    return shp.add_point_load(force=(0.0, 0.02, -0.05), moment=None if planar else (1e-3, 0.0, 0.0), frame=frame)
+
+
+@pytest.mark.parametrize("frame", ["spatial", "body"])
+@pytest.mark.parametrize("planar", [False, True])
+def test_a_beam_with_a_constant_point_load_runs_compiled_and_equals_python(frame, planar):
+    """A constant point load (a dead load in the spatial frame, a follower load in the body frame) lowers with
+    its beam: nodes, wrenches and frames in the network's flat arrays, evaluated by the beam's own recursions
+    (soroshapes._beam.newton_euler, planar or not). The compiled trajectory equals the Python path's (the same
+    load through Shapes' kernels) to 10 Newton tolerances, and differs from the unloaded beam's by far more."""
+    def make(load=True):
+        return Model().add(loaded_beam(frame, planar, load), "b")
+    mdl = make()
+    assert mdl.evaluation_path == "compiled" and mdl.evaluation_paths == {"b": "compiled"}
+    bint = mdl._lowered().arrays[1]
+    assert bint[0, 9] == int(planar) and bint[0, 12] == 1        # the planar flag, one point load
+    rtol, atol = 1e-7, 1e-9
+    a, b = both(make, 0.2, 2e-3, "bdf2", rtol=rtol, atol=atol)
+    assert close(a["b"].x, b["b"].x, rtol, atol) < 10
+    free = make(load=False).simulate(0.2, 2e-3, "bdf2", rtol=rtol, atol=atol, compiled=True)
+    assert np.max(np.abs(free["b"].q - a["b"].q)) > 0.1 * np.max(np.abs(a["b"].q))
+
+
+def test_a_time_varying_point_load_keeps_the_python_path_and_says_why():
+    shp = finger().add_point_load(force=lambda t: (0.0, -0.01 * t, 0.0))
+    mdl = Model().add(shp, "f")
+    assert shp.evaluation_path == "compiled"                        # the beam alone: its own kernels
+    why = mdl.evaluation_path
+    assert why.startswith("python: beam 'f' (a time-varying point load") and "constant ones run compiled" in why
+    assert mdl.evaluation_paths["f"].startswith("python: a time-varying point load")
+    with pytest.raises(ParameterError, match="no compiled form.*time-varying point load"):
+        mdl.simulate(0.01, 1e-3, compiled=True)
+    assert mdl.simulate(0.01, 2e-3).stats["path"] == "python"
+
+
 def test_contact_with_a_shape_without_program_or_a_statespace_keeps_the_python_path():
     shp = finger().add_contact(sdf.Torus(0.01, 0.003).translate((0.05, -0.1, 0.0)), stiffness=1e4)
     path = Model().add(shp, "f").evaluation_path
