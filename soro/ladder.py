@@ -55,6 +55,7 @@ snapshots, CPU times and memory per rung, :func:`pneunet3d_costs`, :func:`pneune
 from __future__ import annotations
 
 import json
+import math
 import sys
 import time
 from dataclasses import asdict, dataclass
@@ -1534,7 +1535,7 @@ def _pneunet_blocked(scene, pn, degree, mixed, size, level):
     if scene.dim == 2:
         fem, _ = _build_2d(scene, pn, degree, mixed, size)
     else:
-        fem, _ = pn.build(scene.dim, scene.chambers, size, scene.p_max, degree=degree, mixed=mixed)
+        fem, _ = _pneunet3d_build(scene, pn, degree, mixed, size)
     R, cpu, traj = blocked_fem(fem, "right", level, scene.test_steps, linear_start=_blocked_linear_start(scene))
     return R, cpu, _least_wall_gap(scene, traj)
 
@@ -2392,14 +2393,42 @@ class PneuNet3DScene(_Levels):
     #: the reference's cavity-volume error from a volume-only refinement (:func:`pneunet3d_volume_study`: one
     #: chamber, half of it by the mid-plane's symmetry, on the reference's h, h/ratio, h/ratio^2)
     volume_study: bool = False
+    #: nested meshes: the rungs are the gmsh mesh of ``size`` split uniformly 0, 1, 2 times
+    #: (:meth:`sorofem.mesh.Mesh.refined`; needs ``ratio`` 2): h halves exactly and the geometry is the same on
+    #: every rung. False: each rung meshed anew by gmsh (the cells then do not shrink by the ratio)
+    nested: bool = False
     dim: ClassVar[int] = 3
     cpu_time: ClassVar[bool] = True
     #: the reference's formal order (P2: 3 for displacements): Richardson trusts no higher observed order
     formal_order: ClassVar[float] = 3.0
 
+    def __post_init__(self):
+        if self.nested and self.ratio != 2:
+            raise ValueError(f"a nested 3D ladder splits every cell's edges in two: ratio must be 2, got "
+                             f"{self.ratio:g}; set ratio=2 or nested=False")
+
     def sizes(self):
         """The three element sizes [m] of each FEM family: h, h/ratio, h/ratio^2."""
         return (self.size, self.size / self.ratio, self.size / self.ratio ** 2)
+
+    def fem_settings(self):
+        """What the FEM part depends on (the cache key; a scene meshed anew per rung keys as before
+        ``nested`` existed)."""
+        d = super().fem_settings()
+        if not d.get("nested", False):
+            d.pop("nested", None)
+        return d
+
+    def refinements(self, size):
+        """How the mesh of element size ``size`` [m] is made: (gmsh size [m], uniform splits): (``size``, 0), or
+        on a nested scene (``size`` of the coarsest rung, k) with size = ``size``/2^k."""
+        if not self.nested:
+            return size, 0
+        k = int(round(math.log2(self.size / size)))
+        if k < 0 or not math.isclose(self.size / 2 ** k, size, rel_tol=1e-9):
+            raise ValueError(f"h = {1e3 * size:.4g} mm is not the nested scene's {1e3 * self.size:.4g} mm halved a "
+                             "whole number of times")
+        return self.size, k
 
     def refinement(self):
         """The meshes as text, e.g. ``h = 2.83/2.00/1.41 mm (ratio 1.41)``."""
@@ -2416,6 +2445,13 @@ SCENES["pneunet3d"] = {"full": PneuNet3DScene(size=2e-3, repeats=15, blocked=Tru
 _STYLE["plane-strain"] = "X"
 
 
+def _pneunet3d_build(scene, pn, degree, mixed, size):
+    """The 3D PneuNet (``demos/pneunet_inflation.py`` ``build``) of ``degree``/``mixed`` on element size ``size``
+    [m], meshed as the scene says (:meth:`PneuNet3DScene.refinements`): (fem, length)."""
+    h, k = scene.refinements(size)
+    return pn.build(3, scene.chambers, h, scene.p_max, degree=degree, mixed=mixed, refine=k)
+
+
 def _pneunet3d_case(scene, pn, dim, degree, mixed, size, level, steps, what):
     """Build the PneuNet (``dim`` 3, or 2: the plane-strain section) and ramp it to ``level`` x p_max in about
     ``steps`` steps. Returns (fem, length, trajectory, costs): ``build_s`` (mesh and forms, wall), ``solve_s``
@@ -2428,7 +2464,10 @@ def _pneunet3d_case(scene, pn, dim, degree, mixed, size, level, steps, what):
     _peak_rss_reset()
     base = _peak_rss_mb("VmRSS")
     t0 = time.perf_counter()
-    fem, length = pn.build(dim, scene.chambers, size, scene.p_max, degree=degree, mixed=mixed)
+    if dim == 3:
+        fem, length = _pneunet3d_build(scene, pn, degree, mixed, size)
+    else:
+        fem, length = pn.build(dim, scene.chambers, size, scene.p_max, degree=degree, mixed=mixed)
     t1, c1 = time.perf_counter(), time.process_time()
     try:
         traj = fem.solve(load_level=level, steps=steps, max_step=level / steps, linear_start=scene.linear_start,
@@ -2486,7 +2525,7 @@ def pneunet3d_fem_ladder(scene, out, progress=None):
     say = progress or (lambda msg: None)
 
     def warm(degree, mixed):        # the forms' JIT outside the timings
-        pn.build(3, scene.chambers, scene.size, scene.p_max, degree=degree, mixed=mixed)[0].solve(
+        _pneunet3d_build(scene, pn, degree, mixed, scene.size)[0].solve(
             load_level=0.01, steps=1, progress=False)
 
     def rung(fam, degree, mixed, i, h, path):
@@ -2494,7 +2533,7 @@ def pneunet3d_fem_ladder(scene, out, progress=None):
                                                   scene.test_steps, "the unseen ramp")
         freq = None
         if scene.eigen:
-            freq = float(pn.build(3, scene.chambers, h, scene.p_max, degree=degree, mixed=mixed)[0]
+            freq = float(_pneunet3d_build(scene, pn, degree, mixed, h)[0]
                          .eigen(n=1).frequencies[0])
         r = {"family": fam, "level": i, "size": h, "degree": degree, "mixed": mixed, "unknowns": int(fem.num_dofs),
              **_pneunet3d_measure(pn, traj, length, 3, path), "freq": freq, "build_s": [cost["build_s"]],
