@@ -114,7 +114,8 @@ def test_bench_ladder_pneunet3d(record):
     solve (re-measured on each run); `--tol 1%` and `--tol 0.1%` select DVS 1 (tip 0.036 % + the reference's own
     0.041 %, validated at 0.0355 %); the reference's ramp (112 s CPU) against DVS 1's 0.240 ms per solve:
     4.7e5x (at 10 kPa, session 13: ramps 17.7, 51, 205 s CPU). Recorded: the rows, Richardson, the budget (with
-    the plane-strain model-form error), both verdicts, and the ratio of the reference's CPU time per ramp to the selected model's. Asserted: consistency, never a time."""
+    the plane-strain model-form error), both verdicts, and the ratio of the reference's CPU time per ramp to the
+    selected model's. Asserted: consistency, never a time."""
     from pathlib import Path
 
     from soro.ladder import run_ladder
