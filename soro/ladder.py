@@ -2431,8 +2431,10 @@ class PneuNet3DScene(_Levels):
         return self.size, k
 
     def refinement(self):
-        """The meshes as text, e.g. ``h = 2.83/2.00/1.41 mm (ratio 1.41)``."""
-        return f"h = {'/'.join(f'{1e3 * h:.2f}' for h in self.sizes())} mm (ratio {self.ratio:.3g})"
+        """The meshes as text, e.g. ``h = 2.83/2.00/1.41 mm (ratio 1.41)``; nested: ``h = 4.00/2.00/1.00 mm (ratio
+        2, nested: the 4.00 mm mesh split 0/1/2 times)``."""
+        text = f"h = {'/'.join(f'{1e3 * h:.2f}' for h in self.sizes())} mm (ratio {self.ratio:.3g}"
+        return text + (f", nested: the {1e3 * self.size:.2f} mm mesh split 0/1/2 times)" if self.nested else ")")
 
 
 #: the key of the plane-strain rung's least wall gap [m] at its top (unseen) load in the 3D ladder's

@@ -931,6 +931,7 @@ def test_a_nested_3d_scene_splits_its_coarse_mesh_and_wants_ratio_2():
     assert scene.fem_settings()["nested"] is True
     assert [scene.refinements(h) for h in scene.sizes()] == [(8e-3, 0), (8e-3, 1), (8e-3, 2)]
     assert PneuNet3DScene(size=8e-3).refinements(4e-3) == (4e-3, 0)
+    assert scene.refinement() == "h = 8.00/4.00/2.00 mm (ratio 2, nested: the 8.00 mm mesh split 0/1/2 times)"
     with pytest.raises(ValueError, match="halved a whole number of times"):
         scene.refinements(3e-3)
     pn = _pneunet()
