@@ -2374,7 +2374,21 @@ class PneuNet3DScene(_Levels):
     The plane-strain
     rung (``size_2d`` [m], P2 mixed, the same section) is the 2D model of the same actuator: its error against
     the 3D reference is a model-form error (no refinement of the 2D model removes it); its cavity volume is the
-    section's area times the chambers' inner width. Solve times are CPU times (FEM and beams): on a loaded
+    section's area times the chambers' inner width.
+
+    Why the reference turns back (session 15's probes, P2 mixed at the top unseen load): not the measure (the
+    ladder's recovered tip equals the displacement interpolated at (L, LAYER/2, 0) to 5 digits on every stored
+    rung) and not the element (P2 without the pressure field turns back the same way on the same meshes: tip y
+    0.4390, 0.4191, 0.4316 mm); the gmsh meshes made anew per h are (the quick scene's 4, 2.83, 2 mm turn back
+    too: 0.4413, 0.4130, 0.4425 mm): a 2 mm wall or layer gets a whole number of cells across, which jumps between
+    rungs. ``nested`` splits one gmsh mesh uniformly instead (ratio 2, the same geometry and cells of the same
+    shapes on every rung: :meth:`sorofem.mesh.Mesh.refined`). Nested from 4 mm (7.9k, 53k, 387k unknowns): tip y
+    0.4413, 0.4345 mm, the cavity volume change 187.17, 193.94 mm^3 (the gmsh 1 mm mesh: 195.87), 3.0 and 33 s CPU;
+    the 1 mm rung took more than 20 min CPU and 9.9 GB. From 8 mm (3.3k, 22k, 156k; the coarse cells' aspect
+    ratio 9.7) the blocked force at p_max turns back (0.008359, 0.008188, 0.008364 N; 1, 11, 235 s CPU, 3.2 GB):
+    one cell across the walls is not yet asymptotic. The cavity's edges are re-entrant (270 degrees of material):
+    displacements converge there as h^(2 lambda), lambda = 0.5445, about h^1.09 (the changes halve per halving of
+    h), so a converging 3D reference needs nested meshes finer than the ladder's. Solve times are CPU times (FEM and beams): on a loaded
     machine a 3D ramp's wall time grew 3x with the load, its CPU time did not."""
 
     name: str = "pneunet3d"
