@@ -2382,13 +2382,18 @@ class PneuNet3DScene(_Levels):
     0.4390, 0.4191, 0.4316 mm); the gmsh meshes made anew per h are (the quick scene's 4, 2.83, 2 mm turn back
     too: 0.4413, 0.4130, 0.4425 mm): a 2 mm wall or layer gets a whole number of cells across, which jumps between
     rungs. ``nested`` splits one gmsh mesh uniformly instead (ratio 2, the same geometry and cells of the same
-    shapes on every rung: :meth:`sorofem.mesh.Mesh.refined`). Nested from 4 mm (7.9k, 53k, 387k unknowns): tip y
-    0.4413, 0.4345 mm, the cavity volume change 187.17, 193.94 mm^3 (the gmsh 1 mm mesh: 195.87), 3.0 and 33 s CPU;
-    the 1 mm rung took more than 20 min CPU and 9.9 GB. From 8 mm (3.3k, 22k, 156k; the coarse cells' aspect
+    shapes on every rung: :meth:`sorofem.mesh.Mesh.refined`). Nested from 4 mm (h = 4, 2, 1 mm; 7.9k, 53k, 387k
+    unknowns; 3.0, 33, 1152 s CPU; 9.95 GB peak at 1 mm; load 1.6-2.2) it converges: tip y 0.441278, 0.434456,
+    0.433951 mm (changes -6.8, -0.50 um: observed order 3.76, Richardson at the formal 3: 0.072 um), tip x
+    22.85166, 22.84839, 22.84780 mm (order 2.48, 0.13 um): the tip known to 0.0006 % of L (gmsh: 0.041 %); the
+    cavity volume change 187.17, 193.94, 198.66 mm^3 (changes 6.77, 4.72: order 0.52, about the re-entrant
+    edges' lambda = 0.5445; Richardson 10.9 mm^3, 5.5 %: the gmsh meshes' 195.87 mm^3 at 1 mm and the volume
+    study's 2.53 % were low); the blocked force 0.0071346, 0.0071980 N on 4 and 2 mm (36 s CPU). From 8 mm (3.3k, 22k, 156k; the coarse cells' aspect
     ratio 9.7) the blocked force at p_max turns back (0.008359, 0.008188, 0.008364 N; 1, 11, 235 s CPU, 3.2 GB):
     one cell across the walls is not yet asymptotic. The cavity's edges are re-entrant (270 degrees of material):
-    displacements converge there as h^(2 lambda), lambda = 0.5445, about h^1.09 (the changes halve per halving of
-    h), so a converging 3D reference needs nested meshes finer than the ladder's. Solve times are CPU times (FEM and beams): on a loaded
+    the volume converges about as h^lambda there. Not the default (``SCENES["pneunet3d"]["full"]``): its 1 mm
+    reference costs 10x the gmsh 1 mm rung's CPU and 5x its memory per ramp, and a ladder runs about eight such
+    ramps. Solve times are CPU times (FEM and beams): on a loaded
     machine a 3D ramp's wall time grew 3x with the load, its CPU time did not."""
 
     name: str = "pneunet3d"
