@@ -2388,12 +2388,12 @@ class PneuNet3DScene(_Levels):
     22.85166, 22.84839, 22.84780 mm (order 2.48, 0.13 um): the tip known to 0.0006 % of L (gmsh: 0.041 %); the
     cavity volume change 187.17, 193.94, 198.66 mm^3 (changes 6.77, 4.72: order 0.52, about the re-entrant
     edges' lambda = 0.5445; Richardson 10.9 mm^3, 5.5 %: the gmsh meshes' 195.87 mm^3 at 1 mm and the volume
-    study's 2.53 % were low); the blocked force 0.0071346, 0.0071980 N on 4 and 2 mm (36 s CPU). From 8 mm (3.3k, 22k, 156k; the coarse cells' aspect
-    ratio 9.7) the blocked force at p_max turns back (0.008359, 0.008188, 0.008364 N; 1, 11, 235 s CPU, 3.2 GB):
-    one cell across the walls is not yet asymptotic. The cavity's edges are re-entrant (270 degrees of material):
-    the volume converges about as h^lambda there. Not the default (``SCENES["pneunet3d"]["full"]``): its 1 mm
-    reference costs 10x the gmsh 1 mm rung's CPU and 5x its memory per ramp, and a ladder runs about eight such
-    ramps. Solve times are CPU times (FEM and beams): on a loaded
+    study's 2.53 % were low); the blocked force 0.0071346, 0.0071980 N on 4 and 2 mm (36 s CPU). From 8 mm (3.3k,
+    22k, 156k; the coarse cells' aspect ratio 9.7) the blocked force at p_max turns back (0.008359, 0.008188,
+    0.008364 N; 1, 11, 235 s CPU, 3.2 GB): one cell across the walls is not yet asymptotic. The cavity's edges
+    are re-entrant (270 degrees of material): the volume converges about as h^lambda there. Not the default
+    (``SCENES["pneunet3d"]["full"]``): its 1 mm reference costs 10x the gmsh 1 mm rung's CPU and 5x its memory
+    per ramp, and a ladder runs about eight such ramps. Solve times are CPU times (FEM and beams): on a loaded
     machine a 3D ramp's wall time grew 3x with the load, its CPU time did not."""
 
     name: str = "pneunet3d"
