@@ -213,11 +213,12 @@ def layer_shape(length, dim=2):
     return rect if dim == 2 else rect.extrude(WIDTH + 2 * mm)
 
 
-def build(dim, chambers, size, p_max, petsc_options=None, degree=2, mixed=False, grading=None):
+def build(dim, chambers, size, p_max, petsc_options=None, degree=2, mixed=False, grading=None, refine=0):
     """Mesh and model of the actuator (displacement of ``degree`` 1 or 2; ``mixed``: Taylor-Hood P2 with a
     pressure field, :class:`sorofem.fem.Fem`); its mesh follows the layer's top (:func:`layer_shape`), graded
-    towards the corners with ``grading`` (:meth:`sorofem.mesh.Mesh.from_sdf`; None: uniform); returns
-    (fem, length)."""
+    towards the corners with ``grading`` (:meth:`sorofem.mesh.Mesh.from_sdf`; None: uniform), then split
+    uniformly ``refine`` times (:meth:`sorofem.mesh.Mesh.refined`: cells of size/2^refine, nested in the mesh
+    of ``size``); returns (fem, length)."""
     from sorofem.fem import Fem
     from sorofem.mesh import Mesh
 
@@ -225,6 +226,8 @@ def build(dim, chambers, size, p_max, petsc_options=None, degree=2, mixed=False,
     layer = layer_shape(length, dim)
     msh = Mesh.from_sdf(shape, size=size, interfaces=[layer],      # cell edges on the layer's top, y = LAYER
                         grading=grading)
+    if refine:
+        msh = msh.refined(refine)
     msh.add_region("layer", layer, kind="cells")
     fem = Fem(msh, material=materials.Ecoflex0030(), degree=degree, mixed=mixed, petsc_options=petsc_options)
     fem.add_material("layer", materials.DragonSkin30())

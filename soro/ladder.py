@@ -55,6 +55,7 @@ snapshots, CPU times and memory per rung, :func:`pneunet3d_costs`, :func:`pneune
 from __future__ import annotations
 
 import json
+import math
 import sys
 import time
 from dataclasses import asdict, dataclass
@@ -1534,7 +1535,7 @@ def _pneunet_blocked(scene, pn, degree, mixed, size, level):
     if scene.dim == 2:
         fem, _ = _build_2d(scene, pn, degree, mixed, size)
     else:
-        fem, _ = pn.build(scene.dim, scene.chambers, size, scene.p_max, degree=degree, mixed=mixed)
+        fem, _ = _pneunet3d_build(scene, pn, degree, mixed, size)
     R, cpu, traj = blocked_fem(fem, "right", level, scene.test_steps, linear_start=_blocked_linear_start(scene))
     return R, cpu, _least_wall_gap(scene, traj)
 
@@ -2373,7 +2374,26 @@ class PneuNet3DScene(_Levels):
     The plane-strain
     rung (``size_2d`` [m], P2 mixed, the same section) is the 2D model of the same actuator: its error against
     the 3D reference is a model-form error (no refinement of the 2D model removes it); its cavity volume is the
-    section's area times the chambers' inner width. Solve times are CPU times (FEM and beams): on a loaded
+    section's area times the chambers' inner width.
+
+    Why the reference turns back (session 15's probes, P2 mixed at the top unseen load): not the measure (the
+    ladder's recovered tip equals the displacement interpolated at (L, LAYER/2, 0) to 5 digits on every stored
+    rung) and not the element (P2 without the pressure field turns back the same way on the same meshes: tip y
+    0.4390, 0.4191, 0.4316 mm); the gmsh meshes made anew per h are (the quick scene's 4, 2.83, 2 mm turn back
+    too: 0.4413, 0.4130, 0.4425 mm): a 2 mm wall or layer gets a whole number of cells across, which jumps between
+    rungs. ``nested`` splits one gmsh mesh uniformly instead (ratio 2, the same geometry and cells of the same
+    shapes on every rung: :meth:`sorofem.mesh.Mesh.refined`). Nested from 4 mm (h = 4, 2, 1 mm; 7.9k, 53k, 387k
+    unknowns; 3.0, 33, 1152 s CPU; 9.95 GB peak at 1 mm; load 1.6-2.2) it converges: tip y 0.441278, 0.434456,
+    0.433951 mm (changes -6.8, -0.50 um: observed order 3.76, Richardson at the formal 3: 0.072 um), tip x
+    22.85166, 22.84839, 22.84780 mm (order 2.48, 0.13 um): the tip known to 0.0006 % of L (gmsh: 0.041 %); the
+    cavity volume change 187.17, 193.94, 198.66 mm^3 (changes 6.77, 4.72: order 0.52, about the re-entrant
+    edges' lambda = 0.5445; Richardson 10.9 mm^3, 5.5 %: the gmsh meshes' 195.87 mm^3 at 1 mm and the volume
+    study's 2.53 % were low); the blocked force 0.0071346, 0.0071980 N on 4 and 2 mm (36 s CPU). From 8 mm (3.3k,
+    22k, 156k; the coarse cells' aspect ratio 9.7) the blocked force at p_max turns back (0.008359, 0.008188,
+    0.008364 N; 1, 11, 235 s CPU, 3.2 GB): one cell across the walls is not yet asymptotic. The cavity's edges
+    are re-entrant (270 degrees of material): the volume converges about as h^lambda there. Not the default
+    (``SCENES["pneunet3d"]["full"]``): its 1 mm reference costs 10x the gmsh 1 mm rung's CPU and 5x its memory
+    per ramp, and a ladder runs about eight such ramps. Solve times are CPU times (FEM and beams): on a loaded
     machine a 3D ramp's wall time grew 3x with the load, its CPU time did not."""
 
     name: str = "pneunet3d"
@@ -2392,18 +2412,48 @@ class PneuNet3DScene(_Levels):
     #: the reference's cavity-volume error from a volume-only refinement (:func:`pneunet3d_volume_study`: one
     #: chamber, half of it by the mid-plane's symmetry, on the reference's h, h/ratio, h/ratio^2)
     volume_study: bool = False
+    #: nested meshes: the rungs are the gmsh mesh of ``size`` split uniformly 0, 1, 2 times
+    #: (:meth:`sorofem.mesh.Mesh.refined`; needs ``ratio`` 2): h halves exactly and the geometry is the same on
+    #: every rung. False: each rung meshed anew by gmsh (the cells then do not shrink by the ratio)
+    nested: bool = False
     dim: ClassVar[int] = 3
     cpu_time: ClassVar[bool] = True
     #: the reference's formal order (P2: 3 for displacements): Richardson trusts no higher observed order
     formal_order: ClassVar[float] = 3.0
 
+    def __post_init__(self):
+        if self.nested and self.ratio != 2:
+            raise ValueError(f"a nested 3D ladder splits every cell's edges in two: ratio must be 2, got "
+                             f"{self.ratio:g}; set ratio=2 or nested=False")
+
     def sizes(self):
         """The three element sizes [m] of each FEM family: h, h/ratio, h/ratio^2."""
         return (self.size, self.size / self.ratio, self.size / self.ratio ** 2)
 
+    def fem_settings(self):
+        """What the FEM part depends on (the cache key; a scene meshed anew per rung keys as before
+        ``nested`` existed)."""
+        d = super().fem_settings()
+        if not d.get("nested", False):
+            d.pop("nested", None)
+        return d
+
+    def refinements(self, size):
+        """How the mesh of element size ``size`` [m] is made: (gmsh size [m], uniform splits): (``size``, 0), or
+        on a nested scene (``size`` of the coarsest rung, k) with size = ``size``/2^k."""
+        if not self.nested:
+            return size, 0
+        k = int(round(math.log2(self.size / size)))
+        if k < 0 or not math.isclose(self.size / 2 ** k, size, rel_tol=1e-9):
+            raise ValueError(f"h = {1e3 * size:.4g} mm is not the nested scene's {1e3 * self.size:.4g} mm halved a "
+                             "whole number of times")
+        return self.size, k
+
     def refinement(self):
-        """The meshes as text, e.g. ``h = 2.83/2.00/1.41 mm (ratio 1.41)``."""
-        return f"h = {'/'.join(f'{1e3 * h:.2f}' for h in self.sizes())} mm (ratio {self.ratio:.3g})"
+        """The meshes as text, e.g. ``h = 2.83/2.00/1.41 mm (ratio 1.41)``; nested: ``h = 4.00/2.00/1.00 mm (ratio
+        2, nested: the 4.00 mm mesh split 0/1/2 times)``."""
+        text = f"h = {'/'.join(f'{1e3 * h:.2f}' for h in self.sizes())} mm (ratio {self.ratio:.3g}"
+        return text + (f", nested: the {1e3 * self.size:.2f} mm mesh split 0/1/2 times)" if self.nested else ")")
 
 
 #: the key of the plane-strain rung's least wall gap [m] at its top (unseen) load in the 3D ladder's
@@ -2414,6 +2464,13 @@ SCENES["pneunet3d"] = {"full": PneuNet3DScene(size=2e-3, repeats=15, blocked=Tru
                        "quick": PneuNet3DScene(size=4e-3, train_steps=6, test_steps=4, size_2d=1.2e-3,
                                                modes=(1, 2, 3, 4), fem_families=("fem-p1", "fem-p2mixed"), repeats=9)}
 _STYLE["plane-strain"] = "X"
+
+
+def _pneunet3d_build(scene, pn, degree, mixed, size):
+    """The 3D PneuNet (``demos/pneunet_inflation.py`` ``build``) of ``degree``/``mixed`` on element size ``size``
+    [m], meshed as the scene says (:meth:`PneuNet3DScene.refinements`): (fem, length)."""
+    h, k = scene.refinements(size)
+    return pn.build(3, scene.chambers, h, scene.p_max, degree=degree, mixed=mixed, refine=k)
 
 
 def _pneunet3d_case(scene, pn, dim, degree, mixed, size, level, steps, what):
@@ -2428,7 +2485,10 @@ def _pneunet3d_case(scene, pn, dim, degree, mixed, size, level, steps, what):
     _peak_rss_reset()
     base = _peak_rss_mb("VmRSS")
     t0 = time.perf_counter()
-    fem, length = pn.build(dim, scene.chambers, size, scene.p_max, degree=degree, mixed=mixed)
+    if dim == 3:
+        fem, length = _pneunet3d_build(scene, pn, degree, mixed, size)
+    else:
+        fem, length = pn.build(dim, scene.chambers, size, scene.p_max, degree=degree, mixed=mixed)
     t1, c1 = time.perf_counter(), time.process_time()
     try:
         traj = fem.solve(load_level=level, steps=steps, max_step=level / steps, linear_start=scene.linear_start,
@@ -2486,7 +2546,7 @@ def pneunet3d_fem_ladder(scene, out, progress=None):
     say = progress or (lambda msg: None)
 
     def warm(degree, mixed):        # the forms' JIT outside the timings
-        pn.build(3, scene.chambers, scene.size, scene.p_max, degree=degree, mixed=mixed)[0].solve(
+        _pneunet3d_build(scene, pn, degree, mixed, scene.size)[0].solve(
             load_level=0.01, steps=1, progress=False)
 
     def rung(fam, degree, mixed, i, h, path):
@@ -2494,7 +2554,7 @@ def pneunet3d_fem_ladder(scene, out, progress=None):
                                                   scene.test_steps, "the unseen ramp")
         freq = None
         if scene.eigen:
-            freq = float(pn.build(3, scene.chambers, h, scene.p_max, degree=degree, mixed=mixed)[0]
+            freq = float(_pneunet3d_build(scene, pn, degree, mixed, h)[0]
                          .eigen(n=1).frequencies[0])
         r = {"family": fam, "level": i, "size": h, "degree": degree, "mixed": mixed, "unknowns": int(fem.num_dofs),
              **_pneunet3d_measure(pn, traj, length, 3, path), "freq": freq, "build_s": [cost["build_s"]],

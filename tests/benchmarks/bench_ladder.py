@@ -108,11 +108,16 @@ def test_bench_ladder_network_by_tolerance(record, tmp_path):
 
 
 def test_bench_ladder_pneunet3d(record):
-    """The 3D PneuNet's ladder (`soro trade pneunet3d --tol 1%` and `--tol 0.1%`): 3D P1/P2/P2 mixed on h = 2.83,
-    2, 1.41 mm (ratio sqrt 2), the plane-strain rung, beams on the 3D reference's snapshots; the FEM part is cached
-    and resumable in out/ladder/pneunet3d (about 10 min of CPU the first time; the beams are re-measured on each
-    run). Recorded: the rows, Richardson, the budget (with the plane-strain model-form error), both verdicts, and
-    the ratio of the reference's CPU time per ramp to the selected model's. Asserted: consistency, never a time."""
+    """The 3D PneuNet's ladder (`soro trade pneunet3d --tol 1%` and `--tol 0.1%`): 3D P1/P2/P2 mixed on h = 2,
+    1.41, 1 mm (ratio sqrt 2) at p_max 1.9 kPa, the plane-strain rung, beams on the 3D reference's snapshots, the
+    blocked load and the volume study; the FEM part is cached and resumable in out/ladder/pneunet3d. Session 15's
+    run (08:35-09:03 UTC, load 1.8-2.4): 27 min wall the first time; P2 mixed ramps 9.9, 25.5, 112 s CPU (25k,
+    53k, 121k unknowns, 2.05 GB peak at 1 mm); the volume study 19, 67, 251 s CPU; the beams 0.24-0.67 ms CPU per
+    solve (re-measured on each run); `--tol 1%` and `--tol 0.1%` select DVS 1 (tip 0.036 % + the reference's own
+    0.041 %, validated at 0.0355 %); the reference's ramp (112 s CPU) against DVS 1's 0.240 ms per solve:
+    4.7e5x (at 10 kPa, session 13: ramps 17.7, 51, 205 s CPU). Recorded: the rows, Richardson, the budget (with
+    the plane-strain model-form error), both verdicts, and the ratio of the reference's CPU time per ramp to the
+    selected model's. Asserted: consistency, never a time."""
     from pathlib import Path
 
     from soro.ladder import run_ladder

@@ -914,3 +914,28 @@ def test_the_3d_wall_gaps_are_the_gap_at_rest_and_follow_a_moved_wall_through_co
         wall_gaps(X, snap.displacement(snap.n_steps - 1), scene.chambers).min(), rel=1e-12)
     text = _wall_gap_text(info["wall_gap"])
     assert all(f"{k} {1e3 * g:.3f} mm" in text for k, g in info["wall_gap"].items())
+
+
+# ------------------------------------------------------------------------------------------------ 3D nested meshes
+def test_a_nested_3d_scene_splits_its_coarse_mesh_and_wants_ratio_2():
+    """``PneuNet3DScene(nested=True)``: the rungs h, h/2, h/4 are the gmsh mesh of h split 0, 1, 2 times
+    (:meth:`sorofem.mesh.Mesh.refined`): 8x the cells per rung, the same body volume to rounding (the geometry is
+    polyhedral) and the same cavities; a size that is not h halved a whole number of times, or a ratio other than
+    2, is refused; a scene meshed anew per rung keeps its cache key (no ``nested`` in it)."""
+    from soro.ladder import PneuNet3DScene, _pneunet, _pneunet3d_build
+
+    with pytest.raises(ValueError, match="ratio must be 2"):
+        PneuNet3DScene(size=8e-3, nested=True)
+    assert "nested" not in PneuNet3DScene(size=8e-3).fem_settings()
+    scene = PneuNet3DScene(size=8e-3, ratio=2.0, nested=True)
+    assert scene.fem_settings()["nested"] is True
+    assert [scene.refinements(h) for h in scene.sizes()] == [(8e-3, 0), (8e-3, 1), (8e-3, 2)]
+    assert PneuNet3DScene(size=8e-3).refinements(4e-3) == (4e-3, 0)
+    assert scene.refinement() == "h = 8.00/4.00/2.00 mm (ratio 2, nested: the 8.00 mm mesh split 0/1/2 times)"
+    with pytest.raises(ValueError, match="halved a whole number of times"):
+        scene.refinements(3e-3)
+    pn = _pneunet()
+    (a, _), (b, _) = (_pneunet3d_build(scene, pn, 1, False, h) for h in scene.sizes()[:2])
+    assert b.mesh.num_cells == 8 * a.mesh.num_cells
+    assert b.mesh.volume == pytest.approx(a.mesh.volume, rel=1e-12)
+    assert b.mesh.cavities == a.mesh.cavities == ["cavity_0", "cavity_1"]

@@ -439,3 +439,52 @@ def test_a_size_function_smallest_at_the_origin_does_not_cap_the_mesh():
 def test_a_bad_grading_is_refused_naming_what_to_fix(grading, kw, match):
     with pytest.raises(MeshError, match=match):
         Mesh.from_sdf(l_shape(), size=1 * mm, grading=grading, **kw)
+
+
+def test_a_refined_mesh_is_nested_with_the_same_geometry_and_regions():
+    """Mesh.refined: every cell split into 8 (3D) or 4 (2D), the measure and the cavity's volume exact (a
+    polyhedral domain: midpoints of straight edges stay on it), every old node kept and every new one an old
+    edge's midpoint (nested), h halved per split, the cells' shapes bounded (longest edge / inradius), regions found
+    again."""
+    body = sdf.Box((4 * mm, 2 * mm, 2 * mm)) - sdf.Box((1 * mm, 1 * mm, 1 * mm))
+    m0 = Mesh.from_sdf(body, size=0.8 * mm)
+    m2 = m0.refined(2)
+    assert m2.num_cells == 64 * m0.num_cells
+    assert m2.volume == pytest.approx(m0.volume, rel=1e-12)
+    assert m2.volume == pytest.approx(16e-9 - 1e-9, rel=1e-12)
+    assert sorted(m2.regions) == sorted(m0.regions)
+    assert m2.cavity_volume("cavity_0") == pytest.approx(1e-9, rel=1e-12)
+    # h halved twice: the cells' longest edges a quarter (the inner octahedra's diagonals up to sqrt 2 x half an edge)
+    assert m0.quality["h_max"] / 4 <= m2.quality["h_max"] <= 1.2 * m0.quality["h_max"] / 4
+    x0 = np.asarray(m0.dolfinx.geometry.x)
+    x2 = np.asarray(m2.dolfinx.geometry.x)
+    d, _ = __import__("scipy.spatial", fromlist=["cKDTree"]).cKDTree(x2).query(x0)
+    assert d.max() < 1e-15                                      # the coarse nodes are nodes of the fine mesh
+
+    def shape(msh):      # longest edge over inradius, the worst cell: bounded under refinement
+        from sorofem import _dolfinx
+        P = np.asarray(msh.dolfinx.geometry.x)[_dolfinx.geometry_dofs(msh.dolfinx)]
+        a, b, c, e = (P[:, i] for i in range(4))
+        vol = np.abs(np.einsum("ij,ij->i", b - a, np.cross(c - a, e - a))) / 6
+        area = sum(np.linalg.norm(np.cross(q - p, r - p), axis=1) / 2 for p, q, r in
+                   ((a, b, c), (a, b, e), (a, c, e), (b, c, e)))
+        edge = np.max([np.linalg.norm(P[:, i] - P[:, j], axis=1) for i in range(4) for j in range(i + 1, 4)], 0)
+        return np.max(edge * area / (3 * vol))
+    assert shape(m2) <= 1.5 * shape(m0)
+    tri = Mesh.from_sdf(sdf.Rectangle(4 * mm, 2 * mm) - sdf.Rectangle(1 * mm, 1 * mm), size=0.5 * mm)
+    t1 = tri.refined()
+    assert t1.num_cells == 4 * tri.num_cells and t1.area == pytest.approx(7e-6, rel=1e-12)
+    assert tri.refined(0).num_cells == tri.num_cells
+
+
+@pytest.mark.parametrize("times", [-1, 1.5, "2"])
+def test_refined_wants_a_whole_number_of_splits(times):
+    with pytest.raises(MeshError, match="whole number"):
+        Mesh.rectangle(1 * mm, 1 * mm, 0.5 * mm).refined(times)
+
+
+def test_refined_splits_straight_simplices_only():
+    with pytest.raises(MeshError, match="straight triangles and tetrahedra"):
+        Mesh.rectangle(1 * mm, 1 * mm, 0.5 * mm, cell="quad").refined()
+    with pytest.raises(MeshError, match="order=1"):
+        Mesh.from_sdf(sdf.Circle(1 * mm), size=0.5 * mm, order=2).refined()
