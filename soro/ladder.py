@@ -1184,7 +1184,8 @@ def _errors(P, Pref, L):
 
 def cantilever_beam_ladder(scene, doc, out):
     """The beam rungs of the cantilever: DVS (POD of the reference's training snapshots), Chebyshev and PCC
-    with 1-6 bending modes, physical (plane-strain modulus; nothing identified). Errors on the unseen levels
+    with 1-6 bending modes, each in every number of pieces of the scene's ``segments`` (the row's ``segments``),
+    physical (plane-strain modulus; nothing identified). Errors on the unseen levels
     against the FEM reference (``*_unseen``; the top level against its backbone) and against the elastica
     (``tip_elastica``); costs: build (the DVS's includes the FEM training ramp), median static solve
     (interleaved), memory (peak RSS during build, solve and dynamics run minus the RSS at the rung's start,
