@@ -93,7 +93,8 @@ def cheapest(rows, tolerance, keys=SELECTION_KEYS):
 
     Among the rows :func:`within` the tolerance, the fastest by median time per solve; times within
     :data:`TIME_BAND` of the fastest, or within the two rows' measured spreads (``solve_iqr_s``, the IQR of
-    the repeats, where a row has one) of it, count as a tie, resolved by fewer modes, then the smaller worst
+    the repeats, where a row has one) of it, count as a tie, resolved by fewer modes, then fewer beam pieces
+    (``segments``, where the rows have them: the cantilever's), then the smaller worst
     error of ``keys``, then the family order dvs, chebyshev, pcc. Returns None if no row qualifies. (Medians
     of sub-millisecond solves wander by more than 10 % on a loaded machine: two one-mode beams whose medians
     differed by more than the band in one run of CI and less in the next swapped places; their spreads
@@ -106,7 +107,7 @@ def cheapest(rows, tolerance, keys=SELECTION_KEYS):
     first = min(ok, key=lambda r: r["solve_time_s"])
     fastest, spread = first["solve_time_s"], _spread(first)
     tied = [r for r in ok if r["solve_time_s"] - fastest <= max(TIME_BAND * fastest, spread + _spread(r))]
-    return min(tied, key=lambda r: (r["modes"], max(r[k] for k in keys if k in r),
+    return min(tied, key=lambda r: (r["modes"], r.get("segments", 0), max(r[k] for k in keys if k in r),
                                     _FAMILY_ORDER.get(r["family"], 9)))
 
 
