@@ -2359,75 +2359,45 @@ class PneuNet3DScene(_Levels):
     and the validation load as :class:`Scene`; every ramp's first step is cut to a linear response of
     ``linear_start`` times the body's size (:meth:`sorofem.fem.Fem.solve`: the unloaded thin walls).
 
-    ``ratio`` is sqrt 2, not 2: three 3D refinements that fit. The full scene runs h = 2, 1.41, 1 mm (P2 mixed
-    25k, 53k and 121k unknowns).
+    **Meshes.** ``nested`` (the full scene, ``SCENES["pneunet3d"]["full"]``: h = 4, 2, 1 mm, ratio 2): the rungs
+    are one gmsh mesh split uniformly 0, 1, 2 times (:meth:`sorofem.mesh.Mesh.refined`), so h halves exactly and
+    every rung has the same geometry and cells of the same shapes. Not nested (the quick scene: h = 4, 2.83, 2 mm,
+    ratio sqrt 2; the class's defaults): each rung is meshed anew by gmsh, and a 2 mm wall or layer gets a whole
+    number of cells across that jumps between rungs. Such a sequence does not converge: gmsh meshes of 2.83, 2,
+    1.41 mm (P2 mixed, top unseen load) gave the tip y 0.4427, 0.4159, 0.4251 mm (it turns back; P2 without the
+    pressure field the same way, so not the element; the quick meshes too: 0.4413, 0.4130, 0.4425 mm), the blocked
+    force 0.007112, 0.007403, 0.007336 N, and a cavity volume whose changes grew: the reference's error could only be
+    bounded by its last change (tip 0.041 % of L, blocked 0.92 %). On the nested meshes (P2 mixed: 7.9k, 53k, 387k
+    unknowns) it converges: tip y 0.441278, 0.434456, 0.433951 mm (changes -6.8, -0.50 um: observed order 3.76;
+    Richardson at the formal order 3: 0.072 um, 0.0006 % of L), tip x order 2.48; the cavity volume change 187.17,
+    193.94, 198.66 mm^3 (changes 6.77, 4.72: order 0.52, about the exponent 0.5445 of the cavity's re-entrant edges,
+    270 degrees of material; Richardson 10.9 mm^3, 5.5 %: the volume converges, slowly). From 8 mm instead (the
+    coarse cells' aspect ratio 9.7, one cell across the walls) the blocked force turns back (0.008359, 0.008188,
+    0.008364 N): 4 mm is the coarsest start in the asymptotic range. The price is the 1 mm rung: a P2 mixed ramp
+    there takes about 1150 s CPU and 10 GB (the gmsh 1 mm mesh: 112 s, 2 GB), and the ladder runs eight such ramps
+    (P2 and P2 mixed at the unseen load, free and blocked; the reference's training and validation loads, free and
+    blocked): about 2.5 CPU hours; every rung and ramp is cached as it ends (an interrupted run resumes).
 
-    ``p_max`` = 1.9 kPa, below the walls' contact. The FEM model has no self-contact, and the inflated chambers'
-    side walls bulge into the 1.5 mm gap between them (:func:`wall_gaps`, in 3D over the whole faces). Ramps of
-    P2 mixed in steps of 0.2 kPa, the least gap per step, interpolated to zero: the walls touch at 2.969 and
-    2.901 kPa on the free ramp (h = 2 and 1.41 mm) and at 2.466, 2.411 and 2.299 kPa with the base's end face
-    held (the blocked load; h = 2, 1.41 and 1 mm; 25, 66 and 222 s CPU per ramp). The blocked sequence's changes
-    grow (0.055, then 0.112 kPa), as the volume's below: the contact pressure is not converged on these meshes
-    either, known to about 10 %. p_max is 0.83x the blocked contact on the reference's 1 mm mesh (0.79x on 1.41
-    mm), 0.65x the free one on 1.41 mm. At p_max the reference (h = 1 mm) keeps its
-    walls 0.385 mm apart on the training ramp, 0.223 mm with the tip held, 0.725 mm at the validation load (free)
-    and 0.618 mm (blocked); the plane-strain rung (no side walls: it bends further) 0.031 mm at its top unseen load.
-    Session 13 ran 10 kPa: its walls overlapped from 2.8 kPa of the training ramp on (t = 0.28) and by 2.28 mm at
-    p_max (its stored training snapshots); every 3D figure it gave was of interpenetrating walls. The quick scene
-    (h = 4, 2.83, 2 mm: its reference, 2 mm, touches at 2.47 kPa blocked; coarser meshes touch later) keeps
-    the same p_max: its walls stay 0.446 mm apart (free; the plane-strain rung 0.065 mm), its reference tip is
-    known to 0.129 % of L (not converging), and ``--quick --tol 1%`` selects DVS 1 (validated at 0.010 %).
+    **Pressure.** ``p_max`` = 1.9 kPa, below the walls' contact. The FEM model has no self-contact, and the inflated
+    chambers' side walls bulge into the 1.5 mm gap between them (:func:`wall_gaps`, in 3D over the whole faces).
+    Ramps of P2 mixed (gmsh meshes) in steps of 0.2 kPa, the least gap per step interpolated to zero: the walls
+    touch at 2.969 and 2.901 kPa on the free ramp (h = 2 and 1.41 mm) and at 2.466, 2.411 and 2.299 kPa with the
+    base's end face held (the blocked load; h = 2, 1.41 and 1 mm). p_max is 0.83x the last. Session 13 ran 10 kPa:
+    its walls overlapped from 2.8 kPa on, by 2.28 mm at p_max. At 1.9 kPa the tip deflects 0.58 mm (2.5 % of L),
+    so a tip tolerance in % of L is a weak one on this scene; ``--measure shape``, ``volume`` and ``blocked`` ask
+    more of a model.
 
-    At 1.9 kPa (the full scene, measured 08:35-09:03 UTC, 27 min wall at load 1.8-2.4 with the volume study):
-    the tip deflects 0.58 mm (2.5 % of L; 2.96 mm, 13 % of L, at 10 kPa). P2 mixed ramps take 9.9, 25.5, 112 s
-    CPU (at 10 kPa 17.7, 51, 205 s), 3-4 Newton iterations per step; 2.05 GB peak at 1 mm. Its tip (x, y) at the
-    top unseen load is (22.850, 0.443), (22.849, 0.416), (22.848, 0.425) mm: it turns back again (y changes
-    -0.027, +0.009 mm), so the reference's own error is the last change, 0.0405 % of L (1.6 % of the tip's
-    displacement; at 10 kPa 0.245 % of L, 1.9 % of it); shape 0.015 % (0.088 %). The blocked force is 0.007112,
-    0.007403, 0.007336 N: turning back too, known to 0.92 % (1.34 %). The cavity volume change on the ladder's
-    meshes is 188.35, 189.86, 195.87 mm^3 (the changes grow, 1.5 then 6.0 mm^3); P2 without the pressure field
-    lies 3.5-15 % below (volumetric locking), P1 38-55 %. So removing the overlap did not make the reference
-    converge: the tip and the blocked force turn back by about the same fraction of the deflection as at 10 kPa,
-    and the volume's changes still grow; the overlap was not their cause. What remains suspect: the meshes are
-    not a geometric refinement (session 13: the cells grow 2.2-2.5x per step, not 2.8x; gmsh keeps an element
-    across a 2 mm wall) and the cavity's re-entrant edges. A volume-only refinement of one chamber, half of it by symmetry
-    (``volume_study``, :func:`pneunet3d_volume_study`) gives 49.162, 49.530, 49.969 mm^3 at h = 1, 0.71, 0.5 mm
-    (35k, 84k, 192k unknowns; 19, 67, 251 s CPU): changes 0.368 then 0.438 mm^3, growing as at 10 kPa (318.381,
-    320.328, 322.534 mm^3, changes 1.95, 2.21), so the reference's volume error is stated as 2.53 % (its distance
-    from the finest plus the last change; 2.0 % at 10 kPa). The beams, trained on the 3D reference's snapshots,
-    lie 0.036-0.054 % of L from its tip (the strain floor from the clamp's undeformed frame: 0.039 %), after one
-    stiffness scale 0.045-0.30 % from its blocked force, 0.001-0.045 % from its volume change; the plane-strain
-    section 4.35 % of L (tip) and 82 % (volume) from it (22 % and 90 % at 10 kPa).
-    Selected (``soro trade pneunet3d``; tip and blocked the same in two runs): ``--tol 0.1%`` and ``--tol 1%`` DVS 1 (tip
-    0.036 % + the reference's 0.041 %, 0.25 ms CPU per solve; validated at 0.65 p_max: 0.0355 %, at most
-    0.076 %); ``--tol 1.1% --measure blocked`` DVS 2 (0.045 % + 0.917 %; validated 0.107 %, at most 1.023 %: at
-    ``--tol 1%`` the same model is selected but its validation bound, 1.023 %, is not within it);
-    ``--tol 2.6% --measure volume`` Chebyshev 1 (0.042 % + 2.53 %; validated 0.037 %, at most 2.57 %); a volume
-    tolerance below 2.53 % is refused (the reference is not known to it).
-    The plane-strain
-    rung (``size_2d`` [m], P2 mixed, the same section) is the 2D model of the same actuator: its error against
-    the 3D reference is a model-form error (no refinement of the 2D model removes it); its cavity volume is the
-    section's area times the chambers' inner width.
+    The plane-strain rung (``size_2d`` [m], P2 mixed, the same section) is the 2D model of the same actuator: its
+    error against the 3D reference is a model-form error (no refinement of the 2D model removes it); its cavity
+    volume is the section's area times the chambers' inner width. ``volume_study`` adds a volume-only refinement
+    of one chamber, half of it by the mid-plane's symmetry, on gmsh meshes of h, h/ratio, h/ratio^2
+    (:func:`pneunet3d_volume_study`); on the gmsh scene it stated the volume to 2.53 %, which the nested
+    reference's 5.5 % shows was low; the full scene no longer runs it.
 
-    Why the reference turns back (session 15's probes, P2 mixed at the top unseen load): not the measure (the
-    ladder's recovered tip equals the displacement interpolated at (L, LAYER/2, 0) to 5 digits on every stored
-    rung) and not the element (P2 without the pressure field turns back the same way on the same meshes: tip y
-    0.4390, 0.4191, 0.4316 mm); the gmsh meshes made anew per h are (the quick scene's 4, 2.83, 2 mm turn back
-    too: 0.4413, 0.4130, 0.4425 mm): a 2 mm wall or layer gets a whole number of cells across, which jumps between
-    rungs. ``nested`` splits one gmsh mesh uniformly instead (ratio 2, the same geometry and cells of the same
-    shapes on every rung: :meth:`sorofem.mesh.Mesh.refined`). Nested from 4 mm (h = 4, 2, 1 mm; 7.9k, 53k, 387k
-    unknowns; 3.0, 33, 1152 s CPU; 9.95 GB peak at 1 mm; load 1.6-2.2) it converges: tip y 0.441278, 0.434456,
-    0.433951 mm (changes -6.8, -0.50 um: observed order 3.76, Richardson at the formal 3: 0.072 um), tip x
-    22.85166, 22.84839, 22.84780 mm (order 2.48, 0.13 um): the tip known to 0.0006 % of L (gmsh: 0.041 %); the
-    cavity volume change 187.17, 193.94, 198.66 mm^3 (changes 6.77, 4.72: order 0.52, about the re-entrant
-    edges' lambda = 0.5445; Richardson 10.9 mm^3, 5.5 %: the gmsh meshes' 195.87 mm^3 at 1 mm and the volume
-    study's 2.53 % were low); the blocked force 0.0071346, 0.0071980 N on 4 and 2 mm (36 s CPU). From 8 mm (3.3k,
-    22k, 156k; the coarse cells' aspect ratio 9.7) the blocked force at p_max turns back (0.008359, 0.008188,
-    0.008364 N; 1, 11, 235 s CPU, 3.2 GB): one cell across the walls is not yet asymptotic. The cavity's edges
-    are re-entrant (270 degrees of material): the volume converges about as h^lambda there. Not the default
-    (``SCENES["pneunet3d"]["full"]``): its 1 mm reference costs 10x the gmsh 1 mm rung's CPU and 5x its memory
-    per ramp, and a ladder runs about eight such ramps. Solve times are CPU times (FEM and beams): on a loaded
-    machine a 3D ramp's wall time grew 3x with the load, its CPU time did not."""
+    The quick scene (gmsh, h = 4, 2.83, 2 mm, P1 and P2 mixed) keeps p_max: its walls stay 0.446 mm apart (the
+    plane-strain rung 0.065 mm), its reference tip is known to 0.129 % of L (not converging: the meshes above),
+    and ``--quick --tol 1%`` selects DVS 1 (validated at 0.010 %). Solve times are CPU times (FEM and beams): on a
+    loaded machine a 3D ramp's wall time grew 3x with the load, its CPU time did not."""
 
     name: str = "pneunet3d"
     chambers: int = 2
@@ -2493,7 +2463,7 @@ class PneuNet3DScene(_Levels):
 #: ``info["wall_gap"]`` (:func:`pneunet3d_ladder`)
 PLANE_STRAIN_GAP = "plane-strain at the unseen load"
 
-SCENES["pneunet3d"] = {"full": PneuNet3DScene(size=2e-3, repeats=15, blocked=True, volume_study=True),
+SCENES["pneunet3d"] = {"full": PneuNet3DScene(size=4e-3, ratio=2.0, nested=True, repeats=15, blocked=True),
                        "quick": PneuNet3DScene(size=4e-3, train_steps=6, test_steps=4, size_2d=1.2e-3,
                                                modes=(1, 2, 3, 4), fem_families=("fem-p1", "fem-p2mixed"), repeats=9)}
 _STYLE["plane-strain"] = "X"
