@@ -1916,8 +1916,8 @@ _STYLE = {"fem-p1": "v-", "fem-p2": "D-", "fem-p2mixed": "P-", "fem-p2jump": "*-
 
 
 def ladder_figure(rows, measure, tolerance=None, pick=None, floor=None):
-    """Unseen ``measure`` error vs median time per solve, log-log: one line per family through its rungs in
-    order of cost, the Pareto front as a grey step line, the tolerance dotted, the reference's own estimated
+    """Unseen ``measure`` error vs median time per solve, log-log: one line per family (per family and number of
+    beam pieces where its rungs have several, the cantilever's) through its rungs in order of cost, the Pareto front as a grey step line, the tolerance dotted, the reference's own estimated
     error dashed (errors below it cannot be resolved), ``floor`` (a second reference's distance from the
     first, the cantilever's elastica) dash-dotted, the selected model circled. Returns a matplotlib
     ``Figure``."""
@@ -1926,12 +1926,15 @@ def ladder_figure(rows, measure, tolerance=None, pick=None, floor=None):
     key = column(measure)
     fig = Figure(figsize=(7, 4.5))
     ax = fig.add_subplot()
-    for fam, style in _STYLE.items():
-        r = sorted((row for row in rows if row["family"] == fam and np.isfinite(row.get(key, np.nan))),
-                   key=lambda row: row["solve_time_s"])
-        if r:
-            ax.loglog([row["solve_time_s"] for row in r], [max(100 * row[key], 1e-5) for row in r], style,
-                      label=fam, ms=5)
+    dashes = ("-", "--", ":", "-.")
+    for i, (fam, style) in enumerate(_STYLE.items()):
+        fam_rows = [row for row in rows if row["family"] == fam and np.isfinite(row.get(key, np.nan))]
+        pieces = sorted({row.get("segments") for row in fam_rows}, key=lambda n: -1 if n is None else n)
+        for j, n in enumerate(pieces):        # beams in several piece counts: a line per count
+            r = sorted((row for row in fam_rows if row.get("segments") == n), key=lambda row: row["solve_time_s"])
+            line = style if len(pieces) == 1 else style.rstrip("-:.") + dashes[j % len(dashes)]
+            ax.loglog([row["solve_time_s"] for row in r], [max(100 * row[key], 1e-5) for row in r], line,
+                      label=fam if len(pieces) == 1 else f"{fam}, {n} pieces", ms=5, color=f"C{i}")
     front = sorted((rows[i] for i in pareto_front(rows, measure)), key=lambda row: row["solve_time_s"])
     if front:
         ax.step([row["solve_time_s"] for row in front], [max(100 * row[key], 1e-5) for row in front], "-",
