@@ -2364,10 +2364,10 @@ class PneuNet3DScene(_Levels):
 
     **Meshes.** ``nested`` (the full scene, ``SCENES["pneunet3d"]["full"]``: h = 4, 2, 1 mm, ratio 2): the rungs
     are one gmsh mesh split uniformly 0, 1, 2 times (:meth:`sorofem.mesh.Mesh.refined`), so h halves exactly and
-    every rung has the same geometry and cells of the same shapes. Not nested (the quick scene: h = 4, 2.83, 2 mm,
-    ratio sqrt 2; the class's defaults): each rung is meshed anew by gmsh, and a 2 mm wall or layer gets a whole
-    number of cells across that jumps between rungs. Such a sequence does not converge: gmsh meshes of 2.83, 2,
-    1.41 mm (P2 mixed, top unseen load) gave the tip y 0.4427, 0.4159, 0.4251 mm (it turns back; P2 without the
+    every rung has the same geometry and cells of the same shapes. Not nested (the class's default; the quick
+    scene, h = 4, 2.83, 2 mm, ratio sqrt 2): each rung is meshed anew by gmsh, and a 2 mm wall or layer gets a
+    whole number of cells across that jumps between rungs. Such a sequence does not converge: gmsh meshes of 2, 1.41,
+    1 mm (P2 mixed, top unseen load) gave the tip y 0.4427, 0.4159, 0.4251 mm (it turns back; P2 without the
     pressure field the same way, so not the element; the quick meshes too: 0.4413, 0.4130, 0.4425 mm), the blocked
     force 0.007112, 0.007403, 0.007336 N, and a cavity volume whose changes grew: the reference's error could only be
     bounded by its last change (tip 0.041 % of L, blocked 0.92 %). On the nested meshes (P2 mixed: 7.9k, 53k, 387k
