@@ -2388,7 +2388,8 @@ class PneuNet3DScene(_Levels):
     0.036, 0.003 and the reference's own 0.0005 (Richardson at order 3; observed 3.30); the plane-strain section
     4.39 (model form). Cavity volume change: P1 66, 45, 28 %; P2 18.5, 7.1, 2.0 %; P2 mixed 5.8, 2.4 % and the
     reference's own 5.47 % (order 0.52). Blocked force: P2 0.008351, 0.007663, 0.007392 N (order 1.34, limit
-    0.00722 N), P2 mixed 0.0071346, 0.0071980 N (its 1 mm ramp not in this run: stopped for memory). The beams,
+    0.00722 N), P2 mixed 0.0071346, 0.0071980, 0.0072224 N (order 1.38, Richardson 0.21 %; the reference's blocked
+    training and validation ramps, which ``--measure blocked`` needs, were not run in session 16). The beams,
     trained on the nested reference's snapshots, lie 0.021-0.040 % of L from its tip (the strain floor from the
     clamp's undeformed frame: 0.035 %; Chebyshev 1 and PCC 1, 0.021 %, below it by a cancellation) and
     0.001-0.05 % from its volume; the walls stay 0.351 mm apart at p_max. Selected (the rule of :func:`select`):
